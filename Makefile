@@ -1,0 +1,126 @@
+# photonmarch build.  `make` builds build/photonmarch (release); `make asan` builds the
+# sanitizer variant under build-asan/; `make test`, `make demo`, `make bench` do what they say.
+#
+# Modules (dependencies point one way): renderer/ -> sh/ -> photonmap/.
+# Each module is a static library; tests/test_<module>*.c are linked into one Criterion binary.
+
+BUILD    ?= build
+CC       ?= cc
+CXX      ?= c++
+SAN      ?= 0
+
+WARN     := -Wall -Wextra
+DEFS     := -D_POSIX_C_SOURCE=200809L
+INCS     := -Iphotonmap -Ish -Irenderer
+ifeq ($(SAN),1)
+  OPT    := -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined
+else
+  OPT    := -O2 -g -march=x86-64-v2
+endif
+CFLAGS   := -std=c11 $(WARN) $(OPT) $(DEFS) $(INCS) -fopenmp -MMD -MP -I/usr/include/cjson
+CXXFLAGS := -std=c++17 $(WARN) $(OPT) $(INCS) -fopenmp -MMD -MP -Wno-deprecated-declarations
+LDFLAGS  := $(OPT) -fopenmp
+LIBS_PM  := -lflann -llz4
+LIBS_RD  := -lOpenImageIO -lOpenImageIO_Util -lopenvdb -ltbb -lImath -lcjson
+LIBS     := $(LIBS_RD) $(LIBS_PM) -lm -lpthread
+
+PM_SRC   := $(wildcard photonmap/*.c)
+SH_SRC   := $(wildcard sh/*.c)
+RD_SRC   := $(filter-out renderer/main.c,$(wildcard renderer/*.c))
+RD_CXX   := $(wildcard renderer/*.cpp)
+
+obj = $(patsubst %.c,$(BUILD)/%.o,$(filter %.c,$(1))) $(patsubst %.cpp,$(BUILD)/%.o,$(filter %.cpp,$(1)))
+PM_OBJ   := $(call obj,$(PM_SRC))
+SH_OBJ   := $(call obj,$(SH_SRC))
+RD_OBJ   := $(call obj,$(RD_SRC) $(RD_CXX))
+
+LIB_PM   := $(BUILD)/libphotonmap.a
+LIB_SH   := $(BUILD)/libsh.a
+LIB_RD   := $(BUILD)/librenderer.a
+BIN      := $(BUILD)/photonmarch
+
+TEST_PM  := $(wildcard tests/test_photonmap*.c)
+TEST_SH  := $(wildcard tests/test_sh*.c)
+TEST_RD  := $(filter-out $(TEST_PM) $(TEST_SH),$(wildcard tests/test_*.c))
+TEST_SUP := $(wildcard tests/support/*.c)
+TEST_BIN := $(BUILD)/tests/run_tests
+CRITERION_FLAGS ?= --jobs 2
+
+BENCH_SRC := $(wildcard bench/*.c)
+BENCH_BIN := $(patsubst bench/%.c,$(BUILD)/bench/%,$(BENCH_SRC))
+
+.PHONY: all deps asan test test-pm test-sh test-rd demo bench clean
+all: $(BIN)
+
+deps:
+	@bash scripts/install-deps.sh
+
+$(BUILD)/%.o: %.c
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) -c $< -o $@
+
+$(BUILD)/%.o: %.cpp
+	@mkdir -p $(dir $@)
+	$(CXX) $(CXXFLAGS) -c $< -o $@
+
+$(LIB_PM): $(PM_OBJ)
+	@mkdir -p $(dir $@)
+	rm -f $@ && ar rcs $@ $^
+$(LIB_SH): $(SH_OBJ)
+	@mkdir -p $(dir $@)
+	rm -f $@ && ar rcs $@ $^
+$(LIB_RD): $(RD_OBJ)
+	@mkdir -p $(dir $@)
+	rm -f $@ && ar rcs $@ $^
+
+$(BIN): $(BUILD)/renderer/main.o $(LIB_RD) $(LIB_SH) $(LIB_PM)
+	$(CXX) $(LDFLAGS) $^ $(LIBS) -o $@
+
+# One Criterion binary for the whole suite, so a run ends with one summary line.
+$(TEST_BIN): $(call obj,$(TEST_PM) $(TEST_SH) $(TEST_RD) $(TEST_SUP)) $(LIB_RD) $(LIB_SH) $(LIB_PM)
+	@mkdir -p $(dir $@)
+	$(CXX) $(LDFLAGS) $^ $(LIBS) -lcriterion -o $@
+# Per-module test binaries for development (make test-pm / test-sh / test-rd).
+$(BUILD)/tests/run_pm: $(call obj,$(TEST_PM) $(TEST_SUP)) $(LIB_PM)
+	@mkdir -p $(dir $@)
+	$(CXX) $(LDFLAGS) $^ $(LIBS_PM) -lm -lcriterion -o $@
+$(BUILD)/tests/run_sh: $(call obj,$(TEST_SH) $(TEST_SUP)) $(LIB_SH) $(LIB_PM)
+	@mkdir -p $(dir $@)
+	$(CXX) $(LDFLAGS) $^ $(LIBS_PM) -lm -lcriterion -o $@
+$(BUILD)/tests/run_rd: $(call obj,$(TEST_RD) $(TEST_SUP)) $(LIB_RD) $(LIB_SH) $(LIB_PM)
+	@mkdir -p $(dir $@)
+	$(CXX) $(LDFLAGS) $^ $(LIBS) -lcriterion -o $@
+
+$(BUILD)/bench/%: $(BUILD)/bench/%.o $(LIB_RD) $(LIB_SH) $(LIB_PM)
+	@mkdir -p $(dir $@)
+	$(CXX) $(LDFLAGS) $^ $(LIBS) -o $@
+
+asan: deps
+	$(MAKE) BUILD=build-asan SAN=1 build-asan/photonmarch
+
+# The suite: the release binary and the sanitizer binary (the malformed-scene catalogue runs
+# against both), then every test in one Criterion run.
+test: deps
+	$(MAKE) $(BIN) $(TEST_BIN)
+	$(MAKE) BUILD=build-asan SAN=1 build-asan/photonmarch
+	PHOTONMARCH_BIN=$(BIN) PHOTONMARCH_ASAN_BIN=build-asan/photonmarch $(TEST_BIN) $(CRITERION_FLAGS)
+
+test-pm: deps $(BUILD)/tests/run_pm
+	$(BUILD)/tests/run_pm $(CRITERION_FLAGS)
+test-sh: deps $(BUILD)/tests/run_sh
+	$(BUILD)/tests/run_sh $(CRITERION_FLAGS)
+test-rd: deps $(BIN) $(BUILD)/tests/run_rd
+	PHOTONMARCH_BIN=$(BIN) $(BUILD)/tests/run_rd $(CRITERION_FLAGS)
+
+demo: deps
+	$(MAKE) $(BIN)
+	@bash scripts/demo.sh $(BIN)
+
+bench: deps
+	$(MAKE) $(BIN) $(BENCH_BIN)
+	@bash bench/run.sh $(BUILD)
+
+clean:
+	rm -rf build build-asan
+
+-include $(shell find build build-asan -name '*.d' 2>/dev/null)

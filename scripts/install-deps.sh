@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Install exactly the Debian 12 packages photonmarch needs to build, test and render.
+# Idempotent: when everything is present it only runs dpkg-query and exits (well under a second).
+set -euo pipefail
+
+PACKAGES=(
+  build-essential pkg-config   # gcc, g++ (C++ shims), make
+  libflann-dev liblz4-dev      # FLANN kd-tree (C API) for photon queries
+  libopenimageio-dev           # EXR/PNG in and out
+  libcjson-dev                 # scene files
+  libopenvdb-dev libtbb-dev    # .vdb volumes
+  libcriterion-dev             # test framework
+  gnuplot-nox                  # charts in reports and benchmarks
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  [[ "$p" == \#* ]] && continue
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  exit 0
+fi
+
+echo "install-deps: installing ${missing[*]}" >&2
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+echo "install-deps: done" >&2
