@@ -1,0 +1,218 @@
+/* medium.c: density fields of the media (constant, voxel grid, procedural noise), ray-box
+ * clipping, and the raw volume reader. */
+#include "rd_internal.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+int rd_box_intersect(vec3 bmin, vec3 bmax, ray3 r, double tmin, double tmax, double *t0,
+                     double *t1)
+{
+    /* Slab test (Kay and Kajiya); an axis-parallel ray outside a slab misses. */
+    for (int a = 0; a < 3; a++) {
+        double o = v3_get(r.o, a), d = v3_get(r.d, a);
+        double lo = v3_get(bmin, a), hi = v3_get(bmax, a);
+        if (d == 0.0) {
+            if (o < lo || o > hi) return 0;
+            continue;
+        }
+        double inv = 1.0 / d;
+        double ta = (lo - o) * inv, tb = (hi - o) * inv;
+        if (ta > tb) { double tmp = ta; ta = tb; tb = tmp; }
+        if (ta > tmin) tmin = ta;
+        if (tb < tmax) tmax = tb;
+        if (tmin > tmax) return 0;
+    }
+    *t0 = tmin;
+    *t1 = tmax;
+    return tmin < tmax;
+}
+
+/* ---- Voxel grid ---------------------------------------------------------------------------- */
+
+static inline double voxel(const rd_grid *g, int i, int j, int k)
+{
+    if (i < 0 || j < 0 || k < 0 || i >= g->nx || j >= g->ny || k >= g->nz) return 0.0;
+    return g->data[((size_t)k * g->ny + j) * g->nx + i];
+}
+
+double rd_grid_lookup(const rd_grid *g, vec3 x)
+{
+    /* u = A x + b; trilinear interpolation between voxel centres at integer + 0.5. */
+    double u[3];
+    for (int a = 0; a < 3; a++)
+        u[a] = g->w2g[a][0] * x.x + g->w2g[a][1] * x.y + g->w2g[a][2] * x.z + g->w2g[a][3] - 0.5;
+    if (u[0] < -1.0 || u[1] < -1.0 || u[2] < -1.0 || u[0] > g->nx || u[1] > g->ny || u[2] > g->nz)
+        return 0.0;
+    double fi = floor(u[0]), fj = floor(u[1]), fk = floor(u[2]);
+    int i = (int)fi, j = (int)fj, k = (int)fk;
+    double fx = u[0] - fi, fy = u[1] - fj, fz = u[2] - fk;
+    double c00 = voxel(g, i, j, k) * (1 - fx) + voxel(g, i + 1, j, k) * fx;
+    double c10 = voxel(g, i, j + 1, k) * (1 - fx) + voxel(g, i + 1, j + 1, k) * fx;
+    double c01 = voxel(g, i, j, k + 1) * (1 - fx) + voxel(g, i + 1, j, k + 1) * fx;
+    double c11 = voxel(g, i, j + 1, k + 1) * (1 - fx) + voxel(g, i + 1, j + 1, k + 1) * fx;
+    double c0 = c00 * (1 - fy) + c10 * fy, c1 = c01 * (1 - fy) + c11 * fy;
+    return c0 * (1 - fz) + c1 * fz;
+}
+
+/* Raw volume: nx*ny*nz little-endian float32, x fastest, no header (docs/scene-format.md). */
+rd_status rd_raw_load(const char *path, int nx, int ny, int nz, rd_grid *g, char *err,
+                      size_t errlen)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        snprintf(err, errlen, "%s: %s", path, strerror(errno));
+        return RD_ERR_IO;
+    }
+    size_t n = (size_t)nx * ny * nz;
+    if (fseek(f, 0, SEEK_END) != 0) {
+        fclose(f);
+        snprintf(err, errlen, "%s: cannot seek", path);
+        return RD_ERR_IO;
+    }
+    long size = ftell(f);
+    rewind(f);
+    if (size < 0 || (size_t)size != n * sizeof(float)) {
+        fclose(f);
+        snprintf(err, errlen, "%s: size %ld bytes, expected %zu (%dx%dx%d float32)", path, size,
+                 n * sizeof(float), nx, ny, nz);
+        return RD_ERR_FORMAT;
+    }
+    float *data = malloc(n * sizeof(float));
+    if (!data) {
+        fclose(f);
+        snprintf(err, errlen, "%s: out of memory for %zu voxels", path, n);
+        return RD_ERR_NOMEM;
+    }
+    size_t got = fread(data, sizeof(float), n, f);
+    fclose(f);
+    if (got != n) {
+        free(data);
+        snprintf(err, errlen, "%s: short read", path);
+        return RD_ERR_IO;
+    }
+    double vmin = INFINITY, vmax = -INFINITY;
+    for (size_t q = 0; q < n; q++) {
+        if (!isfinite(data[q]) || data[q] < 0.0f) {
+            snprintf(err, errlen, "%s: voxel %zu: %s density %g", path, q,
+                     isfinite(data[q]) ? "negative" : "non-finite", (double)data[q]);
+            free(data);
+            return RD_ERR_FORMAT;
+        }
+        if (data[q] < vmin) vmin = data[q];
+        if (data[q] > vmax) vmax = data[q];
+    }
+    g->nx = nx;
+    g->ny = ny;
+    g->nz = nz;
+    g->data = data;
+    g->vmin = vmin;
+    g->vmax = vmax;
+    return RD_OK;
+}
+
+/* ---- Procedural noise ---------------------------------------------------------------------- */
+
+void rd_noise_init_perm(rd_noise *n)
+{
+    /* Fisher-Yates shuffle of 0..255 driven by the noise seed; duplicated to 512 entries. */
+    uint8_t p[256];
+    for (int i = 0; i < 256; i++) p[i] = (uint8_t)i;
+    pcg32 rng = pcg32_seed(0x9e11, 0, n->seed);
+    for (int i = 255; i > 0; i--) {
+        int j = (int)(pcg32_next(&rng) % (uint32_t)(i + 1));
+        uint8_t t = p[i]; p[i] = p[j]; p[j] = t;
+    }
+    for (int i = 0; i < 512; i++) n->perm[i] = p[i & 255];
+}
+
+static inline double fade(double t) { return t * t * t * (t * (t * 6 - 15) + 10); }
+static inline double lerp(double t, double a, double b) { return a + t * (b - a); }
+static inline double grad(int h, double x, double y, double z)
+{
+    /* The 12 edge gradients of improved Perlin noise (Perlin 2002). */
+    h &= 15;
+    double u = h < 8 ? x : y;
+    double v = h < 4 ? y : (h == 12 || h == 14 ? x : z);
+    return ((h & 1) ? -u : u) + ((h & 2) ? -v : v);
+}
+
+double rd_noise_eval(const rd_noise *n, vec3 p)
+{
+    double fx = floor(p.x), fy = floor(p.y), fz = floor(p.z);
+    int X = (int)((long long)fx & 255), Y = (int)((long long)fy & 255), Z = (int)((long long)fz & 255);
+    double x = p.x - fx, y = p.y - fy, z = p.z - fz;
+    double u = fade(x), v = fade(y), w = fade(z);
+    const uint8_t *P = n->perm;
+    int A = P[X] + Y, AA = P[A] + Z, AB = P[A + 1] + Z;
+    int B = P[X + 1] + Y, BA = P[B] + Z, BB = P[B + 1] + Z;
+    return lerp(w,
+                lerp(v, lerp(u, grad(P[AA], x, y, z), grad(P[BA], x - 1, y, z)),
+                     lerp(u, grad(P[AB], x, y - 1, z), grad(P[BB], x - 1, y - 1, z))),
+                lerp(v, lerp(u, grad(P[AA + 1], x, y, z - 1), grad(P[BA + 1], x - 1, y, z - 1)),
+                     lerp(u, grad(P[AB + 1], x, y - 1, z - 1), grad(P[BB + 1], x - 1, y - 1, z - 1))));
+}
+
+double rd_noise_fbm(const rd_noise *n, vec3 x)
+{
+    double sum = 0.0, amp = 1.0, f = n->frequency;
+    vec3 q = v3_sub(x, n->center);
+    for (int o = 0; o < n->octaves; o++) {
+        sum += amp * rd_noise_eval(n, v3_scale(q, f));
+        amp *= n->gain;
+        f *= n->lacunarity;
+    }
+    return sum;
+}
+
+/* Upper bound of |noise| for improved Perlin noise with any gradient table. At a point with
+ * fractional coordinates f the noise is a convex combination (the fade weights w_c) of corner
+ * terms g_c.(f - c), where g_c has two non-zero components of magnitude 1, so
+ *   |noise(f)| <= E(f) = sum_c w_c(f) (largest two of |f - c|).
+ * E depends on f only; its maximum over the unit cube, found by a 61^3 grid search refined by a
+ * local random search, is 1.03635 at f = (0.355, 0.481, 0.5) and its mirror images. We use 1.04
+ * (tests/test_medium.c checks E on random points and the noise against the bound). */
+#define RD_PERLIN_BOUND 1.04
+
+double rd_noise_fbm_bound(const rd_noise *n)
+{
+    double sum = 0.0, amp = 1.0;
+    for (int o = 0; o < n->octaves; o++) {
+        sum += RD_PERLIN_BOUND * amp;
+        amp *= n->gain;
+    }
+    return sum;
+}
+
+static double shape_eval(const rd_noise *n, vec3 x)
+{
+    if (n->shape == RD_SHAPE_NONE) return 1.0;
+    vec3 q = v3_sub(x, n->center);
+    double r = sqrt((q.x * q.x) / (n->radii.x * n->radii.x) + (q.y * q.y) / (n->radii.y * n->radii.y) +
+                    (q.z * q.z) / (n->radii.z * n->radii.z));
+    if (r >= 1.0) return 0.0;
+    double e0 = 1.0 - n->edge;
+    if (r <= e0) return 1.0;
+    double t = (r - e0) / n->edge; /* smoothstep from 1 at the inner radius to 0 at the surface */
+    return 1.0 - t * t * (3.0 - 2.0 * t);
+}
+
+double rd_medium_density(const rd_medium *m, vec3 x)
+{
+    if (x.x < m->bmin.x || x.y < m->bmin.y || x.z < m->bmin.z || x.x > m->bmax.x ||
+        x.y > m->bmax.y || x.z > m->bmax.z)
+        return 0.0;
+    switch (m->kind) {
+    case RD_DENSITY_CONSTANT: return m->constant;
+    case RD_DENSITY_GRID: return rd_grid_lookup(&m->grid, x);
+    case RD_DENSITY_NOISE: {
+        double s = shape_eval(&m->noise, x);
+        if (s <= 0.0) return 0.0;
+        double d = 1.0 + m->noise.amplitude * rd_noise_fbm(&m->noise, x);
+        return d > 0.0 ? s * d : 0.0;
+    }
+    }
+    return 0.0;
+}

@@ -1,0 +1,199 @@
+/* rd_internal.h: the renderer's internal types, shared by the files of renderer/ and by the
+ * white-box tests. Not part of the public API (renderer.h is).
+ *
+ * Units: lengths in scene units (metres); extinction sigma_t in 1/m; point/spot intensity in
+ * W/sr; sphere-light and environment radiance in W m^-2 sr^-1; directional irradiance in W/m^2
+ * (on a plane perpendicular to the beam). Colours are linear RGB triplets. */
+#ifndef RD_INTERNAL_H
+#define RD_INTERNAL_H
+
+#include "rd_math.h"
+#include "renderer.h"
+
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- Camera -------------------------------------------------------------------------------- */
+typedef enum { RD_CAM_PERSPECTIVE, RD_CAM_ORTHOGRAPHIC } rd_camera_kind;
+
+typedef struct {
+    rd_camera_kind kind;
+    int width, height;
+    vec3 pos;
+    vec3 forward, right, up; /* orthonormal, right-handed: right = forward x up */
+    double fov_deg;          /* perspective: vertical field of view */
+    double ortho_width;      /* orthographic: width of the view in scene units */
+    double exposure;         /* PNG preview: value * 2^exposure */
+} rd_camera;
+
+/* Primary ray through the film position (px, py) in pixels (0,0 = top-left corner). */
+ray3 rd_camera_ray(const rd_camera *cam, double px, double py);
+
+/* ---- Density fields ---------------------------------------------------------------------- */
+typedef enum { RD_DENSITY_CONSTANT, RD_DENSITY_GRID, RD_DENSITY_NOISE } rd_density_kind;
+
+/* Dense voxel grid with trilinear interpolation. Grid coordinates u are continuous with the
+ * centre of voxel (i,j,k) at (i+0.5, j+0.5, k+0.5); outside the voxels the density is 0
+ * beyond half a voxel (clamp-to-border). world -> grid is an affine map. */
+typedef struct {
+    int nx, ny, nz;
+    float *data;       /* nx*ny*nz, x fastest; owned */
+    double w2g[3][4];  /* u = A x + b, rows of [A | b] */
+    double vmin, vmax; /* min and max voxel value */
+} rd_grid;
+
+typedef enum { RD_SHAPE_NONE, RD_SHAPE_ELLIPSOID } rd_shape_kind;
+
+/* Procedural fBm of Perlin gradient noise times a smooth shape (seed 003 §4.2):
+ *   density(x) = shape(x) * max(0, 1 + amplitude * fbm(x)),
+ *   fbm(x) = sum_{o<octaves} gain^o noise(frequency lacunarity^o (x - center)),
+ *   shape(x) = smoothstep of the normalised ellipsoid radius (1 at the centre, 0 outside). */
+typedef struct {
+    int octaves;
+    double frequency, gain, lacunarity, amplitude;
+    uint32_t seed;
+    rd_shape_kind shape;
+    vec3 center, radii;
+    double edge;         /* width of the shape's soft edge, as a fraction of the radius */
+    uint8_t perm[512];   /* seeded permutation table */
+} rd_noise;
+
+typedef struct {
+    char name[64];
+    vec3 bmin, bmax;           /* axis-aligned bounds; density is 0 outside */
+    rd_density_kind kind;
+    double constant;           /* RD_DENSITY_CONSTANT */
+    rd_grid grid;              /* RD_DENSITY_GRID */
+    rd_noise noise;            /* RD_DENSITY_NOISE */
+    double sigma_t_scale;      /* sigma_t(x) = density(x) * sigma_t_scale */
+    vec3 albedo;               /* sigma_s = albedo * sigma_t, per channel */
+    double g;                  /* Henyey-Greenstein asymmetry */
+    double density_max;        /* conservative upper bound of density over the bounds */
+    double sigma_maj;          /* global majorant = density_max * sigma_t_scale */
+} rd_medium;
+
+double rd_noise_eval(const rd_noise *n, vec3 x);     /* Perlin gradient noise in [-1, 1] */
+double rd_noise_fbm(const rd_noise *n, vec3 x);
+double rd_noise_fbm_bound(const rd_noise *n);         /* provable bound of |fbm| */
+void rd_noise_init_perm(rd_noise *n);
+double rd_grid_lookup(const rd_grid *g, vec3 x);      /* trilinear, world coordinates */
+double rd_medium_density(const rd_medium *m, vec3 x); /* 0 outside bounds */
+static inline double rd_medium_sigma_t(const rd_medium *m, vec3 x)
+{
+    return rd_medium_density(m, x) * m->sigma_t_scale;
+}
+/* Ray-box slab test; on a hit writes the overlap [t0, t1] clipped to [tmin, tmax]. */
+int rd_box_intersect(vec3 bmin, vec3 bmax, ray3 r, double tmin, double tmax, double *t0,
+                     double *t1);
+
+/* ---- Lights -------------------------------------------------------------------------------- */
+typedef enum {
+    RD_LIGHT_POINT,       /* pos, intensity I [W/sr] */
+    RD_LIGHT_SPOT,        /* pos, dir, I [W/sr] on the axis, cone with smooth falloff */
+    RD_LIGHT_DIRECTIONAL, /* dir (travel direction), irradiance E [W/m^2]; optional beam */
+    RD_LIGHT_SPHERE,      /* centre, radius, uniform radiance L [W m^-2 sr^-1] */
+    RD_LIGHT_ENVIRONMENT  /* uniform radiance L from every direction at infinity */
+} rd_light_kind;
+
+typedef struct {
+    rd_light_kind kind;
+    vec3 pos, dir;           /* dir: unit; spot axis or directional travel direction */
+    vec3 value;              /* I, E or L as the kind says */
+    double cos_outer;        /* spot: cos of half the cone angle */
+    double cos_inner;        /* spot: cos where the smooth falloff starts */
+    double radius;           /* sphere radius; directional beam radius (0 = unbounded) */
+    vec3 beam_center;        /* directional beam: a point on the beam axis */
+} rd_light;
+
+/* A light sample seen from a point x, for next-event estimation. */
+typedef struct {
+    vec3 wi;        /* unit direction from x toward the light */
+    double dist;    /* distance to the light (INFINITY for directional/environment) */
+    vec3 Li;        /* incident radiance times 1/pdf, i.e. the contribution before the phase
+                       function and transmittance (delta lights: I/r^2 or E) */
+    double pdf;     /* solid-angle pdf of wi; 0 for delta lights (no MIS) */
+} rd_light_sample;
+
+/* Sample light `l` from x with two uniforms; returns 0 when it contributes nothing. */
+int rd_light_sample_li(const rd_light *l, vec3 x, double u1, double u2, rd_light_sample *s);
+/* Solid-angle pdf that rd_light_sample_li gives direction w from x (area lights only). */
+double rd_light_pdf(const rd_light *l, vec3 x, vec3 w);
+/* Distance along r to a sphere light's surface (INFINITY if missed or not a sphere light). */
+double rd_light_hit(const rd_light *l, ray3 r);
+/* Total emitted power [W] (luminance of the RGB), used to choose lights in proportion to power;
+ * `scene_radius` bounds directional and environment lights. */
+double rd_light_power(const rd_light *l, double scene_radius);
+
+/* ---- Scene --------------------------------------------------------------------------------- */
+typedef struct {
+    int spp;
+    double time_limit;
+    uint64_t seed;
+    int max_depth;       /* scattering events per path (1 = single scattering) */
+    int rr_depth;        /* Russian roulette from this depth on */
+    char method[32];
+} rd_settings;
+
+struct rd_scene {
+    char path[1024];
+    rd_camera camera;
+    rd_medium *media;
+    int n_media;
+    rd_light *lights;
+    int n_lights;
+    vec3 background;      /* radiance seen by camera rays that leave the scene (not a light) */
+    vec3 bmin, bmax;      /* bounds of all media */
+    rd_settings settings;
+};
+
+/* ---- Free-path sampling and transmittance (THEORY.md §2) ---------------------------------- */
+
+/* Counters a tracker increments (per thread, summed by the caller). */
+typedef struct {
+    uint64_t collisions, lookups;
+} rd_track_counters;
+
+typedef struct {
+    int hit;          /* 1 = real collision */
+    double t;         /* distance along the ray */
+    const rd_medium *medium;
+} rd_collision;
+
+/* Delta (Woodcock) tracking along r through every medium it crosses, in order, from t = 0 up
+ * to tmax, with each medium's global majorant. Unbiased: a real collision is accepted with
+ * probability sigma_t/sigma_maj at each tentative point. */
+rd_collision rd_delta_track(const rd_scene *s, ray3 r, double tmax, pcg32 *rng,
+                            rd_track_counters *c);
+
+/* Ratio-tracking estimate of transmittance along r from 0 to tmax (THEORY.md §2):
+ * T = prod (1 - sigma_t(x_i)/sigma_maj) over tentative collisions. */
+double rd_ratio_track(const rd_scene *s, ray3 r, double tmax, pcg32 *rng,
+                      rd_track_counters *c);
+
+/* Scene radius: half the diagonal of the media bounds, at least 1e-3. */
+double rd_scene_radius(const rd_scene *s);
+
+/* Radiance arriving at the camera along r with the `delta` method: unbiased volumetric path
+ * tracing (delta tracking, next-event estimation with ratio tracking, HG sampling, Russian
+ * roulette, multiple importance sampling for area and environment lights). */
+vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c,
+                       uint64_t *shadow_rays);
+
+/* Volume loading shims (C++ behind a C API; never throw). Both fill g->data, dims, w2g,
+ * vmin/vmax and return the world-space bounds of the voxels. */
+rd_status rd_vdb_load(const char *path, const char *grid_name, rd_grid *g, vec3 *bmin,
+                      vec3 *bmax, char *err, size_t errlen);
+/* Write a dense float grid as a .vdb: voxel (i,j,k) centred at origin + voxel_size (i,j,k). */
+rd_status rd_vdb_save_dense(const char *path, const char *grid_name, const float *data, int nx,
+                            int ny, int nz, double voxel_size, const double origin[3], char *err,
+                            size_t errlen);
+rd_status rd_raw_load(const char *path, int nx, int ny, int nz, rd_grid *g, char *err,
+                      size_t errlen);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* RD_INTERNAL_H */

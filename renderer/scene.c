@@ -1,0 +1,851 @@
+/* scene.c: JSON scene loading (cJSON) and validation of every field.
+ *
+ * Every error names the file and the JSON path and says what is wrong, e.g.
+ *   fog.json: media[0].albedo: expected a number or 3 numbers in [0, 1]
+ * Unknown keys are errors, so a typo is never silently ignored. The format is documented in
+ * docs/scene-format.md. */
+#include "rd_internal.h"
+
+#include <cJSON.h>
+#include <errno.h>
+#include <limits.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define MAX_SCENE_BYTES (64u << 20)
+#define MAX_RESOLUTION 16384
+#define MAX_MEDIA 64
+#define MAX_LIGHTS 256
+
+/* Validation context: where we are and where errors go. */
+typedef struct {
+    const char *file; /* the scene path as the user gave it */
+    char dir[1024];   /* its folder, for relative volume paths */
+    char *err;
+    size_t errlen;
+} vctx;
+
+static rd_status fail(vctx *c, const char *path, const char *fmt, ...)
+{
+    char msg[RD_ERRLEN];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    if (c->err && c->errlen) snprintf(c->err, c->errlen, "%s: %s: %s", c->file, path, msg);
+    return RD_ERR_SCENE;
+}
+
+static void join(char *out, size_t n, const char *parent, const char *key)
+{
+    /* Keys are short; a key that does not fit is cut, never overflowed. */
+    snprintf(out, n, "%.200s%s%.90s", parent, parent[0] ? "." : "", key);
+}
+
+static const char *type_name(const cJSON *j)
+{
+    if (cJSON_IsNumber(j)) return "a number";
+    if (cJSON_IsString(j)) return "a string";
+    if (cJSON_IsBool(j)) return "a boolean";
+    if (cJSON_IsNull(j)) return "null";
+    if (cJSON_IsArray(j)) return "an array";
+    if (cJSON_IsObject(j)) return "an object";
+    return "something else";
+}
+
+/* Reject keys not in `allowed` (NULL-terminated). */
+static rd_status check_keys(vctx *c, const cJSON *obj, const char *path, const char *const *allowed)
+{
+    for (const cJSON *it = obj->child; it; it = it->next) {
+        int ok = 0;
+        for (const char *const *a = allowed; *a; a++)
+            if (strcmp(it->string, *a) == 0) ok = 1;
+        if (!ok) {
+            char p[300], list[256] = "";
+            join(p, sizeof p, path, it->string);
+            for (const char *const *a = allowed; *a; a++) {
+                strncat(list, *a, sizeof list - strlen(list) - 1);
+                if (a[1]) strncat(list, ", ", sizeof list - strlen(list) - 1);
+            }
+            return fail(c, p, "unknown key (allowed: %s)", list);
+        }
+    }
+    return RD_OK;
+}
+
+static rd_status need_object(vctx *c, const cJSON *j, const char *path)
+{
+    if (!cJSON_IsObject(j)) return fail(c, path, "expected an object, found %s", type_name(j));
+    return RD_OK;
+}
+
+/* A finite number in [lo, hi] (open ends when lo_open / hi_open). Missing: default when
+ * `required` is 0. */
+static rd_status get_num(vctx *c, const cJSON *obj, const char *path, const char *key, int required,
+                         double def, double lo, int lo_open, double hi, int hi_open, double *out)
+{
+    char p[300];
+    join(p, sizeof p, path, key);
+    const cJSON *j = cJSON_GetObjectItemCaseSensitive(obj, key);
+    if (!j) {
+        if (required) return fail(c, p, "missing (required)");
+        *out = def;
+        return RD_OK;
+    }
+    if (!cJSON_IsNumber(j)) return fail(c, p, "expected a number, found %s", type_name(j));
+    double v = j->valuedouble;
+    if (!isfinite(v)) return fail(c, p, "must be finite");
+    if ((lo_open ? v <= lo : v < lo) || (hi_open ? v >= hi : v > hi))
+        return fail(c, p, "must be in %c%.10g, %.10g%c, found %.10g", lo_open ? '(' : '[', lo, hi,
+                    hi_open ? ')' : ']', v);
+    *out = v;
+    return RD_OK;
+}
+
+static rd_status get_int(vctx *c, const cJSON *obj, const char *path, const char *key, int required,
+                         long long def, long long lo, long long hi, long long *out)
+{
+    double v;
+    rd_status st = get_num(c, obj, path, key, required, (double)def, (double)lo, 0, (double)hi, 0, &v);
+    if (st) return st;
+    if (v != floor(v)) {
+        char p[300];
+        join(p, sizeof p, path, key);
+        return fail(c, p, "expected an integer, found %g", v);
+    }
+    *out = (long long)v;
+    return RD_OK;
+}
+
+/* Three finite numbers (or, when `allow_scalar`, one number replicated), each in [lo, hi]. */
+static rd_status get_vec3(vctx *c, const cJSON *obj, const char *path, const char *key, int required,
+                          vec3 def, int allow_scalar, double lo, double hi, vec3 *out)
+{
+    char p[300];
+    join(p, sizeof p, path, key);
+    const cJSON *j = cJSON_GetObjectItemCaseSensitive(obj, key);
+    char range[64] = "";
+    if (isfinite(lo) || isfinite(hi)) snprintf(range, sizeof range, " in [%g, %g]", lo, hi);
+    const char *want = allow_scalar ? "a number or 3 numbers" : "3 numbers";
+    if (!j) {
+        if (required) return fail(c, p, "missing (required: %s)", want);
+        *out = def;
+        return RD_OK;
+    }
+    double v[3];
+    if (allow_scalar && cJSON_IsNumber(j)) {
+        v[0] = v[1] = v[2] = j->valuedouble;
+    } else {
+        if (!cJSON_IsArray(j) || cJSON_GetArraySize(j) != 3)
+            return fail(c, p, "expected %s%s", want, range);
+        for (int i = 0; i < 3; i++) {
+            const cJSON *e = cJSON_GetArrayItem(j, i);
+            if (!cJSON_IsNumber(e)) return fail(c, p, "expected %s%s", want, range);
+            v[i] = e->valuedouble;
+        }
+    }
+    for (int i = 0; i < 3; i++)
+        if (!isfinite(v[i]) || v[i] < lo || v[i] > hi)
+            return fail(c, p, "expected %s%s, found %g", want, range, v[i]);
+    *out = v3(v[0], v[1], v[2]);
+    return RD_OK;
+}
+
+static rd_status get_str(vctx *c, const cJSON *obj, const char *path, const char *key, int required,
+                         const char *def, const char **out)
+{
+    char p[300];
+    join(p, sizeof p, path, key);
+    const cJSON *j = cJSON_GetObjectItemCaseSensitive(obj, key);
+    if (!j) {
+        if (required) return fail(c, p, "missing (required)");
+        *out = def;
+        return RD_OK;
+    }
+    if (!cJSON_IsString(j) || !j->valuestring[0])
+        return fail(c, p, "expected a non-empty string, found %s", type_name(j));
+    *out = j->valuestring;
+    return RD_OK;
+}
+
+/* Map a string to one of `names` (NULL-terminated); the index goes to *out. */
+static rd_status get_enum(vctx *c, const cJSON *obj, const char *path, const char *key, int required,
+                          const char *const *names, int def, int *out)
+{
+    const char *s;
+    rd_status st = get_str(c, obj, path, key, required, NULL, &s);
+    if (st) return st;
+    if (!s) { *out = def; return RD_OK; }
+    for (int i = 0; names[i]; i++)
+        if (strcmp(s, names[i]) == 0) { *out = i; return RD_OK; }
+    char p[300], list[256] = "";
+    join(p, sizeof p, path, key);
+    for (int i = 0; names[i]; i++) {
+        strncat(list, names[i], sizeof list - strlen(list) - 1);
+        if (names[i + 1]) strncat(list, ", ", sizeof list - strlen(list) - 1);
+    }
+    return fail(c, p, "unknown value \"%s\" (expected one of: %s)", s, list);
+}
+
+#define TRY(x) do { rd_status st_ = (x); if (st_) return st_; } while (0)
+
+/* ---- camera -------------------------------------------------------------------------------- */
+static rd_status parse_camera(vctx *c, const cJSON *j, rd_camera *cam)
+{
+    const char *path = "camera";
+    TRY(need_object(c, j, path));
+    static const char *const kinds[] = {"perspective", "orthographic", NULL};
+    int kind;
+    TRY(get_enum(c, j, path, "type", 0, kinds, 0, &kind));
+    cam->kind = kind == 0 ? RD_CAM_PERSPECTIVE : RD_CAM_ORTHOGRAPHIC;
+    if (cam->kind == RD_CAM_PERSPECTIVE) {
+        static const char *const keys[] = {"type", "position", "look_at", "up", "fov", "resolution", "exposure", NULL};
+        TRY(check_keys(c, j, path, keys));
+    } else {
+        static const char *const keys[] = {"type", "position", "direction", "up", "width", "resolution", "exposure", NULL};
+        TRY(check_keys(c, j, path, keys));
+    }
+    const cJSON *res = cJSON_GetObjectItemCaseSensitive(j, "resolution");
+    if (!res) return fail(c, "camera.resolution", "missing (required: [width, height])");
+    if (!cJSON_IsArray(res) || cJSON_GetArraySize(res) != 2 || !cJSON_IsNumber(res->child) ||
+        !cJSON_IsNumber(res->child->next))
+        return fail(c, "camera.resolution", "expected [width, height], two integers in [1, %d]", MAX_RESOLUTION);
+    for (int i = 0; i < 2; i++) {
+        double v = cJSON_GetArrayItem(res, i)->valuedouble;
+        if (!isfinite(v) || v != floor(v) || v < 1 || v > MAX_RESOLUTION)
+            return fail(c, "camera.resolution", "expected [width, height], two integers in [1, %d], found %g",
+                        MAX_RESOLUTION, v);
+    }
+    cam->width = cJSON_GetArrayItem(res, 0)->valueint;
+    cam->height = cJSON_GetArrayItem(res, 1)->valueint;
+    TRY(get_vec3(c, j, path, "position", 1, v3(0, 0, 0), 0, -INFINITY, INFINITY, &cam->pos));
+    vec3 up;
+    TRY(get_vec3(c, j, path, "up", 0, v3(0, 1, 0), 0, -INFINITY, INFINITY, &up));
+    TRY(get_num(c, j, path, "exposure", 0, 0.0, -30, 0, 30, 0, &cam->exposure));
+    vec3 fwd;
+    if (cam->kind == RD_CAM_PERSPECTIVE) {
+        vec3 at;
+        TRY(get_vec3(c, j, path, "look_at", 1, v3(0, 0, 0), 0, -INFINITY, INFINITY, &at));
+        fwd = v3_sub(at, cam->pos);
+        if (v3_len(fwd) < 1e-12) return fail(c, "camera.look_at", "must differ from camera.position");
+        TRY(get_num(c, j, path, "fov", 0, 40.0, 0, 1, 180, 1, &cam->fov_deg));
+    } else {
+        TRY(get_vec3(c, j, path, "direction", 1, v3(0, 0, -1), 0, -INFINITY, INFINITY, &fwd));
+        if (v3_len(fwd) < 1e-12) return fail(c, "camera.direction", "must not be the zero vector");
+        TRY(get_num(c, j, path, "width", 1, 1.0, 0, 1, INFINITY, 0, &cam->ortho_width));
+    }
+    fwd = v3_norm(fwd);
+    vec3 right = v3_cross(fwd, up);
+    if (v3_len(right) < 1e-9 * (v3_len(up) + 1e-300))
+        return fail(c, "camera.up", "must not be parallel to the view direction");
+    cam->forward = fwd;
+    cam->right = v3_norm(right);
+    cam->up = v3_cross(cam->right, fwd);
+    return RD_OK;
+}
+
+/* ---- media --------------------------------------------------------------------------------- */
+static void resolve_path(const vctx *c, const char *file, char *out, size_t n)
+{
+    if (file[0] == '/' || !c->dir[0]) snprintf(out, n, "%s", file);
+    else snprintf(out, n, "%s/%s", c->dir, file);
+}
+
+static rd_status parse_bounds(vctx *c, const cJSON *m, const char *path, int required, rd_medium *med,
+                              int *present)
+{
+    char p[300];
+    join(p, sizeof p, path, "bounds");
+    const cJSON *b = cJSON_GetObjectItemCaseSensitive(m, "bounds");
+    *present = b != NULL;
+    if (!b) {
+        if (required) return fail(c, p, "missing (required: {\"min\": [x,y,z], \"max\": [x,y,z]})");
+        return RD_OK;
+    }
+    TRY(need_object(c, b, p));
+    static const char *const keys[] = {"min", "max", NULL};
+    TRY(check_keys(c, b, p, keys));
+    TRY(get_vec3(c, b, p, "min", 1, v3(0, 0, 0), 0, -1e9, 1e9, &med->bmin));
+    TRY(get_vec3(c, b, p, "max", 1, v3(0, 0, 0), 0, -1e9, 1e9, &med->bmax));
+    if (!(med->bmin.x < med->bmax.x && med->bmin.y < med->bmax.y && med->bmin.z < med->bmax.z))
+        return fail(c, p, "min must be smaller than max on every axis");
+    return RD_OK;
+}
+
+static rd_status parse_density(vctx *c, const cJSON *m, const char *mpath, rd_medium *med,
+                               int has_bounds)
+{
+    char path[300];
+    join(path, sizeof path, mpath, "density");
+    const cJSON *d = cJSON_GetObjectItemCaseSensitive(m, "density");
+    if (!d) return fail(c, path, "missing (required)");
+    if (cJSON_IsNumber(d)) { /* shorthand: "density": 0.5 */
+        if (!isfinite(d->valuedouble) || d->valuedouble < 0)
+            return fail(c, path, "must be a finite number >= 0");
+        med->kind = RD_DENSITY_CONSTANT;
+        med->constant = d->valuedouble;
+        if (!has_bounds) return fail(c, mpath[0] ? mpath : "media", "bounds: missing (required)");
+        return RD_OK;
+    }
+    TRY(need_object(c, d, path));
+    static const char *const kinds[] = {"constant", "vdb", "raw", "noise", NULL};
+    int kind;
+    TRY(get_enum(c, d, path, "type", 1, kinds, 0, &kind));
+    if (kind != 1 && !has_bounds && kind != 3) {
+        char p[300];
+        join(p, sizeof p, mpath, "bounds");
+        return fail(c, p, "missing (required for a %s density)", kinds[kind]);
+    }
+    char full[2048];
+    if (kind == 0) {
+        static const char *const keys[] = {"type", "value", NULL};
+        TRY(check_keys(c, d, path, keys));
+        med->kind = RD_DENSITY_CONSTANT;
+        TRY(get_num(c, d, path, "value", 1, 0, 0, 0, 1e12, 0, &med->constant));
+    } else if (kind == 1) {
+        static const char *const keys[] = {"type", "file", "grid", NULL};
+        TRY(check_keys(c, d, path, keys));
+        if (has_bounds) {
+            char p[300];
+            join(p, sizeof p, mpath, "bounds");
+            return fail(c, p, "not allowed with a vdb density (the bounds come from the grid and its transform)");
+        }
+        const char *file, *grid;
+        TRY(get_str(c, d, path, "file", 1, NULL, &file));
+        TRY(get_str(c, d, path, "grid", 0, "density", &grid));
+        resolve_path(c, file, full, sizeof full);
+        med->kind = RD_DENSITY_GRID;
+        char msg[RD_ERRLEN];
+        rd_status st = rd_vdb_load(full, grid, &med->grid, &med->bmin, &med->bmax, msg, sizeof msg);
+        if (st) {
+            char p[300];
+            join(p, sizeof p, path, "file");
+            fail(c, p, "%s", msg);
+            return st;
+        }
+    } else if (kind == 2) {
+        static const char *const keys[] = {"type", "file", "dims", NULL};
+        TRY(check_keys(c, d, path, keys));
+        const char *file;
+        TRY(get_str(c, d, path, "file", 1, NULL, &file));
+        char p[300];
+        join(p, sizeof p, path, "dims");
+        const cJSON *dims = cJSON_GetObjectItemCaseSensitive(d, "dims");
+        if (!dims) return fail(c, p, "missing (required: [nx, ny, nz])");
+        int n[3];
+        if (!cJSON_IsArray(dims) || cJSON_GetArraySize(dims) != 3)
+            return fail(c, p, "expected 3 integers in [1, 4096]");
+        for (int i = 0; i < 3; i++) {
+            const cJSON *e = cJSON_GetArrayItem(dims, i);
+            if (!cJSON_IsNumber(e) || e->valuedouble != floor(e->valuedouble) || e->valuedouble < 1 ||
+                e->valuedouble > 4096)
+                return fail(c, p, "expected 3 integers in [1, 4096]");
+            n[i] = e->valueint;
+        }
+        resolve_path(c, file, full, sizeof full);
+        med->kind = RD_DENSITY_GRID;
+        char msg[RD_ERRLEN];
+        rd_status st = rd_raw_load(full, n[0], n[1], n[2], &med->grid, msg, sizeof msg);
+        if (st) {
+            join(p, sizeof p, path, "file");
+            fail(c, p, "%s", msg);
+            return st;
+        }
+        /* The voxels fill the medium bounds: u = n (x - bmin) / (bmax - bmin). */
+        memset(med->grid.w2g, 0, sizeof med->grid.w2g);
+        for (int a = 0; a < 3; a++) {
+            double lo = v3_get(med->bmin, a), hi = v3_get(med->bmax, a);
+            med->grid.w2g[a][a] = n[a] / (hi - lo);
+            med->grid.w2g[a][3] = -lo * n[a] / (hi - lo);
+        }
+    } else {
+        static const char *const keys[] = {"type", "octaves", "frequency", "gain", "lacunarity",
+                                           "amplitude", "seed", "shape", "edge", NULL};
+        TRY(check_keys(c, d, path, keys));
+        rd_noise *nz = &med->noise;
+        long long oct, seed;
+        TRY(get_int(c, d, path, "octaves", 0, 5, 1, 16, &oct));
+        TRY(get_num(c, d, path, "frequency", 0, 2.0, 0, 1, 1e6, 0, &nz->frequency));
+        TRY(get_num(c, d, path, "gain", 0, 0.5, 0, 0, 1, 0, &nz->gain));
+        TRY(get_num(c, d, path, "lacunarity", 0, 2.0, 1, 0, 8, 0, &nz->lacunarity));
+        TRY(get_num(c, d, path, "amplitude", 0, 1.0, 0, 0, 100, 0, &nz->amplitude));
+        TRY(get_int(c, d, path, "seed", 0, 1, 0, UINT32_MAX, &seed));
+        TRY(get_num(c, d, path, "edge", 0, 0.4, 0, 1, 1, 0, &nz->edge));
+        static const char *const shapes[] = {"none", "ellipsoid", NULL};
+        int shape;
+        TRY(get_enum(c, d, path, "shape", 0, shapes, 1, &shape));
+        nz->octaves = (int)oct;
+        nz->seed = (uint32_t)seed;
+        nz->shape = shape == 0 ? RD_SHAPE_NONE : RD_SHAPE_ELLIPSOID;
+        if (!has_bounds) {
+            char p[300];
+            join(p, sizeof p, mpath, "bounds");
+            return fail(c, p, "missing (required: the noise fills, and its ellipsoid is inscribed in, the bounds)");
+        }
+        nz->center = v3_scale(v3_add(med->bmin, med->bmax), 0.5);
+        nz->radii = v3_scale(v3_sub(med->bmax, med->bmin), 0.5);
+        rd_noise_init_perm(nz);
+        med->kind = RD_DENSITY_NOISE;
+    }
+    return RD_OK;
+}
+
+static rd_status parse_medium(vctx *c, const cJSON *m, int idx, rd_medium *med)
+{
+    char path[64];
+    snprintf(path, sizeof path, "media[%d]", idx);
+    TRY(need_object(c, m, path));
+    static const char *const keys[] = {"name", "bounds", "density", "sigma_t", "albedo", "g", NULL};
+    TRY(check_keys(c, m, path, keys));
+    const char *name;
+    char defname[32];
+    snprintf(defname, sizeof defname, "medium%d", idx);
+    TRY(get_str(c, m, path, "name", 0, defname, &name));
+    snprintf(med->name, sizeof med->name, "%s", name);
+    int has_bounds;
+    TRY(parse_bounds(c, m, path, 0, med, &has_bounds));
+    TRY(parse_density(c, m, path, med, has_bounds));
+    TRY(get_num(c, m, path, "sigma_t", 1, 1.0, 0, 0, 1e9, 0, &med->sigma_t_scale));
+    TRY(get_vec3(c, m, path, "albedo", 0, v3(1, 1, 1), 1, 0, 1, &med->albedo));
+    TRY(get_num(c, m, path, "g", 0, 0.0, -1, 1, 1, 1, &med->g));
+    switch (med->kind) {
+    case RD_DENSITY_CONSTANT: med->density_max = med->constant; break;
+    case RD_DENSITY_GRID: med->density_max = fmax(0.0, med->grid.vmax); break;
+    case RD_DENSITY_NOISE: /* shape <= 1, so density <= 1 + amplitude * bound(|fbm|) */
+        med->density_max = 1.0 + med->noise.amplitude * rd_noise_fbm_bound(&med->noise);
+        break;
+    }
+    med->sigma_maj = med->density_max * med->sigma_t_scale;
+    return RD_OK;
+}
+
+/* ---- lights -------------------------------------------------------------------------------- */
+static rd_status parse_light(vctx *c, const cJSON *j, int idx, rd_light *l)
+{
+    char path[64];
+    snprintf(path, sizeof path, "lights[%d]", idx);
+    TRY(need_object(c, j, path));
+    static const char *const kinds[] = {"point", "spot", "directional", "sphere", "environment", NULL};
+    int kind;
+    TRY(get_enum(c, j, path, "type", 1, kinds, 0, &kind));
+    const double big = 1e12;
+    switch (kind) {
+    case 0: {
+        static const char *const keys[] = {"type", "position", "intensity", NULL};
+        TRY(check_keys(c, j, path, keys));
+        l->kind = RD_LIGHT_POINT;
+        TRY(get_vec3(c, j, path, "position", 1, v3(0, 0, 0), 0, -1e9, 1e9, &l->pos));
+        TRY(get_vec3(c, j, path, "intensity", 1, v3(0, 0, 0), 1, 0, big, &l->value));
+        break;
+    }
+    case 1: {
+        static const char *const keys[] = {"type", "position", "direction", "look_at", "angle",
+                                           "falloff", "intensity", NULL};
+        TRY(check_keys(c, j, path, keys));
+        l->kind = RD_LIGHT_SPOT;
+        TRY(get_vec3(c, j, path, "position", 1, v3(0, 0, 0), 0, -1e9, 1e9, &l->pos));
+        int has_dir = cJSON_GetObjectItemCaseSensitive(j, "direction") != NULL;
+        int has_at = cJSON_GetObjectItemCaseSensitive(j, "look_at") != NULL;
+        if (has_dir == has_at) return fail(c, path, "give exactly one of direction, look_at");
+        vec3 d;
+        if (has_dir) TRY(get_vec3(c, j, path, "direction", 1, d, 0, -1e9, 1e9, &d));
+        else {
+            vec3 at;
+            TRY(get_vec3(c, j, path, "look_at", 1, at, 0, -1e9, 1e9, &at));
+            d = v3_sub(at, l->pos);
+        }
+        if (v3_len(d) < 1e-12) return fail(c, path, "direction: must not be the zero vector");
+        l->dir = v3_norm(d);
+        double angle, falloff;
+        TRY(get_num(c, j, path, "angle", 1, 30, 0, 1, 180, 0, &angle));
+        TRY(get_num(c, j, path, "falloff", 0, 0.1 * angle, 0, 0, 180, 0, &falloff));
+        if (falloff > 0.5 * angle) {
+            char p[128];
+            join(p, sizeof p, path, "falloff");
+            return fail(c, p, "must be in [0, angle/2] = [0, %g], found %g", 0.5 * angle, falloff);
+        }
+        /* angle is the full cone angle (degrees); the intensity falls smoothly to zero over the
+         * outer `falloff` degrees of the half-angle. */
+        double half = 0.5 * angle * M_PI / 180.0;
+        l->cos_outer = cos(half);
+        l->cos_inner = cos(half - falloff * M_PI / 180.0);
+        TRY(get_vec3(c, j, path, "intensity", 1, v3(0, 0, 0), 1, 0, big, &l->value));
+        break;
+    }
+    case 2: {
+        static const char *const keys[] = {"type", "direction", "irradiance", "radius", "center", NULL};
+        TRY(check_keys(c, j, path, keys));
+        l->kind = RD_LIGHT_DIRECTIONAL;
+        vec3 d;
+        TRY(get_vec3(c, j, path, "direction", 1, v3(0, 0, 0), 0, -1e9, 1e9, &d));
+        if (v3_len(d) < 1e-12) return fail(c, path, "direction: must not be the zero vector");
+        l->dir = v3_norm(d);
+        TRY(get_vec3(c, j, path, "irradiance", 1, v3(0, 0, 0), 1, 0, big, &l->value));
+        TRY(get_num(c, j, path, "radius", 0, 0.0, 0, 0, 1e9, 0, &l->radius));
+        TRY(get_vec3(c, j, path, "center", l->radius > 0, v3(0, 0, 0), 0, -1e9, 1e9, &l->beam_center));
+        break;
+    }
+    case 3: {
+        static const char *const keys[] = {"type", "center", "radius", "radiance", NULL};
+        TRY(check_keys(c, j, path, keys));
+        l->kind = RD_LIGHT_SPHERE;
+        TRY(get_vec3(c, j, path, "center", 1, v3(0, 0, 0), 0, -1e9, 1e9, &l->pos));
+        TRY(get_num(c, j, path, "radius", 1, 0, 0, 1, 1e9, 0, &l->radius));
+        TRY(get_vec3(c, j, path, "radiance", 1, v3(0, 0, 0), 1, 0, big, &l->value));
+        break;
+    }
+    default: {
+        static const char *const keys[] = {"type", "radiance", NULL};
+        TRY(check_keys(c, j, path, keys));
+        l->kind = RD_LIGHT_ENVIRONMENT;
+        TRY(get_vec3(c, j, path, "radiance", 1, v3(0, 0, 0), 1, 0, big, &l->value));
+        break;
+    }
+    }
+    return RD_OK;
+}
+
+/* ---- settings ------------------------------------------------------------------------------ */
+static rd_status parse_settings(vctx *c, const cJSON *j, rd_settings *s)
+{
+    s->spp = 16;
+    s->time_limit = 0;
+    s->seed = 1;
+    s->max_depth = 64;
+    s->rr_depth = 3;
+    snprintf(s->method, sizeof s->method, "delta");
+    if (!j) return RD_OK;
+    const char *path = "settings";
+    TRY(need_object(c, j, path));
+    static const char *const keys[] = {"spp", "time", "seed", "max_depth", "rr_depth", "method", NULL};
+    TRY(check_keys(c, j, path, keys));
+    long long v;
+    TRY(get_int(c, j, path, "spp", 0, 16, 1, 1 << 24, &v));
+    s->spp = (int)v;
+    TRY(get_num(c, j, path, "time", 0, 0, 0, 0, 1e7, 0, &s->time_limit));
+    TRY(get_int(c, j, path, "seed", 0, 1, 0, (1LL << 53), &v));
+    s->seed = (uint64_t)v;
+    TRY(get_int(c, j, path, "max_depth", 0, 64, 1, 100000, &v));
+    s->max_depth = (int)v;
+    TRY(get_int(c, j, path, "rr_depth", 0, 3, 0, 100000, &v));
+    s->rr_depth = (int)v;
+    const char *m;
+    TRY(get_str(c, j, path, "method", 0, "delta", &m));
+    if (strcmp(m, "delta") != 0)
+        return fail(c, "settings.method", "unknown method \"%s\" (available: %s)", m, rd_methods());
+    snprintf(s->method, sizeof s->method, "%s", m);
+    return RD_OK;
+}
+
+/* ---- --set overrides ----------------------------------------------------------------------- */
+/* Walk a dotted path with [i] indices, creating missing object members, and replace the leaf. */
+static rd_status apply_override(vctx *c, cJSON *root, const rd_override *ov)
+{
+    char key[256];
+    snprintf(key, sizeof key, "%s", ov->key);
+    cJSON *value = cJSON_Parse(ov->value);
+    if (!value) value = cJSON_CreateString(ov->value);
+    if (!value) return RD_ERR_NOMEM;
+    cJSON *cur = root;
+    char *p = key;
+    while (*p) {
+        char name[128];
+        size_t n = strcspn(p, ".[");
+        if (n == 0 && *p != '[') goto bad;
+        if (n >= sizeof name) goto bad;
+        memcpy(name, p, n);
+        name[n] = 0;
+        p += n;
+        cJSON *parent = cur;
+        int have_name = n > 0;
+        if (have_name) {
+            if (!cJSON_IsObject(parent)) goto bad;
+            cJSON *child = cJSON_GetObjectItemCaseSensitive(parent, name);
+            if (*p == 0) {
+                if (child) cJSON_ReplaceItemInObjectCaseSensitive(parent, name, value);
+                else cJSON_AddItemToObject(parent, name, value);
+                return RD_OK;
+            }
+            if (!child) {
+                if (*p == '[') goto bad;
+                child = cJSON_AddObjectToObject(parent, name);
+                if (!child) goto bad;
+            }
+            cur = child;
+        }
+        while (*p == '[') {
+            char *end;
+            long i = strtol(p + 1, &end, 10);
+            if (*end != ']' || !cJSON_IsArray(cur) || i < 0 || i >= cJSON_GetArraySize(cur)) goto bad;
+            p = end + 1;
+            if (*p == 0) {
+                cJSON_ReplaceItemInArray(cur, (int)i, value);
+                return RD_OK;
+            }
+            cur = cJSON_GetArrayItem(cur, (int)i);
+        }
+        if (*p == '.') p++;
+        else if (*p) goto bad;
+    }
+bad:
+    cJSON_Delete(value);
+    if (c->err) snprintf(c->err, c->errlen, "--set %s=%s: no such place in %s (use dotted keys and [i] for existing array items)",
+                         ov->key, ov->value, c->file);
+    return RD_ERR_ARG;
+}
+
+/* ---- load ---------------------------------------------------------------------------------- */
+static char *read_file(const char *path, char *err, size_t errlen, rd_status *st)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        snprintf(err, errlen, "%s: %s", path, strerror(errno));
+        *st = RD_ERR_IO;
+        return NULL;
+    }
+    char *buf = malloc(MAX_SCENE_BYTES + 1);
+    if (!buf) {
+        fclose(f);
+        *st = RD_ERR_NOMEM;
+        snprintf(err, errlen, "%s: out of memory", path);
+        return NULL;
+    }
+    size_t n = fread(buf, 1, MAX_SCENE_BYTES + 1, f);
+    int bad = ferror(f);
+    fclose(f);
+    if (bad) {
+        free(buf);
+        snprintf(err, errlen, "%s: read error (is it a directory?)", path);
+        *st = RD_ERR_IO;
+        return NULL;
+    }
+    if (n > MAX_SCENE_BYTES) {
+        free(buf);
+        snprintf(err, errlen, "%s: larger than %u MiB; not a scene file", path, MAX_SCENE_BYTES >> 20);
+        *st = RD_ERR_PARSE;
+        return NULL;
+    }
+    buf[n] = 0;
+    if (strlen(buf) != n) {
+        free(buf);
+        snprintf(err, errlen, "%s: contains a NUL byte; not a JSON text file", path);
+        *st = RD_ERR_PARSE;
+        return NULL;
+    }
+    return buf;
+}
+
+static void medium_release(rd_medium *m) { free(m->grid.data); }
+
+void rd_scene_free(rd_scene *s)
+{
+    if (!s) return;
+    for (int i = 0; i < s->n_media; i++) medium_release(&s->media[i]);
+    free(s->media);
+    free(s->lights);
+    free(s);
+}
+
+static rd_status validate(vctx *c, const cJSON *root, rd_scene *s)
+{
+    if (!cJSON_IsObject(root)) return fail(c, "(top level)", "expected an object, found %s", type_name(root));
+    static const char *const keys[] = {"camera", "media", "lights", "background", "settings", NULL};
+    TRY(check_keys(c, root, "", keys));
+    const cJSON *cam = cJSON_GetObjectItemCaseSensitive(root, "camera");
+    if (!cam) return fail(c, "camera", "missing (required)");
+    TRY(parse_camera(c, cam, &s->camera));
+
+    const cJSON *media = cJSON_GetObjectItemCaseSensitive(root, "media");
+    if (!media) return fail(c, "media", "missing (required: an array of media)");
+    if (!cJSON_IsArray(media)) return fail(c, "media", "expected an array, found %s", type_name(media));
+    int nm = cJSON_GetArraySize(media);
+    if (nm > MAX_MEDIA) return fail(c, "media", "at most %d media", MAX_MEDIA);
+    s->media = calloc(nm > 0 ? nm : 1, sizeof *s->media);
+    if (!s->media) return RD_ERR_NOMEM;
+    for (int i = 0; i < nm; i++) {
+        rd_status st = parse_medium(c, cJSON_GetArrayItem(media, i), i, &s->media[i]);
+        s->n_media = i + 1; /* so rd_scene_free releases a partly loaded medium */
+        if (st) return st;
+    }
+    /* Media must not overlap: the trackers visit them one interval at a time. */
+    for (int i = 0; i < nm; i++)
+        for (int k = i + 1; k < nm; k++) {
+            const rd_medium *a = &s->media[i], *b = &s->media[k];
+            if (a->bmin.x < b->bmax.x && b->bmin.x < a->bmax.x && a->bmin.y < b->bmax.y &&
+                b->bmin.y < a->bmax.y && a->bmin.z < b->bmax.z && b->bmin.z < a->bmax.z) {
+                char p[64];
+                snprintf(p, sizeof p, "media[%d].bounds", k);
+                return fail(c, p, "overlaps media[%d] (media must not overlap)", i);
+            }
+        }
+    s->bmin = v3(INFINITY, INFINITY, INFINITY);
+    s->bmax = v3(-INFINITY, -INFINITY, -INFINITY);
+    for (int i = 0; i < nm; i++) {
+        s->bmin = v3(fmin(s->bmin.x, s->media[i].bmin.x), fmin(s->bmin.y, s->media[i].bmin.y), fmin(s->bmin.z, s->media[i].bmin.z));
+        s->bmax = v3(fmax(s->bmax.x, s->media[i].bmax.x), fmax(s->bmax.y, s->media[i].bmax.y), fmax(s->bmax.z, s->media[i].bmax.z));
+    }
+    if (nm == 0) s->bmin = s->bmax = v3(0, 0, 0);
+
+    const cJSON *lights = cJSON_GetObjectItemCaseSensitive(root, "lights");
+    if (lights) {
+        if (!cJSON_IsArray(lights)) return fail(c, "lights", "expected an array, found %s", type_name(lights));
+        int nl = cJSON_GetArraySize(lights);
+        if (nl > MAX_LIGHTS) return fail(c, "lights", "at most %d lights", MAX_LIGHTS);
+        s->lights = calloc(nl > 0 ? nl : 1, sizeof *s->lights);
+        if (!s->lights) return RD_ERR_NOMEM;
+        for (int i = 0; i < nl; i++) TRY(parse_light(c, cJSON_GetArrayItem(lights, i), i, &s->lights[i]));
+        s->n_lights = nl;
+    }
+    TRY(get_vec3(c, root, "", "background", 0, v3(0, 0, 0), 1, 0, 1e12, &s->background));
+    TRY(parse_settings(c, cJSON_GetObjectItemCaseSensitive(root, "settings"), &s->settings));
+    return RD_OK;
+}
+
+rd_status rd_scene_load(rd_scene **out, const char *path, const rd_override *ov, int nov, char *err,
+                        size_t errlen)
+{
+    char dummy[8];
+    if (!err) { err = dummy; errlen = sizeof dummy; }
+    *out = NULL;
+    vctx c = {.file = path, .err = err, .errlen = errlen};
+    const char *slash = strrchr(path, '/');
+    if (slash) snprintf(c.dir, sizeof c.dir, "%.*s", (int)(slash - path), path);
+    if (slash == path) snprintf(c.dir, sizeof c.dir, "/");
+
+    rd_status st = RD_OK;
+    char *text = read_file(path, err, errlen, &st);
+    if (!text) return st;
+    const char *end = NULL;
+    cJSON *root = cJSON_ParseWithOpts(text, &end, 1);
+    if (!root) {
+        /* Report line and column of the first byte cJSON could not accept. */
+        int line = 1, col = 1;
+        const char *stop = end ? end : text;
+        for (const char *p = text; p < stop && *p; p++) {
+            if (*p == '\n') { line++; col = 1; } else col++;
+        }
+        snprintf(err, errlen, "%s: line %d, column %d: invalid JSON", path, line, col);
+        free(text);
+        return RD_ERR_PARSE;
+    }
+    free(text);
+    for (int i = 0; i < nov; i++) {
+        st = apply_override(&c, root, &ov[i]);
+        if (st) { cJSON_Delete(root); return st; }
+    }
+    rd_scene *s = calloc(1, sizeof *s);
+    if (!s) { cJSON_Delete(root); snprintf(err, errlen, "%s: out of memory", path); return RD_ERR_NOMEM; }
+    snprintf(s->path, sizeof s->path, "%s", path);
+    st = validate(&c, root, s);
+    cJSON_Delete(root);
+    if (st) {
+        if (st == RD_ERR_NOMEM) snprintf(err, errlen, "%s: out of memory", path);
+        rd_scene_free(s);
+        return st;
+    }
+    *out = s;
+    return RD_OK;
+}
+
+/* ---- accessors and info -------------------------------------------------------------------- */
+int rd_scene_width(const rd_scene *s) { return s->camera.width; }
+int rd_scene_height(const rd_scene *s) { return s->camera.height; }
+int rd_scene_spp(const rd_scene *s) { return s->settings.spp; }
+double rd_scene_time_limit(const rd_scene *s) { return s->settings.time_limit; }
+uint64_t rd_scene_seed(const rd_scene *s) { return s->settings.seed; }
+const char *rd_scene_method(const rd_scene *s) { return s->settings.method; }
+double rd_scene_exposure(const rd_scene *s) { return s->camera.exposure; }
+
+double rd_scene_radius(const rd_scene *s)
+{
+    double r = 0.5 * v3_len(v3_sub(s->bmax, s->bmin));
+    return r > 1e-3 ? r : 1e-3;
+}
+
+void rd_scene_info(const rd_scene *s, FILE *out)
+{
+    static const char *const dkind[] = {"constant", "voxel grid", "procedural noise"};
+    static const char *const lkind[] = {"point", "spot", "directional", "sphere", "environment"};
+    const rd_camera *cam = &s->camera;
+    fprintf(out, "scene      %s\n", s->path);
+    fprintf(out, "camera     %s, %dx%d, position (%g, %g, %g), forward (%.3f, %.3f, %.3f)",
+            cam->kind == RD_CAM_PERSPECTIVE ? "perspective" : "orthographic", cam->width, cam->height,
+            cam->pos.x, cam->pos.y, cam->pos.z, cam->forward.x, cam->forward.y, cam->forward.z);
+    if (cam->kind == RD_CAM_PERSPECTIVE) fprintf(out, ", fov %g deg\n", cam->fov_deg);
+    else fprintf(out, ", width %g\n", cam->ortho_width);
+    size_t mem = sizeof *s + (size_t)s->n_media * sizeof(rd_medium) + (size_t)s->n_lights * sizeof(rd_light);
+    fprintf(out, "media      %d\n", s->n_media);
+    for (int i = 0; i < s->n_media; i++) {
+        const rd_medium *m = &s->media[i];
+        fprintf(out, "  [%d] %-12s %s", i, m->name, dkind[m->kind]);
+        double dmin = 0, dmax = 0;
+        if (m->kind == RD_DENSITY_CONSTANT) {
+            dmin = dmax = m->constant;
+        } else if (m->kind == RD_DENSITY_GRID) {
+            size_t n = (size_t)m->grid.nx * m->grid.ny * m->grid.nz;
+            mem += n * sizeof(float);
+            fprintf(out, " %dx%dx%d (%.1f MiB)", m->grid.nx, m->grid.ny, m->grid.nz, n * 4.0 / 1048576.0);
+            dmin = m->grid.vmin;
+            dmax = m->grid.vmax;
+        } else {
+            const rd_noise *n = &m->noise;
+            fprintf(out, " %d octaves, frequency %g, gain %g, seed %u", n->octaves, n->frequency, n->gain, n->seed);
+            /* Sampled range on a 48^3 lattice (the majorant below is the provable bound). */
+            dmin = INFINITY;
+            dmax = 0;
+            for (int k = 0; k < 48; k++)
+                for (int j = 0; j < 48; j++)
+                    for (int q = 0; q < 48; q++) {
+                        vec3 x = v3(m->bmin.x + (q + 0.5) / 48 * (m->bmax.x - m->bmin.x),
+                                    m->bmin.y + (j + 0.5) / 48 * (m->bmax.y - m->bmin.y),
+                                    m->bmin.z + (k + 0.5) / 48 * (m->bmax.z - m->bmin.z));
+                        double d = rd_medium_density(m, x);
+                        dmin = fmin(dmin, d);
+                        dmax = fmax(dmax, d);
+                    }
+            fprintf(out, " (range sampled on 48^3)");
+        }
+        fprintf(out, "\n       bounds (%g, %g, %g) - (%g, %g, %g)\n", m->bmin.x, m->bmin.y, m->bmin.z,
+                m->bmax.x, m->bmax.y, m->bmax.z);
+        fprintf(out, "       density [%g, %g], sigma_t scale %g, albedo (%g, %g, %g), g %g\n", dmin, dmax,
+                m->sigma_t_scale, m->albedo.x, m->albedo.y, m->albedo.z, m->g);
+        fprintf(out, "       majorant: global, sigma_maj %g 1/m\n", m->sigma_maj);
+    }
+    fprintf(out, "lights     %d\n", s->n_lights);
+    for (int i = 0; i < s->n_lights; i++) {
+        const rd_light *l = &s->lights[i];
+        fprintf(out, "  [%d] %-11s", i, lkind[l->kind]);
+        switch (l->kind) {
+        case RD_LIGHT_POINT:
+            fprintf(out, " at (%g, %g, %g), intensity (%g, %g, %g) W/sr", l->pos.x, l->pos.y, l->pos.z,
+                    l->value.x, l->value.y, l->value.z);
+            break;
+        case RD_LIGHT_SPOT:
+            fprintf(out, " at (%g, %g, %g), axis (%.3f, %.3f, %.3f), cone %g deg, intensity (%g, %g, %g) W/sr",
+                    l->pos.x, l->pos.y, l->pos.z, l->dir.x, l->dir.y, l->dir.z,
+                    2.0 * acos(l->cos_outer) * 180.0 / M_PI, l->value.x, l->value.y, l->value.z);
+            break;
+        case RD_LIGHT_DIRECTIONAL:
+            fprintf(out, " toward (%.3f, %.3f, %.3f), irradiance (%g, %g, %g) W/m^2", l->dir.x, l->dir.y,
+                    l->dir.z, l->value.x, l->value.y, l->value.z);
+            if (l->radius > 0) fprintf(out, ", beam radius %g", l->radius);
+            break;
+        case RD_LIGHT_SPHERE:
+            fprintf(out, " at (%g, %g, %g), radius %g, radiance (%g, %g, %g)", l->pos.x, l->pos.y, l->pos.z,
+                    l->radius, l->value.x, l->value.y, l->value.z);
+            break;
+        case RD_LIGHT_ENVIRONMENT:
+            fprintf(out, " radiance (%g, %g, %g)", l->value.x, l->value.y, l->value.z);
+            break;
+        }
+        fprintf(out, ", power %.4g W\n", rd_light_power(l, rd_scene_radius(s)));
+    }
+    fprintf(out, "background (%g, %g, %g)\n", s->background.x, s->background.y, s->background.z);
+    fprintf(out, "settings   method %s, spp %d, time %g s, seed %llu, max_depth %d, rr_depth %d\n",
+            s->settings.method, s->settings.spp, s->settings.time_limit,
+            (unsigned long long)s->settings.seed, s->settings.max_depth, s->settings.rr_depth);
+    fprintf(out, "memory     %.2f MiB (scene and volumes; film %.2f MiB)\n", mem / 1048576.0,
+            (double)cam->width * cam->height * 3 * (sizeof(float) + sizeof(double)) / 1048576.0);
+}
