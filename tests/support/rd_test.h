@@ -1,0 +1,106 @@
+/* rd_test.h: header-only helpers for the renderer tests (scene from a JSON string, a temporary
+ * folder, running the CLI). Everything is static so each test file gets its own copy. */
+#ifndef RD_TEST_H
+#define RD_TEST_H
+
+#define _DEFAULT_SOURCE
+#include "rd_internal.h"
+
+#include <criterion/criterion.h>
+#include <fcntl.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+/* A fresh folder under /tmp for this test process. */
+static inline const char *rt_tmpdir(void)
+{
+    static char dir[64]; /* written once per process (tests run in their own processes) */
+    if (!dir[0]) {
+        snprintf(dir, sizeof dir, "/tmp/rdtest.XXXXXX");
+        cr_assert(mkdtemp(dir) != NULL, "mkdtemp failed");
+    }
+    return dir;
+}
+
+static inline void rt_write_file(const char *path, const void *data, size_t n)
+{
+    FILE *f = fopen(path, "wb");
+    cr_assert(f != NULL, "cannot write %s", path);
+    cr_assert(fwrite(data, 1, n, f) == n);
+    fclose(f);
+}
+
+/* Write `json` to <tmp>/<name> and load it; the test fails with the loader's message if the
+ * scene does not load. */
+static inline rd_scene *rt_scene(const char *name, const char *json)
+{
+    char path[256], err[RD_ERRLEN];
+    snprintf(path, sizeof path, "%s/%s", rt_tmpdir(), name);
+    rt_write_file(path, json, strlen(json));
+    rd_scene *s = NULL;
+    rd_status st = rd_scene_load(&s, path, NULL, 0, err, sizeof err);
+    cr_assert(st == RD_OK, "scene %s did not load: %s", name, err);
+    return s;
+}
+
+/* Run `argv` (argv[0] is the program path) with stdout/stderr captured into the given buffers;
+ * returns the exit status, or 1000 + signal number when it died of a signal. */
+static inline int rt_run(char *const argv[], char *out, size_t outlen, char *errbuf, size_t errlen,
+                         int sigint_after_ms)
+{
+    char fo[256], fe[256];
+    snprintf(fo, sizeof fo, "%s/stdout.XXXXXX", rt_tmpdir());
+    snprintf(fe, sizeof fe, "%s/stderr.XXXXXX", rt_tmpdir());
+    int ofd = mkstemp(fo), efd = mkstemp(fe);
+    cr_assert(ofd >= 0 && efd >= 0);
+    pid_t pid = fork();
+    cr_assert(pid >= 0);
+    if (pid == 0) {
+        dup2(ofd, 1);
+        dup2(efd, 2);
+        int nul = open("/dev/null", O_RDONLY);
+        dup2(nul, 0);
+        setenv("ASAN_OPTIONS", "exitcode=86:detect_leaks=1", 1);
+        setenv("UBSAN_OPTIONS", "halt_on_error=1:exitcode=87:print_stacktrace=1", 1);
+        execv(argv[0], argv);
+        _exit(127);
+    }
+    if (sigint_after_ms > 0) {
+        usleep((useconds_t)sigint_after_ms * 1000);
+        kill(pid, SIGINT);
+    }
+    int status;
+    waitpid(pid, &status, 0);
+    FILE *f;
+    if (out && (f = fdopen(ofd, "r"))) {
+        rewind(f);
+        size_t n = fread(out, 1, outlen - 1, f);
+        out[n] = 0;
+        fclose(f);
+    } else close(ofd);
+    if (errbuf && (f = fdopen(efd, "r"))) {
+        rewind(f);
+        size_t n = fread(errbuf, 1, errlen - 1, f);
+        errbuf[n] = 0;
+        fclose(f);
+    } else close(efd);
+    unlink(fo);
+    unlink(fe);
+    if (WIFSIGNALED(status)) return 1000 + WTERMSIG(status);
+    return WEXITSTATUS(status);
+}
+
+/* Wilson-Hilferty approximation of the chi-square quantile for `dof` degrees of freedom at
+ * standard-normal quantile z (z = 3.719 for an upper tail of 1e-4). */
+static inline double rt_chi2_quantile(int dof, double z)
+{
+    double k = dof, a = 2.0 / (9.0 * k);
+    double c = 1.0 - a + z * sqrt(a);
+    return k * c * c * c;
+}
+
+#endif

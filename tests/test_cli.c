@@ -1,0 +1,201 @@
+/* The command line as a user meets it: the malformed-scene catalogue (every case a clear
+ * one-line error naming the file and the field, exit code 2, never a crash, also under the
+ * sanitizer build), a good render writing EXR + PNG + JSON atomically, Ctrl-C writing what it
+ * has, and option errors. The binaries come from PHOTONMARCH_BIN and PHOTONMARCH_ASAN_BIN
+ * (set by `make test`). */
+#include "support/rd_test.h"
+
+#include <signal.h>
+
+typedef struct { const char *file, *expect; } bad_case;
+
+/* tests/data/bad/<file>: the message must contain `expect`. */
+static const bad_case catalogue[] = {
+    {"truncated.json", "line 1, column 38: invalid JSON"},
+    {"empty.json", "invalid JSON"},
+    {"top_array.json", "(top level): expected an object"},
+    {"nan_value.json", "invalid JSON"},
+    {"huge_number.json", "media[0].sigma_t: must be finite"},
+    {"missing_camera.json", "camera: missing"},
+    {"unknown_top_key.json", "lightz: unknown key"},
+    {"unknown_medium_key.json", "media[0].densty: unknown key"},
+    {"zero_resolution.json", "camera.resolution: expected [width, height]"},
+    {"absurd_resolution.json", "camera.resolution: expected [width, height]"},
+    {"fov_string.json", "camera.fov: expected a number, found a string"},
+    {"negative_sigma.json", "media[0].sigma_t: must be in [0"},
+    {"albedo_two_numbers.json", "media[0].albedo: expected a number or 3 numbers in [0, 1]"},
+    {"albedo_above_one.json", "media[0].albedo: expected a number or 3 numbers in [0, 1], found 1.5"},
+    {"g_equals_one.json", "media[0].g: must be in (-1, 1)"},
+    {"missing_vdb.json", "media[0].density.file: tests/data/bad/no_such.vdb: No such file"},
+    {"corrupt_vdb.json", "media[0].density.file: tests/data/bad/corrupt.vdb:"},
+    {"raw_wrong_size.json", "media[0].density.file: tests/data/bad/short.raw: size 10 bytes, expected 256"},
+    {"spot_angle_zero.json", "lights[0].angle: must be in (0, 180]"},
+    {"spot_angle_200.json", "lights[0].angle: must be in (0, 180]"},
+    {"unknown_light_type.json", "lights[0].type: unknown value \"laser\""},
+    {"overlapping_media.json", "media[1].bounds: overlaps media[0]"},
+    {"bounds_inverted.json", "media[0].bounds: min must be smaller than max"},
+    {"camera_up_parallel.json", "camera.up: must not be parallel"},
+    {"spp_zero.json", "settings.spp: must be in [1, 16777216], found 0"},
+    {"media_not_array.json", "media: expected an array, found an object"},
+    {"negative_intensity.json", "lights[0].intensity: expected a number or 3 numbers"},
+    {"unknown_method.json", "settings.method: unknown method \"magic\""},
+};
+
+static void run_catalogue(const char *bin)
+{
+    int n = sizeof catalogue / sizeof catalogue[0];
+    cr_assert(n >= 15);
+    for (int i = 0; i < n; i++) {
+        char scene[256], out[4096], err[8192], outexr[256];
+        snprintf(scene, sizeof scene, "tests/data/bad/%s", catalogue[i].file);
+        snprintf(outexr, sizeof outexr, "%s/bad%d.exr", rt_tmpdir(), i);
+        const char *cmds[2] = {"render", "info"};
+        for (int c = 0; c < 2; c++) {
+            char *argv[] = {(char *)bin, (char *)cmds[c], scene, "-o", outexr, "-q", NULL};
+            if (c == 1) argv[3] = NULL;
+            int code = rt_run(argv, out, sizeof out, err, sizeof err, 0);
+            cr_expect(code == 2, "%s %s %s: exit %d (expected 2); stderr: %s", bin, cmds[c], scene, code, err);
+            /* One line, beginning with the file's name, containing the expected words. */
+            size_t len = strlen(err);
+            cr_expect(len > 0 && err[len - 1] == '\n' && strchr(err, '\n') == err + len - 1,
+                      "%s: stderr is not exactly one line: [%s]", scene, err);
+            cr_expect(strncmp(err, scene, strlen(scene)) == 0, "%s: message does not start with the file: %s", scene, err);
+            cr_expect(strstr(err, catalogue[i].expect) != NULL, "%s: expected \"%s\" in: %s", scene, catalogue[i].expect, err);
+            cr_expect(access(outexr, F_OK) != 0, "%s: an output was written for a bad scene", scene);
+        }
+    }
+}
+
+Test(cli, malformed_scene_catalogue, .timeout = 300)
+{
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL, "PHOTONMARCH_BIN is not set (run through make test)");
+    run_catalogue(bin);
+}
+
+Test(cli, malformed_scene_catalogue_under_sanitizers, .timeout = 600)
+{
+    const char *bin = getenv("PHOTONMARCH_ASAN_BIN");
+    if (!bin) cr_skip_test("PHOTONMARCH_ASAN_BIN is not set (make test sets it)");
+    run_catalogue(bin);
+}
+
+static const char *tiny_scene(void)
+{
+    static char path[256];
+    snprintf(path, sizeof path, "%s/tiny.json", rt_tmpdir());
+    const char *json =
+        "{\"camera\":{\"position\":[0,0,4],\"look_at\":[0,0,0],\"resolution\":[24,16]},"
+        "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},\"density\":{\"type\":\"noise\",\"octaves\":2},"
+        "\"sigma_t\":2,\"albedo\":0.9,\"g\":0.4}],"
+        "\"lights\":[{\"type\":\"point\",\"position\":[1,2,1],\"intensity\":5}],"
+        "\"settings\":{\"spp\":4}}";
+    rt_write_file(path, json, strlen(json));
+    return path;
+}
+
+Test(cli, render_writes_exr_png_and_report, .timeout = 120)
+{
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char exr[256], png[256], js[256], out[4096], err[4096];
+    snprintf(exr, sizeof exr, "%s/img/a.exr", rt_tmpdir());
+    snprintf(png, sizeof png, "%s/img/a.png", rt_tmpdir());
+    snprintf(js, sizeof js, "%s/img/a.json", rt_tmpdir());
+    char *argv[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", exr, "--spp", "3", "--threads", "2", NULL};
+    int code = rt_run(argv, out, sizeof out, err, sizeof err, 0);
+    cr_assert(code == 0, "exit %d: %s", code, err);
+    cr_expect(strstr(out, exr) && strstr(out, png) && strstr(out, js), "stdout names the outputs: %s", out);
+    rd_image img;
+    char msg[RD_ERRLEN];
+    cr_assert(rd_image_read(exr, &img, msg, sizeof msg) == RD_OK, "%s", msg);
+    cr_expect(img.w == 24 && img.h == 16);
+    double sum = 0;
+    for (int i = 0; i < img.w * img.h * 3; i++) {
+        cr_expect(isfinite(img.rgb[i]) && img.rgb[i] >= 0.0f);
+        sum += img.rgb[i];
+    }
+    cr_expect(sum > 0.0);
+    rd_image_free_pixels(&img);
+    cr_expect(rd_image_read(png, &img, msg, sizeof msg) == RD_OK, "%s", msg);
+    rd_image_free_pixels(&img);
+    FILE *f = fopen(js, "r");
+    cr_assert(f != NULL);
+    char buf[4096];
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    buf[n] = 0;
+    fclose(f);
+    cr_expect(strstr(buf, "\"spp\": 3") != NULL, "report: %s", buf);
+    /* No temporary files are left beside the outputs. */
+    char cmd[512];
+    snprintf(cmd, sizeof cmd, "ls -a %s/img | grep -c tmp", rt_tmpdir());
+    FILE *p = popen(cmd, "r");
+    int tmpfiles = -1;
+    cr_assert(fscanf(p, "%d", &tmpfiles) == 1);
+    pclose(p);
+    cr_expect(tmpfiles == 0, "temporary files left behind");
+}
+
+Test(cli, failed_run_keeps_the_previous_image, .timeout = 120)
+{
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char exr[256], out[4096], err[4096];
+    snprintf(exr, sizeof exr, "%s/keep.exr", rt_tmpdir());
+    char *good[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", exr, "-q", NULL};
+    cr_assert(rt_run(good, out, sizeof out, err, sizeof err, 0) == 0, "%s", err);
+    struct stat before, after;
+    cr_assert(stat(exr, &before) == 0);
+    /* An override that makes the scene invalid: the run fails and the image stays. */
+    char *bad[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", exr, "--set", "media[0].g=2", NULL};
+    int code = rt_run(bad, out, sizeof out, err, sizeof err, 0);
+    cr_expect(code == 2, "exit %d", code);
+    cr_expect(strstr(err, "media[0].g: must be in (-1, 1), found 2") != NULL, "%s", err);
+    cr_assert(stat(exr, &after) == 0);
+    cr_expect(before.st_size == after.st_size && before.st_mtime == after.st_mtime);
+}
+
+Test(cli, ctrl_c_writes_what_it_has, .timeout = 120)
+{
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char exr[256], js[256], out[4096], err[4096];
+    snprintf(exr, sizeof exr, "%s/int.exr", rt_tmpdir());
+    snprintf(js, sizeof js, "%s/int.json", rt_tmpdir());
+    /* Far more samples than 1.5 s allows; SIGINT after 1.5 s. */
+    char *argv[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", exr, "--spp", "10000000",
+                    "--set", "camera.resolution=[64,64]", NULL};
+    int code = rt_run(argv, out, sizeof out, err, sizeof err, 1500);
+    cr_expect(code == 130, "exit %d (expected 130): %s", code, err);
+    cr_expect(access(exr, F_OK) == 0, "the partial image was not written");
+    FILE *f = fopen(js, "r");
+    cr_assert(f != NULL, "no report");
+    char buf[4096];
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    buf[n] = 0;
+    fclose(f);
+    cr_expect(strstr(buf, "\"interrupted\": true") != NULL, "%s", buf);
+}
+
+Test(cli, usage_errors_exit_1)
+{
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char out[4096], err[4096];
+    char *a1[] = {(char *)bin, "render", (char *)tiny_scene(), "--spp", "zero", NULL};
+    cr_expect(rt_run(a1, out, sizeof out, err, sizeof err, 0) == 1);
+    cr_expect(strstr(err, "--spp: expected an integer") != NULL, "%s", err);
+    char *a2[] = {(char *)bin, "frobnicate", NULL};
+    cr_expect(rt_run(a2, out, sizeof out, err, sizeof err, 0) == 1);
+    char *a3[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", "x.png", NULL};
+    cr_expect(rt_run(a3, out, sizeof out, err, sizeof err, 0) == 1);
+    cr_expect(strstr(err, "expected a path ending in .exr") != NULL, "%s", err);
+    char *a4[] = {(char *)bin, "render", (char *)tiny_scene(), "--set", "nosuch[3].x=1", NULL};
+    cr_expect(rt_run(a4, out, sizeof out, err, sizeof err, 0) == 1, "%s", err);
+    char *a5[] = {(char *)bin, "render", "--help", NULL};
+    cr_expect(rt_run(a5, out, sizeof out, err, sizeof err, 0) == 0);
+    cr_expect(strstr(out, "--spp N") && strstr(out, "--set KEY=VALUE"), "%s", out);
+    char *a6[] = {(char *)bin, "render", "/nonexistent/scene.json", NULL};
+    cr_expect(rt_run(a6, out, sizeof out, err, sizeof err, 0) == 2);
+    cr_expect(strstr(err, "/nonexistent/scene.json: No such file") != NULL, "%s", err);
+}

@@ -1,0 +1,113 @@
+/* Henyey-Greenstein phase function: normalisation, mean cosine, and a chi-square test of the
+ * sampling routine (THEORY.md §1). */
+#include "support/rd_test.h"
+
+static const double G[] = {-0.7, -0.2, 0.0, 0.3, 0.7, 0.95};
+
+/* Gauss-Legendre-free check: composite Simpson over mu in [-1, 1] with many intervals is exact
+ * to ~1e-9 for these smooth integrands (the peak at g = 0.95 has width ~ (1-g) = 0.05). */
+static double simpson(double g, int moment)
+{
+    int n = 200000;
+    double h = 2.0 / n, s = 0;
+    for (int i = 0; i <= n; i++) {
+        double mu = -1.0 + i * h;
+        double f = 2.0 * M_PI * rd_hg_eval(g, mu) * (moment ? mu : 1.0);
+        s += f * (i == 0 || i == n ? 1 : (i % 2 ? 4 : 2));
+    }
+    return s * h / 3.0;
+}
+
+Test(phase, hg_normalised_and_mean_cosine_is_g)
+{
+    for (size_t i = 0; i < sizeof G / sizeof G[0]; i++) {
+        cr_expect(fabs(simpson(G[i], 0) - 1.0) < 1e-6, "g=%g: integral %.9f", G[i], simpson(G[i], 0));
+        cr_expect(fabs(simpson(G[i], 1) - G[i]) < 1e-6, "g=%g: mean cosine %.9f", G[i], simpson(G[i], 1));
+    }
+}
+
+Test(phase, hg_sampled_mean_cosine_is_g)
+{
+    /* Monte Carlo mean of sampled cos: tolerance 5 standard errors of the sample mean. */
+    for (size_t i = 0; i < sizeof G / sizeof G[0]; i++) {
+        pcg32 rng = pcg32_seed(11, i, 2024);
+        int n = 400000;
+        double s = 0, s2 = 0;
+        for (int k = 0; k < n; k++) {
+            double c = rd_hg_sample_cos(G[i], pcg32_uniform(&rng));
+            s += c;
+            s2 += c * c;
+        }
+        double mean = s / n, se = sqrt((s2 / n - mean * mean) / n);
+        cr_expect(fabs(mean - G[i]) < 5 * se, "g=%g: sampled mean cos %.5f, se %.5f", G[i], mean, se);
+    }
+}
+
+/* P(cos <= mu) for HG, the analytic CDF in the cosine. */
+static double hg_cdf(double g, double mu)
+{
+    if (fabs(g) < 1e-3) return 0.5 * (mu + 1.0);
+    return (1.0 - g * g) / (2.0 * g) * (1.0 / sqrt(1.0 + g * g - 2.0 * g * mu) - 1.0 / (1.0 + g));
+}
+
+Test(phase, hg_sampling_chi_square)
+{
+    /* Directions sampled around random propagation directions, binned in (cos theta, phi) in
+     * the frame of that direction; expected counts from the analytic CDF (uniform in phi).
+     * Cells with expected count < 5 are pooled (pbrt-v4 bsdfs_test). Reject at p = 1e-4. */
+    enum { NC = 40, NP = 16 };
+    for (size_t gi = 0; gi < sizeof G / sizeof G[0]; gi++) {
+        double g = G[gi];
+        static double obs[NC][NP];
+        memset(obs, 0, sizeof obs);
+        int n = 300000;
+        pcg32 rng = pcg32_seed(5, gi, 99);
+        for (int k = 0; k < n; k++) {
+            vec3 wi = rd_sample_sphere(pcg32_uniform(&rng), pcg32_uniform(&rng));
+            vec3 wo = rd_hg_sample(g, wi, pcg32_uniform(&rng), pcg32_uniform(&rng));
+            vec3 a, b;
+            v3_basis(wi, &a, &b);
+            double c = fmin(1.0, fmax(-1.0, v3_dot(wi, wo)));
+            double phi = atan2(v3_dot(wo, b), v3_dot(wo, a));
+            if (phi < 0) phi += 2 * M_PI;
+            int ci = (int)((c + 1.0) * 0.5 * NC), pi = (int)(phi / (2 * M_PI) * NP);
+            ci = ci >= NC ? NC - 1 : ci;
+            pi = pi >= NP ? NP - 1 : pi;
+            obs[ci][pi] += 1;
+        }
+        double chi2 = 0, pool_o = 0, pool_e = 0;
+        int dof = -1;
+        for (int ci = 0; ci < NC; ci++) {
+            double lo = -1.0 + 2.0 * ci / NC, hi = -1.0 + 2.0 * (ci + 1) / NC;
+            double e = n * (hg_cdf(g, hi) - hg_cdf(g, lo)) / NP;
+            for (int pi = 0; pi < NP; pi++) {
+                if (e < 5) { pool_o += obs[ci][pi]; pool_e += e; continue; }
+                chi2 += (obs[ci][pi] - e) * (obs[ci][pi] - e) / e;
+                dof++;
+            }
+        }
+        if (pool_e >= 5) { chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e; dof++; }
+        double crit = rt_chi2_quantile(dof, 3.719);
+        cr_expect(chi2 < crit, "g=%g: chi2 %.1f >= %.1f (dof %d)", g, chi2, crit, dof);
+    }
+}
+
+Test(phase, hg_sampler_rejects_a_wrong_distribution)
+{
+    /* The chi-square test must have teeth: samples of g = 0.5 judged against g = 0.45 fail. */
+    enum { NC = 40 };
+    double obs[NC] = {0};
+    int n = 300000;
+    pcg32 rng = pcg32_seed(1, 2, 3);
+    for (int k = 0; k < n; k++) {
+        double c = rd_hg_sample_cos(0.5, pcg32_uniform(&rng));
+        int ci = (int)((c + 1.0) * 0.5 * NC);
+        obs[ci >= NC ? NC - 1 : ci] += 1;
+    }
+    double chi2 = 0;
+    for (int ci = 0; ci < NC; ci++) {
+        double e = n * (hg_cdf(0.45, -1.0 + 2.0 * (ci + 1) / NC) - hg_cdf(0.45, -1.0 + 2.0 * ci / NC));
+        chi2 += (obs[ci] - e) * (obs[ci] - e) / e;
+    }
+    cr_expect(chi2 > rt_chi2_quantile(NC - 1, 3.719), "chi2 %.1f did not detect g 0.5 vs 0.45", chi2);
+}
