@@ -3,7 +3,7 @@
 #include "rd_internal.h"
 
 /* Spot falloff: smoothstep from the cone edge (cos_outer) to cos_inner (pbrt-v4 SpotLight). */
-static double spot_falloff(const rd_light *l, double cos_theta)
+double rd_spot_falloff(const rd_light *l, double cos_theta)
 {
     if (cos_theta <= l->cos_outer) return 0.0;
     if (cos_theta >= l->cos_inner) return 1.0;
@@ -33,7 +33,7 @@ int rd_light_sample_li(const rd_light *l, vec3 x, double u1, double u2, rd_light
         s->dist = sqrt(r2);
         s->wi = v3_scale(d, 1.0 / s->dist);
         double f = 1.0;
-        if (l->kind == RD_LIGHT_SPOT) f = spot_falloff(l, -v3_dot(s->wi, l->dir));
+        if (l->kind == RD_LIGHT_SPOT) f = rd_spot_falloff(l, -v3_dot(s->wi, l->dir));
         if (f <= 0.0) return 0;
         s->Li = v3_scale(l->value, f / r2); /* I / r^2 */
         s->pdf = 0.0;

@@ -121,6 +121,8 @@ typedef struct {
 int rd_light_sample_li(const rd_light *l, vec3 x, double u1, double u2, rd_light_sample *s);
 /* Solid-angle pdf that rd_light_sample_li gives direction w from x (area lights only). */
 double rd_light_pdf(const rd_light *l, vec3 x, vec3 w);
+/* Spot light angular falloff in [0, 1] at cos_theta from its axis (smoothstep over the edge). */
+double rd_spot_falloff(const rd_light *l, double cos_theta);
 /* Distance along r to a sphere light's surface (INFINITY if missed or not a sphere light). */
 double rd_light_hit(const rd_light *l, ray3 r);
 /* Total emitted power [W] (luminance of the RGB), used to choose lights in proportion to power;

@@ -1,0 +1,248 @@
+/* photons.c: photon tracing (THEORY.md §3; Jensen and Christensen 1998; seed 001 §2).
+ *
+ * Photons leave the lights (a light chosen per photon with probability proportional to its
+ * power), fly with the free-path engine's delta tracking, and at every real collision store
+ * (position, propagation direction, scattered power = incident power x albedo) before going on
+ * with Russian roulette on the albedo. Optionally the path segments (the flights between
+ * events, clipped to the media bounds) are stored too, for the track-length estimate.
+ *
+ * Determinism: photon i draws from the PCG32 stream (i, seed); photons are traced in blocks
+ * whose results are concatenated in block order, so the map is the same whatever the thread
+ * count. */
+#include "rd_photons.h"
+
+#include <omp.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#define BLOCK 4096 /* photons per work unit */
+
+typedef struct {
+    pm_photon *ph;
+    size_t n_ph, cap_ph;
+    pm_segment *seg;
+    size_t n_seg, cap_seg;
+    double emitted[3], absorbed[3], escaped[3], carried[3];
+    int oom;
+} block_out;
+
+static void push_photon(block_out *b, vec3 x, vec3 d, vec3 power)
+{
+    if (b->n_ph == b->cap_ph) {
+        size_t cap = b->cap_ph ? 2 * b->cap_ph : 1024;
+        pm_photon *p = realloc(b->ph, cap * sizeof *p);
+        if (!p) { b->oom = 1; return; }
+        b->ph = p;
+        b->cap_ph = cap;
+    }
+    pm_photon *p = &b->ph[b->n_ph++];
+    p->pos[0] = (float)x.x; p->pos[1] = (float)x.y; p->pos[2] = (float)x.z;
+    p->dir[0] = (float)d.x; p->dir[1] = (float)d.y; p->dir[2] = (float)d.z;
+    p->power[0] = (float)power.x; p->power[1] = (float)power.y; p->power[2] = (float)power.z;
+}
+
+/* Store the part of the flight o + t d, t in [0, tmax], that lies inside the media bounds. */
+static void push_segment(block_out *b, const rd_scene *s, ray3 r, double tmax, vec3 power)
+{
+    double t0, t1;
+    if (!rd_box_intersect(s->bmin, s->bmax, r, 0.0, tmax, &t0, &t1)) return;
+    if (b->n_seg == b->cap_seg) {
+        size_t cap = b->cap_seg ? 2 * b->cap_seg : 1024;
+        pm_segment *p = realloc(b->seg, cap * sizeof *p);
+        if (!p) { b->oom = 1; return; }
+        b->seg = p;
+        b->cap_seg = cap;
+    }
+    pm_segment *g = &b->seg[b->n_seg++];
+    vec3 o = ray_at(r, t0);
+    g->org[0] = (float)o.x; g->org[1] = (float)o.y; g->org[2] = (float)o.z;
+    g->dir[0] = (float)r.d.x; g->dir[1] = (float)r.d.y; g->dir[2] = (float)r.d.z;
+    g->length = (float)(t1 - t0);
+    g->power[0] = (float)power.x; g->power[1] = (float)power.y; g->power[2] = (float)power.z;
+}
+
+static void acc(double a[3], vec3 v) { a[0] += v.x; a[1] += v.y; a[2] += v.z; }
+
+/* Sample an emitted photon from light l: ray and power (RGB watts per unit pdf, i.e. the
+ * light's total power for an estimator that averages over photons). Returns 0 if none. */
+static int emit(const rd_scene *s, const rd_light *l, pcg32 *rng, ray3 *r, vec3 *power)
+{
+    double u1 = pcg32_uniform(rng), u2 = pcg32_uniform(rng);
+    vec3 centre = v3_scale(v3_add(s->bmin, s->bmax), 0.5);
+    double R = rd_scene_radius(s);
+    switch (l->kind) {
+    case RD_LIGHT_POINT:
+        r->o = l->pos;
+        r->d = rd_sample_sphere(u1, u2);
+        *power = v3_scale(l->value, 4.0 * M_PI); /* I / pdf, pdf = 1/(4 pi) */
+        return 1;
+    case RD_LIGHT_SPOT: {
+        /* Uniform in the cone's solid angle; weight by the smooth falloff. */
+        double c = 1.0 - u1 * (1.0 - l->cos_outer);
+        double sn = sqrt(fmax(0.0, 1.0 - c * c)), phi = 2.0 * M_PI * u2;
+        vec3 a, b;
+        v3_basis(l->dir, &a, &b);
+        r->o = l->pos;
+        r->d = v3_norm(v3_add(v3_scale(l->dir, c), v3_add(v3_scale(a, sn * cos(phi)), v3_scale(b, sn * sin(phi)))));
+        double falloff = rd_spot_falloff(l, c);
+        *power = v3_scale(l->value, falloff * 2.0 * M_PI * (1.0 - l->cos_outer));
+        return 1;
+    }
+    case RD_LIGHT_DIRECTIONAL: {
+        /* A disc across the beam (its own radius, or the scene's), upstream of the scene. */
+        double rad = l->radius > 0 ? l->radius : R;
+        vec3 c0 = l->radius > 0 ? l->beam_center : centre;
+        /* move the disc centre to the plane through the scene centre, then 2R upstream */
+        c0 = v3_madd(c0, l->dir, v3_dot(v3_sub(centre, c0), l->dir) - 2.0 * R);
+        double rr = rad * sqrt(u1), phi = 2.0 * M_PI * u2;
+        vec3 a, b;
+        v3_basis(l->dir, &a, &b);
+        r->o = v3_add(c0, v3_add(v3_scale(a, rr * cos(phi)), v3_scale(b, rr * sin(phi))));
+        r->d = l->dir;
+        *power = v3_scale(l->value, M_PI * rad * rad); /* E times the disc area */
+        return 1;
+    }
+    case RD_LIGHT_SPHERE: {
+        /* Uniform point on the sphere, cosine-weighted outward direction. */
+        vec3 n = rd_sample_sphere(u1, u2);
+        double v1 = pcg32_uniform(rng), v2 = pcg32_uniform(rng);
+        double rr = sqrt(v1), phi = 2.0 * M_PI * v2;
+        vec3 a, b;
+        v3_basis(n, &a, &b);
+        r->o = v3_madd(l->pos, n, l->radius * (1.0 + 1e-9));
+        r->d = v3_norm(v3_add(v3_scale(n, sqrt(fmax(0.0, 1.0 - v1))), v3_add(v3_scale(a, rr * cos(phi)), v3_scale(b, rr * sin(phi)))));
+        *power = v3_scale(l->value, M_PI * 4.0 * M_PI * l->radius * l->radius); /* L pi A */
+        return 1;
+    }
+    case RD_LIGHT_ENVIRONMENT: {
+        /* Uniform direction; a disc of radius R across it, 2R upstream of the scene centre. */
+        vec3 d = rd_sample_sphere(u1, u2);
+        double v1 = pcg32_uniform(rng), v2 = pcg32_uniform(rng);
+        double rr = R * sqrt(v1), phi = 2.0 * M_PI * v2;
+        vec3 a, b;
+        v3_basis(d, &a, &b);
+        r->o = v3_add(v3_madd(centre, d, -2.0 * R), v3_add(v3_scale(a, rr * cos(phi)), v3_scale(b, rr * sin(phi))));
+        r->d = d;
+        *power = v3_scale(l->value, 4.0 * M_PI * M_PI * R * R); /* L (pi R^2) (4 pi) */
+        return 1;
+    }
+    }
+    return 0;
+}
+
+static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double *cdf, size_t first,
+                        size_t count, block_out *b, rd_track_counters *tc)
+{
+    const double inv_n = 1.0 / (double)o->count;
+    for (size_t i = first; i < first + count; i++) {
+        pcg32 rng = pcg32_seed(i, 0x70686f746f6eULL, o->seed);
+        /* Choose a light with probability proportional to its power (binary search). */
+        double u = pcg32_uniform(&rng);
+        int lo = 0, hi = s->n_lights - 1;
+        while (lo < hi) {
+            int mid = (lo + hi) / 2;
+            if (u < cdf[mid + 1]) hi = mid; else lo = mid + 1;
+        }
+        double p_light = cdf[lo + 1] - cdf[lo];
+        ray3 r;
+        vec3 beta;
+        if (!emit(s, &s->lights[lo], &rng, &r, &beta)) continue;
+        beta = v3_scale(beta, inv_n / p_light); /* photon power: Phi_l / (N p_l) */
+        acc(b->emitted, beta);
+        for (int depth = 1;; depth++) {
+            rd_collision col = rd_delta_track(s, r, INFINITY, &rng, tc);
+            if (o->segments) push_segment(b, s, r, col.hit ? col.t : INFINITY, beta);
+            if (!col.hit) { acc(b->escaped, beta); break; }
+            const rd_medium *m = col.medium;
+            vec3 x = ray_at(r, col.t);
+            vec3 scattered = v3_mul(beta, m->albedo);
+            /* Store the scattered power; skip first collisions when NEE supplies direct light. */
+            if (depth > 1 || o->store_direct) push_photon(b, x, r.d, scattered);
+            acc(b->absorbed, v3_sub(beta, scattered)); /* expected absorption at this event */
+            if (depth >= o->max_depth) { acc(b->carried, scattered); break; }
+            /* Russian roulette on the albedo: survive with p = max channel, power x albedo / p. */
+            double p = v3_maxc(m->albedo);
+            if (p <= 0.0 || pcg32_uniform(&rng) >= p) break;
+            beta = v3_scale(scattered, 1.0 / p);
+            r.o = x;
+            r.d = rd_hg_sample(m->g, r.d, pcg32_uniform(&rng), pcg32_uniform(&rng));
+        }
+        if (b->oom) return;
+    }
+}
+
+rd_status rd_trace_photons(const rd_scene *s, const rd_photon_opts *o, pm_map *map,
+                           rd_photon_stats *st, char *err, size_t errlen)
+{
+    memset(st, 0, sizeof *st);
+    if (o->count == 0 || o->max_depth < 1) {
+        snprintf(err, errlen, "photon tracing: count and max_depth must be >= 1");
+        return RD_ERR_ARG;
+    }
+    /* Light selection CDF by power (luminance). */
+    double *cdf = calloc((size_t)s->n_lights + 1, sizeof *cdf);
+    if (!cdf) return RD_ERR_NOMEM;
+    double R = rd_scene_radius(s);
+    for (int i = 0; i < s->n_lights; i++) cdf[i + 1] = cdf[i] + rd_light_power(&s->lights[i], R);
+    if (s->n_lights == 0 || !(cdf[s->n_lights] > 0)) {
+        free(cdf);
+        snprintf(err, errlen, "%s: lights: no light emits power; nothing to trace", s->path);
+        return RD_ERR_SCENE;
+    }
+    for (int i = 1; i <= s->n_lights; i++) cdf[i] /= cdf[s->n_lights];
+
+    size_t nblocks = (o->count + BLOCK - 1) / BLOCK;
+    block_out *blocks = calloc(nblocks, sizeof *blocks);
+    if (!blocks) { free(cdf); return RD_ERR_NOMEM; }
+    int nthreads = o->threads > 0 ? o->threads : omp_get_max_threads();
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    uint64_t coll = 0, look = 0;
+#pragma omp parallel for num_threads(nthreads) schedule(dynamic, 1) reduction(+ : coll, look)
+    for (size_t bi = 0; bi < nblocks; bi++) {
+        size_t first = bi * BLOCK, cnt = first + BLOCK <= o->count ? BLOCK : o->count - first;
+        rd_track_counters tc = {0, 0};
+        trace_block(s, o, cdf, first, cnt, &blocks[bi], &tc);
+        coll += tc.collisions;
+        look += tc.lookups;
+    }
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    st->seconds = (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec);
+    st->collisions = coll;
+    st->lookups = look;
+    st->emitted = o->count;
+
+    rd_status status = RD_OK;
+    char pmerr[256];
+    for (size_t bi = 0; bi < nblocks; bi++) {
+        block_out *b = &blocks[bi];
+        if (status == RD_OK && b->oom) {
+            snprintf(err, errlen, "photon tracing: out of memory");
+            status = RD_ERR_NOMEM;
+        }
+        if (status == RD_OK && (pm_map_add_photons(map, b->ph, b->n_ph, pmerr, sizeof pmerr) != PM_OK ||
+                                pm_map_add_segments(map, b->seg, b->n_seg, pmerr, sizeof pmerr) != PM_OK)) {
+            snprintf(err, errlen, "photon map: %s", pmerr);
+            status = RD_ERR_INTERNAL;
+        }
+        for (int c = 0; c < 3; c++) {
+            st->power_emitted[c] += b->emitted[c];
+            st->power_absorbed[c] += b->absorbed[c];
+            st->power_escaped[c] += b->escaped[c];
+            st->power_carried[c] += b->carried[c];
+        }
+        st->stored += b->n_ph;
+        st->segments += b->n_seg;
+        free(b->ph);
+        free(b->seg);
+    }
+    free(blocks);
+    free(cdf);
+    return status;
+}
+
+double rd_phase_hg_cb(double cos_theta, void *user)
+{
+    return rd_hg_eval(*(const double *)user, cos_theta);
+}

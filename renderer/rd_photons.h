@@ -1,0 +1,44 @@
+/* rd_photons.h: photon tracing from the scene's lights into a photon map (THEORY.md §3).
+ * Internal to renderer/ (and its tests). */
+#ifndef RD_PHOTONS_H
+#define RD_PHOTONS_H
+
+#include "photonmap.h"
+#include "rd_internal.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct {
+    size_t count;      /* photons emitted in total (over all lights) */
+    int store_direct;  /* 1: store every collision; 0: skip first collisions straight from a
+                          light (direct light then comes from next-event estimation) */
+    int segments;      /* 1: also store path segments (clipped to the media bounds) */
+    int max_depth;     /* collisions per photon path */
+    uint64_t seed;
+    int threads;       /* 0 = all */
+} rd_photon_opts;
+
+typedef struct {
+    double seconds;          /* tracing wall time */
+    size_t emitted, stored, segments;
+    uint64_t collisions, lookups;
+    /* Power balance [W, RGB]: emitted = absorbed + escaped + carried (by the max_depth cut)
+     * in expectation; absorbed is the expected absorption (1 - albedo) x incident power at
+     * every collision, so the balance is a check of the Russian roulette. */
+    double power_emitted[3], power_absorbed[3], power_escaped[3], power_carried[3];
+} rd_photon_stats;
+
+/* Trace o->count photons and add the stored photons (scattered power, THEORY §3) and, when
+ * asked, the segments to `map` (not built: the caller calls pm_map_build). */
+rd_status rd_trace_photons(const rd_scene *s, const rd_photon_opts *o, pm_map *map,
+                           rd_photon_stats *st, char *err, size_t errlen);
+
+/* The phase-function callback for pm_map_radiance: Henyey-Greenstein with g = *(double *)user. */
+double rd_phase_hg_cb(double cos_theta, void *user);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

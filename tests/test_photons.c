@@ -1,0 +1,226 @@
+/* Photon tracing into the photon map (THEORY.md §3), checked against answers it did not
+ * compute: the first-collision density of an isotropic point light in an infinite homogeneous
+ * medium, the power balance, thread-count independence, and the k-NN radiance estimate against
+ * an independent delta-tracking estimate of in-scattered radiance. Fixed seeds throughout. */
+#include "support/rd_test.h"
+#include "rd_photons.h"
+
+#include "photonmap.h"
+
+static pm_map *trace(const rd_scene *s, size_t n, int store_direct, int max_depth, uint64_t seed,
+                     int threads, rd_photon_stats *st)
+{
+    pm_map *map = pm_map_new();
+    char err[RD_ERRLEN];
+    rd_photon_opts o = {.count = n, .store_direct = store_direct, .segments = 0, .max_depth = max_depth,
+                        .seed = seed, .threads = threads};
+    cr_assert(rd_trace_photons(s, &o, map, st, err, sizeof err) == RD_OK, "%s", err);
+    return map;
+}
+
+Test(photons, first_collision_density_of_a_point_light, .timeout = 120)
+{
+    /* sigma_t = 1.5 in a box of side 100 around an isotropic point light of I = 2 W/sr
+     * (Phi = 8 pi W), albedo 1, only first collisions stored (max_depth 1). The stored power
+     * density is sigma_t Phi exp(-sigma_t r) / (4 pi r^2), so the power in the shell [r1, r2]
+     * is Phi (exp(-sigma_t r1) - exp(-sigma_t r2)). Counts per shell are multinomial:
+     * chi-square test at p = 1e-4, shells chosen so every expected count is large. */
+    rd_scene *s = rt_scene("inf.json",
+                           "{\"camera\":{\"position\":[0,0,90],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
+                           "\"media\":[{\"bounds\":{\"min\":[-50,-50,-50],\"max\":[50,50,50]},"
+                           "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1.5,\"albedo\":1}],"
+                           "\"lights\":[{\"type\":\"point\",\"position\":[0.3,-0.2,0.1],\"intensity\":2}]}");
+    rd_photon_stats st;
+    size_t n = 200000;
+    pm_map *map = trace(s, n, 1, 1, 7, 2, &st);
+    cr_assert(pm_map_photon_count(map) == n, "every photon collides once: %zu", pm_map_photon_count(map));
+    const pm_photon *ph = pm_map_photons(map);
+    const double phi = 8.0 * M_PI, sig = 1.5;
+    enum { NS = 24 };
+    double edges[NS + 1], obs[NS + 1] = {0};
+    for (int i = 0; i <= NS; i++) edges[i] = 4.0 * i / NS; /* shells to r = 4, then the tail */
+    double power_sum = 0;
+    for (size_t i = 0; i < n; i++) {
+        double dx = ph[i].pos[0] - 0.3, dy = ph[i].pos[1] + 0.2, dz = ph[i].pos[2] - 0.1;
+        double r = sqrt(dx * dx + dy * dy + dz * dz);
+        int b = (int)(r / 4.0 * NS);
+        obs[b < NS ? b : NS] += 1;
+        power_sum += ph[i].power[1];
+        cr_assert(fabs(ph[i].power[1] - phi / n) < 1e-6 * phi / n, "photon power is Phi/N");
+    }
+    cr_expect(fabs(power_sum - phi) < 1e-3 * phi);
+    double chi2 = 0;
+    for (int i = 0; i <= NS; i++) {
+        double p = i < NS ? exp(-sig * edges[i]) - exp(-sig * edges[i + 1]) : exp(-sig * edges[NS]);
+        double e = n * p;
+        chi2 += (obs[i] - e) * (obs[i] - e) / e;
+    }
+    double crit = rt_chi2_quantile(NS, 3.719);
+    cr_expect(chi2 < crit, "chi2 %.1f >= %.1f", chi2, crit);
+    /* And the density itself at three radii, from the photons within a thin shell: 5 sigma
+     * (Poisson count). */
+    const double radii[] = {0.3, 1.0, 2.0};
+    for (int k = 0; k < 3; k++) {
+        double r1 = radii[k] - 0.05, r2 = radii[k] + 0.05, cnt = 0;
+        for (size_t i = 0; i < n; i++) {
+            double dx = ph[i].pos[0] - 0.3, dy = ph[i].pos[1] + 0.2, dz = ph[i].pos[2] - 0.1;
+            double r = sqrt(dx * dx + dy * dy + dz * dz);
+            if (r >= r1 && r < r2) cnt++;
+        }
+        double vol = 4.0 / 3.0 * M_PI * (r2 * r2 * r2 - r1 * r1 * r1);
+        double est = cnt * (phi / n) / vol;
+        /* expected: the exact shell integral over the shell volume */
+        double expect = phi * (exp(-sig * r1) - exp(-sig * r2)) / vol;
+        double pointwise = sig * phi * exp(-sig * radii[k]) / (4 * M_PI * radii[k] * radii[k]);
+        cr_expect(fabs(est - expect) < 5 * expect / sqrt(cnt), "r=%g: %.4f vs %.4f", radii[k], est, expect);
+        cr_expect(fabs(expect - pointwise) < 0.01 * pointwise, "thin shell ~ point value at r=%g", radii[k]);
+    }
+    pm_map_free(map);
+    rd_scene_free(s);
+}
+
+Test(photons, power_balance, .timeout = 120)
+{
+    /* emitted = absorbed + escaped + carried in expectation. Over 16 seeds of 20000 photons,
+     * the mean of the relative imbalance must be within 5 standard errors of 0, and the
+     * emitted power within 5 standard errors of the lights' total power. */
+    rd_scene *s = rt_scene("balance.json",
+                           "{\"camera\":{\"position\":[0,0,5],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
+                           "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
+                           "\"density\":{\"type\":\"noise\",\"octaves\":3,\"seed\":5},\"sigma_t\":3,\"albedo\":[0.9,0.6,0.3],\"g\":0.4}],"
+                           "\"lights\":[{\"type\":\"point\",\"position\":[0,1.5,0],\"intensity\":1},"
+                           "{\"type\":\"spot\",\"position\":[2,2,0],\"look_at\":[0,0,0],\"angle\":40,\"falloff\":10,\"intensity\":[3,2,1]},"
+                           "{\"type\":\"directional\",\"direction\":[0,-1,0],\"irradiance\":0.5,\"radius\":0.5,\"center\":[0,0,0]},"
+                           "{\"type\":\"sphere\",\"center\":[0,-2,0],\"radius\":0.3,\"radiance\":2},"
+                           "{\"type\":\"environment\",\"radiance\":0.05}]}");
+    enum { K = 16 };
+    double imb[K], emi[K];
+    for (int k = 0; k < K; k++) {
+        rd_photon_stats st;
+        pm_map *map = trace(s, 20000, 1, 8, 100 + k, 2, &st);
+        double e = st.power_emitted[0];
+        imb[k] = (e - st.power_absorbed[0] - st.power_escaped[0] - st.power_carried[0]) / e;
+        emi[k] = e;
+        pm_map_free(map);
+    }
+    double m = 0, v = 0, me = 0, ve = 0;
+    for (int k = 0; k < K; k++) { m += imb[k] / K; me += emi[k] / K; }
+    for (int k = 0; k < K; k++) { v += (imb[k] - m) * (imb[k] - m) / (K - 1); ve += (emi[k] - me) * (emi[k] - me) / (K - 1); }
+    double se = sqrt(v / K), see = sqrt(ve / K);
+    cr_expect(fabs(m) < 5 * se + 1e-12, "imbalance %.2e (se %.2e)", m, se);
+    cr_expect(se > 0, "the imbalance must be random, not identically 0 (else the test is empty)");
+    /* Total power of the lights, red channel. */
+    double R = rd_scene_radius(s), total = 0;
+    const double spot_cos_o = cos(20 * M_PI / 180), spot_cos_i = cos(10 * M_PI / 180);
+    /* spot: 2 pi I int f(cos) dcos, f = smoothstep over [cos_o, cos_i]: exact integral is
+     * (cos_i - cos_o)/2 + (1 - cos_i) */
+    total += 4 * M_PI * 1.0;
+    total += 2 * M_PI * 3.0 * ((spot_cos_i - spot_cos_o) * 0.5 + (1 - spot_cos_i));
+    total += 0.5 * M_PI * 0.25;
+    total += 2.0 * M_PI * 4 * M_PI * 0.09;
+    total += 0.05 * 4 * M_PI * M_PI * R * R;
+    cr_expect(fabs(me - total) < 5 * see, "emitted %.5f vs lights %.5f (se %.5f)", me, total, see);
+    rd_scene_free(s);
+}
+
+Test(photons, same_map_on_one_and_two_threads, .timeout = 60)
+{
+    rd_scene *s = rt_scene("det.json",
+                           "{\"camera\":{\"position\":[0,0,5],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
+                           "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
+                           "\"density\":{\"type\":\"noise\",\"octaves\":2},\"sigma_t\":2,\"albedo\":0.8,\"g\":0.5}],"
+                           "\"lights\":[{\"type\":\"spot\",\"position\":[0,2,0],\"look_at\":[0,0,0],\"angle\":50,\"intensity\":4}]}");
+    rd_photon_stats a, b;
+    pm_map *m1 = trace(s, 30000, 0, 16, 3, 1, &a);
+    pm_map *m2 = trace(s, 30000, 0, 16, 3, 2, &b);
+    cr_assert(pm_map_photon_count(m1) == pm_map_photon_count(m2) && pm_map_photon_count(m1) > 1000);
+    cr_expect(memcmp(pm_map_photons(m1), pm_map_photons(m2), pm_map_photon_count(m1) * sizeof(pm_photon)) == 0);
+    pm_map_free(m1);
+    pm_map_free(m2);
+    rd_scene_free(s);
+}
+
+Test(photons, knn_radiance_converges_to_delta_tracking, .timeout = 300)
+{
+    /* sigma_s L_s(x, w) at 48 fixed points and directions, from the photon map (all collisions
+     * stored) at N = 1e4, 1e5, 1e6 photons with k = 30, 100, 300, against an independent
+     * estimate: delta-tracked radiance arriving at x from directions sampled by the phase
+     * function (150000 paths per point, relative standard error < 2%) plus the light's direct
+     * term.
+     * Expected rate: the k-NN relative error is a variance part ~ 1/sqrt(k - 2) (equal-power
+     * photons) plus a bias ~ (k/N)^(2/3); with k ~ N^0.5 the RMS error falls like N^-0.25 (the
+     * optimum, k ~ N^(4/7), gives N^-0.29). The RMS over 48 points has a relative uncertainty
+     * of about 1/sqrt(96) = 10%, so the fitted log10 slope is known to about +-0.03: we require
+     * a slope below -0.16 (3 of those sigma above -0.25), an RMS that falls at every step, and a
+     * final RMS within twice the variance-only value 1/sqrt(k - 2) (the bias is not
+     * dominant). */
+    rd_scene *s = rt_scene("knn.json",
+                           "{\"camera\":{\"position\":[0,0,5],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
+                           "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
+                           "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1.0,\"albedo\":0.8,\"g\":0.3}],"
+                           "\"lights\":[{\"type\":\"point\",\"position\":[0,1.6,0],\"intensity\":1}]}");
+    enum { NP = 48 };
+    vec3 xs[NP], ws[NP];
+    double ref[NP];
+    pcg32 g = pcg32_seed(9, 9, 9);
+    const rd_medium *m = &s->media[0];
+    for (int i = 0; i < NP; i++) {
+        /* points in the upper part of the box. The light is outside the medium (0.6 m above
+         * it), so next-event estimates in the reference are bounded (a point light inside the
+         * medium gives the reference infinite variance). */
+        xs[i] = v3(1.6 * pcg32_uniform(&g) - 0.8, 0.2 + 0.7 * pcg32_uniform(&g), 1.6 * pcg32_uniform(&g) - 0.8);
+        ws[i] = rd_sample_sphere(pcg32_uniform(&g), pcg32_uniform(&g));
+        /* reference: sigma_s * E_{w' ~ p(.|w)} [L arriving at x travelling along w'] */
+        int n = 150000;
+        double sum = 0, sum2 = 0;
+        rd_track_counters c = {0, 0};
+        uint64_t sh = 0;
+        for (int k = 0; k < n; k++) {
+            pcg32 r = pcg32_seed(i, k, 555);
+            /* w' with pdf p(w' . w): sample around -w... the phase is symmetric in
+             * cos(w', w), so sample w' around w and trace backwards along -w'. */
+            vec3 wp = rd_hg_sample(m->g, ws[i], pcg32_uniform(&r), pcg32_uniform(&r));
+            ray3 back = {xs[i], v3_scale(wp, -1.0)};
+            double L = rd_delta_radiance(s, back, &r, &c, &sh).y;
+            sum += L;
+            sum2 += L * L;
+        }
+        double mean = sum / n, se = sqrt((sum2 / n - mean * mean) / n);
+        /* The light itself is a delta in direction that a traced ray never hits: add its
+         * direct term p(w_l . w) I T / r^2 analytically (T through the homogeneous box). */
+        vec3 tol = v3_sub(v3(0, 1.6, 0), xs[i]);
+        double r = v3_len(tol), t0, t1;
+        ray3 sr = {xs[i], v3_scale(tol, 1.0 / r)};
+        double inside = rd_box_intersect(m->bmin, m->bmax, sr, 0, r, &t0, &t1) ? t1 - t0 : 0;
+        double direct = rd_hg_eval(m->g, v3_dot(v3_scale(sr.d, -1.0), ws[i])) * 1.0 / (r * r) * exp(-1.0 * inside);
+        ref[i] = 0.8 * 1.0 * (mean + direct); /* sigma_s = albedo sigma_t */
+        cr_assert(se < 0.02 * mean, "reference too noisy at point %d: %.4f +- %.4f", i, mean, se);
+    }
+    const size_t ns[3] = {10000, 100000, 1000000};
+    const int ks[3] = {30, 100, 300};
+    double rms[3];
+    double gg = m->g;
+    for (int j = 0; j < 3; j++) {
+        rd_photon_stats st;
+        pm_map *map = trace(s, ns[j], 1, 64, 31 + j, 2, &st);
+        char err[256];
+        cr_assert(pm_map_build(map, err, sizeof err) == PM_OK, "%s", err);
+        double e2 = 0;
+        for (int i = 0; i < NP; i++) {
+            float x[3] = {(float)xs[i].x, (float)xs[i].y, (float)xs[i].z};
+            float w[3] = {(float)ws[i].x, (float)ws[i].y, (float)ws[i].z};
+            float out[3];
+            cr_assert(pm_map_radiance(map, x, w, ks[j], rd_phase_hg_cb, &gg, out) == ks[j]);
+            double rel = (out[1] - ref[i]) / ref[i];
+            e2 += rel * rel / NP;
+        }
+        rms[j] = sqrt(e2);
+        pm_map_free(map);
+    }
+    double slope = (log10(rms[2]) - log10(rms[0])) / 2.0;
+    cr_expect(rms[1] < rms[0] && rms[2] < rms[1], "RMS relative error %.3f, %.3f, %.3f must fall", rms[0], rms[1], rms[2]);
+    cr_expect(slope < -0.16, "log10 slope %.3f per decade (expected about -0.25)", slope);
+    cr_expect(rms[2] < 2.0 / sqrt(ks[2] - 2.0), "RMS relative error at 1e6 photons %.3f", rms[2]);
+    cr_log_info("k-NN RMS relative error: %.3f %.3f %.3f (slope %.3f)", rms[0], rms[1], rms[2], slope);
+    rd_scene_free(s);
+}
