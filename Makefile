@@ -49,6 +49,7 @@ CRITERION_FLAGS ?= --jobs 2
 BENCH_SRC := $(wildcard bench/*.c)
 BENCH_BIN := $(patsubst bench/%.c,$(BUILD)/bench/%,$(BENCH_SRC))
 
+.SECONDARY:
 .PHONY: all deps asan test test-pm test-sh test-rd demo bench clean
 all: $(BIN)
 
