@@ -13,31 +13,7 @@
 #endif
 
 /* PCG32 (O'Neill), fixed seeds. */
-typedef struct {
-    uint64_t s, inc;
-} rng;
-static uint32_t rng_u32(rng *r)
-{
-    uint64_t old = r->s;
-    r->s = old * 6364136223846793005ull + r->inc;
-    uint32_t xs = (uint32_t)(((old >> 18u) ^ old) >> 27u), rot = (uint32_t)(old >> 59u);
-    return (xs >> rot) | (xs << ((-rot) & 31));
-}
-static rng rng_new(uint64_t seed)
-{
-    rng r = {0, (seed << 1u) | 1u};
-    rng_u32(&r);
-    r.s += 0x853c49e6748fea9bull;
-    rng_u32(&r);
-    return r;
-}
-static double rng_u01(rng *r) { return rng_u32(r) * 0x1.0p-32; }
-static void rng_dir(rng *r, double w[3])
-{
-    double z = 1.0 - 2.0 * rng_u01(r), phi = 2.0 * M_PI * rng_u01(r);
-    double s = sqrt(fmax(0.0, 1.0 - z * z));
-    w[0] = s * cos(phi), w[1] = s * sin(phi), w[2] = z;
-}
+#include "support/test_rng.h"
 
 static double hg_cb(double mu, void *user) { return sh_phase_hg(mu, *(double *)user); }
 
