@@ -46,6 +46,8 @@ vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters 
             if (t < t_light) { t_light = t; hit_light = i; }
         }
         rd_collision col = rd_delta_track(s, r, t_light, rng, c);
+        /* Weighted trackers (seed 002 Alg. 2-3) return a path weight; 1 for delta tracking. */
+        if (col.weight != 1.0) beta = v3_scale(beta, col.weight);
         if (!col.hit) {
             L = v3_add(L, v3_mul(beta, escaped_radiance(s, r, hit_light, phase_pdf)));
             if (depth == 0 && hit_light < 0) L = v3_add(L, s->background);

@@ -73,6 +73,8 @@ typedef struct {
     double g;                  /* Henyey-Greenstein asymmetry */
     double density_max;        /* conservative upper bound of density over the bounds */
     double sigma_maj;          /* global majorant = density_max * sigma_t_scale */
+    double density_min;        /* conservative lower bound of density over the bounds */
+    struct rd_majorant *majorant; /* super-voxel grid / octree (rd_freepath.h); owned, may be NULL */
 } rd_medium;
 
 double rd_noise_eval(const rd_noise *n, vec3 x);     /* Perlin gradient noise in [-1, 1] */
@@ -137,7 +139,32 @@ typedef struct {
     int max_depth;       /* scattering events per path (1 = single scattering) */
     int rr_depth;        /* Russian roulette from this depth on */
     char method[32];
+    /* Free-path engine (rd_freepath.h): rd_fp_kind / rd_tr_kind values and their parameters. */
+    int tracker, transmittance;
+    double track_b, track_m, track_step;
 } rd_settings;
+
+/* Photon tracing settings (scene key "photons", docs/scene-format.md). */
+typedef struct {
+    size_t count;        /* photons emitted */
+    int store_direct;    /* store first collisions straight from lights (default 1: the guide
+                            wants all in-scattered light) */
+    int segments;        /* also store path segments (needed by the track-length bake) */
+    int max_depth;
+    uint64_t seed;
+} rd_photon_settings;
+
+/* Guide-grid settings (scene key "guide"). */
+typedef struct {
+    int adaptive;        /* 0 uniform grid, 1 adaptive octree */
+    int track;           /* 0 k-NN bake, 1 track-length bake */
+    int bands;           /* SH bands L */
+    int k;               /* photons per estimate */
+    double lambda;       /* grid quality */
+    int res[3];          /* explicit uniform resolution, 0 = the rule */
+    double min_cell;     /* adaptive: smallest cell edge [m], 0 = default */
+    int max_depth;       /* adaptive: deepest level */
+} rd_guide_settings;
 
 struct rd_scene {
     char path[1024];
@@ -149,6 +176,8 @@ struct rd_scene {
     vec3 background;      /* radiance seen by camera rays that leave the scene (not a light) */
     vec3 bmin, bmax;      /* bounds of all media */
     rd_settings settings;
+    rd_photon_settings photons;
+    rd_guide_settings guide;
 };
 
 /* ---- Free-path sampling and transmittance (THEORY.md §2) ---------------------------------- */
@@ -162,16 +191,24 @@ typedef struct {
     int hit;          /* 1 = real collision */
     double t;         /* distance along the ray */
     const rd_medium *medium;
+    double weight;    /* path weight factor: 1 for analog trackers; weighted delta and
+                         decomposition tracking (seed 002 Alg. 2-3) return their weight here,
+                         for a collision and for an escape alike */
 } rd_collision;
 
-/* Delta (Woodcock) tracking along r through every medium it crosses, in order, from t = 0 up
- * to tmax, with each medium's global majorant. Unbiased: a real collision is accepted with
- * probability sigma_t/sigma_maj at each tentative point. */
+#include "rd_freepath.h"
+
+
+/* Free-path sampling along r through every medium it crosses, in order, from t = 0 up to tmax,
+ * with the tracker of s->settings.tracker (default: delta tracking over each medium's majorant
+ * structure; "woodcock" uses the global majorant). The caller multiplies its path weight by
+ * the returned weight (1 except for the weighted trackers). */
 rd_collision rd_delta_track(const rd_scene *s, ray3 r, double tmax, pcg32 *rng,
                             rd_track_counters *c);
 
-/* Ratio-tracking estimate of transmittance along r from 0 to tmax (THEORY.md §2):
- * T = prod (1 - sigma_t(x_i)/sigma_maj) over tentative collisions. */
+/* Transmittance estimate along r from 0 to tmax with the estimator of
+ * s->settings.transmittance (default: ratio tracking with each medium's global majorant, the
+ * lowest variance x time measured; THEORY.md §2, docs/free-path.md). */
 double rd_ratio_track(const rd_scene *s, ray3 r, double tmax, pcg32 *rng,
                       rd_track_counters *c);
 
@@ -188,7 +225,9 @@ vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters 
  * vmin/vmax and return the world-space bounds of the voxels. */
 rd_status rd_vdb_load(const char *path, const char *grid_name, rd_grid *g, vec3 *bmin,
                       vec3 *bmax, char *err, size_t errlen);
-/* Write a dense float grid as a .vdb: voxel (i,j,k) centred at origin + voxel_size (i,j,k). */
+/* Write a dense float grid as a .vdb: voxel (i,j,k) centred at origin + voxel_size (i,j,k).
+ * Zero voxels are left inactive (the background), so the grid's active box is the non-zero
+ * region; the file is zip-compressed. */
 rd_status rd_vdb_save_dense(const char *path, const char *grid_name, const float *data, int nx,
                             int ny, int nz, double voxel_size, const double origin[3], char *err,
                             size_t errlen);

@@ -1,6 +1,6 @@
-/* tracking.c: free-path sampling and transmittance through the scene's media with each
- * medium's global majorant (THEORY.md §2; seeds 000, 002, 003). Majorant grids and the other
- * trackers of the free-path engine build on the same interval walk. */
+/* tracking.c: free-path sampling and transmittance through the scene's media (THEORY.md §2;
+ * seeds 000, 002, 003): the media the ray crosses, in order, each handed to the free-path
+ * engine (freepath.c) with the tracker and estimator the scene settings choose. */
 #include "rd_internal.h"
 
 typedef struct { double t0, t1; const rd_medium *m; } interval;
@@ -24,29 +24,34 @@ static int media_intervals(const rd_scene *s, ray3 r, double tmax, interval *out
     return n;
 }
 
+static rd_fp_params params_of(const rd_scene *s)
+{
+    rd_fp_params p;
+    p.tracker = (rd_fp_kind)s->settings.tracker;
+    p.transmittance = (rd_tr_kind)s->settings.transmittance;
+    p.b = s->settings.track_b;
+    p.m = s->settings.track_m;
+    p.step = s->settings.track_step;
+    return p;
+}
+
 rd_collision rd_delta_track(const rd_scene *s, ray3 r, double tmax, pcg32 *rng,
                             rd_track_counters *c)
 {
     interval iv[64];
     int n = media_intervals(s, r, tmax, iv);
-    rd_collision col = {0, tmax, NULL};
+    rd_collision col = {0, tmax, NULL, 1.0};
+    rd_fp_params p = params_of(s);
     for (int i = 0; i < n; i++) {
-        const rd_medium *m = iv[i].m;
-        double inv_maj = 1.0 / m->sigma_maj, t = iv[i].t0;
-        for (;;) {
-            /* Tentative collision: t += -ln(1-u) / sigma_maj (Woodcock tracking). */
-            t -= log(1.0 - pcg32_uniform(rng)) * inv_maj;
-            if (t >= iv[i].t1) break;
-            c->collisions++;
-            c->lookups++;
-            double sigma_t = rd_medium_sigma_t(m, ray_at(r, t));
-            /* Real collision with probability sigma_t / sigma_maj, else a null collision. */
-            if (pcg32_uniform(rng) * m->sigma_maj < sigma_t) {
-                col.hit = 1;
-                col.t = t;
-                col.medium = m;
-                return col;
-            }
+        /* One medium at a time, with the engine's tracker (freepath.c). */
+        rd_fp_medium fm = rd_fp_view(iv[i].m);
+        rd_fp_event ev = rd_fp_sample(&p, &fm, r, iv[i].t0, iv[i].t1, rng, c);
+        col.weight *= ev.weight;
+        if (ev.hit) {
+            col.hit = 1;
+            col.t = ev.t;
+            col.medium = iv[i].m;
+            return col;
         }
     }
     return col;
@@ -57,18 +62,10 @@ double rd_ratio_track(const rd_scene *s, ray3 r, double tmax, pcg32 *rng, rd_tra
     interval iv[64];
     int n = media_intervals(s, r, tmax, iv);
     double T = 1.0;
-    for (int i = 0; i < n && T > 0.0; i++) {
-        const rd_medium *m = iv[i].m;
-        double inv_maj = 1.0 / m->sigma_maj, t = iv[i].t0;
-        for (;;) {
-            t -= log(1.0 - pcg32_uniform(rng)) * inv_maj;
-            if (t >= iv[i].t1) break;
-            c->collisions++;
-            c->lookups++;
-            /* Ratio tracking: T *= 1 - sigma_t / sigma_maj at every tentative collision. */
-            T *= 1.0 - rd_medium_sigma_t(m, ray_at(r, t)) * inv_maj;
-            if (T <= 0.0) return 0.0;
-        }
+    rd_fp_params p = params_of(s);
+    for (int i = 0; i < n && T != 0.0; i++) {
+        rd_fp_medium fm = rd_fp_view(iv[i].m);
+        T *= rd_fp_transmittance(&p, &fm, r, iv[i].t0, iv[i].t1, rng, c);
     }
     return T;
 }

@@ -7,6 +7,8 @@
 
 #include <signal.h>
 
+#include "sh.h"
+
 typedef struct { const char *file, *expect; } bad_case;
 
 /* tests/data/bad/<file>: the message must contain `expect`. */
@@ -39,6 +41,15 @@ static const bad_case catalogue[] = {
     {"media_not_array.json", "media: expected an array, found an object"},
     {"negative_intensity.json", "lights[0].intensity: expected a number or 3 numbers"},
     {"unknown_method.json", "settings.method: unknown method \"magic\""},
+    {"majorant_unknown_type.json", "media[0].majorant.type: unknown value \"kdtree\" (expected one of: auto, none, grid, octree)"},
+    {"majorant_unknown_key.json", "media[0].majorant.resoluton: unknown key (allowed: type, resolution, bound, fail, max_level"},
+    {"majorant_resolution_not_grid.json", "media[0].majorant.resolution: only with \"type\": \"grid\""},
+    {"majorant_resolution_zero.json", "media[0].majorant.resolution: must be in [1, 1024], found 0"},
+    {"tracker_unknown.json", "settings.tracker: unknown value \"teleport\""},
+    {"tracker_b_without_weighted.json", "settings.b: only with \"tracker\": \"weighted\" or \"decomposition\""},
+    {"tracker_b_negative.json", "settings.b: must be in (0, 100], found -1"},
+    {"transmittance_unknown.json", "settings.transmittance: unknown value \"guess\""},
+    {"too_thick.json", "media[0].sigma_t: majorant optical depth across the bounds is 3.46e+12"},
 };
 
 static void run_catalogue(const char *bin)
@@ -198,4 +209,69 @@ Test(cli, usage_errors_exit_1)
     char *a6[] = {(char *)bin, "render", "/nonexistent/scene.json", NULL};
     cr_expect(rt_run(a6, out, sizeof out, err, sizeof err, 0) == 2);
     cr_expect(strstr(err, "/nonexistent/scene.json: No such file") != NULL, "%s", err);
+}
+
+Test(cli, bake_writes_map_guide_and_pictures_and_reuses_the_map, .timeout = 120)
+{
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char prefix[256], out[8192], err[4096], path[300];
+    snprintf(prefix, sizeof prefix, "%s/bk/a", rt_tmpdir());
+    char *argv[] = {(char *)bin, "bake", (char *)tiny_scene(), "-o", prefix, "--photons", "20000", "--stats",
+                    "--slice", "y", "--slice", "z=0.25", NULL};
+    int code = rt_run(argv, out, sizeof out, err, sizeof err, 0);
+    cr_assert(code == 0, "exit %d: %s", code, err);
+    cr_expect(strstr(out, "photons    emitted 20000") != NULL, "%s", out);
+    cr_expect(strstr(out, "photons/s emitted") && strstr(out, "kd-tree built in") && strstr(out, "bytes per photon"), "%s", out);
+    cr_expect(strstr(out, "uniform grid, k-NN bake, 4 bands") != NULL, "%s", out);
+    const char *files[] = {".pmap", ".guide", "-photons.exr", "-photons.png", "-slice-y.png", "-slice-z.exr", "-cells-z.png"};
+    for (int i = 0; i < 7; i++) {
+        snprintf(path, sizeof path, "%s%s", prefix, files[i]);
+        cr_expect(access(path, F_OK) == 0, "%s missing", path);
+    }
+    /* Baking again from the saved map gives the same guide, byte for byte. */
+    char pmap[300], prefix2[256], g1[300], g2[300];
+    snprintf(pmap, sizeof pmap, "%s.pmap", prefix);
+    snprintf(prefix2, sizeof prefix2, "%s/bk/b", rt_tmpdir());
+    char *again[] = {(char *)bin, "bake", (char *)tiny_scene(), "-o", prefix2, "--load-photons", pmap, "-q", NULL};
+    code = rt_run(again, out, sizeof out, err, sizeof err, 0);
+    cr_assert(code == 0, "exit %d: %s", code, err);
+    snprintf(g1, sizeof g1, "%s.guide", prefix);
+    snprintf(g2, sizeof g2, "%s.guide", prefix2);
+    /* (the files differ in the stored bake time; compare the cells) */
+    sh_guide *ga = NULL, *gb = NULL;
+    char msg[256];
+    cr_assert(sh_guide_load(&ga, g1, msg, sizeof msg) == SH_OK, "%s", msg);
+    cr_assert(sh_guide_load(&gb, g2, msg, sizeof msg) == SH_OK, "%s", msg);
+    cr_assert(sh_guide_cell_count(ga) == sh_guide_cell_count(gb) && sh_guide_cell_count(ga) > 0);
+    size_t ncoef = 3 * (size_t)sh_guide_bands(ga) * sh_guide_bands(ga);
+    for (size_t c = 0; c < sh_guide_cell_count(ga); c++) {
+        cr_expect(memcmp(sh_guide_cell_coeffs(ga, c), sh_guide_cell_coeffs(gb, c), ncoef * sizeof(float)) == 0,
+                  "cell %zu differs after reloading the photon map", c);
+        cr_expect(sh_guide_cell_sigma_t(ga, c) == sh_guide_cell_sigma_t(gb, c));
+    }
+    sh_guide_free(ga);
+    sh_guide_free(gb);
+    /* A corrupt photon map is refused with a message naming it, exit 2. */
+    FILE *f = fopen(pmap, "r+b");
+    cr_assert(f != NULL);
+    fseek(f, 100, SEEK_SET);
+    fputc(0x5a, f);
+    fclose(f);
+    code = rt_run(again, out, sizeof out, err, sizeof err, 0);
+    cr_expect(code == 2, "exit %d for a corrupt photon map", code);
+    cr_expect(strncmp(err, pmap, strlen(pmap)) == 0, "%s", err);
+}
+
+Test(cli, bake_track_length_adaptive, .timeout = 120)
+{
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char prefix[256], out[8192], err[4096];
+    snprintf(prefix, sizeof prefix, "%s/bk/t", rt_tmpdir());
+    char *argv[] = {(char *)bin, "bake", (char *)tiny_scene(), "-o", prefix, "--photons", "20000",
+                    "--set", "guide={\"grid\":\"adaptive\",\"bake\":\"track\"}", NULL};
+    int code = rt_run(argv, out, sizeof out, err, sizeof err, 0);
+    cr_assert(code == 0, "exit %d: %s", code, err);
+    cr_expect(strstr(out, "adaptive grid, track-length bake") != NULL, "%s", out);
 }

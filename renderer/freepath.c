@@ -1,0 +1,319 @@
+/* freepath.c: trackers and transmittance estimators of the free-path engine (THEORY.md §2).
+ *
+ * Every unbiased tracker walks the same majorant iterator (rd_majorant_next): Woodcock tracking
+ * is the walk with one global segment, super-voxel delta tracking the walk over the grid or
+ * octree (seed 003 §3.3 SuperVoxelTraversal: draw tau* = -ln(1-u), accumulate the majorant's
+ * optical depth segment by segment, solve inside the segment where it passes tau*). */
+#include "rd_internal.h"
+
+#include <string.h>
+
+void rd_fp_params_default(rd_fp_params *p)
+{
+    p->tracker = RD_FP_AUTO;
+    p->transmittance = RD_TR_AUTO;
+    p->b = 1.0;
+    p->m = 1.0;
+    p->step = 0.0;
+}
+
+const char *rd_fp_tracker_name(rd_fp_kind k)
+{
+    static const char *const n[] = {"auto", "woodcock", "supervoxel", "weighted", "decomposition", "raymarch"};
+    return (unsigned)k < 6 ? n[k] : "?";
+}
+const char *rd_tr_name(rd_tr_kind k)
+{
+    static const char *const n[] = {"auto", "ratio-global", "ratio", "residual", "exact", "raymarch"};
+    return (unsigned)k < 6 ? n[k] : "?";
+}
+
+static double medium_density_cb(const void *ctx, vec3 x) { return rd_medium_density(ctx, x); }
+
+rd_fp_medium rd_fp_view(const rd_medium *m)
+{
+    rd_fp_medium v;
+    memset(&v, 0, sizeof v);
+    v.density = medium_density_cb;
+    v.ctx = m;
+    v.sigma_t_scale = m->sigma_t_scale;
+    v.sigma_global = m->sigma_maj;
+    v.sigma_global_min = fmin(m->density_min * m->sigma_t_scale, m->sigma_maj);
+    v.maj = m->majorant;
+    v.grid = m->kind == RD_DENSITY_GRID ? &m->grid : NULL;
+    v.constant = m->kind == RD_DENSITY_CONSTANT ? m->constant : -1.0;
+    v.bmin = m->bmin;
+    v.bmax = m->bmax;
+    return v;
+}
+
+static inline double sigma_at(const rd_fp_medium *fm, ray3 r, double t, rd_track_counters *c)
+{
+    c->lookups++;
+    return fm->density(fm->ctx, ray_at(r, t)) * fm->sigma_t_scale;
+}
+
+static double default_step(const rd_fp_params *p, const rd_fp_medium *fm)
+{
+    return p->step > 0.0 ? p->step : v3_len(v3_sub(fm->bmax, fm->bmin)) / 512.0;
+}
+
+typedef enum { MODE_ANALOG, MODE_WEIGHTED, MODE_DECOMP } track_mode;
+
+/* Delta tracking over the majorant walk; the three modes differ only in the event at a
+ * tentative collision:
+ *  - analog (seed 003 §3.1, seed 000 WT): real with probability sigma_t / sigma_maj;
+ *  - weighted delta tracking (seed 002 Alg. 2): majorant mu = b * sigma_maj may be non-bounding
+ *    (sigma_n = mu - sigma_t < 0); real with P_r = |sigma_t| / (|sigma_t| + |sigma_n|), null
+ *    otherwise, weight *= sigma_x / (mu P_x). Alg. 2 splits "real" into absorption and
+ *    scattering; here the integrator applies the albedo as a weight, so they are merged.
+ *  - weighted decomposition tracking (seed 002 Alg. 3): control mu_c = m * per-cell minorant,
+ *    a control collision with P_c = mu_c / mu needs no density lookup; otherwise residual
+ *    (sigma_t - mu_c) or null (mu - sigma_t) in proportion to their magnitudes, weighted. */
+static rd_fp_event track(const rd_fp_params *p, const rd_fp_medium *fm, const rd_majorant *maj,
+                         track_mode mode, ray3 r, double t0, double t1, pcg32 *rng,
+                         rd_track_counters *c)
+{
+    rd_fp_event ev = {0, t1, 1.0};
+    rd_maj_iter it = rd_majorant_iter(maj, r, t0, t1, fm->sigma_global, fm->sigma_global_min);
+    rd_maj_seg g;
+    double bfac = mode == MODE_ANALOG ? 1.0 : p->b;
+    double tau = -log(1.0 - pcg32_uniform(rng)); /* optical depth to the next tentative point */
+    while (rd_majorant_next(&it, &g)) {
+        if (fm->segments) (*fm->segments)++;
+        if (!(g.t1 > g.t0)) continue;
+        for (int d = 0; d < 4; d++) g.c[d] *= bfac;
+        double s0 = 0.0;
+        for (;;) {
+            double rest = rd_seg_tau(&g, s0, 1.0);
+            if (!(rest > tau)) { tau -= rest; break; } /* passes this segment: next one */
+            double s = rd_seg_solve(&g, s0, tau);
+            double t = g.t0 + s * (g.t1 - g.t0);
+            double mu = rd_seg_sigma(&g, s);
+            c->collisions++;
+            if (mode == MODE_ANALOG) {
+                if (pcg32_uniform(rng) * mu < sigma_at(fm, r, t, c)) {
+                    ev.hit = 1;
+                    ev.t = t;
+                    return ev;
+                }
+            } else if (mode == MODE_WEIGHTED) {
+                double st = sigma_at(fm, r, t, c), sn = mu - st;
+                double Pr = fabs(st) / (fabs(st) + fabs(sn));
+                if (pcg32_uniform(rng) < Pr) {
+                    ev.hit = 1;
+                    ev.t = t;
+                    ev.weight *= st / (mu * Pr);
+                    return ev;
+                }
+                ev.weight *= sn / (mu * (1.0 - Pr));
+            } else {
+                /* P_c = mu_c / mu as in Alg. 3 while mu_c <= 0.95 mu. Residual + null always sum
+                 * to mu - mu_c (known before the lookup); when the control is non-bounding
+                 * (mu_c > mu) or nearly so, P_c = mu_c / (mu_c + D) with D = max(|mu - mu_c|,
+                 * 0.05 mu) keeps a positive probability for the residual/null branch, which is
+                 * needed for unbiasedness unless the cell is exactly homogeneous (bounds equal,
+                 * m = b = 1: then residual = null = 0 and P_c = 1). */
+                double mu_c = p->m * g.sigma_min, Pc;
+                int homogeneous = !g.cubic && p->m == 1.0 && bfac == 1.0 && g.sigma_min >= g.c[0];
+                if (mu_c <= 0.0) Pc = 0.0;
+                else if (homogeneous) Pc = 1.0;
+                else Pc = mu_c / (mu_c + fmax(fabs(mu - mu_c), 0.05 * mu));
+                if (pcg32_uniform(rng) < Pc) { /* control collision: analytic, no lookup */
+                    ev.hit = 1;
+                    ev.t = t;
+                    ev.weight *= mu_c / (mu * Pc);
+                    return ev;
+                }
+                double st = sigma_at(fm, r, t, c), res = st - mu_c, nul = mu - st;
+                double a = fabs(res), bb = fabs(nul);
+                if (a + bb == 0.0) { /* both coefficients vanish: this branch carries no weight */
+                    ev.hit = 1;
+                    ev.t = t;
+                    ev.weight = 0.0;
+                    return ev;
+                }
+                double Pr = a / (a + bb);
+                if (pcg32_uniform(rng) < Pr) {
+                    ev.hit = 1;
+                    ev.t = t;
+                    ev.weight *= res / (mu * (1.0 - Pc) * Pr);
+                    return ev;
+                }
+                ev.weight *= nul / (mu * (1.0 - Pc) * (1.0 - Pr));
+            }
+            s0 = s;
+            tau = -log(1.0 - pcg32_uniform(rng));
+        }
+    }
+    return ev;
+}
+
+/* Biased fixed-step ray marching: one random offset per ray, midpoint-like Riemann sum of tau,
+ * the collision placed by linear interpolation inside the step where tau passes tau*. */
+static rd_fp_event march(const rd_fp_params *p, const rd_fp_medium *fm, ray3 r, double t0,
+                         double t1, pcg32 *rng, rd_track_counters *c)
+{
+    rd_fp_event ev = {0, t1, 1.0};
+    double h = default_step(p, fm), target = -log(1.0 - pcg32_uniform(rng));
+    double u = pcg32_uniform(rng), acc = 0.0;
+    for (double a = t0; a < t1; a += h) {
+        double b = fmin(a + h, t1), x = fmin(a + u * h, b);
+        double st = sigma_at(fm, r, x, c);
+        double d = st * (b - a);
+        if (acc + d >= target && st > 0.0) {
+            ev.hit = 1;
+            ev.t = a + (target - acc) / st;
+            return ev;
+        }
+        acc += d;
+    }
+    return ev;
+}
+
+rd_fp_event rd_fp_sample(const rd_fp_params *p, const rd_fp_medium *fm, ray3 r, double t0,
+                         double t1, pcg32 *rng, rd_track_counters *c)
+{
+    switch (p->tracker) {
+    case RD_FP_WOODCOCK: return track(p, fm, NULL, MODE_ANALOG, r, t0, t1, rng, c);
+    case RD_FP_WEIGHTED: return track(p, fm, fm->maj, MODE_WEIGHTED, r, t0, t1, rng, c);
+    case RD_FP_DECOMPOSITION: return track(p, fm, fm->maj, MODE_DECOMP, r, t0, t1, rng, c);
+    case RD_FP_RAYMARCH: return march(p, fm, r, t0, t1, rng, c);
+    case RD_FP_AUTO:
+    case RD_FP_SUPERVOXEL:
+    default: return track(p, fm, fm->maj, MODE_ANALOG, r, t0, t1, rng, c);
+    }
+}
+
+/* Ratio tracking (residual when `residual`): T = exp(-int sigma_c) prod (1 - (sigma_t(x_i) -
+ * sigma_c) / mu_r(x_i)) over tentative collisions drawn with the residual majorant
+ * mu_r = sigma_maj - sigma_c; sigma_c = the segment's minorant (Novak et al. 2014, seed 003
+ * §3.4's decomposition of eq. 13 estimated by tracking instead of quadrature). With sigma_c a
+ * true minorant every factor lies in [0, 1]. */
+static double ratio(const rd_fp_medium *fm, const rd_majorant *maj, int residual, ray3 r,
+                    double t0, double t1, pcg32 *rng, rd_track_counters *c)
+{
+    rd_maj_iter it = rd_majorant_iter(maj, r, t0, t1, fm->sigma_global, fm->sigma_global_min);
+    rd_maj_seg g;
+    double T = 1.0, tau_c = 0.0;
+    double tau = -log(1.0 - pcg32_uniform(rng));
+    while (rd_majorant_next(&it, &g)) {
+        if (fm->segments) (*fm->segments)++;
+        if (!(g.t1 > g.t0)) continue;
+        double sc = residual ? fmax(0.0, fmin(g.sigma_min, g.cubic ? INFINITY : g.c[0])) : 0.0;
+        tau_c += sc * (g.t1 - g.t0);
+        g.c[0] -= sc;
+        double s0 = 0.0;
+        for (;;) {
+            double rest = rd_seg_tau(&g, s0, 1.0);
+            if (!(rest > tau)) { tau -= rest; break; }
+            double s = rd_seg_solve(&g, s0, tau);
+            double t = g.t0 + s * (g.t1 - g.t0);
+            double mu = rd_seg_sigma(&g, s);
+            c->collisions++;
+            T *= 1.0 - (sigma_at(fm, r, t, c) - sc) / mu;
+            if (T == 0.0) return 0.0;
+            s0 = s;
+            tau = -log(1.0 - pcg32_uniform(rng));
+        }
+    }
+    return T * exp(-tau_c);
+}
+
+double rd_grid_optical_depth(const rd_grid *gr, ray3 r, double t0, double t1, rd_track_counters *c)
+{
+    /* Interpolation cells: in v = u - 0.5 (u = A x + b) the density is trilinear on every unit
+     * cell [i, i+1]^3 with voxel values at the corners (zero outside the grid), i = -1..n-1.
+     * Along the ray v(t) = v0 + t dv; in each cell the density is a cubic in t (seed 003
+     * PolyCoeff), integrated exactly. */
+    double v0[3], dv[3];
+    const int n[3] = {gr->nx, gr->ny, gr->nz};
+    for (int a = 0; a < 3; a++) {
+        v0[a] = gr->w2g[a][0] * r.o.x + gr->w2g[a][1] * r.o.y + gr->w2g[a][2] * r.o.z + gr->w2g[a][3] - 0.5;
+        dv[a] = gr->w2g[a][0] * r.d.x + gr->w2g[a][1] * r.d.y + gr->w2g[a][2] * r.d.z;
+    }
+    /* Clip to the lattice box [-1, n]^3 where the density can be non-zero. */
+    double ta = t0, tb = t1;
+    for (int a = 0; a < 3; a++) {
+        if (dv[a] == 0.0) {
+            if (v0[a] < -1.0 || v0[a] > n[a]) return 0.0;
+            continue;
+        }
+        double x0 = (-1.0 - v0[a]) / dv[a], x1 = (n[a] - v0[a]) / dv[a];
+        if (x0 > x1) { double tmp = x0; x0 = x1; x1 = tmp; }
+        ta = fmax(ta, x0);
+        tb = fmin(tb, x1);
+    }
+    if (!(ta < tb)) return 0.0;
+    int idx[3], step[3];
+    for (int a = 0; a < 3; a++) {
+        double v = v0[a] + ta * dv[a];
+        int i = (int)floor(v);
+        if (dv[a] < 0 && v == floor(v)) i--; /* on a plane heading down: the lower cell */
+        idx[a] = i < -1 ? -1 : (i > n[a] - 1 ? n[a] - 1 : i);
+        step[a] = dv[a] > 0 ? 1 : (dv[a] < 0 ? -1 : 0);
+    }
+    double tau = 0.0, t = ta;
+    for (;;) {
+        double texit = tb;
+        int axis = -1;
+        for (int a = 0; a < 3; a++) {
+            if (!step[a]) continue;
+            double plane = idx[a] + (step[a] > 0);
+            double x = (plane - v0[a]) / dv[a];
+            if (x < texit) { texit = x; axis = a; }
+        }
+        if (texit < t) texit = t;
+        if (texit > t) {
+            double val[8];
+            int any = 0;
+            for (int q = 0; q < 8; q++) {
+                int i = idx[0] + (q & 1), j = idx[1] + ((q >> 1) & 1), k = idx[2] + ((q >> 2) & 1);
+                val[q] = (i < 0 || j < 0 || k < 0 || i >= n[0] || j >= n[1] || k >= n[2])
+                             ? 0.0
+                             : gr->data[((size_t)k * gr->ny + j) * gr->nx + i];
+                any |= val[q] != 0.0;
+            }
+            c->lookups++;
+            if (any) {
+                double E[3], O[3], cc[4];
+                for (int a = 0; a < 3; a++) {
+                    E[a] = v0[a] + t * dv[a] - idx[a];
+                    O[a] = v0[a] + texit * dv[a] - idx[a];
+                }
+                rd_trilinear_cubic(val, E, O, cc);
+                tau += (texit - t) * (cc[0] + cc[1] / 2 + cc[2] / 3 + cc[3] / 4);
+            }
+        }
+        if (axis < 0 || texit >= tb) break;
+        t = texit;
+        idx[axis] += step[axis];
+        if (idx[axis] < -1 || idx[axis] > n[axis] - 1) break;
+    }
+    return tau;
+}
+
+double rd_fp_transmittance(const rd_fp_params *p, const rd_fp_medium *fm, ray3 r, double t0,
+                           double t1, pcg32 *rng, rd_track_counters *c)
+{
+    switch (p->transmittance) {
+    case RD_TR_RATIO_GLOBAL: return ratio(fm, NULL, 0, r, t0, t1, rng, c);
+    case RD_TR_RATIO: return ratio(fm, fm->maj, 0, r, t0, t1, rng, c);
+    case RD_TR_EXACT:
+        if (fm->constant >= 0.0) return exp(-fm->constant * fm->sigma_t_scale * (t1 - t0));
+        if (fm->grid) return exp(-fm->sigma_t_scale * rd_grid_optical_depth(fm->grid, r, t0, t1, c));
+        return ratio(fm, fm->maj, 1, r, t0, t1, rng, c); /* no closed form: residual ratio */
+    case RD_TR_RAYMARCH: {
+        double h = default_step(p, fm), u = pcg32_uniform(rng), tau = 0.0;
+        for (double a = t0; a < t1; a += h) {
+            double b = fmin(a + h, t1);
+            tau += sigma_at(fm, r, fmin(a + u * h, b), c) * (b - a);
+        }
+        return exp(-tau);
+    }
+    case RD_TR_AUTO: /* measured best variance x time (docs/benchmarks.md) */
+        return ratio(fm, NULL, 0, r, t0, t1, rng, c);
+    case RD_TR_RESIDUAL:
+    default: return ratio(fm, fm->maj, 1, r, t0, t1, rng, c);
+    }
+}
