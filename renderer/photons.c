@@ -153,6 +153,10 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
         for (int depth = 1;; depth++) {
             rd_collision col = rd_delta_track(s, r, INFINITY, &rng, tc);
             if (o->segments) push_segment(b, s, r, col.hit ? col.t : INFINITY, beta);
+            /* Weighted trackers (seed 002 Alg. 2-3) return a path weight for the flight; the
+             * analog trackers return 1. (Segments keep the flowing power before it: the
+             * track-length estimate assumes an analog tracker, the default.) */
+            if (col.weight != 1.0) beta = v3_scale(beta, col.weight);
             if (!col.hit) { acc(b->escaped, beta); break; }
             const rd_medium *m = col.medium;
             vec3 x = ray_at(r, col.t);

@@ -35,6 +35,20 @@ typedef struct {
 rd_status rd_trace_photons(const rd_scene *s, const rd_photon_opts *o, pm_map *map,
                            rd_photon_stats *st, char *err, size_t errlen);
 
+/* Bake the scene's SH guide grid (scene key "guide") from a built photon map over the media
+ * bounds, with the media's extinction (cell means), scattering (track-length bake) and HG
+ * phase coefficients. */
+struct sh_guide;
+rd_status rd_guide_bake(const rd_scene *s, const pm_map *map, int threads, struct sh_guide **out,
+                        char *err, size_t errlen);
+
+/* Where the light went: photon power splatted through the scene camera (img->rgb allocated). */
+rd_status rd_photon_image(const rd_scene *s, const pm_map *map, rd_image *img, char *err,
+                          size_t errlen);
+
+/* Scale so the 99.5th-percentile luminance is 1 (previews of quantities with no exposure). */
+void rd_image_normalise(rd_image *img);
+
 /* The phase-function callback for pm_map_radiance: Henyey-Greenstein with g = *(double *)user. */
 double rd_phase_hg_cb(double cos_theta, void *user);
 

@@ -148,10 +148,11 @@ extern "C" rd_status rd_vdb_save_dense(const char *path, const char *grid_name, 
         for (int k = 0; k < nz; k++)
             for (int j = 0; j < ny; j++)
                 for (int i = 0; i < nx; i++, q++)
-                    acc.setValue(openvdb::Coord(i, j, k), data[q]); // zeros stay active: the box is kept
+                    if (data[q] != 0.0f) acc.setValue(openvdb::Coord(i, j, k), data[q]); // zeros: background
         std::string tmp = std::string(path) + ".tmp" + std::to_string((long)getpid());
         openvdb::GridPtrVec grids{grid};
         openvdb::io::File file(tmp);
+        file.setCompression(openvdb::io::COMPRESS_ZIP | openvdb::io::COMPRESS_ACTIVE_MASK);
         file.write(grids);
         file.close();
         if (std::rename(tmp.c_str(), path) != 0) {
