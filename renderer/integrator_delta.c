@@ -50,7 +50,7 @@ vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters 
         if (col.weight != 1.0) beta = v3_scale(beta, col.weight);
         if (!col.hit) {
             L = v3_add(L, v3_mul(beta, escaped_radiance(s, r, hit_light, phase_pdf)));
-            if (depth == 0 && hit_light < 0) L = v3_add(L, s->background);
+            if (depth == 0 && hit_light < 0) L = v3_add(L, v3_mul(beta, s->background));
             break;
         }
         if (depth + 1 > s->settings.max_depth) break; /* this would be scattering event depth+1 */
@@ -77,9 +77,10 @@ vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters 
             if (T > 0.0) L = v3_add(L, v3_scale(v3_mul(beta, ls.Li), p * T * w));
         }
 
-        /* Russian roulette on the throughput. */
+        /* Russian roulette on the throughput. Weighted trackers with non-bounding majorants
+         * can make weights negative: survive with the largest magnitude, not the largest value. */
         if (depth + 1 >= s->settings.rr_depth) {
-            double q = fmin(1.0, v3_maxc(beta));
+            double q = fmin(1.0, fmax(fabs(beta.x), fmax(fabs(beta.y), fabs(beta.z))));
             if (q <= 0.0 || pcg32_uniform(rng) >= q) break;
             beta = v3_scale(beta, 1.0 / q);
         }
