@@ -151,8 +151,15 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
         beta = v3_scale(beta, inv_n / p_light); /* photon power: Phi_l / (N p_l) */
         acc(b->emitted, beta);
         for (int depth = 1;; depth++) {
-            rd_collision col = rd_delta_track(s, r, INFINITY, &rng, tc);
-            if (o->segments) push_segment(b, s, r, col.hit ? col.t : INFINITY, beta);
+            /* Sphere lights are opaque to camera paths and shadow rays, so to photons too: a
+             * photon that reaches one ends there (counted as escaped). */
+            double t_light = INFINITY;
+            for (int k = 0; k < s->n_lights; k++) t_light = fmin(t_light, rd_light_hit(&s->lights[k], r));
+            rd_collision col = rd_delta_track(s, r, t_light, &rng, tc);
+            /* The first flight carries direct light: store it only with store_direct, as for
+             * the photons, so k-NN and track-length bakes see the same light. */
+            if (o->segments && (depth > 1 || o->store_direct))
+                push_segment(b, s, r, col.hit ? col.t : t_light, beta);
             /* Weighted trackers (seed 002 Alg. 2-3) return a path weight for the flight; the
              * analog trackers return 1. (Segments keep the flowing power before it: the
              * track-length estimate assumes an analog tracker, the default.) */
