@@ -157,7 +157,10 @@ static rd_fp_event march(const rd_fp_params *p, const rd_fp_medium *fm, ray3 r, 
     rd_fp_event ev = {0, t1, 1.0};
     double h = default_step(p, fm), target = -log(1.0 - pcg32_uniform(rng));
     double u = pcg32_uniform(rng), acc = 0.0;
-    for (double a = t0; a < t1; a += h) {
+    /* An integer step count: a step below the float spacing of t could never advance a. */
+    long n = (long)ceil((t1 - t0) / h);
+    for (long i = 0; i < n; i++) {
+        double a = t0 + i * h;
         double b = fmin(a + h, t1), x = fmin(a + u * h, b);
         double st = sigma_at(fm, r, x, c);
         double d = st * (b - a);
@@ -305,7 +308,9 @@ double rd_fp_transmittance(const rd_fp_params *p, const rd_fp_medium *fm, ray3 r
         return ratio(fm, fm->maj, 1, r, t0, t1, rng, c); /* no closed form: residual ratio */
     case RD_TR_RAYMARCH: {
         double h = default_step(p, fm), u = pcg32_uniform(rng), tau = 0.0;
-        for (double a = t0; a < t1; a += h) {
+        long n = (long)ceil((t1 - t0) / h);
+        for (long i = 0; i < n; i++) {
+            double a = t0 + i * h;
             double b = fmin(a + h, t1);
             tau += sigma_at(fm, r, fmin(a + u * h, b), c) * (b - a);
         }

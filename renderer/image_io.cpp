@@ -117,7 +117,8 @@ extern "C" rd_status rd_image_read(const char *path, rd_image *out, char *err, s
             return RD_ERR_NOMEM;
         }
         for (size_t p = 0; p < (size_t)w * h; p++)
-            for (int c = 0; c < 3; c++) rgb[3 * p + c] = buf[p * nc + (c < nc ? c : 0)];
+            for (int c = 0; c < 3; c++) /* RGB(A): the first three; grey(+alpha): grey */
+                rgb[3 * p + c] = buf[p * nc + (nc >= 3 ? c : 0)];
         out->w = w;
         out->h = h;
         out->rgb = rgb;

@@ -216,7 +216,8 @@ static void default_output(const char *scene, const char *suffix, char *out, siz
 {
     const char *base = strrchr(scene, '/');
     base = base ? base + 1 : scene;
-    snprintf(out, n, "out/%.*s%s", (int)strcspn(base, "."), base, suffix);
+    const char *dot = strrchr(base, '.');
+    snprintf(out, n, "out/%.*s%s", dot && dot != base ? (int)(dot - base) : (int)strlen(base), base, suffix);
 }
 
 static void progress(void *user, int done, int total, double seconds)
@@ -238,6 +239,15 @@ static void sibling(const char *exr, const char *ext, char *out, size_t n)
     snprintf(out, n, "%.*s%s", (int)(len - 4), exr, ext);
 }
 
+/* Write s as a JSON string body (quotes and backslashes escaped, control characters dropped). */
+static void json_string(FILE *f, const char *s)
+{
+    for (; *s; s++) {
+        if (*s == '"' || *s == '\\') fputc('\\', f);
+        if ((unsigned char)*s >= 0x20) fputc(*s, f);
+    }
+}
+
 static int write_report(const char *path, const char *scene, const char *method, const rd_render_stats *st,
                         uint64_t seed, int threads, int w, int h)
 {
@@ -246,14 +256,16 @@ static int write_report(const char *path, const char *scene, const char *method,
     FILE *f = fopen(tmp, "w");
     if (!f) return 0;
     double paths = st->paths > 0 ? (double)st->paths : 1.0;
+    fputs("{\n  \"scene\": \"", f);
+    json_string(f, scene);
     fprintf(f,
-            "{\n  \"scene\": \"%s\",\n  \"method\": \"%s\",\n  \"width\": %d,\n  \"height\": %d,\n"
+            "\",\n  \"method\": \"%s\",\n  \"width\": %d,\n  \"height\": %d,\n"
             "  \"spp\": %d,\n  \"seed\": %llu,\n  \"threads\": %d,\n  \"seconds\": %.6f,\n"
             "  \"interrupted\": %s,\n  \"paths\": %llu,\n  \"tentative_collisions\": %llu,\n"
             "  \"density_lookups\": %llu,\n  \"shadow_rays\": %llu,\n"
             "  \"collisions_per_path\": %.4f,\n  \"lookups_per_path\": %.4f,\n"
             "  \"paths_per_second\": %.1f,\n  \"invalid_samples\": %llu\n}\n",
-            scene, method, w, h, st->spp, (unsigned long long)seed, threads, st->seconds,
+            method, w, h, st->spp, (unsigned long long)seed, threads, st->seconds,
             st->cancelled ? "true" : "false", (unsigned long long)st->paths,
             (unsigned long long)st->collisions, (unsigned long long)st->lookups,
             (unsigned long long)st->shadow_rays, st->collisions / paths, st->lookups / paths,
@@ -329,7 +341,9 @@ static int cmd_render(int argc, char **argv)
     ro.method = method ? method : rd_scene_method(scene);
     ro.spp = spp > 0 ? (int)spp : rd_scene_spp(scene);
     ro.time_limit = time_limit > 0 ? time_limit : rd_scene_time_limit(scene);
-    if (time_limit > 0 && spp < 0) ro.spp = 1 << 24; /* --time alone: run until the time is up */
+    /* A time limit without a sample count (--time, or settings.time with no settings.spp)
+     * runs until the time is up. */
+    if (ro.time_limit > 0 && spp < 0 && (time_limit > 0 || !scene->settings.spp_given)) ro.spp = 1 << 24;
     ro.seed = seed >= 0 ? (uint64_t)seed : rd_scene_seed(scene);
     ro.threads = (int)threads;
     ro.cancel = &interrupted;
@@ -518,7 +532,7 @@ static int cmd_bake(int argc, char **argv)
     char slice_axis[8];
     double slice_at[8];
     int slice_has[8];
-    double toward[3];
+    double toward[3] = {0, 0, 0};
     int has_toward = 0;
     for (int i = 0; i < argc; i++) {
         const char *o = argv[i];
@@ -538,11 +552,16 @@ static int cmd_bake(int argc, char **argv)
         else if (!strcmp(o, "--toward") && has_val) {
             const char *v = argv[++i];
             char *end;
-            toward[0] = strtod(v, &end);
-            if (*end == ',') toward[1] = strtod(end + 1, &end);
-            if (*end == ',') toward[2] = strtod(end + 1, &end);
+            int ncomp = 0;
+            end = (char *)v;
+            for (; ncomp < 3; ncomp++) {
+                const char *start = ncomp == 0 ? end : end + 1;
+                if (ncomp > 0 && *end != ',') break;
+                toward[ncomp] = strtod(start, &end);
+                if (end == start) break;
+            }
             double len = sqrt(toward[0] * toward[0] + toward[1] * toward[1] + toward[2] * toward[2]);
-            if (*end || !(len > 0) || !isfinite(len)) {
+            if (ncomp != 3 || *end || !(len > 0) || !isfinite(len)) {
                 fprintf(stderr, "photonmarch bake: --toward %s: expected X,Y,Z, a non-zero direction\n", v);
                 return EXIT_USAGE;
             }

@@ -77,6 +77,40 @@ typedef struct {
     struct rd_majorant *majorant; /* super-voxel grid / octree (rd_freepath.h); owned, may be NULL */
 } rd_medium;
 
+/* Improved Perlin noise pieces (Perlin 2002), shared by the density (medium.c) and its bounds
+ * (majorant.c) so that the two can never drift apart. */
+#define RD_PERLIN_BOUND 1.04 /* |noise| <= 1.04 for any gradient table: medium.c derives it */
+/* The quintic fade 6t^5 - 15t^4 + 10t^3. */
+static inline double rd_perlin_fade(double t) { return t * t * t * (t * (t * 6 - 15) + 10); }
+/* The gradient of corner hash h (one of the 12 cube-edge directions) as a vector. */
+static inline void rd_perlin_grad_vec(int h, double g[3])
+{
+    h &= 15;
+    int ui = h < 8 ? 0 : 1;                                  /* u = h < 8 ? x : y */
+    int vi = h < 4 ? 1 : (h == 12 || h == 14 ? 0 : 2);      /* v = h < 4 ? y : (12,14 ? x : z) */
+    g[0] = g[1] = g[2] = 0.0;
+    g[ui] += (h & 1) ? -1.0 : 1.0;
+    g[vi] += (h & 2) ? -1.0 : 1.0;
+}
+/* The same gradient dotted with (x, y, z), written out for the hot path. */
+static inline double rd_perlin_grad(int h, double x, double y, double z)
+{
+    h &= 15;
+    double u = h < 8 ? x : y;
+    double v = h < 4 ? y : (h == 12 || h == 14 ? x : z);
+    return ((h & 1) ? -u : u) + ((h & 2) ? -v : v);
+}
+/* The ellipsoid shape as a function of the normalised radius r: 1 inside 1 - edge, smoothstep
+ * down to 0 at r = 1 (non-increasing in r). */
+static inline double rd_shape_of_r(double edge, double r)
+{
+    if (r >= 1.0) return 0.0;
+    double e0 = 1.0 - edge;
+    if (r <= e0) return 1.0;
+    double t = (r - e0) / edge;
+    return 1.0 - t * t * (3.0 - 2.0 * t);
+}
+
 double rd_noise_eval(const rd_noise *n, vec3 x);     /* Perlin gradient noise in [-1, 1] */
 double rd_noise_fbm(const rd_noise *n, vec3 x);
 double rd_noise_fbm_bound(const rd_noise *n);         /* provable bound of |fbm| */
@@ -134,6 +168,8 @@ double rd_light_power(const rd_light *l, double scene_radius);
 /* ---- Scene --------------------------------------------------------------------------------- */
 typedef struct {
     int spp;
+    int spp_given;       /* settings.spp was in the file (else --time/settings.time alone run
+                            until the time is up) */
     double time_limit;
     uint64_t seed;
     int max_depth;       /* scattering events per path (1 = single scattering) */

@@ -131,8 +131,10 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_image *out,
         double per = dt / n; /* seconds per sample per pixel */
         double budget = 1.0;
         if (o->time_limit > 0) budget = fmin(budget, o->time_limit - elapsed);
-        int next = per > 0 ? (int)(budget / per) : 2 * pass;
-        pass = next < 1 ? 1 : (next > 4 * pass ? 4 * pass : next);
+        /* clamp in double before converting: budget/per can exceed INT_MAX */
+        double next = per > 0 ? budget / per : 2.0 * pass;
+        next = fmax(1.0, fmin(next, 4.0 * pass));
+        pass = (int)next;
     }
     if (o->cancel && *o->cancel) st->cancelled = 1;
     double inv = done > 0 ? 1.0 / done : 0.0;

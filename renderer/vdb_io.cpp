@@ -69,6 +69,7 @@ extern "C" rd_status rd_vdb_load(const char *path, const char *grid_name, rd_gri
             std::snprintf(err, errlen, "%s: out of memory for %zu voxels", path, n);
             return RD_ERR_NOMEM;
         }
+        g->data = data; /* owned by g from here: the catch blocks below free it */
         auto acc = grid->getConstAccessor();
         double vmin = INFINITY, vmax = -INFINITY;
         size_t q = 0;
@@ -78,6 +79,7 @@ extern "C" rd_status rd_vdb_load(const char *path, const char *grid_name, rd_gri
                     float v = acc.getValue(openvdb::Coord(i, j, k));
                     if (!std::isfinite(v) || v < 0.0f) {
                         std::free(data);
+                        g->data = nullptr;
                         std::snprintf(err, errlen, "%s: grid \"%s\" voxel (%d, %d, %d): %s density %g", path,
                                       grid_name, i, j, k, std::isfinite(v) ? "negative" : "non-finite", (double)v);
                         return RD_ERR_FORMAT;
@@ -90,6 +92,7 @@ extern "C" rd_status rd_vdb_load(const char *path, const char *grid_name, rd_gri
         // our grid coordinate u = index - bb.min + 0.5 (voxel centres at integer + 0.5).
         if (!grid->transform().isLinear()) {
             std::free(data);
+            g->data = nullptr;
             std::snprintf(err, errlen, "%s: grid \"%s\" has a non-linear (frustum) transform; only affine transforms are supported",
                           path, grid_name);
             return RD_ERR_FORMAT;
@@ -151,10 +154,15 @@ extern "C" rd_status rd_vdb_save_dense(const char *path, const char *grid_name, 
                     if (data[q] != 0.0f) acc.setValue(openvdb::Coord(i, j, k), data[q]); // zeros: background
         std::string tmp = std::string(path) + ".tmp" + std::to_string((long)getpid());
         openvdb::GridPtrVec grids{grid};
-        openvdb::io::File file(tmp);
-        file.setCompression(openvdb::io::COMPRESS_ZIP | openvdb::io::COMPRESS_ACTIVE_MASK);
-        file.write(grids);
-        file.close();
+        try {
+            openvdb::io::File file(tmp);
+            file.setCompression(openvdb::io::COMPRESS_ZIP | openvdb::io::COMPRESS_ACTIVE_MASK);
+            file.write(grids);
+            file.close();
+        } catch (...) {
+            std::remove(tmp.c_str()); /* never leave a half-written temporary behind */
+            throw;
+        }
         if (std::rename(tmp.c_str(), path) != 0) {
             std::snprintf(err, errlen, "%s: cannot rename into place: %s", path, std::strerror(errno));
             std::remove(tmp.c_str());

@@ -44,7 +44,7 @@ static const bad_case catalogue[] = {
     {"majorant_unknown_type.json", "media[0].majorant.type: unknown value \"kdtree\" (expected one of: auto, none, grid, octree)"},
     {"majorant_unknown_key.json", "media[0].majorant.resoluton: unknown key (allowed: type, resolution, bound, fail, max_level"},
     {"majorant_resolution_not_grid.json", "media[0].majorant.resolution: only with \"type\": \"grid\""},
-    {"majorant_resolution_zero.json", "media[0].majorant.resolution: must be in [1, 1024], found 0"},
+    {"majorant_resolution_zero.json", "media[0].majorant.resolution: must be in [1, 256], found 0"},
     {"tracker_unknown.json", "settings.tracker: unknown value \"teleport\""},
     {"tracker_b_without_weighted.json", "settings.b: only with \"tracker\": \"weighted\" or \"decomposition\""},
     {"tracker_b_negative.json", "settings.b: must be in (0, 100], found -1"},
@@ -147,23 +147,58 @@ Test(cli, render_writes_exr_png_and_report, .timeout = 120)
     cr_expect(tmpfiles == 0, "temporary files left behind");
 }
 
+static int same_bytes(const char *a, const char *b)
+{
+    char cmd[700];
+    snprintf(cmd, sizeof cmd, "cmp -s '%s' '%s'", a, b);
+    return system(cmd) == 0;
+}
+
 Test(cli, failed_run_keeps_the_previous_image, .timeout = 120)
 {
     const char *bin = getenv("PHOTONMARCH_BIN");
     cr_assert(bin != NULL);
-    char exr[256], out[4096], err[4096];
+    char exr[256], copy[300], out[4096], err[4096];
     snprintf(exr, sizeof exr, "%s/keep.exr", rt_tmpdir());
+    snprintf(copy, sizeof copy, "%s/keep.copy", rt_tmpdir());
     char *good[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", exr, "-q", NULL};
     cr_assert(rt_run(good, out, sizeof out, err, sizeof err, 0) == 0, "%s", err);
-    struct stat before, after;
-    cr_assert(stat(exr, &before) == 0);
-    /* An override that makes the scene invalid: the run fails and the image stays. */
+    char cmd[700];
+    snprintf(cmd, sizeof cmd, "cp '%s' '%s'", exr, copy);
+    cr_assert(system(cmd) == 0);
+    /* An invalid scene: refused, the image untouched byte for byte. */
     char *bad[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", exr, "--set", "media[0].g=2", NULL};
     int code = rt_run(bad, out, sizeof out, err, sizeof err, 0);
     cr_expect(code == 2, "exit %d", code);
     cr_expect(strstr(err, "media[0].g: must be in (-1, 1), found 2") != NULL, "%s", err);
-    cr_assert(stat(exr, &after) == 0);
-    cr_expect(before.st_size == after.st_size && before.st_mtime == after.st_mtime);
+    cr_expect(same_bytes(exr, copy), "a refused run changed the image");
+}
+
+Test(cli, failed_write_leaves_no_partial_file, .timeout = 120)
+{
+    /* The output path is a folder: writing fails at the rename, exit 3, the folder is intact
+     * and no temporary file is left beside it. */
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char dir[200], exr[256], out[4096], err[4096], probe[300];
+    snprintf(dir, sizeof dir, "%s/wf", rt_tmpdir());
+    cr_assert(mkdir(dir, 0777) == 0);
+    snprintf(exr, sizeof exr, "%s/img.exr", dir);
+    cr_assert(mkdir(exr, 0777) == 0);
+    snprintf(probe, sizeof probe, "%s/inside", exr);
+    rt_write_file(probe, "x", 1);
+    char *argv[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", exr, "--spp", "1", NULL};
+    int code = rt_run(argv, out, sizeof out, err, sizeof err, 0);
+    cr_expect(code == 3, "exit %d (expected 3): %s", code, err);
+    cr_expect(strncmp(err, exr, strlen(exr)) == 0, "message names the output: %s", err);
+    cr_expect(access(probe, F_OK) == 0, "the folder in the way was damaged");
+    char cmd[400];
+    snprintf(cmd, sizeof cmd, "ls -a '%s' | grep -c tmp", dir);
+    FILE *p = popen(cmd, "r");
+    int n = -1;
+    cr_assert(fscanf(p, "%d", &n) == 1);
+    pclose(p);
+    cr_expect(n == 0, "temporary files left behind");
 }
 
 Test(cli, ctrl_c_writes_what_it_has, .timeout = 120)
