@@ -64,21 +64,6 @@ static void grid_box_bound(const rd_grid *g, vec3 lo, vec3 hi, double *dmin, dou
     *dmin = border ? 0.0 : mn;
 }
 
-/* Improved Perlin noise (Perlin 2002) as in medium.c: gradient of corner hash h as a vector. */
-static void perlin_grad(int h, double g[3])
-{
-    h &= 15;
-    /* grad(h, x, y, z) = (+-u) + (+-v), u = h < 8 ? x : y, v = h < 4 ? y : (h == 12 || h == 14 ? x : z) */
-    g[0] = g[1] = g[2] = 0.0;
-    int ui = h < 8 ? 0 : 1;
-    int vi = h < 4 ? 1 : (h == 12 || h == 14 ? 0 : 2);
-    g[ui] += (h & 1) ? -1.0 : 1.0;
-    g[vi] += (h & 2) ? -1.0 : 1.0;
-}
-
-#define RD_PERLIN_BOUND_M 1.04 /* bound of |noise| (medium.c RD_PERLIN_BOUND) */
-static double fade_m(double t) { return t * t * t * (t * (t * 6 - 15) + 10); }
-
 /* Bounds of one octave of Perlin noise over the lattice-coordinate box [qlo, qhi]. Inside a
  * lattice cell the noise is a convex combination (products of fade weights in [0, 1]) of the 8
  * corner terms g_c . (f - c), each linear in f: so it lies between the smallest and largest of
@@ -95,7 +80,7 @@ static void octave_bound(const rd_noise *nz, vec3 qlo, vec3 qhi, double *nmin, d
         c1[a] = floor(v3_get(qhi, a));
         cells *= (long long)(c1[a] - c0[a] + 1);
     }
-    if (cells > 8) { *nmin = -RD_PERLIN_BOUND_M; *nmax = RD_PERLIN_BOUND_M; return; }
+    if (cells > 8) { *nmin = -RD_PERLIN_BOUND; *nmax = RD_PERLIN_BOUND; return; }
     double mx = -INFINITY, mn = INFINITY;
     const uint8_t *P = nz->perm;
     for (double Z = c0[2]; Z <= c1[2]; Z++)
@@ -112,7 +97,7 @@ static void octave_bound(const rd_noise *nz, vec3 qlo, vec3 qhi, double *nmin, d
                     int cx = c & 1, cy = (c >> 1) & 1, cz = (c >> 2) & 1;
                     int h = P[P[P[xi + cx] + yi + cy] + zi + cz];
                     double g[3], tmax = 0.0, tmin = 0.0;
-                    perlin_grad(h, g);
+                    rd_perlin_grad_vec(h, g);
                     const double cc[3] = {cx, cy, cz};
                     for (int a = 0; a < 3; a++) {
                         double p = g[a] * (flo[a] - cc[a]), q = g[a] * (fhi[a] - cc[a]);
@@ -127,7 +112,7 @@ static void octave_bound(const rd_noise *nz, vec3 qlo, vec3 qhi, double *nmin, d
                  * their bounds the interpolation is multilinear in the fade values, extreme at
                  * a corner of that range. Tight for boxes much smaller than a lattice cell. */
                 double W0[3], W1[3];
-                for (int a = 0; a < 3; a++) { W0[a] = fade_m(flo[a]); W1[a] = fade_m(fhi[a]); }
+                for (int a = 0; a < 3; a++) { W0[a] = rd_perlin_fade(flo[a]); W1[a] = rd_perlin_fade(fhi[a]); }
                 for (int q = 0; q < 8; q++) {
                     double u = (q & 1) ? W1[0] : W0[0], v = (q & 2) ? W1[1] : W0[1], w = (q & 4) ? W1[2] : W0[2];
                     double hi = 0.0, lo = 0.0;
@@ -140,18 +125,8 @@ static void octave_bound(const rd_noise *nz, vec3 qlo, vec3 qhi, double *nmin, d
                     mn = fmin(mn, lo);
                 }
             }
-    *nmax = fmin(mx, RD_PERLIN_BOUND_M);
-    *nmin = fmax(mn, -RD_PERLIN_BOUND_M);
-}
-
-/* The ellipsoid shape of medium.c as a function of the normalised radius r (non-increasing). */
-static double shape_of_r(const rd_noise *n, double r)
-{
-    if (r >= 1.0) return 0.0;
-    double e0 = 1.0 - n->edge;
-    if (r <= e0) return 1.0;
-    double t = (r - e0) / n->edge;
-    return 1.0 - t * t * (3.0 - 2.0 * t);
+    *nmax = fmin(mx, RD_PERLIN_BOUND);
+    *nmin = fmax(mn, -RD_PERLIN_BOUND);
 }
 
 static void noise_box_bound(const rd_noise *nz, vec3 lo, vec3 hi, double *dmin, double *dmax)
@@ -168,8 +143,8 @@ static void noise_box_bound(const rd_noise *nz, vec3 lo, vec3 hi, double *dmin, 
             rn += near * near;
             rf += far * far;
         }
-        smax = shape_of_r(nz, sqrt(rn));
-        smin = shape_of_r(nz, sqrt(rf));
+        smax = rd_shape_of_r(nz->edge, sqrt(rn));
+        smin = rd_shape_of_r(nz->edge, sqrt(rf));
     }
     if (smax <= 0.0) { *dmin = *dmax = 0.0; return; }
     /* fBm = sum_o gain^o noise(f_o (x - c)): bound every octave on the box (eq. 15). */

@@ -128,31 +128,22 @@ void rd_noise_init_perm(rd_noise *n)
     for (int i = 0; i < 512; i++) n->perm[i] = p[i & 255];
 }
 
-static inline double fade(double t) { return t * t * t * (t * (t * 6 - 15) + 10); }
 static inline double lerp(double t, double a, double b) { return a + t * (b - a); }
-static inline double grad(int h, double x, double y, double z)
-{
-    /* The 12 edge gradients of improved Perlin noise (Perlin 2002). */
-    h &= 15;
-    double u = h < 8 ? x : y;
-    double v = h < 4 ? y : (h == 12 || h == 14 ? x : z);
-    return ((h & 1) ? -u : u) + ((h & 2) ? -v : v);
-}
 
 double rd_noise_eval(const rd_noise *n, vec3 p)
 {
     double fx = floor(p.x), fy = floor(p.y), fz = floor(p.z);
     int X = (int)((long long)fx & 255), Y = (int)((long long)fy & 255), Z = (int)((long long)fz & 255);
     double x = p.x - fx, y = p.y - fy, z = p.z - fz;
-    double u = fade(x), v = fade(y), w = fade(z);
+    double u = rd_perlin_fade(x), v = rd_perlin_fade(y), w = rd_perlin_fade(z);
     const uint8_t *P = n->perm;
     int A = P[X] + Y, AA = P[A] + Z, AB = P[A + 1] + Z;
     int B = P[X + 1] + Y, BA = P[B] + Z, BB = P[B + 1] + Z;
     return lerp(w,
-                lerp(v, lerp(u, grad(P[AA], x, y, z), grad(P[BA], x - 1, y, z)),
-                     lerp(u, grad(P[AB], x, y - 1, z), grad(P[BB], x - 1, y - 1, z))),
-                lerp(v, lerp(u, grad(P[AA + 1], x, y, z - 1), grad(P[BA + 1], x - 1, y, z - 1)),
-                     lerp(u, grad(P[AB + 1], x, y - 1, z - 1), grad(P[BB + 1], x - 1, y - 1, z - 1))));
+                lerp(v, lerp(u, rd_perlin_grad(P[AA], x, y, z), rd_perlin_grad(P[BA], x - 1, y, z)),
+                     lerp(u, rd_perlin_grad(P[AB], x, y - 1, z), rd_perlin_grad(P[BB], x - 1, y - 1, z))),
+                lerp(v, lerp(u, rd_perlin_grad(P[AA + 1], x, y, z - 1), rd_perlin_grad(P[BA + 1], x - 1, y, z - 1)),
+                     lerp(u, rd_perlin_grad(P[AB + 1], x, y - 1, z - 1), rd_perlin_grad(P[BB + 1], x - 1, y - 1, z - 1))));
 }
 
 double rd_noise_fbm(const rd_noise *n, vec3 x)
@@ -173,8 +164,8 @@ double rd_noise_fbm(const rd_noise *n, vec3 x)
  *   |noise(f)| <= E(f) = sum_c w_c(f) (largest two of |f - c|).
  * E depends on f only; its maximum over the unit cube, found by a 61^3 grid search refined by a
  * local random search, is 1.03635 at f = (0.355, 0.481, 0.5) and its mirror images. We use 1.04
- * (tests/test_medium.c checks E on random points and the noise against the bound). */
-#define RD_PERLIN_BOUND 1.04
+ * (tests/test_volume.c checks E on random points and the noise against the bound). The
+ * constant RD_PERLIN_BOUND lives in rd_internal.h. */
 
 double rd_noise_fbm_bound(const rd_noise *n)
 {
@@ -192,11 +183,7 @@ static double shape_eval(const rd_noise *n, vec3 x)
     vec3 q = v3_sub(x, n->center);
     double r = sqrt((q.x * q.x) / (n->radii.x * n->radii.x) + (q.y * q.y) / (n->radii.y * n->radii.y) +
                     (q.z * q.z) / (n->radii.z * n->radii.z));
-    if (r >= 1.0) return 0.0;
-    double e0 = 1.0 - n->edge;
-    if (r <= e0) return 1.0;
-    double t = (r - e0) / n->edge; /* smoothstep from 1 at the inner radius to 0 at the surface */
-    return 1.0 - t * t * (3.0 - 2.0 * t);
+    return rd_shape_of_r(n->edge, r);
 }
 
 double rd_medium_density(const rd_medium *m, vec3 x)
