@@ -111,3 +111,64 @@ Test(phase, hg_sampler_rejects_a_wrong_distribution)
     }
     cr_expect(chi2 > rt_chi2_quantile(NC - 1, 3.719), "chi2 %.1f did not detect g 0.5 vs 0.45", chi2);
 }
+
+Test(phase, uniform_sphere_sampling_chi_square)
+{
+    /* rd_sample_sphere: uniform in (z, phi), so every cell of a 20 x 16 grid in (z, phi) expects
+     * n / 320 samples. Reject at p = 1e-4. */
+    enum { NZ = 20, NPHI = 16 };
+    static double obs[NZ][NPHI];
+    int n = 320000;
+    pcg32 rng = pcg32_seed(2, 4, 6);
+    for (int k = 0; k < n; k++) {
+        vec3 w = rd_sample_sphere(pcg32_uniform(&rng), pcg32_uniform(&rng));
+        double phi = atan2(w.y, w.x);
+        if (phi < 0) phi += 2 * M_PI;
+        int zi = (int)((w.z + 1.0) * 0.5 * NZ), pi = (int)(phi / (2 * M_PI) * NPHI);
+        obs[zi >= NZ ? NZ - 1 : zi][pi >= NPHI ? NPHI - 1 : pi] += 1;
+    }
+    double e = (double)n / (NZ * NPHI), chi2 = 0;
+    for (int i = 0; i < NZ; i++)
+        for (int j = 0; j < NPHI; j++) chi2 += (obs[i][j] - e) * (obs[i][j] - e) / e;
+    double crit = rt_chi2_quantile(NZ * NPHI - 1, 3.719);
+    cr_expect(chi2 < crit, "chi2 %.1f >= %.1f", chi2, crit);
+}
+
+Test(phase, sphere_light_cone_sampling_chi_square)
+{
+    /* rd_light_sample_li on a sphere light: directions uniform in the cone the sphere subtends,
+     * pdf 1 / (2 pi (1 - cos_max)). Bin cos(angle to the axis) in [cos_max, 1] and phi around
+     * the axis; each cell expects the same count. Also: every sampled direction hits the
+     * sphere, and rd_light_pdf agrees with the sampler's pdf. Reject at p = 1e-4. */
+    rd_light l = {.kind = RD_LIGHT_SPHERE, .pos = v3(0.3, -0.2, 2.0), .radius = 0.7, .value = v3(1, 1, 1)};
+    vec3 x = v3(0.1, 0.4, -0.5);
+    vec3 axis = v3_norm(v3_sub(l.pos, x)), a, b;
+    v3_basis(axis, &a, &b);
+    double d = v3_len(v3_sub(l.pos, x)), cos_max = sqrt(1.0 - l.radius * l.radius / (d * d));
+    enum { NC = 20, NPHI = 12 };
+    static double obs[NC][NPHI];
+    int n = 240000, missed = 0;
+    pcg32 rng = pcg32_seed(7, 7, 7);
+    for (int k = 0; k < n; k++) {
+        rd_light_sample ls;
+        cr_assert(rd_light_sample_li(&l, x, pcg32_uniform(&rng), pcg32_uniform(&rng), &ls));
+        if (k < 1000) {
+            cr_expect(fabs(ls.pdf - 1.0 / (2 * M_PI * (1 - cos_max))) < 1e-9 * ls.pdf);
+            cr_expect(fabs(rd_light_pdf(&l, x, ls.wi) - ls.pdf) < 1e-9 * ls.pdf);
+        }
+        if (!isfinite(rd_light_hit(&l, (ray3){x, ls.wi}))) missed++;
+        double c = v3_dot(ls.wi, axis);
+        double phi = atan2(v3_dot(ls.wi, b), v3_dot(ls.wi, a));
+        if (phi < 0) phi += 2 * M_PI;
+        int ci = (int)((c - cos_max) / (1.0 - cos_max) * NC), pi = (int)(phi / (2 * M_PI) * NPHI);
+        ci = ci < 0 ? 0 : (ci >= NC ? NC - 1 : ci);
+        obs[ci][pi >= NPHI ? NPHI - 1 : pi] += 1;
+    }
+    /* grazing directions may miss by round-off; they must be very rare */
+    cr_expect(missed < n / 10000, "%d sampled directions miss the sphere", missed);
+    double e = (double)n / (NC * NPHI), chi2 = 0;
+    for (int i = 0; i < NC; i++)
+        for (int j = 0; j < NPHI; j++) chi2 += (obs[i][j] - e) * (obs[i][j] - e) / e;
+    double crit = rt_chi2_quantile(NC * NPHI - 1, 3.719);
+    cr_expect(chi2 < crit, "chi2 %.1f >= %.1f", chi2, crit);
+}
