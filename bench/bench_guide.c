@@ -15,7 +15,7 @@
  *     of the photon map, as in tests/test_photons.c: w' drawn from the HG phase around w,
  *     rd_delta_radiance (unbiased delta-tracking path tracing, THEORY.md §2) for the radiance
  *     arriving at x along w' (ray from x along -w'), plus the direct term p(w_l.w) Li T of every
- *     delta light (a traced ray never hits one) with T by rd_ratio_track; both parts from the
+ *     delta light (a traced ray never hits one) with T by rd_transmittance; both parts from the
  *     same sample, so the standard error covers both. Paths are added in batches until the
  *     relative standard error is below the target, 2.5% (or a cap of 2^18 paths). The same
  *     samples, re-weighted by p_L/p (and p_L in the direct term), give ref_L: the value for the
@@ -234,10 +234,10 @@ static void reference_point(const rd_scene *s, ref_point *p, uint64_t stream, co
                 double u1 = pcg32_uniform(&r), u2 = pcg32_uniform(&r);
                 if (!rd_light_sample_li(&s->lights[i], p->x, u1, u2, &ls) || ls.pdf > 0.0) continue;
                 ray3 sr = {p->x, ls.wi};
-                double T = rd_ratio_track(s, sr, ls.dist, &r, &c);
+                double T = rd_transmittance(s, sr, ls.dist, &r, &c);
                 double mul = -v3_dot(ls.wi, p->w);
-                D = v3_madd(D, ls.Li, rd_hg_eval(m->g, mul) * T);
-                DL = v3_madd(DL, ls.Li, sh_phase_truncated(b, GUIDE_BANDS, mul) * T);
+                D = v3_madd(D, ls.contrib, rd_hg_eval(m->g, mul) * T);
+                DL = v3_madd(DL, ls.contrib, sh_phase_truncated(b, GUIDE_BANDS, mul) * T);
             }
             vec3 f = v3_mul(ss, v3_add(L, D)), fd = v3_mul(ss, D);
             vec3 fL = v3_mul(ss, v3_add(v3_scale(L, wL), DL));

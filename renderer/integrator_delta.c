@@ -45,7 +45,7 @@ vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters 
             double t = rd_light_hit(&s->lights[i], r);
             if (t < t_light) { t_light = t; hit_light = i; }
         }
-        rd_collision col = rd_delta_track(s, r, t_light, rng, c);
+        rd_collision col = rd_sample_free_path(s, r, t_light, rng, c);
         /* Weighted trackers (seed 002 Alg. 2-3) return a path weight; 1 for delta tracking. */
         if (col.weight != 1.0) beta = v3_scale(beta, col.weight);
         if (!col.hit) {
@@ -73,8 +73,8 @@ vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters 
                 if (k != i) dist = fmin(dist, rd_light_hit(&s->lights[k], sr));
             if (dist < ls.dist) continue;
             (*shadow_rays)++;
-            double T = rd_ratio_track(s, sr, ls.dist, rng, c);
-            if (T > 0.0) L = v3_add(L, v3_scale(v3_mul(beta, ls.Li), p * T * w));
+            double T = rd_transmittance(s, sr, ls.dist, rng, c);
+            if (T > 0.0) L = v3_add(L, v3_scale(v3_mul(beta, ls.contrib), p * T * w));
         }
 
         /* Russian roulette on the throughput. Weighted trackers with non-bounding majorants

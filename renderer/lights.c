@@ -35,7 +35,7 @@ int rd_light_sample_li(const rd_light *l, vec3 x, double u1, double u2, rd_light
         double f = 1.0;
         if (l->kind == RD_LIGHT_SPOT) f = rd_spot_falloff(l, -v3_dot(s->wi, l->dir));
         if (f <= 0.0) return 0;
-        s->Li = v3_scale(l->value, f / r2); /* I / r^2 */
+        s->contrib = v3_scale(l->value, f / r2); /* I / r^2 */
         s->pdf = 0.0;
         return 1;
     }
@@ -47,7 +47,7 @@ int rd_light_sample_li(const rd_light *l, vec3 x, double u1, double u2, rd_light
         }
         s->wi = v3_scale(l->dir, -1.0);
         s->dist = INFINITY;
-        s->Li = l->value; /* irradiance E */
+        s->contrib = l->value; /* irradiance E */
         s->pdf = 0.0;
         return 1;
     }
@@ -68,14 +68,14 @@ int rd_light_sample_li(const rd_light *l, vec3 x, double u1, double u2, rd_light
         s->dist = sphere_hit(l->pos, l->radius, x, s->wi);
         if (!isfinite(s->dist)) s->dist = dc - l->radius; /* grazing round-off */
         s->pdf = 1.0 / (2.0 * M_PI * (1.0 - cos_max));
-        s->Li = v3_scale(l->value, 1.0 / s->pdf);
+        s->contrib = v3_scale(l->value, 1.0 / s->pdf);
         return 1;
     }
     case RD_LIGHT_ENVIRONMENT:
         s->wi = rd_sample_sphere(u1, u2);
         s->dist = INFINITY;
         s->pdf = RD_INV_4PI;
-        s->Li = v3_scale(l->value, 4.0 * M_PI);
+        s->contrib = v3_scale(l->value, 4.0 * M_PI);
         return 1;
     }
     return 0;

@@ -155,7 +155,7 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
              * photon that reaches one ends there (counted as escaped). */
             double t_light = INFINITY;
             for (int k = 0; k < s->n_lights; k++) t_light = fmin(t_light, rd_light_hit(&s->lights[k], r));
-            rd_collision col = rd_delta_track(s, r, t_light, &rng, tc);
+            rd_collision col = rd_sample_free_path(s, r, t_light, &rng, tc);
             /* The first flight carries direct light: store it only with store_direct, as for
              * the photons, so k-NN and track-length bakes see the same light. */
             if (o->segments && (depth > 1 || o->store_direct))

@@ -148,7 +148,7 @@ typedef struct {
 typedef struct {
     vec3 wi;        /* unit direction from x toward the light */
     double dist;    /* distance to the light (INFINITY for directional/environment) */
-    vec3 Li;        /* incident radiance times 1/pdf, i.e. the contribution before the phase
+    vec3 contrib;   /* incident radiance times 1/pdf, i.e. the contribution before the phase
                        function and transmittance (delta lights: I/r^2 or E) */
     double pdf;     /* solid-angle pdf of wi; 0 for delta lights (no MIS) */
 } rd_light_sample;
@@ -239,14 +239,14 @@ typedef struct {
  * with the tracker of s->settings.tracker (default: delta tracking over each medium's majorant
  * structure; "woodcock" uses the global majorant). The caller multiplies its path weight by
  * the returned weight (1 except for the weighted trackers). */
-rd_collision rd_delta_track(const rd_scene *s, ray3 r, double tmax, pcg32 *rng,
-                            rd_track_counters *c);
+rd_collision rd_sample_free_path(const rd_scene *s, ray3 r, double tmax, pcg32 *rng,
+                                 rd_track_counters *c);
 
 /* Transmittance estimate along r from 0 to tmax with the estimator of
  * s->settings.transmittance (default: ratio tracking with each medium's global majorant, the
  * lowest variance x time measured; THEORY.md §2, docs/free-path.md). */
-double rd_ratio_track(const rd_scene *s, ray3 r, double tmax, pcg32 *rng,
-                      rd_track_counters *c);
+double rd_transmittance(const rd_scene *s, ray3 r, double tmax, pcg32 *rng,
+                        rd_track_counters *c);
 
 /* Scene radius: half the diagonal of the media bounds, at least 1e-3. */
 double rd_scene_radius(const rd_scene *s);

@@ -35,8 +35,8 @@ static rd_fp_params params_of(const rd_scene *s)
     return p;
 }
 
-rd_collision rd_delta_track(const rd_scene *s, ray3 r, double tmax, pcg32 *rng,
-                            rd_track_counters *c)
+rd_collision rd_sample_free_path(const rd_scene *s, ray3 r, double tmax, pcg32 *rng,
+                                 rd_track_counters *c)
 {
     interval iv[64];
     int n = media_intervals(s, r, tmax, iv);
@@ -57,7 +57,7 @@ rd_collision rd_delta_track(const rd_scene *s, ray3 r, double tmax, pcg32 *rng,
     return col;
 }
 
-double rd_ratio_track(const rd_scene *s, ray3 r, double tmax, pcg32 *rng, rd_track_counters *c)
+double rd_transmittance(const rd_scene *s, ray3 r, double tmax, pcg32 *rng, rd_track_counters *c)
 {
     interval iv[64];
     int n = media_intervals(s, r, tmax, iv);
