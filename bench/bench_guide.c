@@ -161,20 +161,9 @@ static double median(double *v, int n)
     return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-static const rd_medium *medium_at(const rd_scene *s, vec3 x)
-{
-    for (int i = 0; i < s->n_media; i++) {
-        const rd_medium *m = &s->media[i];
-        if (x.x >= m->bmin.x && x.y >= m->bmin.y && x.z >= m->bmin.z && x.x <= m->bmax.x &&
-            x.y <= m->bmax.y && x.z <= m->bmax.z)
-            return m;
-    }
-    return NULL;
-}
-
 static double density_at(const rd_scene *s, vec3 x)
 {
-    const rd_medium *m = medium_at(s, x);
+    const rd_medium *m = rd_scene_medium_at(s, x);
     return m ? rd_medium_density(m, x) : 0.0;
 }
 
@@ -209,7 +198,7 @@ static int pick_points(const rd_scene *s, int n, int mode, uint64_t seed, vec3 *
  * SH truncation error, which no bake removes. */
 static void reference_point(const rd_scene *s, ref_point *p, uint64_t stream, const bench_opts *o)
 {
-    const rd_medium *m = medium_at(s, p->x);
+    const rd_medium *m = rd_scene_medium_at(s, p->x);
     const double st = rd_medium_sigma_t(m, p->x);
     const vec3 ss = v3_scale(m->albedo, st);
     double b[GUIDE_BANDS];

@@ -9,26 +9,15 @@
 
 /* ---- Scene fields as sh/ callbacks --------------------------------------------------------- */
 
-static const rd_medium *medium_at(const rd_scene *s, vec3 x)
-{
-    for (int i = 0; i < s->n_media; i++) {
-        const rd_medium *m = &s->media[i];
-        if (x.x >= m->bmin.x && x.y >= m->bmin.y && x.z >= m->bmin.z && x.x <= m->bmax.x &&
-            x.y <= m->bmax.y && x.z <= m->bmax.z)
-            return m;
-    }
-    return NULL;
-}
-
 static double cb_sigma_t(const double x[3], void *user)
 {
-    const rd_medium *m = medium_at(user, v3(x[0], x[1], x[2]));
+    const rd_medium *m = rd_scene_medium_at(user, v3(x[0], x[1], x[2]));
     return m ? rd_medium_sigma_t(m, v3(x[0], x[1], x[2])) : 0.0;
 }
 
 static void cb_sigma_s(const double x[3], void *user, double out[3])
 {
-    const rd_medium *m = medium_at(user, v3(x[0], x[1], x[2]));
+    const rd_medium *m = rd_scene_medium_at(user, v3(x[0], x[1], x[2]));
     double st = m ? rd_medium_sigma_t(m, v3(x[0], x[1], x[2])) : 0.0;
     out[0] = m ? st * m->albedo.x : 0.0;
     out[1] = m ? st * m->albedo.y : 0.0;
@@ -40,7 +29,7 @@ typedef struct { const rd_scene *s; int bands; } phase_ctx;
 static void cb_phase_at(const double x[3], void *user, double *b)
 {
     const phase_ctx *pc = user;
-    const rd_medium *m = medium_at(pc->s, v3(x[0], x[1], x[2]));
+    const rd_medium *m = rd_scene_medium_at(pc->s, v3(x[0], x[1], x[2]));
     sh_phase_coeffs_hg(m ? m->g : 0.0, pc->bands, b);
 }
 

@@ -203,3 +203,14 @@ double rd_medium_density(const rd_medium *m, vec3 x)
     }
     return 0.0;
 }
+
+const rd_medium *rd_scene_medium_at(const rd_scene *s, vec3 x)
+{
+    for (int i = 0; i < s->n_media; i++) {
+        const rd_medium *m = &s->media[i];
+        if (x.x >= m->bmin.x && x.y >= m->bmin.y && x.z >= m->bmin.z && x.x <= m->bmax.x &&
+            x.y <= m->bmax.y && x.z <= m->bmax.z)
+            return m;
+    }
+    return NULL;
+}

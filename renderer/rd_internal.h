@@ -248,6 +248,9 @@ rd_collision rd_sample_free_path(const rd_scene *s, ray3 r, double tmax, pcg32 *
 double rd_transmittance(const rd_scene *s, ray3 r, double tmax, pcg32 *rng,
                         rd_track_counters *c);
 
+/* The medium whose bounds contain x (media do not overlap), or NULL. */
+const rd_medium *rd_scene_medium_at(const rd_scene *s, vec3 x);
+
 /* Scene radius: half the diagonal of the media bounds, at least 1e-3. */
 double rd_scene_radius(const rd_scene *s);
 
