@@ -15,15 +15,22 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-/* A fresh folder under /tmp for this test process. */
+/* A fresh folder under /tmp for this test process, removed when the process exits. */
+static char rt_dir_[64]; /* written once per process (each Criterion test runs in its own) */
+static inline void rt_tmpdir_remove(void)
+{
+    char cmd[128];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", rt_dir_);
+    if (rt_dir_[0] && system(cmd) != 0) fprintf(stderr, "could not remove %s\n", rt_dir_);
+}
 static inline const char *rt_tmpdir(void)
 {
-    static char dir[64]; /* written once per process (tests run in their own processes) */
-    if (!dir[0]) {
-        snprintf(dir, sizeof dir, "/tmp/rdtest.XXXXXX");
-        cr_assert(mkdtemp(dir) != NULL, "mkdtemp failed");
+    if (!rt_dir_[0]) {
+        snprintf(rt_dir_, sizeof rt_dir_, "/tmp/rdtest.XXXXXX");
+        cr_assert(mkdtemp(rt_dir_) != NULL, "mkdtemp failed");
+        atexit(rt_tmpdir_remove);
     }
-    return dir;
+    return rt_dir_;
 }
 
 static inline void rt_write_file(const char *path, const void *data, size_t n)
