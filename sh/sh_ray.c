@@ -67,6 +67,16 @@ void sh_guide_ray_begin(const sh_guide *g, const double o[3], const double d[3],
 }
 
 /* Uniform grid: it->ijk is the current cell; step to the neighbour across the nearest plane. */
+/* Fill the segment [t0, t1) of cell `cell` (both walks end a step this way). */
+static void emit_seg(const sh_guide *g, long cell, double t0, double t1, sh_guide_seg *seg)
+{
+    seg->t0 = t0;
+    seg->t1 = t1;
+    seg->cell = cell;
+    seg->coeffs = g->coeffs + (size_t)cell * (size_t)g->ncoef;
+    seg->sigma_t = g->sigma_t[cell];
+}
+
 static int ray_next_uniform(sh_guide_ray *it, sh_guide_seg *seg)
 {
     const sh_guide *g = it->g;
@@ -102,11 +112,7 @@ static int ray_next_uniform(sh_guide_ray *it, sh_guide_seg *seg)
         }
         it->t = t1;
         if (t1 > t0) {
-            seg->t0 = t0;
-            seg->t1 = t1;
-            seg->cell = cell;
-            seg->coeffs = g->coeffs + (size_t)cell * (size_t)g->ncoef;
-            seg->sigma_t = g->sigma_t[cell];
+            emit_seg(g, cell, t0, t1, seg);
             return 1;
         }
     }
@@ -166,11 +172,7 @@ static int ray_next_adaptive(sh_guide_ray *it, sh_guide_seg *seg)
         }
         it->t = t1;
         if (t1 > t0) {
-            seg->t0 = t0;
-            seg->t1 = t1;
-            seg->cell = cell;
-            seg->coeffs = g->coeffs + (size_t)cell * (size_t)g->ncoef;
-            seg->sigma_t = g->sigma_t[cell];
+            emit_seg(g, cell, t0, t1, seg);
             return 1;
         }
     }
