@@ -206,7 +206,6 @@ static void reference_point(const rd_scene *s, ref_point *p, uint64_t stream, co
     double sum = 0, sum2 = 0, sumd = 0, sumL[3] = {0, 0, 0}, sumX = 0, sumX2 = 0;
     long n = 0;
     rd_track_counters c = {0, 0};
-    uint64_t shadow = 0;
     while (n < o->max_paths) {
         for (long k = n; k < n + o->batch; k++) {
             pcg32 r = pcg32_seed(stream, (uint64_t)k, 0x726566ULL);
@@ -215,7 +214,7 @@ static void reference_point(const rd_scene *s, ref_point *p, uint64_t stream, co
             double mu = v3_dot(wp, p->w);
             double wL = sh_phase_truncated(b, GUIDE_BANDS, mu) / rd_hg_eval(m->g, mu);
             ray3 back = {p->x, v3_scale(wp, -1.0)};
-            vec3 L = rd_delta_radiance(s, back, &r, &c, &shadow);
+            vec3 L = rd_delta_radiance(s, back, &r, &c);
             /* Delta lights: p(w_l . w) Li T, w_l = -wi the direction the light travels. */
             vec3 D = v3(0, 0, 0), DL = v3(0, 0, 0);
             for (int i = 0; i < s->n_lights; i++) {
@@ -223,7 +222,7 @@ static void reference_point(const rd_scene *s, ref_point *p, uint64_t stream, co
                 double u1 = pcg32_uniform(&r), u2 = pcg32_uniform(&r);
                 if (!rd_light_sample_li(&s->lights[i], p->x, u1, u2, &ls) || ls.pdf > 0.0) continue;
                 ray3 sr = {p->x, ls.wi};
-                double T = rd_transmittance(s, sr, ls.dist, &r, &c);
+                double T = rd_transmittance(s, sr, 0.0, ls.dist, &r, &c);
                 double mul = -v3_dot(ls.wi, p->w);
                 D = v3_madd(D, ls.contrib, rd_hg_eval(m->g, mul) * T);
                 DL = v3_madd(DL, ls.contrib, sh_phase_truncated(b, GUIDE_BANDS, mul) * T);

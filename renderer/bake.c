@@ -1,11 +1,13 @@
 /* bake.c: from a scene to its photon map and SH guide grid (seed 001 §3, THEORY.md §3-5), and
  * the pictures that show them: a projection of the stored photons through the scene camera,
  * and slices of the guide evaluated toward a direction. */
+#include "rd_method.h"
 #include "rd_photons.h"
 #include "sh.h"
 
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 /* ---- Scene fields as sh/ callbacks --------------------------------------------------------- */
 
@@ -141,3 +143,203 @@ void rd_image_normalise(rd_image *img)
     free(lum);
 }
 
+
+/* ---- The bake pipeline: scene in, photon map and guide out (seed 001 §3) ------------------ */
+
+struct rd_baked {
+    pm_map *map;
+    sh_guide *guide;
+    rd_bake_stats stats;
+};
+
+static double bake_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+static double lum3(const double v[3]) { return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]; }
+
+void rd_baked_free(rd_baked *b)
+{
+    if (!b) return;
+    sh_guide_free(b->guide);
+    pm_map_free(b->map);
+    free(b);
+}
+
+const rd_bake_stats *rd_baked_stats(const rd_baked *b) { return &b->stats; }
+const pm_map *rd_baked_map(const rd_baked *b) { return b ? b->map : NULL; }
+const sh_guide *rd_baked_guide(const rd_baked *b) { return b ? b->guide : NULL; }
+
+rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char *err,
+                  size_t errlen)
+{
+    *out = NULL;
+    double t_start = bake_now();
+    rd_baked *b = calloc(1, sizeof *b);
+    if (!b) {
+        snprintf(err, errlen, "%s: out of memory for the bake", s->path);
+        return RD_ERR_NOMEM;
+    }
+    rd_bake_stats *bs = &b->stats;
+    char pmerr[RD_ERRLEN];
+    rd_status st = RD_OK;
+    /* 1. Photons: traced through the scene (THEORY.md §3), or a saved map. */
+    if (o->load_photons) {
+        if (pm_map_load(&b->map, o->load_photons, pmerr, sizeof pmerr) != PM_OK) {
+            snprintf(err, errlen, "%s", pmerr);
+            st = RD_ERR_FORMAT;
+            goto fail;
+        }
+        bs->loaded = 1;
+    } else {
+        rd_photon_opts po = {.count = o->photons > 0 ? o->photons : s->photons.count,
+                             .store_direct = s->photons.store_direct,
+                             .segments = s->photons.segments,
+                             .max_depth = s->photons.max_depth,
+                             .seed = o->seed >= 0 ? (uint64_t)o->seed : s->photons.seed,
+                             .threads = o->threads};
+        rd_photon_stats ps;
+        memset(&ps, 0, sizeof ps);
+        b->map = pm_map_new();
+        if (!b->map) {
+            snprintf(err, errlen, "%s: out of memory for the photon map", s->path);
+            st = RD_ERR_NOMEM;
+            goto fail;
+        }
+        if ((st = rd_trace_photons(s, &po, b->map, &ps, err, errlen)) != RD_OK) goto fail;
+        bs->emitted = ps.emitted;
+        bs->trace_seconds = ps.seconds;
+        bs->collisions_per_photon = ps.emitted ? (double)ps.collisions / ps.emitted : 0.0;
+        bs->power_emitted = lum3(ps.power_emitted);
+        bs->power_absorbed = lum3(ps.power_absorbed);
+        bs->power_escaped = lum3(ps.power_escaped);
+        bs->power_cut = lum3(ps.power_carried);
+    }
+    /* 2. The FLANN kd-tree over the photons. */
+    if (pm_map_build(b->map, pmerr, sizeof pmerr) != PM_OK) {
+        snprintf(err, errlen, "photon map: %s", pmerr);
+        st = RD_ERR_INTERNAL;
+        goto fail;
+    }
+    bs->stored = pm_map_photon_count(b->map);
+    bs->segments = pm_map_segment_count(b->map);
+    bs->map_bytes = pm_map_memory_bytes(b->map);
+    bs->index_seconds = pm_map_build_seconds(b->map);
+    /* 3. The SH guide grid (THEORY.md §5). */
+    if (!o->no_guide) {
+        if ((st = rd_guide_bake(s, b->map, o->threads, &b->guide, err, errlen)) != RD_OK) goto fail;
+        sh_guide_stats gst;
+        sh_guide_stats_get(b->guide, &gst);
+        bs->has_guide = 1;
+        bs->adaptive = gst.kind == SH_GRID_ADAPTIVE;
+        bs->track = gst.method == SH_BAKE_TRACK;
+        bs->bands = gst.bands;
+        bs->cells = gst.cells;
+        memcpy(bs->res, gst.res, sizeof bs->res);
+        bs->depth_max = gst.depth_max;
+        bs->cell_min = gst.cell_min;
+        bs->cell_max = gst.cell_max;
+        bs->guide_bytes = gst.memory_bytes;
+        bs->guide_seconds = gst.bake_seconds;
+    }
+    bs->seconds = bake_now() - t_start;
+    *out = b;
+    return RD_OK;
+fail:
+    rd_baked_free(b);
+    return st;
+}
+
+/* Write img as PREFIX<suffix>.exr (unless png_only) and, normalised, .png. */
+static rd_status write_pair(const char *prefix, const char *suffix, rd_image *img, int png_only,
+                            char *err, size_t errlen)
+{
+    char path[1200];
+    if (!png_only) {
+        snprintf(path, sizeof path, "%s%s.exr", prefix, suffix);
+        if (rd_image_write_exr(path, img, err, errlen) != RD_OK) return RD_ERR_OUTPUT;
+    }
+    rd_image_normalise(img);
+    snprintf(path, sizeof path, "%s%s.png", prefix, suffix);
+    return rd_image_write_png(path, img, 0.0, err, errlen) == RD_OK ? RD_OK : RD_ERR_OUTPUT;
+}
+
+/* One slice of the guide across `axis` at coordinate c, toward w: the radiance picture and the
+ * cells picture (extinction for a uniform grid, depth for an adaptive one). */
+static rd_status write_slice(const sh_guide *g, const char *prefix, char axis_name, int axis,
+                             double c, const double w[3], char *err, size_t errlen)
+{
+    double lo[3], hi[3];
+    sh_guide_box(g, lo, hi);
+    int u = axis == 0 ? 1 : 0, v = axis == 2 ? 1 : 2;
+    double ext_u = hi[u] - lo[u], ext_v = hi[v] - lo[v];
+    rd_image img;
+    img.w = 512;
+    img.h = (int)fmax(1.0, fmin(2048.0, round(512.0 * ext_v / ext_u)));
+    img.rgb = malloc((size_t)img.w * img.h * 3 * sizeof(float));
+    if (!img.rgb) {
+        snprintf(err, errlen, "out of memory for a guide slice");
+        return RD_ERR_NOMEM;
+    }
+    sh_guide_stats gst;
+    sh_guide_stats_get(g, &gst);
+    sh_slice_what what[2] = {SH_SLICE_RADIANCE, gst.kind == SH_GRID_UNIFORM ? SH_SLICE_SIGMA_T : SH_SLICE_DEPTH};
+    rd_status st = RD_OK;
+    for (int q = 0; q < 2 && st == RD_OK; q++) {
+        char msg[RD_ERRLEN], suffix[32];
+        if (sh_guide_slice(g, axis, c, w, what[q], img.w, img.h, img.rgb, msg, sizeof msg) != SH_OK) {
+            snprintf(err, errlen, "--slice %c: %s", axis_name, msg);
+            st = RD_ERR_ARG;
+            break;
+        }
+        snprintf(suffix, sizeof suffix, q == 0 ? "-slice-%c" : "-cells-%c", axis_name);
+        st = write_pair(prefix, suffix, &img, q == 1, err, errlen);
+    }
+    rd_image_free_pixels(&img);
+    return st;
+}
+
+rd_status rd_baked_write(const rd_baked *b, const rd_scene *s, const char *prefix,
+                         const rd_bake_write_opts *o, char *err, size_t errlen)
+{
+    char path[1200], pmerr[RD_ERRLEN];
+    rd_status st = rd_make_parent_dirs(prefix, err, errlen);
+    if (st) return st;
+    if (o->write_map) {
+        snprintf(path, sizeof path, "%s.pmap", prefix);
+        if (pm_map_save(b->map, path, pmerr, sizeof pmerr) != PM_OK) {
+            snprintf(err, errlen, "%s", pmerr);
+            return RD_ERR_OUTPUT;
+        }
+    }
+    rd_image img = {0, 0, NULL};
+    if ((st = rd_photon_image(s, b->map, &img, err, errlen)) == RD_OK)
+        st = write_pair(prefix, "-photons", &img, 0, err, errlen);
+    rd_image_free_pixels(&img);
+    if (st || !b->guide) return st;
+    snprintf(path, sizeof path, "%s.guide", prefix);
+    if (sh_guide_save(b->guide, path, pmerr, sizeof pmerr) != SH_OK) {
+        snprintf(err, errlen, "%s", pmerr);
+        return RD_ERR_OUTPUT;
+    }
+    /* Slices toward the camera unless told otherwise; one across z at the centre by default. */
+    double w[3] = {-s->camera.forward.x, -s->camera.forward.y, -s->camera.forward.z};
+    if (o->has_toward) memcpy(w, o->toward, sizeof w);
+    double lo[3], hi[3];
+    sh_guide_box(b->guide, lo, hi);
+    int n = o->nslices > 0 ? (o->nslices < 8 ? o->nslices : 8) : 1;
+    for (int k = 0; k < n && st == RD_OK; k++) {
+        char name = o->nslices > 0 ? o->slice_axis[k] : 'z';
+        if (name < 'x' || name > 'z') {
+            snprintf(err, errlen, "--slice %c: expected x, y or z", name);
+            return RD_ERR_ARG;
+        }
+        int axis = name - 'x';
+        double c = o->nslices > 0 && o->slice_has_at[k] ? o->slice_at[k] : 0.5 * (lo[axis] + hi[axis]);
+        st = write_slice(b->guide, prefix, name, axis, c, w, err, errlen);
+    }
+    return st;
+}

@@ -58,95 +58,145 @@ static double default_step(const rd_fp_params *p, const rd_fp_medium *fm)
     return p->step > 0.0 ? p->step : v3_len(v3_sub(fm->bmax, fm->bmin)) / 512.0;
 }
 
-typedef enum { MODE_ANALOG, MODE_WEIGHTED, MODE_DECOMP } track_mode;
+/* ---- The majorant walk ------------------------------------------------------------------ */
 
-/* Delta tracking over the majorant walk; the three modes differ only in the event at a
- * tentative collision:
- *  - analog (seed 003 §3.1, seed 000 WT): real with probability sigma_t / sigma_maj;
- *  - weighted delta tracking (seed 002 Alg. 2): majorant mu = b * sigma_maj may be non-bounding
- *    (sigma_n = mu - sigma_t < 0); real with P_r = |sigma_t| / (|sigma_t| + |sigma_n|), null
- *    otherwise, weight *= sigma_x / (mu P_x). Alg. 2 splits "real" into absorption and
- *    scattering; here the integrator applies the albedo as a weight, so they are merged.
- *  - weighted decomposition tracking (seed 002 Alg. 3): control mu_c = m * per-cell minorant,
- *    a control collision with P_c = mu_c / mu needs no density lookup; otherwise residual
- *    (sigma_t - mu_c) or null (mu - sigma_t) in proportion to their magnitudes, weighted. */
-static rd_fp_event track(const rd_fp_params *p, const rd_fp_medium *fm, const rd_majorant *maj,
-                         track_mode mode, ray3 r, double t0, double t1, pcg32 *rng,
-                         rd_track_counters *c)
+/* Seed 003 §3.3 SuperVoxelTraversal generalised (pbrt-v4 SampleT_maj): draw tau* = -ln(1-u),
+ * accumulate the sampling majorant's optical depth segment by segment along the majorant
+ * iterator, solve for t inside the segment where it passes tau* (closed form for a constant
+ * bound, regula falsi on the cubic's integral for a tri-linear one), hand the point to the
+ * caller, and draw the next tau* from there. The sampling density is mu(t) = b sigma_maj(t) -
+ * sigma_c with sigma_c the segment's minorant for a residual walk (Novak et al. 2014), else 0.
+ * static inline so that each tracker's callback below is inlined into its own copy. */
+static inline int walk(const rd_fp_medium *fm, const rd_majorant *maj, ray3 r, double t0,
+                       double t1, double b, int residual, pcg32 *rng, rd_track_counters *c,
+                       rd_walk_fn fn, void *user, double *tau_c)
 {
-    rd_fp_event ev = {0, t1, 1.0};
     rd_maj_iter it = rd_majorant_iter(maj, r, t0, t1, fm->sigma_global, fm->sigma_global_min);
     rd_maj_seg g;
-    double bfac = mode == MODE_ANALOG ? 1.0 : p->b;
+    rd_walk_point pt;
+    pt.seg = &g;
     double tau = -log(1.0 - pcg32_uniform(rng)); /* optical depth to the next tentative point */
-    while (rd_majorant_next(&it, &g)) {
+    double tc = 0.0;
+    int go_on = 1;
+    while (go_on && rd_majorant_next(&it, &g)) {
         if (fm->segments) (*fm->segments)++;
         if (!(g.t1 > g.t0)) continue;
-        for (int d = 0; d < 4; d++) g.c[d] *= bfac;
+        for (int d = 0; d < 4; d++) g.c[d] *= b;
+        double sc = residual ? fmax(0.0, fmin(g.sigma_min, g.cubic ? INFINITY : g.c[0])) : 0.0;
+        g.c[0] -= sc;
+        pt.sigma_c = sc;
         double s0 = 0.0;
         for (;;) {
             double rest = rd_seg_tau(&g, s0, 1.0);
             if (!(rest > tau)) { tau -= rest; break; } /* passes this segment: next one */
             double s = rd_seg_solve(&g, s0, tau);
-            double t = g.t0 + s * (g.t1 - g.t0);
-            double mu = rd_seg_sigma(&g, s);
+            pt.t = g.t0 + s * (g.t1 - g.t0);
+            pt.mu = rd_seg_sigma(&g, s);
             c->collisions++;
-            if (mode == MODE_ANALOG) {
-                if (pcg32_uniform(rng) * mu < sigma_at(fm, r, t, c)) {
-                    ev.hit = 1;
-                    ev.t = t;
-                    return ev;
-                }
-            } else if (mode == MODE_WEIGHTED) {
-                double st = sigma_at(fm, r, t, c), sn = mu - st;
-                double Pr = fabs(st) / (fabs(st) + fabs(sn));
-                if (pcg32_uniform(rng) < Pr) {
-                    ev.hit = 1;
-                    ev.t = t;
-                    ev.weight *= st / (mu * Pr);
-                    return ev;
-                }
-                ev.weight *= sn / (mu * (1.0 - Pr));
-            } else {
-                /* P_c = mu_c / mu as in Alg. 3 while mu_c <= 0.95 mu. Residual + null always sum
-                 * to mu - mu_c (known before the lookup); when the control is non-bounding
-                 * (mu_c > mu) or nearly so, P_c = mu_c / (mu_c + D) with D = max(|mu - mu_c|,
-                 * 0.05 mu) keeps a positive probability for the residual/null branch, which is
-                 * needed for unbiasedness unless the cell is exactly homogeneous (bounds equal,
-                 * m = b = 1: then residual = null = 0 and P_c = 1). */
-                double mu_c = p->m * g.sigma_min, Pc;
-                int homogeneous = !g.cubic && p->m == 1.0 && bfac == 1.0 && g.sigma_min >= g.c[0];
-                if (mu_c <= 0.0) Pc = 0.0;
-                else if (homogeneous) Pc = 1.0;
-                else Pc = mu_c / (mu_c + fmax(fabs(mu - mu_c), 0.05 * mu));
-                if (pcg32_uniform(rng) < Pc) { /* control collision: analytic, no lookup */
-                    ev.hit = 1;
-                    ev.t = t;
-                    ev.weight *= mu_c / (mu * Pc);
-                    return ev;
-                }
-                double st = sigma_at(fm, r, t, c), res = st - mu_c, nul = mu - st;
-                double a = fabs(res), bb = fabs(nul);
-                if (a + bb == 0.0) { /* both coefficients vanish: this branch carries no weight */
-                    ev.hit = 1;
-                    ev.t = t;
-                    ev.weight = 0.0;
-                    return ev;
-                }
-                double Pr = a / (a + bb);
-                if (pcg32_uniform(rng) < Pr) {
-                    ev.hit = 1;
-                    ev.t = t;
-                    ev.weight *= res / (mu * (1.0 - Pc) * Pr);
-                    return ev;
-                }
-                ev.weight *= nul / (mu * (1.0 - Pc) * (1.0 - Pr));
+            if (!fn(user, &pt)) {
+                tc += sc * (pt.t - g.t0);
+                go_on = 0;
+                break;
             }
             s0 = s;
             tau = -log(1.0 - pcg32_uniform(rng));
         }
+        if (go_on) tc += sc * (g.t1 - g.t0);
     }
-    return ev;
+    if (tau_c) *tau_c = tc;
+    return go_on;
+}
+
+int rd_fp_walk(const rd_fp_medium *fm, const rd_majorant *maj, ray3 r, double t0, double t1,
+               double b, int residual, pcg32 *rng, rd_track_counters *c, rd_walk_fn fn,
+               void *user, double *tau_c)
+{
+    return walk(fm, maj, r, t0, t1, b, residual, rng, c, fn, user, tau_c);
+}
+
+/* What the trackers' callbacks share: the medium, the ray, the counters, the event so far. */
+typedef struct {
+    const rd_fp_params *p;
+    const rd_fp_medium *fm;
+    ray3 r;
+    pcg32 *rng;
+    rd_track_counters *c;
+    rd_fp_event ev;
+    double T;     /* ratio tracking */
+} track_state;
+
+/* Analog delta tracking (seed 003 §3.1, seed 000 WT): real with probability sigma_t / sigma_maj. */
+static int on_analog(void *user, const rd_walk_point *pt)
+{
+    track_state *ts = user;
+    if (pcg32_uniform(ts->rng) * pt->mu < sigma_at(ts->fm, ts->r, pt->t, ts->c)) {
+        ts->ev.hit = 1;
+        ts->ev.t = pt->t;
+        return 0;
+    }
+    return 1;
+}
+
+/* Weighted delta tracking (seed 002 Alg. 2): majorant mu = b sigma_maj may be non-bounding
+ * (sigma_n = mu - sigma_t < 0); real with P_r = |sigma_t| / (|sigma_t| + |sigma_n|), null
+ * otherwise, weight *= sigma_x / (mu P_x). Alg. 2 splits "real" into absorption and scattering;
+ * here the integrator applies the albedo as a weight, so they are merged. */
+static int on_weighted(void *user, const rd_walk_point *pt)
+{
+    track_state *ts = user;
+    double st = sigma_at(ts->fm, ts->r, pt->t, ts->c), sn = pt->mu - st;
+    double Pr = fabs(st) / (fabs(st) + fabs(sn));
+    if (pcg32_uniform(ts->rng) < Pr) {
+        ts->ev.hit = 1;
+        ts->ev.t = pt->t;
+        ts->ev.weight *= st / (pt->mu * Pr);
+        return 0;
+    }
+    ts->ev.weight *= sn / (pt->mu * (1.0 - Pr));
+    return 1;
+}
+
+/* Weighted decomposition tracking (seed 002 Alg. 3): control mu_c = m x the segment's minorant; a
+ * control collision with P_c = mu_c / mu needs no density lookup; otherwise residual
+ * (sigma_t - mu_c) or null (mu - sigma_t) in proportion to their magnitudes, weighted.
+ * P_c = mu_c / mu as in Alg. 3 while mu_c <= 0.95 mu. Residual + null always sum to mu - mu_c
+ * (known before the lookup); when the control is non-bounding (mu_c > mu) or nearly so,
+ * P_c = mu_c / (mu_c + D) with D = max(|mu - mu_c|, 0.05 mu) keeps a positive probability for
+ * the residual/null branch, which is needed for unbiasedness unless the cell is exactly
+ * homogeneous (bounds equal, m = b = 1: then residual = null = 0 and P_c = 1). */
+static int on_decomposition(void *user, const rd_walk_point *pt)
+{
+    track_state *ts = user;
+    const rd_maj_seg *g = pt->seg;
+    double mu = pt->mu, bfac = ts->p->b;
+    double mu_c = ts->p->m * g->sigma_min, Pc;
+    int homogeneous = !g->cubic && ts->p->m == 1.0 && bfac == 1.0 && g->sigma_min >= g->c[0];
+    if (mu_c <= 0.0) Pc = 0.0;
+    else if (homogeneous) Pc = 1.0;
+    else Pc = mu_c / (mu_c + fmax(fabs(mu - mu_c), 0.05 * mu));
+    if (pcg32_uniform(ts->rng) < Pc) { /* control collision: analytic, no lookup */
+        ts->ev.hit = 1;
+        ts->ev.t = pt->t;
+        ts->ev.weight *= mu_c / (mu * Pc);
+        return 0;
+    }
+    double st = sigma_at(ts->fm, ts->r, pt->t, ts->c), res = st - mu_c, nul = mu - st;
+    double a = fabs(res), bb = fabs(nul);
+    if (a + bb == 0.0) { /* both coefficients vanish: this branch carries no weight */
+        ts->ev.hit = 1;
+        ts->ev.t = pt->t;
+        ts->ev.weight = 0.0;
+        return 0;
+    }
+    double Pr = a / (a + bb);
+    if (pcg32_uniform(ts->rng) < Pr) {
+        ts->ev.hit = 1;
+        ts->ev.t = pt->t;
+        ts->ev.weight *= res / (mu * (1.0 - Pc) * Pr);
+        return 0;
+    }
+    ts->ev.weight *= nul / (mu * (1.0 - Pc) * (1.0 - Pr));
+    return 1;
 }
 
 /* Biased fixed-step ray marching: one random offset per ray, midpoint-like Riemann sum of tau,
@@ -174,17 +224,26 @@ static rd_fp_event march(const rd_fp_params *p, const rd_fp_medium *fm, ray3 r, 
     return ev;
 }
 
+static rd_fp_event track(const rd_fp_params *p, const rd_fp_medium *fm, const rd_majorant *maj,
+                         rd_walk_fn on_point, double b, ray3 r, double t0, double t1, pcg32 *rng,
+                         rd_track_counters *c)
+{
+    track_state ts = {p, fm, r, rng, c, {0, t1, 1.0}, 1.0};
+    walk(fm, maj, r, t0, t1, b, 0, rng, c, on_point, &ts, NULL);
+    return ts.ev;
+}
+
 rd_fp_event rd_fp_sample(const rd_fp_params *p, const rd_fp_medium *fm, ray3 r, double t0,
                          double t1, pcg32 *rng, rd_track_counters *c)
 {
     switch (p->tracker) {
-    case RD_FP_WOODCOCK: return track(p, fm, NULL, MODE_ANALOG, r, t0, t1, rng, c);
-    case RD_FP_WEIGHTED: return track(p, fm, fm->maj, MODE_WEIGHTED, r, t0, t1, rng, c);
-    case RD_FP_DECOMPOSITION: return track(p, fm, fm->maj, MODE_DECOMP, r, t0, t1, rng, c);
+    case RD_FP_WOODCOCK: return track(p, fm, NULL, on_analog, 1.0, r, t0, t1, rng, c);
+    case RD_FP_WEIGHTED: return track(p, fm, fm->maj, on_weighted, p->b, r, t0, t1, rng, c);
+    case RD_FP_DECOMPOSITION: return track(p, fm, fm->maj, on_decomposition, p->b, r, t0, t1, rng, c);
     case RD_FP_RAYMARCH: return march(p, fm, r, t0, t1, rng, c);
     case RD_FP_AUTO:
     case RD_FP_SUPERVOXEL:
-    default: return track(p, fm, fm->maj, MODE_ANALOG, r, t0, t1, rng, c);
+    default: return track(p, fm, fm->maj, on_analog, 1.0, r, t0, t1, rng, c);
     }
 }
 
@@ -193,34 +252,20 @@ rd_fp_event rd_fp_sample(const rd_fp_params *p, const rd_fp_medium *fm, ray3 r, 
  * mu_r = sigma_maj - sigma_c; sigma_c = the segment's minorant (Novak et al. 2014, seed 003
  * §3.4's decomposition of eq. 13 estimated by tracking instead of quadrature). With sigma_c a
  * true minorant every factor lies in [0, 1]. */
+static int on_ratio(void *user, const rd_walk_point *pt)
+{
+    track_state *ts = user;
+    ts->T *= 1.0 - (sigma_at(ts->fm, ts->r, pt->t, ts->c) - pt->sigma_c) / pt->mu;
+    return ts->T != 0.0;
+}
+
 static double ratio(const rd_fp_medium *fm, const rd_majorant *maj, int residual, ray3 r,
                     double t0, double t1, pcg32 *rng, rd_track_counters *c)
 {
-    rd_maj_iter it = rd_majorant_iter(maj, r, t0, t1, fm->sigma_global, fm->sigma_global_min);
-    rd_maj_seg g;
-    double T = 1.0, tau_c = 0.0;
-    double tau = -log(1.0 - pcg32_uniform(rng));
-    while (rd_majorant_next(&it, &g)) {
-        if (fm->segments) (*fm->segments)++;
-        if (!(g.t1 > g.t0)) continue;
-        double sc = residual ? fmax(0.0, fmin(g.sigma_min, g.cubic ? INFINITY : g.c[0])) : 0.0;
-        tau_c += sc * (g.t1 - g.t0);
-        g.c[0] -= sc;
-        double s0 = 0.0;
-        for (;;) {
-            double rest = rd_seg_tau(&g, s0, 1.0);
-            if (!(rest > tau)) { tau -= rest; break; }
-            double s = rd_seg_solve(&g, s0, tau);
-            double t = g.t0 + s * (g.t1 - g.t0);
-            double mu = rd_seg_sigma(&g, s);
-            c->collisions++;
-            T *= 1.0 - (sigma_at(fm, r, t, c) - sc) / mu;
-            if (T == 0.0) return 0.0;
-            s0 = s;
-            tau = -log(1.0 - pcg32_uniform(rng));
-        }
-    }
-    return T * exp(-tau_c);
+    track_state ts = {NULL, fm, r, rng, c, {0, t1, 1.0}, 1.0};
+    double tau_c = 0.0;
+    walk(fm, maj, r, t0, t1, 1.0, residual, rng, c, on_ratio, &ts, &tau_c);
+    return ts.T == 0.0 ? 0.0 : ts.T * exp(-tau_c);
 }
 
 double rd_grid_optical_depth(const rd_grid *gr, ray3 r, double t0, double t1, rd_track_counters *c)

@@ -2,6 +2,9 @@
  * and light power (for choosing lights in proportion to power when tracing photons). */
 #include "rd_internal.h"
 
+#include <stdlib.h>
+#include <string.h>
+
 /* Spot falloff: smoothstep from the cone edge (cos_outer) to cos_inner (pbrt-v4 SpotLight). */
 double rd_spot_falloff(const rd_light *l, double cos_theta)
 {
@@ -11,15 +14,29 @@ double rd_spot_falloff(const rd_light *l, double cos_theta)
     return t * t * (3.0 - 2.0 * t);
 }
 
-/* Distance along unit w from x to the first intersection with a sphere (x outside it). */
+/* Distance along unit w from x to the first intersection with a sphere (x outside it). The
+ * discriminant is r^2 - |f|^2 with f the component of x - c perpendicular to w (pbrt-v4's
+ * robust quadratic): b^2 - (|oc|^2 - r^2) cancels catastrophically for small, distant spheres. */
 static double sphere_hit(vec3 c, double r, vec3 x, vec3 w)
 {
     vec3 oc = v3_sub(x, c);
-    double b = v3_dot(oc, w), q = v3_dot(oc, oc) - r * r;
-    double disc = b * b - q;
+    double b = v3_dot(oc, w);
+    vec3 f = v3_madd(oc, w, -b);
+    double disc = r * r - v3_dot(f, f);
     if (disc < 0.0) return INFINITY;
     double t = -b - sqrt(disc);
     return t > 0.0 ? t : INFINITY;
+}
+
+/* The cone a sphere of radius r subtends from a point at distance dc > r from its centre:
+ * sin^2 and 1 - cos of its half angle. 1 - cos_max is written sin^2 / (1 + cos_max), an exact
+ * identity free of the cancellation of 1 - sqrt(1 - sin^2) for tiny or distant spheres (the
+ * same concern as pbrt-v4's small-angle branch in Sphere::Sample). */
+static double cone_one_minus_cos(double r2, double dc2, double *sin2_max)
+{
+    double s2 = r2 / dc2;
+    *sin2_max = s2;
+    return s2 / (1.0 + sqrt(fmax(0.0, 1.0 - s2)));
 }
 
 int rd_light_sample_li(const rd_light *l, vec3 x, double u1, double u2, rd_light_sample *s)
@@ -52,22 +69,25 @@ int rd_light_sample_li(const rd_light *l, vec3 x, double u1, double u2, rd_light
         return 1;
     }
     case RD_LIGHT_SPHERE: {
-        /* Uniform sampling of the cone of directions the sphere subtends (pbrt-v4 Sphere). */
+        /* Uniform sampling of the cone of directions the sphere subtends (pbrt-v4 Sphere),
+         * in terms of 1 - cos so that tiny and distant spheres keep full precision. */
         vec3 d = v3_sub(l->pos, x);
         double dc2 = v3_dot(d, d), r2 = l->radius * l->radius;
         if (dc2 <= r2) return 0; /* inside the emitter: no contribution */
-        double dc = sqrt(dc2);
+        double dc = sqrt(dc2), sin2_max;
         vec3 axis = v3_scale(d, 1.0 / dc);
-        double cos_max = sqrt(fmax(0.0, 1.0 - r2 / dc2));
-        double cos_t = 1.0 - u1 * (1.0 - cos_max);
-        double sin_t = sqrt(fmax(0.0, 1.0 - cos_t * cos_t));
+        double omc_max = cone_one_minus_cos(r2, dc2, &sin2_max);
+        double omc = u1 * omc_max;                 /* 1 - cos(theta), uniform in [0, omc_max] */
+        double cos_t = 1.0 - omc, sin2_t = omc * (2.0 - omc);
+        double sin_t = sqrt(fmax(0.0, sin2_t));
         double phi = 2.0 * M_PI * u2;
         vec3 a, b;
         v3_basis(axis, &a, &b);
         s->wi = v3_norm(v3_add(v3_scale(axis, cos_t), v3_add(v3_scale(a, sin_t * cos(phi)), v3_scale(b, sin_t * sin(phi)))));
-        s->dist = sphere_hit(l->pos, l->radius, x, s->wi);
-        if (!isfinite(s->dist)) s->dist = dc - l->radius; /* grazing round-off */
-        s->pdf = 1.0 / (2.0 * M_PI * (1.0 - cos_max));
+        /* Distance to the near surface along wi: dc cos - sqrt(r^2 - dc^2 sin^2), with
+         * dc^2 sin^2 <= r^2 by construction (clamped against round-off). */
+        s->dist = fmax(0.0, dc * cos_t - sqrt(fmax(0.0, r2 - dc2 * sin2_t)));
+        s->pdf = 1.0 / (2.0 * M_PI * omc_max);
         s->contrib = v3_scale(l->value, 1.0 / s->pdf);
         return 1;
     }
@@ -86,10 +106,13 @@ double rd_light_pdf(const rd_light *l, vec3 x, vec3 w)
     if (l->kind == RD_LIGHT_ENVIRONMENT) return RD_INV_4PI;
     if (l->kind != RD_LIGHT_SPHERE) return 0.0;
     vec3 d = v3_sub(l->pos, x);
-    double dc2 = v3_dot(d, d), r2 = l->radius * l->radius;
-    if (dc2 <= r2 || !isfinite(sphere_hit(l->pos, l->radius, x, w))) return 0.0;
-    double cos_max = sqrt(fmax(0.0, 1.0 - r2 / dc2));
-    return 1.0 / (2.0 * M_PI * (1.0 - cos_max));
+    double dc2 = v3_dot(d, d), r2 = l->radius * l->radius, sin2_max;
+    if (dc2 <= r2) return 0.0;
+    /* w is inside the cone when it points at the centre's side and passes within r of it
+     * (|w x d| <= r: no cancellation, unlike comparing cosines near 1). */
+    vec3 cr = v3_cross(w, d);
+    if (v3_dot(w, d) <= 0.0 || v3_dot(cr, cr) > r2) return 0.0;
+    return 1.0 / (2.0 * M_PI * cone_one_minus_cos(r2, dc2, &sin2_max));
 }
 
 /* Distance to the sphere light along a ray, for paths that hit it. */
@@ -116,4 +139,124 @@ double rd_light_power(const rd_light *l, double scene_radius)
     case RD_LIGHT_ENVIRONMENT: return v * M_PI * 4.0 * M_PI * scene_radius * scene_radius;
     }
     return 0.0;
+}
+
+/* ---- Choosing a light: Walker's alias method over the lights' power ------------------------ */
+
+/* Vose's construction of the alias table (Vose 1991): O(n) set-up, O(1) draws. Lights are
+ * chosen in proportion to rd_light_power; all-zero powers fall back to uniform. */
+rd_status rd_light_sampler_build(rd_light_sampler *ls, const rd_light *lights, int n,
+                                 double scene_radius)
+{
+    memset(ls, 0, sizeof *ls);
+    if (n <= 0) return RD_OK;
+    ls->pmf = malloc((size_t)n * sizeof *ls->pmf);
+    ls->prob = malloc((size_t)n * sizeof *ls->prob);
+    ls->alias = malloc((size_t)n * sizeof *ls->alias);
+    int *small = malloc((size_t)n * sizeof *small), *large = malloc((size_t)n * sizeof *large);
+    if (!ls->pmf || !ls->prob || !ls->alias || !small || !large) {
+        free(small);
+        free(large);
+        rd_light_sampler_free(ls);
+        return RD_ERR_NOMEM;
+    }
+    ls->n = n;
+    double total = 0.0;
+    for (int i = 0; i < n; i++) {
+        double p = rd_light_power(&lights[i], scene_radius);
+        ls->pmf[i] = isfinite(p) && p > 0.0 ? p : 0.0;
+        total += ls->pmf[i];
+    }
+    for (int i = 0; i < n; i++) ls->pmf[i] = total > 0.0 ? ls->pmf[i] / total : 1.0 / n;
+    int ns = 0, nl = 0;
+    for (int i = 0; i < n; i++) {
+        ls->prob[i] = ls->pmf[i] * n;
+        ls->alias[i] = i;
+        if (ls->prob[i] < 1.0) small[ns++] = i;
+        else large[nl++] = i;
+    }
+    while (ns > 0 && nl > 0) {
+        int sm = small[--ns], lg = large[--nl];
+        ls->alias[sm] = lg;
+        ls->prob[lg] -= 1.0 - ls->prob[sm];
+        if (ls->prob[lg] < 1.0) small[ns++] = lg;
+        else large[nl++] = lg;
+    }
+    while (nl > 0) ls->prob[large[--nl]] = 1.0; /* round-off leftovers keep their own column */
+    while (ns > 0) ls->prob[small[--ns]] = 1.0;
+    free(small);
+    free(large);
+    return RD_OK;
+}
+
+void rd_light_sampler_free(rd_light_sampler *ls)
+{
+    if (!ls) return;
+    free(ls->pmf);
+    free(ls->prob);
+    free(ls->alias);
+    memset(ls, 0, sizeof *ls);
+}
+
+int rd_light_sampler_pick(const rd_light_sampler *ls, double u, double *pmf)
+{
+    if (ls->n <= 0) return -1;
+    double x = u * ls->n;
+    int i = (int)x;
+    if (i >= ls->n) i = ls->n - 1;
+    int k = (x - i) < ls->prob[i] ? i : ls->alias[i];
+    if (pmf) *pmf = ls->pmf[k];
+    return k;
+}
+
+/* ---- Paths meeting lights -------------------------------------------------------------- */
+
+int rd_scene_hit_light(const rd_scene *s, ray3 r, double tmax, int skip, double *t_hit)
+{
+    int hit = -1;
+    double best = tmax;
+    for (int k = 0; k < s->n_sphere_lights; k++) {
+        int i = s->sphere_lights[k];
+        if (i == skip) continue;
+        double t = rd_light_hit(&s->lights[i], r);
+        if (t < best) { best = t; hit = i; }
+    }
+    if (t_hit) *t_hit = hit >= 0 ? best : tmax;
+    return hit;
+}
+
+double rd_light_mis_pdf(const rd_scene *s, int i, vec3 x, vec3 w)
+{
+    return s->light_sampler.pmf[i] * rd_light_pdf(&s->lights[i], x, w);
+}
+
+double rd_power_heuristic(double a, double b)
+{
+    double a2 = a * a, b2 = b * b;
+    return a2 + b2 > 0.0 ? a2 / (a2 + b2) : 0.0;
+}
+
+/* Next-event estimation (THEORY.md §1): one light chosen in proportion to power, one sample of
+ * it, the phase function toward it, and an unbiased estimate of the shadow transmittance.
+ *   L_nee = p(d . wi) Li T(x, light) / (pmf_i pdf_i)  x  w_MIS
+ * with the power heuristic against phase sampling for lights a phase-sampled path can hit
+ * (sphere and environment: pdf_i > 0); delta lights take weight 1. */
+vec3 rd_nee(const rd_scene *s, vec3 x, vec3 d, double g, pcg32 *rng, rd_track_counters *c)
+{
+    double pmf;
+    int i = rd_light_sampler_pick(&s->light_sampler, pcg32_uniform(rng), &pmf);
+    double u1 = pcg32_uniform(rng), u2 = pcg32_uniform(rng);
+    if (i < 0 || !(pmf > 0.0)) return v3(0, 0, 0);
+    const rd_light *l = &s->lights[i];
+    rd_light_sample ls;
+    if (!rd_light_sample_li(l, x, u1, u2, &ls)) return v3(0, 0, 0);
+    double p = rd_hg_eval(g, v3_dot(d, ls.wi));
+    double w = ls.pdf > 0.0 ? rd_power_heuristic(pmf * ls.pdf, p) : 1.0;
+    ray3 sr = {x, ls.wi};
+    /* Another sphere light in front of this one blocks the shadow ray. */
+    if (rd_scene_hit_light(s, sr, ls.dist, i, NULL) >= 0) return v3(0, 0, 0);
+    c->shadow_rays++;
+    double T = rd_transmittance(s, sr, 0.0, ls.dist, rng, c);
+    if (!(T != 0.0)) return v3(0, 0, 0);
+    return v3_scale(ls.contrib, p * T * w / pmf);
 }

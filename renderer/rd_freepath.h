@@ -131,6 +131,20 @@ void rd_trilinear_cubic(const double v[8], const double E[3], const double O[3],
  * total area `plane_area`, in a box of surface S: N = (sum 4 k_j |E_j| + 2 plane_area) / S. */
 double rd_cost_eq14(const double *k, const double *vol, int n, double plane_area, double S);
 
+/* ---- The majorant walk (DESIGN.md convention 7; pbrt-v4 SampleT_maj) ---------------------- *
+ * The one loop under every unbiased tracker and transmittance estimator (freepath.c): tentative
+ * collisions are drawn along the majorant iterator with density mu(t) = b sigma_maj(t) - sigma_c,
+ * and each is handed to a callback that decides what it means (accept a real collision, multiply
+ * a ratio, weight a path, record a sample). The guided marcher and `explain` walk it too. */
+typedef struct {
+    double t;               /* distance of the tentative collision along the ray */
+    double mu;              /* sampling density there: b sigma_maj(t) - sigma_c [1/m] */
+    double sigma_c;         /* control extinction subtracted (residual walks), else 0 [1/m] */
+    const rd_maj_seg *seg;  /* the current segment; its c[] already scaled by b, minus sigma_c */
+} rd_walk_point;
+/* Return 1 to go on walking, 0 to stop. */
+typedef int (*rd_walk_fn)(void *user, const rd_walk_point *pt);
+
 /* ---- Trackers and transmittance estimators ------------------------------------------------ */
 typedef enum {
     RD_FP_AUTO,          /* = supervoxel */
@@ -187,6 +201,14 @@ typedef struct {
 /* Free-path sampling over [t0, t1] of one medium. */
 rd_fp_event rd_fp_sample(const rd_fp_params *p, const rd_fp_medium *fm, ray3 r, double t0,
                          double t1, pcg32 *rng, rd_track_counters *c);
+/* Walk r over [t0, t1] of one medium (maj = NULL: the global majorant), calling fn at each
+ * tentative collision in order; sigma_c = the segment's minorant when `residual`, else 0.
+ * Returns 1 when the walk reached t1, 0 when fn stopped it. *tau_c (may be NULL) gets the
+ * optical depth of the control over the part walked. */
+int rd_fp_walk(const rd_fp_medium *fm, const rd_majorant *maj, ray3 r, double t0, double t1,
+               double b, int residual, pcg32 *rng, rd_track_counters *c, rd_walk_fn fn,
+               void *user, double *tau_c);
+
 /* Transmittance estimate over [t0, t1] of one medium. */
 double rd_fp_transmittance(const rd_fp_params *p, const rd_fp_medium *fm, ray3 r, double t0,
                            double t1, pcg32 *rng, rd_track_counters *c);

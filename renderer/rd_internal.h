@@ -31,6 +31,8 @@ typedef struct {
 
 /* Primary ray through the film position (px, py) in pixels (0,0 = top-left corner). */
 ray3 rd_camera_ray(const rd_camera *cam, double px, double py);
+/* The inverse: film position (px, py) of the point p; 0 when p is behind a perspective camera. */
+int rd_camera_project(const rd_camera *cam, vec3 p, double *px, double *py);
 
 /* ---- Density fields ---------------------------------------------------------------------- */
 typedef enum { RD_DENSITY_CONSTANT, RD_DENSITY_GRID, RD_DENSITY_NOISE } rd_density_kind;
@@ -165,6 +167,20 @@ double rd_light_hit(const rd_light *l, ray3 r);
  * `scene_radius` bounds directional and environment lights. */
 double rd_light_power(const rd_light *l, double scene_radius);
 
+/* Lights chosen in proportion to power in O(1) (Walker's alias method; lights.c). pmf[i] is the
+ * probability of light i (> 0 for every light of positive power). */
+typedef struct {
+    int n;
+    double *pmf;   /* n probabilities, summing to 1 */
+    double *prob;  /* alias table: keep column i with probability prob[i], else alias[i] */
+    int *alias;
+} rd_light_sampler;
+rd_status rd_light_sampler_build(rd_light_sampler *ls, const rd_light *lights, int n,
+                                 double scene_radius);
+void rd_light_sampler_free(rd_light_sampler *ls);
+/* The light for uniform u in [0, 1), and its probability; -1 when there are no lights. */
+int rd_light_sampler_pick(const rd_light_sampler *ls, double u, double *pmf);
+
 /* ---- Scene --------------------------------------------------------------------------------- */
 typedef struct {
     int spp;
@@ -214,13 +230,25 @@ struct rd_scene {
     rd_settings settings;
     rd_photon_settings photons;
     rd_guide_settings guide;
+    rd_light_sampler light_sampler; /* lights by power, built by the loader */
+    int *sphere_lights;   /* indices of the sphere lights (the lights a path can hit) */
+    int n_sphere_lights;
 };
+
+/* The nearest sphere light that r hits before tmax (skipping light `skip`, -1 for none), or -1;
+ * *t_hit (may be NULL) gets its distance. The one answer to "does this ray meet a light". */
+int rd_scene_hit_light(const rd_scene *s, ray3 r, double tmax, int skip, double *t_hit);
+/* Solid-angle pdf with which next-event estimation (rd_nee) produces direction w from x toward
+ * light i, light choice included: for MIS of phase-sampled paths that hit the light. */
+double rd_light_mis_pdf(const rd_scene *s, int i, vec3 x, vec3 w);
+double rd_power_heuristic(double a, double b);
 
 /* ---- Free-path sampling and transmittance (THEORY.md §2) ---------------------------------- */
 
 /* Counters a tracker increments (per thread, summed by the caller). */
 typedef struct {
     uint64_t collisions, lookups;
+    uint64_t shadow_rays;  /* next-event transmittance estimates */
 } rd_track_counters;
 
 typedef struct {
@@ -242,10 +270,9 @@ typedef struct {
 rd_collision rd_sample_free_path(const rd_scene *s, ray3 r, double tmax, pcg32 *rng,
                                  rd_track_counters *c);
 
-/* Transmittance estimate along r from 0 to tmax with the estimator of
- * s->settings.transmittance (default: ratio tracking with each medium's global majorant, the
- * lowest variance x time measured; THEORY.md §2, docs/free-path.md). */
-double rd_transmittance(const rd_scene *s, ray3 r, double tmax, pcg32 *rng,
+/* Transmittance estimate along r over [t0, t1] with the estimator of
+ * s->settings.transmittance (THEORY.md §2, docs/free-path.md). */
+double rd_transmittance(const rd_scene *s, ray3 r, double t0, double t1, pcg32 *rng,
                         rd_track_counters *c);
 
 /* The medium whose bounds contain x (media do not overlap), or NULL. */
@@ -254,11 +281,15 @@ const rd_medium *rd_scene_medium_at(const rd_scene *s, vec3 x);
 /* Scene radius: half the diagonal of the media bounds, at least 1e-3. */
 double rd_scene_radius(const rd_scene *s);
 
+/* Next-event estimation at a scattering point x of a medium with HG asymmetry g, for a path
+ * travelling along d: one light chosen by power (s->light_sampler), one sample of it, phase,
+ * unbiased shadow transmittance, MIS against phase sampling. Multiply by the path weight. */
+vec3 rd_nee(const rd_scene *s, vec3 x, vec3 d, double g, pcg32 *rng, rd_track_counters *c);
+
 /* Radiance arriving at the camera along r with the `delta` method: unbiased volumetric path
  * tracing (delta tracking, next-event estimation with ratio tracking, HG sampling, Russian
  * roulette, multiple importance sampling for area and environment lights). */
-vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c,
-                       uint64_t *shadow_rays);
+vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c);
 
 /* Volume loading shims (C++ behind a C API; never throw). Both fill g->data, dims, w2g,
  * vmin/vmax and return the world-space bounds of the voxels. */

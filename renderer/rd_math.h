@@ -83,6 +83,44 @@ static inline double pcg32_uniform(pcg32 *r)
     return (double)(((hi << 21) ^ lo) & ((1ULL << 53) - 1)) * (1.0 / 9007199254740992.0);
 }
 
+/* ---- Random numbers keyed by (pixel, sample, dimension) (DESIGN.md convention 6) ---------- *
+ * A sample's random numbers are addressed, not drawn in sequence: dimension k of sample i of
+ * pixel p is a hash of (p, i, k, seed), so two methods that read the same dimensions (the
+ * camera jitter, RD_DIM_FILM) see the same numbers, and a low-discrepancy sequence can later
+ * replace the low dimensions without touching the integrators. The unbounded part of a path
+ * (free flights, roulette, an unknown number of draws) takes a PCG32 stream keyed by one
+ * dimension (rd_sampler_stream): still a function of (p, i, k, seed) only, so images do not
+ * depend on the thread count. */
+typedef struct {
+    uint64_t key;  /* hash of (pixel, sample, seed) */
+    uint32_t dim;  /* next dimension to hand out */
+} rd_sampler;
+
+enum {
+    RD_DIM_FILM = 0,    /* 2 dimensions: the position inside the pixel */
+    RD_DIM_METHOD = 2   /* first dimension a method may use */
+};
+
+static inline rd_sampler rd_sampler_start(uint64_t pixel, uint64_t sample, uint64_t seed)
+{
+    rd_sampler s;
+    s.key = rd_mix64(rd_mix64(rd_mix64(seed) ^ pixel) + sample);
+    s.dim = 0;
+    return s;
+}
+/* Uniform double in [0, 1) for the next dimension. */
+static inline double rd_sampler_1d(rd_sampler *s)
+{
+    uint64_t h = rd_mix64(s->key ^ rd_mix64((uint64_t)s->dim++ + 0x632be59bd9b4e019ULL));
+    return (double)(h >> 11) * (1.0 / 9007199254740992.0);
+}
+/* A PCG32 stream owned by the next dimension (for the parts of a path of unbounded length). */
+static inline pcg32 rd_sampler_stream(rd_sampler *s)
+{
+    uint32_t d = s->dim++;
+    return pcg32_seed(s->key, d, 0x5851f42d4c957f2dULL);
+}
+
 /* ---- Henyey-Greenstein (THEORY.md §1) ---------------------------------------------------- */
 /* p(cos) = (1 - g^2) / (4 pi (1 + g^2 - 2 g cos)^1.5), cos = w'.w, g > 0 forward. */
 static inline double rd_hg_eval(double g, double cos_theta)

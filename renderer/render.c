@@ -1,9 +1,18 @@
-/* render.c: the camera, and progressive rendering over tiles with OpenMP.
+/* render.c: the camera, the film, and progressive rendering of any method in the table over
+ * tiles with OpenMP.
  *
- * Determinism (DESIGN.md convention 6): sample i of pixel p draws from the PCG32 stream seeded by
- * (p, i, seed), and each pixel's sum is accumulated by one thread in sample order, so an image
- * is the same bit for bit whatever the thread count or the pass sizes. */
-#include "rd_internal.h"
+ * Determinism (DESIGN.md convention 6): the random numbers of sample i of pixel p are keyed by
+ * (p, i, dimension, seed) (rd_sampler); the first two dimensions place the sample in the pixel,
+ * the method owns the rest. Each pixel is accumulated by one thread in sample order, so an
+ * image rendered to a sample count is the same bit for bit whatever the thread count or the
+ * pass sizes, and two methods see the same camera rays.
+ *
+ * The film keeps, per pixel and channel, the sum and the sum of squares of the samples and, per
+ * pixel, their count: the image is the mean, and the render reports each pixel's standard error
+ * (docs/cli.md). A time limit or Ctrl-C is checked before every pixel, so a render stops within
+ * one pixel's work of the budget; pixels then differ in count by at most one pass, which the
+ * per-pixel count accounts for. */
+#include "rd_method.h"
 
 #include <omp.h>
 #include <stdlib.h>
@@ -31,13 +40,41 @@ ray3 rd_camera_ray(const rd_camera *cam, double px, double py)
     return r;
 }
 
-const char *rd_methods(void) { return "delta"; }
+int rd_camera_project(const rd_camera *cam, vec3 p, double *px, double *py)
+{
+    /* The inverse of rd_camera_ray: film coordinates of the point p. */
+    double aspect = (double)cam->width / cam->height, sx, sy;
+    vec3 v = v3_sub(p, cam->pos);
+    if (cam->kind == RD_CAM_PERSPECTIVE) {
+        double z = v3_dot(v, cam->forward), th = tan(0.5 * cam->fov_deg * M_PI / 180.0);
+        if (!(z > 0.0)) return 0;
+        sx = v3_dot(v, cam->right) / (z * th);
+        sy = v3_dot(v, cam->up) / (z * th);
+    } else {
+        double half = 0.5 * cam->ortho_width / aspect;
+        sx = v3_dot(v, cam->right) / half;
+        sy = v3_dot(v, cam->up) / half;
+    }
+    *px = (sx / aspect + 1.0) * 0.5 * cam->width;
+    *py = (1.0 - sy) * 0.5 * cam->height;
+    return isfinite(*px) && isfinite(*py);
+}
 
 void rd_image_free_pixels(rd_image *img)
 {
     if (!img) return;
     free(img->rgb);
     img->rgb = NULL;
+}
+
+void rd_render_result_free(rd_render_result *res)
+{
+    if (!res) return;
+    rd_image_free_pixels(&res->image);
+    rd_image_free_pixels(&res->stderr_img);
+    free(res->curve);
+    res->curve = NULL;
+    res->n_curve = 0;
 }
 
 static double now_seconds(void)
@@ -47,104 +84,257 @@ static double now_seconds(void)
     return ts.tv_sec + 1e-9 * ts.tv_nsec;
 }
 
-/* Render samples [s0, s1) of every pixel into the running sums. */
-static void render_pass(const rd_scene *s, uint64_t seed, int nthreads, int s0, int s1, double *sum,
-                        rd_track_counters *tc, uint64_t *shadow, uint64_t *invalid)
+/* ---- Film ---------------------------------------------------------------------------------- */
+typedef struct {
+    int w, h;
+    double *sum, *sum2; /* 3 per pixel */
+    uint32_t *n;        /* samples per pixel */
+} film;
+
+static void film_free(film *f)
 {
-    const rd_camera *cam = &s->camera;
-    int tiles_x = (cam->width + TILE - 1) / TILE, tiles_y = (cam->height + TILE - 1) / TILE;
-    uint64_t coll = 0, look = 0, shad = 0, bad = 0;
-#pragma omp parallel for num_threads(nthreads) schedule(dynamic, 1) reduction(+ : coll, look, shad, bad)
-    for (int tile = 0; tile < tiles_x * tiles_y; tile++) {
-        int x0 = (tile % tiles_x) * TILE, y0 = (tile / tiles_x) * TILE;
-        rd_track_counters c = {0, 0};
-        uint64_t sh = 0;
-        for (int y = y0; y < y0 + TILE && y < cam->height; y++)
-            for (int x = x0; x < x0 + TILE && x < cam->width; x++) {
-                uint64_t pix = (uint64_t)y * cam->width + x;
-                double *acc = &sum[3 * pix];
-                for (int i = s0; i < s1; i++) {
-                    pcg32 rng = pcg32_seed(pix, (uint64_t)i, seed);
-                    double jx = pcg32_uniform(&rng), jy = pcg32_uniform(&rng);
-                    ray3 r = rd_camera_ray(cam, x + jx, y + jy);
-                    vec3 L = rd_delta_radiance(s, r, &rng, &c, &sh);
-                    /* A non-finite sample would poison the pixel: drop and count it. */
-                    if (!v3_finite(L)) { bad++; continue; }
-                    acc[0] += L.x;
-                    acc[1] += L.y;
-                    acc[2] += L.z;
-                }
-            }
-        coll += c.collisions;
-        look += c.lookups;
-        shad += sh;
-    }
-    tc->collisions += coll;
-    tc->lookups += look;
-    *shadow += shad;
-    *invalid += bad;
+    free(f->sum);
+    free(f->sum2);
+    free(f->n);
 }
 
-rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_image *out,
-                    rd_render_stats *st, char *err, size_t errlen)
+static int film_alloc(film *f, int w, int h)
 {
-    memset(st, 0, sizeof *st);
-    out->rgb = NULL;
-    if (strcmp(o->method, "delta") != 0) {
-        snprintf(err, errlen, "--method %s: unknown method (available: %s)", o->method, rd_methods());
+    size_t np = (size_t)w * h;
+    f->w = w;
+    f->h = h;
+    f->sum = calloc(np * 3, sizeof *f->sum);
+    f->sum2 = calloc(np * 3, sizeof *f->sum2);
+    f->n = calloc(np, sizeof *f->n);
+    if (f->sum && f->sum2 && f->n) return 1;
+    film_free(f);
+    return 0;
+}
+
+/* RMSE of the running mean against the reference over the pixels sampled so far. */
+static double film_rmse(const film *f, const rd_image *ref)
+{
+    size_t np = (size_t)f->w * f->h, m = 0;
+    double se = 0.0;
+    for (size_t p = 0; p < np; p++) {
+        if (!f->n[p]) continue;
+        for (int c = 0; c < 3; c++) {
+            double e = f->sum[3 * p + c] / f->n[p] - ref->rgb[3 * p + c];
+            se += e * e;
+        }
+        m += 3;
+    }
+    return m ? sqrt(se / m) : 0.0;
+}
+
+/* The mean and its standard error: se = sqrt(s^2 / n), s^2 = (sum2 - sum^2 / n) / (n - 1). */
+static void film_resolve(const film *f, float *mean, float *stderr_rgb)
+{
+    size_t np = (size_t)f->w * f->h;
+    for (size_t p = 0; p < np; p++) {
+        double n = f->n[p];
+        for (int c = 0; c < 3; c++) {
+            size_t i = 3 * p + c;
+            double mu = n > 0 ? f->sum[i] / n : 0.0;
+            double var = n > 1 ? fmax(0.0, (f->sum2[i] - f->sum[i] * mu) / (n - 1.0)) : 0.0;
+            mean[i] = (float)mu;
+            stderr_rgb[i] = (float)(n > 1 ? sqrt(var / n) : 0.0);
+        }
+    }
+}
+
+/* ---- Passes -------------------------------------------------------------------------------- */
+
+static int should_stop(double deadline, const volatile int *cancel)
+{
+    return (cancel && *cancel) || (deadline > 0.0 && now_seconds() >= deadline);
+}
+
+/* Render samples [s0, s1) of every pixel into the film; returns 1 when the deadline or the
+ * cancel flag cut the pass short. */
+static int render_pass(const rd_render_ctx *ctx, rd_thread *th, film *f, int s0, int s1,
+                       double deadline, const volatile int *cancel, uint64_t *invalid)
+{
+    const rd_camera *cam = &ctx->scene->camera;
+    const rd_method *m = ctx->method;
+    int tiles_x = (cam->width + TILE - 1) / TILE, tiles_y = (cam->height + TILE - 1) / TILE;
+    uint64_t bad = 0;
+    int stopped = 0;
+#pragma omp parallel for num_threads(ctx->threads) schedule(dynamic, 1) reduction(+ : bad) reduction(| : stopped)
+    for (int tile = 0; tile < tiles_x * tiles_y; tile++) {
+        rd_thread *t = &th[omp_get_thread_num()];
+        int x0 = (tile % tiles_x) * TILE, y0 = (tile / tiles_x) * TILE;
+        for (int y = y0; y < y0 + TILE && y < cam->height; y++)
+            for (int x = x0; x < x0 + TILE && x < cam->width; x++) {
+                if (stopped || should_stop(deadline, cancel)) { stopped = 1; continue; }
+                uint64_t pix = (uint64_t)y * cam->width + x;
+                double *acc = &f->sum[3 * pix], *acc2 = &f->sum2[3 * pix];
+                for (int i = s0; i < s1; i++) {
+                    rd_sampler smp = rd_sampler_start(pix, (uint64_t)i, ctx->seed);
+                    double jx = rd_sampler_1d(&smp), jy = rd_sampler_1d(&smp); /* RD_DIM_FILM */
+                    ray3 r = rd_camera_ray(cam, x + jx, y + jy);
+                    vec3 L = m->radiance(ctx, t, r, &smp);
+                    /* A non-finite sample would poison the pixel: drop and count it. */
+                    if (!v3_finite(L)) { bad++; continue; }
+                    acc[0] += L.x; acc[1] += L.y; acc[2] += L.z;
+                    acc2[0] += L.x * L.x; acc2[1] += L.y * L.y; acc2[2] += L.z * L.z;
+                    f->n[pix]++;
+                }
+            }
+    }
+    *invalid += bad;
+    return stopped;
+}
+
+static int curve_push(rd_render_result *res, int *cap, double seconds, double spp_mean, double rmse)
+{
+    if (res->n_curve == *cap) {
+        int nc = *cap ? 2 * *cap : 64;
+        rd_conv_point *p = realloc(res->curve, (size_t)nc * sizeof *p);
+        if (!p) return 0;
+        res->curve = p;
+        *cap = nc;
+    }
+    res->curve[res->n_curve++] = (rd_conv_point){seconds, spp_mean, rmse};
+    return 1;
+}
+
+static rd_status fail(char *err, size_t errlen, rd_status st, const char *msg)
+{
+    snprintf(err, errlen, "%s", msg);
+    return st;
+}
+
+rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result *res,
+                    char *err, size_t errlen)
+{
+    memset(res, 0, sizeof *res);
+    const rd_method *m = rd_method_find(o->method);
+    if (!m) {
+        char names[256];
+        rd_methods(names, sizeof names);
+        snprintf(err, errlen, "--method %s: unknown method (available: %s)", o->method ? o->method : "(none)", names);
         return RD_ERR_ARG;
     }
-    if (o->spp < 1) {
-        snprintf(err, errlen, "--spp: must be >= 1");
-        return RD_ERR_ARG;
-    }
+    if (o->spp < 1) return fail(err, errlen, RD_ERR_ARG, "--spp: must be >= 1");
     int w = s->camera.width, h = s->camera.height;
-    size_t npix = (size_t)w * h;
-    double *sum = calloc(npix * 3, sizeof *sum);
-    out->rgb = malloc(npix * 3 * sizeof *out->rgb);
-    if (!sum || !out->rgb) {
-        free(sum);
-        free(out->rgb);
-        out->rgb = NULL;
-        snprintf(err, errlen, "out of memory for a %dx%d film", w, h);
-        return RD_ERR_NOMEM;
+    if (o->reference && (o->reference->w != w || o->reference->h != h || !o->reference->rgb)) {
+        snprintf(err, errlen, "reference image: %dx%d, but the render is %dx%d", o->reference->w,
+                 o->reference->h, w, h);
+        return RD_ERR_ARG;
     }
-    out->w = w;
-    out->h = h;
-    int nthreads = o->threads > 0 ? o->threads : omp_get_max_threads();
+    double t_start = now_seconds();
+    double deadline = o->time_limit > 0 ? t_start + o->time_limit : 0.0;
+    rd_render_ctx ctx = {s, m, NULL, NULL, NULL, o->seed, o->threads > 0 ? o->threads : omp_get_max_threads()};
+
+    /* What the method needs baked: given, or baked here (its time is part of the render). */
+    rd_baked *own = NULL;
+    rd_status st = RD_OK;
+    if (m->needs) {
+        const rd_baked *b = o->baked;
+        if (!b) {
+            rd_bake_opts bo = {0};
+            bo.seed = -1;
+            bo.threads = o->threads;
+            bo.no_guide = !(m->needs & RD_NEEDS_GUIDE);
+            if ((st = rd_bake(s, &bo, &own, err, errlen)) != RD_OK) return st;
+            b = own;
+        }
+        ctx.photons = rd_baked_map(b);
+        ctx.guide = rd_baked_guide(b);
+        if ((m->needs & RD_NEEDS_GUIDE) && !ctx.guide) {
+            rd_baked_free(own);
+            snprintf(err, errlen, "--method %s: needs a guide grid, and the bake given has none", m->name);
+            return RD_ERR_ARG;
+        }
+    }
+    res->stats.bake_seconds = now_seconds() - t_start;
+    if (m->prepare && (st = m->prepare(&ctx, err, errlen)) != RD_OK) {
+        rd_baked_free(own);
+        return st;
+    }
+
+    /* Per-thread contexts with the method's scratch, and the film. */
+    size_t scratch = m->scratch_bytes ? m->scratch_bytes(&ctx) : 0;
+    rd_thread *th = calloc((size_t)ctx.threads, sizeof *th);
+    film f = {0};
+    int ok = th && film_alloc(&f, w, h);
+    for (int i = 0; ok && i < ctx.threads; i++) {
+        th[i].index = i;
+        th[i].scratch_bytes = scratch;
+        if (scratch && !(th[i].scratch = aligned_alloc(16, (scratch + 15) / 16 * 16))) ok = 0;
+    }
+    size_t npix = (size_t)w * h;
+    if (ok) {
+        res->image.rgb = malloc(npix * 3 * sizeof(float));
+        res->stderr_img.rgb = malloc(npix * 3 * sizeof(float));
+        ok = res->image.rgb && res->stderr_img.rgb;
+    }
+    if (!ok) {
+        snprintf(err, errlen, "out of memory for a %dx%d film and %d threads' scratch", w, h, ctx.threads);
+        st = RD_ERR_NOMEM;
+        goto done;
+    }
 
     /* Progressive passes: start with one sample per pixel, then size passes to take about a
-     * second, so Ctrl-C and --time are honoured promptly. */
-    double t_start = now_seconds();
-    rd_track_counters tc = {0, 0};
+     * second (never past the time left), so progress, the convergence curve and Ctrl-C come
+     * promptly. */
     uint64_t invalid = 0;
-    int done = 0, pass = 1;
+    int done = 0, pass = 1, curve_cap = 0;
     while (done < o->spp) {
-        if (o->cancel && *o->cancel) { st->cancelled = 1; break; }
+        if (o->cancel && *o->cancel) { res->stats.cancelled = 1; break; }
+        if (deadline > 0 && now_seconds() >= deadline) { res->stats.timed_out = 1; break; }
         int n = pass < o->spp - done ? pass : o->spp - done;
         double t0 = now_seconds();
-        render_pass(s, o->seed, nthreads, done, done + n, sum, &tc, &st->shadow_rays, &invalid);
-        done += n;
-        double dt = now_seconds() - t0, elapsed = now_seconds() - t_start;
+        int cut = render_pass(&ctx, th, &f, done, done + n, deadline, o->cancel, &invalid);
+        double t1 = now_seconds(), elapsed = t1 - t_start;
+        if (!cut) done += n;
         if (o->progress) o->progress(o->progress_user, done, o->spp, elapsed);
-        if (o->time_limit > 0 && elapsed >= o->time_limit) break;
-        double per = dt / n; /* seconds per sample per pixel */
+        if (o->reference) {
+            uint64_t total = 0;
+            for (size_t p = 0; p < npix; p++) total += f.n[p];
+            if (!curve_push(res, &curve_cap, elapsed, (double)total / npix, film_rmse(&f, o->reference))) {
+                st = fail(err, errlen, RD_ERR_NOMEM, "out of memory for the convergence curve");
+                goto done;
+            }
+        }
+        if (cut) {
+            if (o->cancel && *o->cancel) res->stats.cancelled = 1;
+            else res->stats.timed_out = 1;
+            break;
+        }
+        double per = (t1 - t0) / n; /* seconds per sample per pixel */
         double budget = 1.0;
-        if (o->time_limit > 0) budget = fmin(budget, o->time_limit - elapsed);
+        if (deadline > 0) budget = fmin(budget, deadline - t1);
         /* clamp in double before converting: budget/per can exceed INT_MAX */
         double next = per > 0 ? budget / per : 2.0 * pass;
         next = fmax(1.0, fmin(next, 4.0 * pass));
         pass = (int)next;
     }
-    if (o->cancel && *o->cancel) st->cancelled = 1;
-    double inv = done > 0 ? 1.0 / done : 0.0;
-    for (size_t i = 0; i < npix * 3; i++) out->rgb[i] = (float)(sum[i] * inv);
-    free(sum);
-    st->seconds = now_seconds() - t_start;
-    st->spp = done;
-    st->paths = (uint64_t)done * npix;
-    st->collisions = tc.collisions;
-    st->lookups = tc.lookups;
-    st->invalid = invalid;
-    return RD_OK;
+    if (o->cancel && *o->cancel) res->stats.cancelled = 1;
+
+    film_resolve(&f, res->image.rgb, res->stderr_img.rgb);
+    res->image.w = res->stderr_img.w = w;
+    res->image.h = res->stderr_img.h = h;
+    uint64_t total = 0;
+    for (size_t p = 0; p < npix; p++) total += f.n[p];
+    rd_render_stats *rs = &res->stats;
+    rs->spp = done; /* passes completed by every pixel (dropped samples aside) */
+    rs->spp_mean = (double)total / (double)npix;
+    rs->paths = total + invalid;
+    rs->invalid = invalid;
+    for (int i = 0; i < ctx.threads; i++) {
+        rs->collisions += th[i].counters.collisions;
+        rs->lookups += th[i].counters.lookups;
+        rs->shadow_rays += th[i].counters.shadow_rays;
+    }
+    rs->seconds = now_seconds() - t_start;
+done:
+    if (st != RD_OK) rd_render_result_free(res);
+    film_free(&f);
+    for (int i = 0; th && i < ctx.threads; i++) free(th[i].scratch);
+    free(th);
+    if (m->release) m->release(&ctx);
+    rd_baked_free(own);
+    return st;
 }

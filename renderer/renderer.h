@@ -29,12 +29,14 @@ typedef enum {
     RD_ERR_PARSE,  /* not valid JSON */
     RD_ERR_SCENE,  /* valid JSON, invalid scene (wrong type, range, unknown key, ...) */
     RD_ERR_FORMAT, /* a data file (volume, image) is corrupt or of the wrong kind */
-    RD_ERR_INTERNAL
+    RD_ERR_INTERNAL,
+    RD_ERR_OUTPUT  /* an output file or folder could not be written */
 } rd_status;
 
 #define RD_ERRLEN 512
 
 typedef struct rd_scene rd_scene; /* opaque; see rd_internal.h */
+typedef struct rd_baked rd_baked; /* a photon map and its guide grid (rd_bake); opaque */
 
 /* One `key=value` override applied to the JSON tree before validation (--set). The key is a
  * dotted JSON path with [i] indices ("settings.spp", "lights[0].intensity"); the value is
@@ -58,33 +60,21 @@ double rd_scene_time_limit(const rd_scene *scene);
 uint64_t rd_scene_seed(const rd_scene *scene);
 const char *rd_scene_method(const rd_scene *scene);
 double rd_scene_exposure(const rd_scene *scene); /* camera.exposure, for the PNG preview */
+int rd_scene_spp_given(const rd_scene *scene);    /* 1 when settings.spp is in the file */
+
+/* ---- Methods ----------------------------------------------------------------------------- *
+ * The render methods form one table (renderer/methods.c); --help, settings.method, the
+ * report and rd_render all read it. */
+enum { RD_NEEDS_PHOTONS = 1, RD_NEEDS_GUIDE = 2 }; /* what a method needs baked */
+int rd_method_count(void);
+/* Name, one-line summary and needs of method i (0 <= i < rd_method_count()). */
+const char *rd_method_name(int i);
+const char *rd_method_summary(int i);
+unsigned rd_method_needs(int i);
+/* The method names, comma-separated, into buf (truncated to n); returns the length needed. */
+size_t rd_methods(char *buf, size_t n);
 
 /* ---- Rendering --------------------------------------------------------------------------- */
-
-typedef struct {
-    const char *method;  /* "delta" (others arrive with their issues) */
-    int spp;             /* samples per pixel to reach (>= 1) */
-    double time_limit;   /* seconds; > 0 stops after the pass that crosses it (spp still caps) */
-    uint64_t seed;
-    int threads;         /* 0 = OpenMP default */
-    /* Polled between passes: when it becomes non-zero the current pass finishes and rd_render
-     * returns RD_OK with the samples done so far. May be NULL. */
-    const volatile int *cancel;
-    /* Called after every pass (from the calling thread). May be NULL. */
-    void (*progress)(void *user, int spp_done, int spp_total, double seconds);
-    void *progress_user;
-} rd_render_opts;
-
-typedef struct {
-    double seconds;          /* wall time of the render */
-    int spp;                 /* samples per pixel completed */
-    uint64_t paths;          /* camera paths traced */
-    uint64_t collisions;     /* tentative collisions (real + null) of free-path sampling */
-    uint64_t lookups;        /* density evaluations */
-    uint64_t shadow_rays;    /* next-event transmittance estimates */
-    uint64_t invalid;        /* non-finite samples dropped (should be 0; reported if not) */
-    int cancelled;           /* 1 when the cancel flag stopped the render early */
-} rd_render_stats;
 
 /* Linear RGB film: w*h pixels, 3 floats each, row-major from the top-left. */
 typedef struct {
@@ -94,11 +84,132 @@ typedef struct {
 
 void rd_image_free_pixels(rd_image *img);
 
-rd_status rd_render(const rd_scene *scene, const rd_render_opts *opts, rd_image *out,
-                    rd_render_stats *stats, char *err, size_t errlen);
+typedef struct {
+    const char *method;  /* a name from the method table */
+    int spp;             /* samples per pixel to reach (>= 1) */
+    double time_limit;   /* seconds; > 0 stops when the time is up (checked between pixels, so
+                            the budget is kept to within a pixel's work); spp still caps */
+    uint64_t seed;
+    int threads;         /* 0 = OpenMP default */
+    /* Polled between pixels: when it becomes non-zero the render stops and rd_render returns
+     * RD_OK with the samples done so far (pixels may then differ by one pass in count). */
+    const volatile int *cancel;
+    /* Called after every pass (from the calling thread). May be NULL. */
+    void (*progress)(void *user, int spp_done, int spp_total, double seconds);
+    void *progress_user;
+    /* Photon map and guide for the methods that need them (rd_method_needs); borrowed. NULL:
+     * rd_render bakes them itself when the method needs them (time counted in the render). */
+    const rd_baked *baked;
+    /* Optional converged image of the same size: the RMSE of the running mean against it is
+     * recorded after every pass (rd_render_result.curve). Borrowed. */
+    const rd_image *reference;
+} rd_render_opts;
 
-/* The methods rd_render knows, comma-separated (for --help and error messages). */
-const char *rd_methods(void);
+typedef struct {
+    double seconds;          /* wall time of the render, bake included */
+    double bake_seconds;     /* of which baking the photon map and guide */
+    int spp;                 /* samples per pixel completed by every pixel */
+    double spp_mean;         /* samples per pixel on average (a stopped pass leaves some behind) */
+    uint64_t paths;          /* camera samples taken */
+    uint64_t collisions;     /* tentative collisions (real + null) of free-path sampling */
+    uint64_t lookups;        /* density evaluations */
+    uint64_t shadow_rays;    /* next-event transmittance estimates */
+    uint64_t invalid;        /* non-finite samples dropped (should be 0; reported if not) */
+    int cancelled;           /* 1 when the cancel flag stopped the render early */
+    int timed_out;           /* 1 when the time limit stopped it */
+} rd_render_stats;
+
+/* One point of the convergence curve: RMSE of the image so far against the reference. */
+typedef struct {
+    double seconds, spp_mean, rmse;
+} rd_conv_point;
+
+typedef struct {
+    rd_image image;       /* the per-pixel mean */
+    rd_image stderr_img;  /* per-pixel standard error of that mean, per channel:
+                             sqrt(sample variance / n); 0 where a pixel has fewer than 2 samples */
+    rd_render_stats stats;
+    rd_conv_point *curve; /* one point per pass when opts.reference was given, else NULL */
+    int n_curve;
+} rd_render_result;
+
+void rd_render_result_free(rd_render_result *res); /* frees the images and the curve */
+
+rd_status rd_render(const rd_scene *scene, const rd_render_opts *opts, rd_render_result *res,
+                    char *err, size_t errlen);
+
+/* Write a finished render: OUT.exr (mean, linear), OUT-stderr.exr (per-pixel standard error),
+ * OUT.png (sRGB preview at camera.exposure) and OUT.json (the report: method, samples, times,
+ * counters, convergence curve), each through a temporary name and a rename. `exr_path` ends in
+ * .exr; its folder is created. Errors: RD_ERR_OUTPUT naming the file. */
+rd_status rd_render_write(const rd_scene *scene, const rd_render_opts *opts,
+                          const rd_render_result *res, const char *exr_path, char *err,
+                          size_t errlen);
+
+/* ---- Baking: photon map and guide grid (seed 001 §3; docs/guide-grid.md) --------------- */
+
+typedef struct {
+    size_t photons;            /* photons to emit; 0 = the scene's photons.count */
+    long long seed;            /* photon seed; < 0 = the scene's photons.seed */
+    int threads;               /* 0 = all; results do not depend on it */
+    const char *load_photons;  /* reuse a saved .pmap instead of tracing (NULL: trace) */
+    int no_guide;              /* 1: stop after the photon map */
+} rd_bake_opts;
+
+typedef struct {
+    /* photon map */
+    int loaded;                /* 1 when read from load_photons */
+    size_t emitted, stored, segments;
+    double trace_seconds, index_seconds;
+    double collisions_per_photon;
+    size_t map_bytes;          /* photons, segments and index */
+    double power_emitted, power_absorbed, power_escaped, power_cut; /* luminance, W */
+    /* guide grid (has_guide = 0 with no_guide) */
+    int has_guide;
+    int adaptive, track;       /* uniform/adaptive grid, k-NN/track-length bake */
+    int bands;
+    size_t cells;
+    int res[3];                /* uniform */
+    int depth_max;             /* adaptive */
+    double cell_min, cell_max; /* adaptive cell edges, m */
+    size_t guide_bytes;
+    double guide_seconds;
+    double seconds;            /* the whole bake */
+} rd_bake_stats;
+
+/* Trace (or load) the scene's photon map, build its FLANN index, bake the SH guide grid. */
+rd_status rd_bake(const rd_scene *scene, const rd_bake_opts *opts, rd_baked **out, char *err,
+                  size_t errlen);
+void rd_baked_free(rd_baked *b);
+const rd_bake_stats *rd_baked_stats(const rd_baked *b);
+
+typedef struct {
+    int write_map;          /* write PREFIX.pmap (skip it for a map that was loaded) */
+    int nslices;            /* slices of the guide; 0 = one across z at the centre */
+    char slice_axis[8];     /* 'x', 'y' or 'z' */
+    int slice_has_at[8];
+    double slice_at[8];     /* coordinate of the slice plane when slice_has_at */
+    int has_toward;
+    double toward[3];       /* unit direction the slice radiance leaves in (default: to the camera) */
+} rd_bake_write_opts;
+
+/* Write PREFIX.pmap, PREFIX-photons.exr/.png, PREFIX.guide, PREFIX-slice-A.exr/.png and
+ * PREFIX-cells-A.png (docs/cli.md, bake). RD_ERR_ARG for a bad slice, RD_ERR_OUTPUT when a
+ * file cannot be written (files already written stay). */
+rd_status rd_baked_write(const rd_baked *b, const rd_scene *scene, const char *prefix,
+                         const rd_bake_write_opts *o, char *err, size_t errlen);
+
+/* ---- Voxelizing a medium ---------------------------------------------------------------- */
+
+/* Sample medium `medium`'s density at voxel centres over its bounds, res voxels along the
+ * longest axis, into OUT.vdb (OpenVDB float grid "density", cubic voxels, transform placing it
+ * where the medium is) or OUT.raw (float32, x fastest, cells of the bounds' size / dims).
+ * dims gets the voxel counts. */
+rd_status rd_voxelize(const rd_scene *scene, int medium, int res, const char *out_path,
+                      int dims[3], char *err, size_t errlen);
+
+/* Create the folders above `path` (mkdir -p); RD_ERR_OUTPUT with a message on failure. */
+rd_status rd_make_parent_dirs(const char *path, char *err, size_t errlen);
 
 /* ---- Image files (OpenImageIO shim; never throws) ---------------------------------------- */
 

@@ -5,6 +5,7 @@
  * Unknown keys are errors, so a typo is never silently ignored. The format is documented in
  * docs/scene-format.md. */
 #include "rd_internal.h"
+#include "rd_method.h"
 
 #include <cJSON.h>
 #include <errno.h>
@@ -640,8 +641,11 @@ static rd_status parse_settings(vctx *c, const cJSON *j, rd_settings *s)
     s->rr_depth = (int)v;
     const char *m;
     TRY(get_str(c, j, path, "method", 0, "delta", &m));
-    if (strcmp(m, "delta") != 0)
-        return fail(c, "settings.method", "unknown method \"%s\" (available: %s)", m, rd_methods());
+    if (!rd_method_find(m)) {
+        char names[256];
+        rd_methods(names, sizeof names);
+        return fail(c, "settings.method", "unknown method \"%s\" (available: %s)", m, names);
+    }
     snprintf(s->method, sizeof s->method, "%s", m);
     /* Free-path engine (rd_freepath.h): tracker, transmittance estimator and their parameters. */
     static const char *const trackers[] = {"auto", "woodcock", "supervoxel", "weighted", "decomposition", "raymarch", NULL};
@@ -839,6 +843,8 @@ void rd_scene_free(rd_scene *s)
     for (int i = 0; i < s->n_media; i++) medium_release(&s->media[i]);
     free(s->media);
     free(s->lights);
+    rd_light_sampler_free(&s->light_sampler);
+    free(s->sphere_lights);
     free(s);
 }
 
@@ -902,6 +908,12 @@ static rd_status validate(vctx *c, const cJSON *root, rd_scene *s)
     TRY(parse_guide(c, cJSON_GetObjectItemCaseSensitive(root, "guide"), &s->guide));
     if (s->guide.track && !s->photons.segments)
         s->photons.segments = 1; /* the track-length bake needs the segments */
+    /* Lights by power for next-event estimation, and the lights a path can hit. */
+    TRY(rd_light_sampler_build(&s->light_sampler, s->lights, s->n_lights, rd_scene_radius(s)));
+    s->sphere_lights = calloc(s->n_lights > 0 ? s->n_lights : 1, sizeof *s->sphere_lights);
+    if (!s->sphere_lights) return RD_ERR_NOMEM;
+    for (int i = 0; i < s->n_lights; i++)
+        if (s->lights[i].kind == RD_LIGHT_SPHERE) s->sphere_lights[s->n_sphere_lights++] = i;
     return RD_OK;
 }
 
@@ -958,6 +970,7 @@ int rd_scene_spp(const rd_scene *s) { return s->settings.spp; }
 double rd_scene_time_limit(const rd_scene *s) { return s->settings.time_limit; }
 uint64_t rd_scene_seed(const rd_scene *s) { return s->settings.seed; }
 const char *rd_scene_method(const rd_scene *s) { return s->settings.method; }
+int rd_scene_spp_given(const rd_scene *s) { return s->settings.spp_given; }
 double rd_scene_exposure(const rd_scene *s) { return s->camera.exposure; }
 
 double rd_scene_radius(const rd_scene *s)

@@ -5,16 +5,16 @@
 
 typedef struct { double t0, t1; const rd_medium *m; } interval;
 
-/* The media the ray crosses within [0, tmax], sorted by entry distance. Media do not overlap
+/* The media the ray crosses within [tmin, tmax], sorted by entry distance. Media do not overlap
  * (the loader checks), so the intervals are disjoint. Returns their number. */
-static int media_intervals(const rd_scene *s, ray3 r, double tmax, interval *out)
+static int media_intervals(const rd_scene *s, ray3 r, double tmin, double tmax, interval *out)
 {
     int n = 0;
     for (int i = 0; i < s->n_media; i++) {
         double t0, t1;
         const rd_medium *m = &s->media[i];
         if (m->sigma_maj <= 0.0) continue;
-        if (!rd_box_intersect(m->bmin, m->bmax, r, 0.0, tmax, &t0, &t1)) continue;
+        if (!rd_box_intersect(m->bmin, m->bmax, r, tmin, tmax, &t0, &t1)) continue;
         int k = n++;
         while (k > 0 && out[k - 1].t0 > t0) { out[k] = out[k - 1]; k--; }
         out[k].t0 = t0;
@@ -39,7 +39,7 @@ rd_collision rd_sample_free_path(const rd_scene *s, ray3 r, double tmax, pcg32 *
                                  rd_track_counters *c)
 {
     interval iv[64];
-    int n = media_intervals(s, r, tmax, iv);
+    int n = media_intervals(s, r, 0.0, tmax, iv);
     rd_collision col = {0, tmax, NULL, 1.0};
     rd_fp_params p = params_of(s);
     for (int i = 0; i < n; i++) {
@@ -57,10 +57,12 @@ rd_collision rd_sample_free_path(const rd_scene *s, ray3 r, double tmax, pcg32 *
     return col;
 }
 
-double rd_transmittance(const rd_scene *s, ray3 r, double tmax, pcg32 *rng, rd_track_counters *c)
+double rd_transmittance(const rd_scene *s, ray3 r, double t0, double t1, pcg32 *rng,
+                        rd_track_counters *c)
 {
     interval iv[64];
-    int n = media_intervals(s, r, tmax, iv);
+    if (!(t1 > t0)) return 1.0;
+    int n = media_intervals(s, r, t0, t1, iv);
     double T = 1.0;
     rd_fp_params p = params_of(s);
     for (int i = 0; i < n && T != 0.0; i++) {

@@ -13,11 +13,10 @@ typedef struct { double mean, se; } mc_result;
 static mc_result mc_radiance(const rd_scene *s, ray3 r, int n, uint64_t seed)
 {
     rd_track_counters c = {0, 0};
-    uint64_t shadow = 0;
     double sum = 0, sum2 = 0;
     for (int i = 0; i < n; i++) {
         pcg32 rng = pcg32_seed(seed, i, 1234);
-        double L = rd_delta_radiance(s, r, &rng, &c, &shadow).y;
+        double L = rd_delta_radiance(s, r, &rng, &c).y;
         sum += L;
         sum2 += L * L;
     }
@@ -152,10 +151,9 @@ Test(integrator, sphere_light_seen_directly)
                            "\"lights\":[{\"type\":\"sphere\",\"center\":[0,0,-3],\"radius\":0.5,\"radiance\":[2,3,4]}]}");
     pcg32 rng = pcg32_seed(1, 1, 1);
     rd_track_counters c = {0, 0};
-    uint64_t sh = 0;
-    vec3 L = rd_delta_radiance(s, (ray3){v3(0, 0, 2), v3(0, 0, -1)}, &rng, &c, &sh);
+    vec3 L = rd_delta_radiance(s, (ray3){v3(0, 0, 2), v3(0, 0, -1)}, &rng, &c);
     cr_expect(L.x == 2 && L.y == 3 && L.z == 4, "direct view of the sphere light: (%g %g %g)", L.x, L.y, L.z);
-    L = rd_delta_radiance(s, (ray3){v3(0, 0, 2), v3(0, 1, 0)}, &rng, &c, &sh);
+    L = rd_delta_radiance(s, (ray3){v3(0, 0, 2), v3(0, 1, 0)}, &rng, &c);
     cr_expect(L.x == 0 && L.y == 0 && L.z == 0);
     rd_scene_free(s);
 }
@@ -168,22 +166,24 @@ Test(integrator, same_image_on_one_and_two_threads, .timeout = 120)
                            "\"density\":{\"type\":\"noise\",\"octaves\":3,\"seed\":2},\"sigma_t\":2,\"albedo\":0.9,\"g\":0.5}],"
                            "\"lights\":[{\"type\":\"spot\",\"position\":[2,2,2],\"look_at\":[0,0,0],\"angle\":40,\"intensity\":10},"
                            "{\"type\":\"environment\",\"radiance\":0.2}]}");
-    rd_image img[3];
-    rd_render_stats st[3];
+    rd_render_result res[3];
     char err[RD_ERRLEN];
     const int threads[3] = {1, 2, 2};
     for (int k = 0; k < 3; k++) {
         rd_render_opts o = {.method = "delta", .spp = 6, .seed = 42, .threads = threads[k]};
         if (k == 2) o.spp = 5; /* a prefix of the same sample sequence */
-        cr_assert(rd_render(s, &o, &img[k], &st[k], err, sizeof err) == RD_OK, "%s", err);
+        cr_assert(rd_render(s, &o, &res[k], err, sizeof err) == RD_OK, "%s", err);
     }
-    size_t n = (size_t)img[0].w * img[0].h * 3;
-    cr_expect(memcmp(img[0].rgb, img[1].rgb, n * sizeof(float)) == 0, "1 and 2 threads differ");
-    cr_expect(st[0].collisions == st[1].collisions && st[0].lookups == st[1].lookups, "counters differ");
-    cr_expect(memcmp(img[0].rgb, img[2].rgb, n * sizeof(float)) != 0, "5 and 6 spp should differ");
+    size_t n = (size_t)res[0].image.w * res[0].image.h * 3;
+    cr_expect(memcmp(res[0].image.rgb, res[1].image.rgb, n * sizeof(float)) == 0, "1 and 2 threads differ");
+    cr_expect(memcmp(res[0].stderr_img.rgb, res[1].stderr_img.rgb, n * sizeof(float)) == 0,
+              "the standard error differs between 1 and 2 threads");
+    cr_expect(res[0].stats.collisions == res[1].stats.collisions && res[0].stats.lookups == res[1].stats.lookups,
+              "counters differ");
+    cr_expect(memcmp(res[0].image.rgb, res[2].image.rgb, n * sizeof(float)) != 0, "5 and 6 spp should differ");
     double sum = 0;
-    for (size_t i = 0; i < n; i++) sum += img[0].rgb[i];
+    for (size_t i = 0; i < n; i++) sum += res[0].image.rgb[i];
     cr_expect(sum > 0, "the image must not be black");
-    for (int k = 0; k < 3; k++) rd_image_free_pixels(&img[k]);
+    for (int k = 0; k < 3; k++) rd_render_result_free(&res[k]);
     rd_scene_free(s);
 }

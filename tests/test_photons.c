@@ -174,14 +174,13 @@ Test(photons, knn_radiance_converges_to_delta_tracking, .timeout = 300)
         int n = 150000;
         double sum = 0, sum2 = 0;
         rd_track_counters c = {0, 0};
-        uint64_t sh = 0;
         for (int k = 0; k < n; k++) {
             pcg32 r = pcg32_seed(i, k, 555);
             /* w' with pdf p(w' . w): sample around -w... the phase is symmetric in
              * cos(w', w), so sample w' around w and trace backwards along -w'. */
             vec3 wp = rd_hg_sample(m->g, ws[i], pcg32_uniform(&r), pcg32_uniform(&r));
             ray3 back = {xs[i], v3_scale(wp, -1.0)};
-            double L = rd_delta_radiance(s, back, &r, &c, &sh).y;
+            double L = rd_delta_radiance(s, back, &r, &c).y;
             sum += L;
             sum2 += L * L;
         }

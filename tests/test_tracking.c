@@ -24,7 +24,7 @@ static void estimate(const rd_scene *s, ray3 r, double tmax, int n, uint64_t see
     for (int i = 0; i < n; i++) {
         pcg32 rng = pcg32_seed(seed, i, 77);
         if (!rd_sample_free_path(s, r, tmax, &rng, &c).hit) escaped++;
-        double T = rd_transmittance(s, r, tmax, &rng, &c);
+        double T = rd_transmittance(s, r, 0.0, tmax, &rng, &c);
         sum += T;
         sum2 += T * T;
     }

@@ -1,0 +1,134 @@
+/* output.c: what a render leaves on disk (docs/cli.md): the mean image, its per-pixel standard
+ * error, a preview, and the JSON report; and the folder they go in. Every file is written under
+ * a temporary name in its folder and renamed, so a failed or interrupted run never leaves a
+ * partial file where a good one was. */
+#define _DEFAULT_SOURCE /* mkdir */
+#include "rd_method.h"
+
+#include <cJSON.h>
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+rd_status rd_make_parent_dirs(const char *path, char *err, size_t errlen)
+{
+    char dir[2048];
+    if (snprintf(dir, sizeof dir, "%s", path) >= (int)sizeof dir) {
+        snprintf(err, errlen, "%.200s...: path too long", path);
+        return RD_ERR_OUTPUT;
+    }
+    char *slash = strrchr(dir, '/');
+    if (!slash) return RD_OK;
+    *slash = 0;
+    for (char *p = dir + 1; *p; p++) {
+        if (*p != '/') continue;
+        *p = 0;
+        if (mkdir(dir, 0777) != 0 && errno != EEXIST) goto fail;
+        *p = '/';
+    }
+    if (dir[0] == 0 || mkdir(dir, 0777) == 0 || errno == EEXIST) return RD_OK;
+fail:
+    snprintf(err, errlen, "%s: cannot create its folder: %s", path, strerror(errno));
+    return RD_ERR_OUTPUT;
+}
+
+/* OUT.exr -> OUT<ext> */
+static void sibling(const char *exr, const char *ext, char *out, size_t n)
+{
+    size_t len = strlen(exr);
+    snprintf(out, n, "%.*s%s", (int)(len > 4 ? len - 4 : len), exr, ext);
+}
+
+/* Write text to path through a temporary name and a rename. */
+static rd_status write_text(const char *path, const char *text, char *err, size_t errlen)
+{
+    char tmp[2200];
+    snprintf(tmp, sizeof tmp, "%.2100s.tmp%ld", path, (long)getpid());
+    FILE *f = fopen(tmp, "w");
+    int ok = f && fputs(text, f) >= 0;
+    if (f && fclose(f) != 0) ok = 0;
+    if (!ok || rename(tmp, path) != 0) {
+        snprintf(err, errlen, "%s: cannot write: %s", path, strerror(errno));
+        remove(tmp);
+        return RD_ERR_OUTPUT;
+    }
+    return RD_OK;
+}
+
+/* The report (docs/cli.md "The render report"), built with cJSON. */
+static char *report_json(const rd_scene *s, const rd_render_opts *o, const rd_render_result *res)
+{
+    const rd_render_stats *st = &res->stats;
+    double paths = st->paths > 0 ? (double)st->paths : 1.0;
+    const rd_method *m = rd_method_find(o->method);
+    cJSON *j = cJSON_CreateObject();
+    if (!j) return NULL;
+    cJSON_AddStringToObject(j, "scene", s->path);
+    cJSON_AddStringToObject(j, "method", o->method);
+    cJSON_AddStringToObject(j, "method_summary", m ? m->summary : "");
+    cJSON_AddNumberToObject(j, "width", res->image.w);
+    cJSON_AddNumberToObject(j, "height", res->image.h);
+    cJSON_AddNumberToObject(j, "spp", st->spp);
+    cJSON_AddNumberToObject(j, "spp_mean", st->spp_mean);
+    cJSON_AddNumberToObject(j, "seed", (double)o->seed);
+    cJSON_AddNumberToObject(j, "threads", o->threads);
+    cJSON_AddNumberToObject(j, "seconds", st->seconds);
+    cJSON_AddNumberToObject(j, "bake_seconds", st->bake_seconds);
+    cJSON_AddNumberToObject(j, "time_limit", o->time_limit);
+    cJSON_AddBoolToObject(j, "interrupted", st->cancelled);
+    cJSON_AddBoolToObject(j, "timed_out", st->timed_out);
+    cJSON_AddNumberToObject(j, "paths", (double)st->paths);
+    cJSON_AddNumberToObject(j, "tentative_collisions", (double)st->collisions);
+    cJSON_AddNumberToObject(j, "density_lookups", (double)st->lookups);
+    cJSON_AddNumberToObject(j, "shadow_rays", (double)st->shadow_rays);
+    cJSON_AddNumberToObject(j, "collisions_per_path", st->collisions / paths);
+    cJSON_AddNumberToObject(j, "lookups_per_path", st->lookups / paths);
+    cJSON_AddNumberToObject(j, "paths_per_second", st->seconds > 0 ? st->paths / st->seconds : 0.0);
+    cJSON_AddNumberToObject(j, "invalid_samples", (double)st->invalid);
+    /* Mean per-pixel standard error (luminance), a one-number noise level of the image. */
+    size_t np = (size_t)res->image.w * res->image.h;
+    double se = 0.0;
+    for (size_t p = 0; p < np; p++)
+        se += 0.2126 * res->stderr_img.rgb[3 * p] + 0.7152 * res->stderr_img.rgb[3 * p + 1] +
+              0.0722 * res->stderr_img.rgb[3 * p + 2];
+    cJSON_AddNumberToObject(j, "mean_pixel_stderr", np ? se / np : 0.0);
+    if (res->n_curve > 0) {
+        cJSON *c = cJSON_AddArrayToObject(j, "convergence");
+        for (int i = 0; c && i < res->n_curve; i++) {
+            cJSON *pt = cJSON_CreateObject();
+            if (!pt) break;
+            cJSON_AddNumberToObject(pt, "seconds", res->curve[i].seconds);
+            cJSON_AddNumberToObject(pt, "spp_mean", res->curve[i].spp_mean);
+            cJSON_AddNumberToObject(pt, "rmse", res->curve[i].rmse);
+            cJSON_AddItemToArray(c, pt);
+        }
+    }
+    char *text = cJSON_Print(j);
+    cJSON_Delete(j);
+    return text;
+}
+
+rd_status rd_render_write(const rd_scene *s, const rd_render_opts *o, const rd_render_result *res,
+                          const char *exr_path, char *err, size_t errlen)
+{
+    char png[2100], json[2100], se[2100];
+    sibling(exr_path, ".png", png, sizeof png);
+    sibling(exr_path, ".json", json, sizeof json);
+    sibling(exr_path, "-stderr.exr", se, sizeof se);
+    rd_status st = rd_make_parent_dirs(exr_path, err, errlen);
+    if (st) return st;
+    if (rd_image_write_exr(exr_path, &res->image, err, errlen) != RD_OK ||
+        rd_image_write_exr(se, &res->stderr_img, err, errlen) != RD_OK ||
+        rd_image_write_png(png, &res->image, s->camera.exposure, err, errlen) != RD_OK)
+        return RD_ERR_OUTPUT;
+    char *text = report_json(s, o, res);
+    if (!text) {
+        snprintf(err, errlen, "%s: out of memory for the report", json);
+        return RD_ERR_NOMEM;
+    }
+    st = write_text(json, text, err, errlen);
+    cJSON_free(text);
+    return st;
+}

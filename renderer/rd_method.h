@@ -1,0 +1,68 @@
+/* rd_method.h: the render methods' table and the context they render in. Internal to
+ * renderer/ (tests include it too).
+ *
+ * A method is one file that defines a `const rd_method` and one row in renderer/methods.c. It
+ * says what it needs baked (a photon map, a guide grid), may prepare shared state once per
+ * render (a pilot pass, tables), and answers radiance queries for camera rays from worker
+ * threads, each with its own rd_thread (counters, scratch memory). render.c owns the passes,
+ * the film, the time budget and the random numbers; nothing in a method touches them. */
+#ifndef RD_METHOD_H
+#define RD_METHOD_H
+
+#include "rd_internal.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+struct pm_map;
+struct sh_guide;
+
+/* What one worker thread owns during a render. Zeroed before the render; scratch is
+ * method->scratch_bytes(ctx) bytes (16-byte aligned) allocated once per thread, or NULL. */
+typedef struct rd_thread {
+    int index;
+    rd_track_counters counters;
+    void *scratch;
+    size_t scratch_bytes;
+} rd_thread;
+
+/* What a render shares across threads (read-only while the passes run). */
+typedef struct rd_render_ctx {
+    const rd_scene *scene;
+    const struct rd_method *method;
+    const struct pm_map *photons;   /* built photon map, when the method needs it */
+    const struct sh_guide *guide;   /* guide grid, when the method needs it */
+    void *state;                    /* the method's own, from prepare (freed by release) */
+    uint64_t seed;
+    int threads;
+} rd_render_ctx;
+
+typedef struct rd_method {
+    const char *name;
+    const char *summary;   /* one line, for --help and the report */
+    unsigned needs;        /* RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE */
+    /* Optional: per-thread scratch size for this render. */
+    size_t (*scratch_bytes)(const rd_render_ctx *ctx);
+    /* Optional: once per render, after the bake, before the passes (e.g. a pilot pass). */
+    rd_status (*prepare)(rd_render_ctx *ctx, char *err, size_t errlen);
+    /* Optional: frees ctx->state. */
+    void (*release)(rd_render_ctx *ctx);
+    /* Radiance arriving at the camera along r. The sampler is keyed by (pixel, sample) and
+     * positioned after the film dimensions (RD_DIM_METHOD); the method draws from it only. */
+    vec3 (*radiance)(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp);
+} rd_method;
+
+/* What rd_bake made (bake.c): the built photon map and the guide (NULL after no_guide). */
+const struct pm_map *rd_baked_map(const rd_baked *b);
+const struct sh_guide *rd_baked_guide(const rd_baked *b);
+
+/* The table (methods.c). NULL for an unknown name. */
+const rd_method *rd_method_find(const char *name);
+
+extern const rd_method rd_method_delta;
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* RD_METHOD_H */
