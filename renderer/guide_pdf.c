@@ -372,11 +372,30 @@ void rd_guide_pdf_sample_stratified(const rd_guide_pdf *pdf, int N, double u, do
 
 int rd_guide_samples_per_ray(double I_ray, double mean_I, double N_mean, int N_min, int N_max)
 {
-    /* seed 001 eq. 17 (reconstructed, THEORY.md §6): N_ray proportional to I_ray. */
+    /* seed 001 eq. 17 (reconstructed, THEORY.md §6): N_ray proportional to I_ray. A ray with no
+     * sample would drop its whole integral (a bias wherever the guide says 0 but the integrand
+     * is not), so every ray gets at least one: N_min < 1 acts as 1. */
+    if (N_min < 1) N_min = 1;
+    if (N_max < N_min) N_max = N_min;
     double v = (mean_I > 0.0 && isfinite(mean_I)) ? N_mean * I_ray / mean_I : N_mean;
     if (isnan(v)) return N_min;
     v = round(v);
     if (v <= (double)N_min) return N_min;
     if (v >= (double)N_max) return N_max;
     return (int)v;
+}
+
+rd_status rd_guide_sampler_check(double alpha, int N_min, int N_max, char *err, size_t errlen)
+{
+    const char *why = NULL;
+    if (!(alpha > 0.0 && alpha <= 1.0))
+        why = "the defensive weight alpha must be in (0, 1]: with alpha = 0 a region the guide "
+              "calls dark is never sampled, and the estimate is biased there";
+    else if (N_min < 1)
+        why = "N_min must be >= 1: a ray given no sample drops its whole integral";
+    else if (N_max < N_min)
+        why = "N_max must be >= N_min";
+    if (!why) return RD_OK;
+    if (err && errlen) snprintf(err, errlen, "%s", why);
+    return RD_ERR_ARG;
 }

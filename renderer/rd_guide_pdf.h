@@ -100,8 +100,14 @@ void rd_guide_pdf_sample_stratified(const rd_guide_pdf *pdf, int N, double u, do
 /* Samples per ray (seed 001 eq. 17, reconstructed; THEORY.md §6):
  *   N_ray = clamp(round(N_mean I_ray / mean_I), N_min, N_max),
  * mean_I from a pilot pass. mean_I <= 0 or non-finite (no pilot information) gives
- * clamp(round(N_mean), N_min, N_max). Requires 0 <= N_min <= N_max. */
+ * clamp(round(N_mean), N_min, N_max). Never less than 1: N_min < 1 acts as 1 (a ray with no
+ * sample drops its integral), and N_max < N_min acts as N_min. */
 int rd_guide_samples_per_ray(double I_ray, double mean_I, double N_mean, int N_min, int N_max);
+
+/* The settings an unbiased guided estimate needs (call it wherever one is promised): the
+ * defensive weight alpha in (0, 1] so p > 0 wherever the integrand can be non-zero, and
+ * 1 <= N_min <= N_max. RD_ERR_ARG with the reason otherwise. */
+rd_status rd_guide_sampler_check(double alpha, int N_min, int N_max, char *err, size_t errlen);
 
 #ifdef __cplusplus
 }

@@ -437,6 +437,10 @@ Test(guide_pdf, samples_per_ray_eq17)
     cr_expect_eq(rd_guide_samples_per_ray(1.0, 3.0, 8, 1, 64), 3);   /* round(2.67) */
     cr_expect_eq(rd_guide_samples_per_ray(1.0, 0.0, 8, 1, 64), 8);   /* no pilot */
     cr_expect_eq(rd_guide_samples_per_ray(NAN, 1.0, 8, 1, 64), 1);
+    /* A dark ray with N_min = 0 still gets one sample (it used to get none: a bias wherever the
+     * guide says 0 but the integrand is not). */
+    cr_expect_eq(rd_guide_samples_per_ray(0.0, 1.0, 8, 0, 64), 1);
+    cr_expect_eq(rd_guide_samples_per_ray(0.0, 1.0, 8, -3, 64), 1);
 }
 
 Test(guide_pdf, bad_arguments_and_capacity)
@@ -594,4 +598,19 @@ Test(guide_pdf, build_from_baked_guide)
     cr_expect_eq(rd_guide_pdf_build_guide(&P, g, o, dn, 0.0, 10.0, 0.1, err, sizeof err),
                  RD_ERR_ARG, "non-unit d accepted");
     sh_guide_free(g);
+}
+
+/* Settings that would break an unbiased estimate are refused with a reason. */
+Test(guide_pdf, unbiased_settings_are_checked)
+{
+    char err[256];
+    cr_expect_eq(rd_guide_sampler_check(0.1, 1, 64, err, sizeof err), RD_OK);
+    cr_expect_eq(rd_guide_sampler_check(1.0, 1, 1, err, sizeof err), RD_OK);
+    cr_expect_eq(rd_guide_sampler_check(0.0, 1, 64, err, sizeof err), RD_ERR_ARG);
+    cr_expect(strstr(err, "alpha") != NULL, "%s", err);
+    cr_expect_eq(rd_guide_sampler_check(-0.5, 1, 64, err, sizeof err), RD_ERR_ARG);
+    cr_expect_eq(rd_guide_sampler_check(NAN, 1, 64, err, sizeof err), RD_ERR_ARG);
+    cr_expect_eq(rd_guide_sampler_check(0.1, 0, 64, err, sizeof err), RD_ERR_ARG);
+    cr_expect(strstr(err, "N_min") != NULL, "%s", err);
+    cr_expect_eq(rd_guide_sampler_check(0.1, 8, 4, err, sizeof err), RD_ERR_ARG);
 }

@@ -1,0 +1,234 @@
+/* The render core: the keyed sampler, the light sampler, sphere-light sampling at tiny angles,
+ * the film's standard error, the convergence curve and the time budget.
+ * Statistical tolerances are derived from the standard error (5 sigma) or a chi-square quantile
+ * at an upper tail of 1e-4; seeds are fixed. */
+#include "support/rd_test.h"
+
+#include <time.h>
+
+/* Chi-square of observed counts against expected ones, pooling cells with expectation < 5
+ * (DESIGN.md convention 9). Returns the statistic; *dof gets the degrees of freedom. */
+static double chi2_pooled(const double *obs, const double *expct, int n, int *dof)
+{
+    double chi2 = 0, po = 0, pe = 0;
+    int k = 0;
+    for (int i = 0; i < n; i++) {
+        if (expct[i] < 5) { po += obs[i]; pe += expct[i]; continue; }
+        chi2 += (obs[i] - expct[i]) * (obs[i] - expct[i]) / expct[i];
+        k++;
+    }
+    if (pe >= 5) { chi2 += (po - pe) * (po - pe) / pe; k++; }
+    *dof = k - 1;
+    return chi2;
+}
+
+/* Dimensions 0 and 1 of the keyed sampler (the film jitter) are uniform and independent over
+ * (pixel, sample) keys: 2-D chi-square on a 16x16 grid. Negative control: the same statistic
+ * for a visibly non-uniform draw (u^1.1) must fail. */
+Test(render, keyed_sampler_is_uniform_in_2d)
+{
+    enum { G = 16, N = 256000 };
+    static double obs[G * G], bad[G * G], expct[G * G];
+    for (int i = 0; i < G * G; i++) expct[i] = (double)N / (G * G);
+    for (int i = 0; i < N; i++) {
+        rd_sampler s = rd_sampler_start((uint64_t)(i % 977), (uint64_t)(i / 977), 7);
+        double u = rd_sampler_1d(&s), v = rd_sampler_1d(&s);
+        cr_assert(u >= 0.0 && u < 1.0 && v >= 0.0 && v < 1.0);
+        obs[(int)(u * G) * G + (int)(v * G)] += 1;
+        bad[(int)(pow(u, 1.1) * G) * G + (int)(v * G)] += 1;
+    }
+    int dof;
+    double c = chi2_pooled(obs, expct, G * G, &dof), crit = rt_chi2_quantile(dof, 3.719);
+    cr_expect(c < crit, "chi2 %.1f >= %.1f (dof %d)", c, crit, dof);
+    double cb = chi2_pooled(bad, expct, G * G, &dof);
+    cr_expect(cb > crit, "the negative control passed: chi2 %.1f", cb);
+    /* The same key gives the same numbers; another dimension gives others. */
+    rd_sampler a = rd_sampler_start(5, 9, 3), b = rd_sampler_start(5, 9, 3);
+    double a0 = rd_sampler_1d(&a);
+    cr_expect(a0 == rd_sampler_1d(&b));
+    cr_expect(rd_sampler_1d(&a) != a0);
+}
+
+/* Lights are picked in proportion to their power (alias table): chi-square of 200000 picks
+ * against pmf_i = power_i / sum, with a negative control (uniform expectation). */
+Test(render, light_sampler_follows_power)
+{
+    rd_scene *s = rt_scene("lights.json",
+                           "{\"camera\":{\"position\":[0,0,5],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
+                           "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
+                           "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1}],"
+                           "\"lights\":[{\"type\":\"point\",\"position\":[0,2,0],\"intensity\":1},"
+                           "{\"type\":\"point\",\"position\":[0,2,0],\"intensity\":7},"
+                           "{\"type\":\"spot\",\"position\":[2,2,2],\"look_at\":[0,0,0],\"angle\":30,\"intensity\":50},"
+                           "{\"type\":\"sphere\",\"center\":[0,3,0],\"radius\":0.2,\"radiance\":3},"
+                           "{\"type\":\"environment\",\"radiance\":0.01}]}");
+    const int n = s->n_lights, N = 200000;
+    double power[8], total = 0, obs[8] = {0}, expct[8], uni[8];
+    for (int i = 0; i < n; i++) total += power[i] = rd_light_power(&s->lights[i], rd_scene_radius(s));
+    for (int i = 0; i < n; i++) {
+        expct[i] = N * power[i] / total;
+        uni[i] = (double)N / n;
+        cr_expect(fabs(s->light_sampler.pmf[i] - power[i] / total) < 1e-12, "pmf[%d]", i);
+    }
+    pcg32 rng = pcg32_seed(1, 2, 3);
+    for (int k = 0; k < N; k++) {
+        double pmf;
+        int i = rd_light_sampler_pick(&s->light_sampler, pcg32_uniform(&rng), &pmf);
+        cr_assert(i >= 0 && i < n);
+        cr_assert(pmf == s->light_sampler.pmf[i]);
+        obs[i] += 1;
+    }
+    int dof;
+    double c = chi2_pooled(obs, expct, n, &dof), crit = rt_chi2_quantile(dof, 3.719);
+    cr_expect(c < crit, "chi2 %.1f >= %.1f (dof %d)", c, crit, dof);
+    double cu = chi2_pooled(obs, uni, n, &dof);
+    cr_expect(cu > rt_chi2_quantile(dof, 3.719), "negative control (uniform) passed: %.1f", cu);
+    rd_scene_free(s);
+}
+
+/* Sphere-light sampling keeps full precision for tiny and distant spheres: the pdf of the cone
+ * equals 1 / (2 pi (1 - cos_max)) with 1 - cos_max = s / (1 + sqrt(1 - s)), s = r^2/d^2 (an
+ * exact identity), to 1e-12 relative, and NEE from x sees the irradiance E = L pi s (1 + O(s)).
+ * The formula used before, 1 - sqrt(1 - s), is off by ~1e-4 at s = 1e-12 and is 0 (an infinite
+ * pdf, a zero contribution) at s = 1e-18: this test failed on it. */
+Test(render, tiny_distant_sphere_light_keeps_precision)
+{
+    const double radii[] = {1e-3, 1e-6, 0.5};
+    for (int k = 0; k < 3; k++) {
+        rd_light l = {0};
+        l.kind = RD_LIGHT_SPHERE;
+        l.pos = v3(0, 0, 1000.0);
+        l.radius = radii[k];
+        l.value = v3(2, 2, 2);
+        vec3 x = v3(0, 0, 0);
+        double s2 = radii[k] * radii[k] / 1e6, omc = s2 / (1.0 + sqrt(1.0 - s2));
+        pcg32 rng = pcg32_seed(11, k, 5);
+        double Esum = 0;
+        const int N = 4000;
+        for (int i = 0; i < N; i++) {
+            rd_light_sample ls;
+            cr_assert(rd_light_sample_li(&l, x, pcg32_uniform(&rng), pcg32_uniform(&rng), &ls));
+            cr_assert(isfinite(ls.pdf) && ls.pdf > 0);
+            cr_expect(fabs(ls.pdf * 2.0 * M_PI * omc - 1.0) < 1e-12, "r=%g: pdf %.17g", radii[k], ls.pdf);
+            cr_expect(fabs(rd_light_pdf(&l, x, ls.wi) - ls.pdf) <= 1e-12 * ls.pdf, "r=%g: rd_light_pdf", radii[k]);
+            /* The sampled direction hits the sphere at about d - r. */
+            cr_expect(ls.dist > 0 && fabs(ls.dist - (1000.0 - radii[k])) < radii[k] + 1e-9, "dist %.17g", ls.dist);
+            Esum += ls.contrib.y * ls.wi.z; /* irradiance on a plane facing the light */
+        }
+        /* Every sample's contribution L/pdf is the same, so the mean has no noise beyond the
+         * cosine factor (1 - cos within the cone, <= s). */
+        double E = Esum / N, E_exact = 2.0 * M_PI * omc * 2.0 * (1.0 - 0.5 * omc);
+        /* cos varies by at most omc inside the cone: 5 sigma of the mean is 5 omc / sqrt(12 N). */
+        double tol = fmax(1e-9, 5.0 * omc / sqrt(12.0 * N));
+        cr_expect(fabs(E / E_exact - 1.0) < tol, "r=%g: irradiance %.17g vs %.17g", radii[k], E, E_exact);
+        /* Negative control: the naive 1 - cos_max. */
+        double naive = 1.0 - sqrt(1.0 - s2);
+        if (k < 2) cr_expect(fabs(naive / omc - 1.0) > 1e-9, "r=%g: the naive form should be off", radii[k]);
+    }
+}
+
+/* The film's per-pixel standard error is honest: over K independent renders (seeds), the
+ * spread of each pixel's mean matches the standard error the renders report. Pooled over P
+ * pixels, R = sum var_emp / sum mean(se^2) has relative standard deviation about
+ * sqrt(2 / ((K-1) P)) (chi-square with K-1 dof per pixel): tolerance 5 of those. */
+Test(render, stderr_matches_the_spread_between_seeds, .timeout = 120)
+{
+    rd_scene *s = rt_scene("se.json",
+                           "{\"camera\":{\"position\":[0,0,4],\"look_at\":[0,0,0],\"resolution\":[8,8],\"fov\":25},"
+                           "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
+                           "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1.5,\"albedo\":0.8,\"g\":0.3}],"
+                           "\"lights\":[{\"type\":\"point\",\"position\":[0,3,0],\"intensity\":20}],"
+                           "\"settings\":{\"max_depth\":1}}");
+    enum { K = 24, P = 64 };
+    static double m[K][P], se2[K][P];
+    char err[RD_ERRLEN];
+    for (int k = 0; k < K; k++) {
+        rd_render_opts o = {.method = "delta", .spp = 32, .seed = 100 + k, .threads = 2};
+        rd_render_result r;
+        cr_assert(rd_render(s, &o, &r, err, sizeof err) == RD_OK, "%s", err);
+        for (int p = 0; p < P; p++) {
+            m[k][p] = r.image.rgb[3 * p + 1];
+            se2[k][p] = (double)r.stderr_img.rgb[3 * p + 1] * r.stderr_img.rgb[3 * p + 1];
+        }
+        rd_render_result_free(&r);
+    }
+    double num = 0, den = 0;
+    int used = 0;
+    for (int p = 0; p < P; p++) {
+        double mu = 0, v = 0, s2 = 0;
+        for (int k = 0; k < K; k++) { mu += m[k][p]; s2 += se2[k][p]; }
+        mu /= K;
+        for (int k = 0; k < K; k++) v += (m[k][p] - mu) * (m[k][p] - mu);
+        if (s2 <= 0) continue; /* a pixel that sees no light has no variance */
+        num += v / (K - 1);
+        den += s2 / K;
+        used++;
+    }
+    cr_assert(used > P / 2, "too few lit pixels (%d)", used);
+    double R = num / den, tol = 5.0 * sqrt(2.0 / ((K - 1.0) * used));
+    cr_expect(fabs(R - 1.0) < tol, "spread / reported stderr^2 = %.3f (tolerance %.3f)", R, tol);
+    rd_scene_free(s);
+}
+
+/* With a reference, the report's convergence curve has one point per pass, in time order, and
+ * its last RMSE is the RMSE of the final image against the reference. */
+Test(render, convergence_curve_against_a_reference, .timeout = 120)
+{
+    rd_scene *s = rt_scene("cc.json",
+                           "{\"camera\":{\"position\":[0,0,4],\"look_at\":[0,0,0],\"resolution\":[16,12]},"
+                           "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
+                           "\"density\":{\"type\":\"noise\",\"octaves\":2},\"sigma_t\":2,\"albedo\":0.9}],"
+                           "\"lights\":[{\"type\":\"point\",\"position\":[1,2,1],\"intensity\":5}]}");
+    char err[RD_ERRLEN];
+    rd_render_opts o = {.method = "delta", .spp = 64, .seed = 1, .threads = 2};
+    rd_render_result ref, r;
+    cr_assert(rd_render(s, &o, &ref, err, sizeof err) == RD_OK, "%s", err);
+    o.spp = 9;
+    o.seed = 2;
+    o.reference = &ref.image;
+    cr_assert(rd_render(s, &o, &r, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(r.n_curve >= 2, "passes %d", r.n_curve); /* 1 spp, then the rest */
+    for (int i = 1; i < r.n_curve; i++) {
+        cr_expect(r.curve[i].seconds >= r.curve[i - 1].seconds);
+        cr_expect(r.curve[i].spp_mean > r.curve[i - 1].spp_mean);
+    }
+    cr_expect(r.curve[0].spp_mean == 1.0 && r.curve[r.n_curve - 1].spp_mean == 9.0);
+    double se = 0;
+    size_t n = (size_t)r.image.w * r.image.h * 3;
+    for (size_t i = 0; i < n; i++) se += (r.image.rgb[i] - ref.image.rgb[i]) * (double)(r.image.rgb[i] - ref.image.rgb[i]);
+    double rmse = sqrt(se / n), last = r.curve[r.n_curve - 1].rmse;
+    cr_expect(fabs(last - rmse) <= 1e-5 * rmse, "curve %.9g vs image %.9g", last, rmse);
+    /* A reference of another size is refused before rendering. */
+    rd_image small = {4, 4, ref.image.rgb};
+    o.reference = &small;
+    cr_expect(rd_render(s, &o, &r, err, sizeof err) == RD_ERR_ARG);
+    cr_expect(strstr(err, "4x4") != NULL, "%s", err);
+    rd_render_result_free(&ref);
+    rd_scene_free(s);
+}
+
+/* A time limit stops the render between pixels: a budget far shorter than one pass at 1 spp
+ * ends within a tenth of the budget (plus the film's resolve), with part of the first pass
+ * done. The scene is big and dense enough that one pass takes many times the budget. */
+Test(render, time_budget_is_kept_within_a_tenth, .timeout = 120)
+{
+    rd_scene *s = rt_scene("tb.json",
+                           "{\"camera\":{\"position\":[0,0,4],\"look_at\":[0,0,0],\"resolution\":[640,480]},"
+                           "\"media\":[{\"bounds\":{\"min\":[-2,-2,-2],\"max\":[2,2,2]},"
+                           "\"density\":{\"type\":\"noise\",\"octaves\":6},\"sigma_t\":20,\"albedo\":0.99}],"
+                           "\"lights\":[{\"type\":\"environment\",\"radiance\":1}]}");
+    char err[RD_ERRLEN];
+    const double budget = 0.5;
+    rd_render_opts o = {.method = "delta", .spp = 1 << 24, .seed = 1, .threads = 2, .time_limit = budget};
+    rd_render_result r;
+    cr_assert(rd_render(s, &o, &r, err, sizeof err) == RD_OK, "%s", err);
+    cr_expect(r.stats.timed_out, "the time limit should have stopped it");
+    cr_expect(r.stats.spp_mean < 1.0, "one pass should take longer than the budget (spp %.3f)", r.stats.spp_mean);
+    cr_expect(r.stats.spp_mean > 0.0, "some pixels should be done");
+    cr_expect(r.stats.seconds >= budget && r.stats.seconds <= 1.1 * budget, "took %.3f s for a %.1f s budget",
+              r.stats.seconds, budget);
+    for (size_t i = 0; i < (size_t)r.image.w * r.image.h * 3; i++)
+        cr_assert(isfinite(r.image.rgb[i]) && isfinite(r.stderr_img.rgb[i]));
+    rd_render_result_free(&r);
+    rd_scene_free(s);
+}
