@@ -148,6 +148,7 @@ void rd_image_normalise(rd_image *img)
 
 struct rd_baked {
     pm_map *map;
+    pm_map *indirect;  /* NULL unless rd_bake_opts.indirect */
     sh_guide *guide;
     rd_bake_stats stats;
 };
@@ -166,11 +167,13 @@ void rd_baked_free(rd_baked *b)
     if (!b) return;
     sh_guide_free(b->guide);
     pm_map_free(b->map);
+    pm_map_free(b->indirect);
     free(b);
 }
 
 const rd_bake_stats *rd_baked_stats(const rd_baked *b) { return &b->stats; }
 const pm_map *rd_baked_map(const rd_baked *b) { return b ? b->map : NULL; }
+const pm_map *rd_baked_indirect_map(const rd_baked *b) { return b ? b->indirect : NULL; }
 const sh_guide *rd_baked_guide(const rd_baked *b) { return b ? b->guide : NULL; }
 
 rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char *err,
@@ -228,6 +231,29 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
     bs->segments = pm_map_segment_count(b->map);
     bs->map_bytes = pm_map_memory_bytes(b->map);
     bs->index_seconds = pm_map_build_seconds(b->map);
+    /* 2b. The same photons without their first flight, for multiple scattering beside
+     * next-event estimation (photon i follows the same path: its stream is keyed by i). */
+    if (o->indirect) {
+        rd_photon_opts po = {.count = o->photons > 0 ? o->photons : s->photons.count,
+                             .store_direct = 0,
+                             .segments = 0,
+                             .max_depth = s->photons.max_depth,
+                             .seed = o->seed >= 0 ? (uint64_t)o->seed : s->photons.seed,
+                             .threads = o->threads};
+        rd_photon_stats ps;
+        b->indirect = pm_map_new();
+        if (!b->indirect) {
+            snprintf(err, errlen, "%s: out of memory for the photon map", s->path);
+            st = RD_ERR_NOMEM;
+            goto fail;
+        }
+        if ((st = rd_trace_photons(s, &po, b->indirect, &ps, err, errlen)) != RD_OK) goto fail;
+        if (pm_map_build(b->indirect, pmerr, sizeof pmerr) != PM_OK) {
+            snprintf(err, errlen, "photon map: %s", pmerr);
+            st = RD_ERR_INTERNAL;
+            goto fail;
+        }
+    }
     /* 3. The SH guide grid (THEORY.md §5). */
     if (!o->no_guide) {
         if ((st = rd_guide_bake(s, b->map, o->threads, &b->guide, err, errlen)) != RD_OK) goto fail;

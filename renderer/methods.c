@@ -6,6 +6,9 @@
 
 static const rd_method *const table[] = {
     &rd_method_delta,
+    &rd_method_guided,
+    &rd_method_transmittance,
+    &rd_method_uniform,
 };
 enum { N_METHODS = sizeof table / sizeof table[0] };
 

@@ -218,6 +218,16 @@ typedef struct {
     int max_depth;       /* adaptive: deepest level */
 } rd_guide_settings;
 
+/* Ray-marching settings of the guided methods (scene key "march", docs/scene-format.md). */
+typedef enum { RD_LS_NEE_PHOTONS, RD_LS_PHOTONS, RD_LS_NEE } rd_ls_kind;
+typedef struct {
+    int samples;         /* N_mean: samples per ray (uniform and transmittance: every ray) */
+    int min_samples;     /* guided: N_min >= 1 */
+    int max_samples;     /* guided: N_max */
+    double alpha;        /* defensive weight of the mixture, in (0, 1] */
+    rd_ls_kind ls;       /* source of sigma_s L_s at a sample */
+} rd_march_settings;
+
 struct rd_scene {
     char path[1024];
     rd_camera camera;
@@ -230,6 +240,7 @@ struct rd_scene {
     rd_settings settings;
     rd_photon_settings photons;
     rd_guide_settings guide;
+    rd_march_settings march;
     rd_light_sampler light_sampler; /* lights by power, built by the loader */
     int *sphere_lights;   /* indices of the sphere lights (the lights a path can hit) */
     int n_sphere_lights;

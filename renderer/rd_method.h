@@ -32,6 +32,7 @@ typedef struct rd_render_ctx {
     const rd_scene *scene;
     const struct rd_method *method;
     const struct pm_map *photons;   /* built photon map, when the method needs it */
+    const struct pm_map *photons_indirect; /* photons stored without their first flight */
     const struct sh_guide *guide;   /* guide grid, when the method needs it */
     void *state;                    /* the method's own, from prepare (freed by release) */
     uint64_t seed;
@@ -41,7 +42,9 @@ typedef struct rd_render_ctx {
 typedef struct rd_method {
     const char *name;
     const char *summary;   /* one line, for --help and the report */
-    unsigned needs;        /* RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE */
+    unsigned needs;        /* RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | RD_NEEDS_INDIRECT, at most */
+    /* Optional: what this scene's settings need (a subset of `needs`); NULL = `needs`. */
+    unsigned (*needs_for)(const rd_scene *scene);
     /* Optional: per-thread scratch size for this render. */
     size_t (*scratch_bytes)(const rd_render_ctx *ctx);
     /* Optional: once per render, after the bake, before the passes (e.g. a pilot pass). */
@@ -55,12 +58,14 @@ typedef struct rd_method {
 
 /* What rd_bake made (bake.c): the built photon map and the guide (NULL after no_guide). */
 const struct pm_map *rd_baked_map(const rd_baked *b);
+const struct pm_map *rd_baked_indirect_map(const rd_baked *b);
 const struct sh_guide *rd_baked_guide(const rd_baked *b);
 
 /* The table (methods.c). NULL for an unknown name. */
 const rd_method *rd_method_find(const char *name);
 
 extern const rd_method rd_method_delta;
+extern const rd_method rd_method_guided, rd_method_uniform, rd_method_transmittance;
 
 #ifdef __cplusplus
 }

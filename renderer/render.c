@@ -225,26 +225,32 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
     }
     double t_start = now_seconds();
     double deadline = o->time_limit > 0 ? t_start + o->time_limit : 0.0;
-    rd_render_ctx ctx = {s, m, NULL, NULL, NULL, o->seed, o->threads > 0 ? o->threads : omp_get_max_threads()};
+    rd_render_ctx ctx = {s, m, NULL, NULL, NULL, NULL, o->seed, o->threads > 0 ? o->threads : omp_get_max_threads()};
 
     /* What the method needs baked: given, or baked here (its time is part of the render). */
     rd_baked *own = NULL;
     rd_status st = RD_OK;
-    if (m->needs) {
+    unsigned needs = m->needs_for ? m->needs_for(s) : m->needs;
+    if (needs) {
         const rd_baked *b = o->baked;
         if (!b) {
             rd_bake_opts bo = {0};
             bo.seed = -1;
             bo.threads = o->threads;
-            bo.no_guide = !(m->needs & RD_NEEDS_GUIDE);
+            bo.no_guide = !(needs & RD_NEEDS_GUIDE);
+            bo.indirect = (needs & RD_NEEDS_INDIRECT) != 0;
             if ((st = rd_bake(s, &bo, &own, err, errlen)) != RD_OK) return st;
             b = own;
         }
         ctx.photons = rd_baked_map(b);
+        ctx.photons_indirect = rd_baked_indirect_map(b);
         ctx.guide = rd_baked_guide(b);
-        if ((m->needs & RD_NEEDS_GUIDE) && !ctx.guide) {
+        const char *missing = (needs & RD_NEEDS_GUIDE) && !ctx.guide ? "a guide grid"
+                              : (needs & RD_NEEDS_INDIRECT) && !ctx.photons_indirect ? "an indirect photon map"
+                                                                                      : NULL;
+        if (missing) {
             rd_baked_free(own);
-            snprintf(err, errlen, "--method %s: needs a guide grid, and the bake given has none", m->name);
+            snprintf(err, errlen, "--method %s: needs %s, and the bake given has none", m->name, missing);
             return RD_ERR_ARG;
         }
     }

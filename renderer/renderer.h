@@ -65,7 +65,9 @@ int rd_scene_spp_given(const rd_scene *scene);    /* 1 when settings.spp is in t
 /* ---- Methods ----------------------------------------------------------------------------- *
  * The render methods form one table (renderer/methods.c); --help, settings.method, the
  * report and rd_render all read it. */
-enum { RD_NEEDS_PHOTONS = 1, RD_NEEDS_GUIDE = 2 }; /* what a method needs baked */
+/* What a method needs baked: a photon map, its guide grid, and the photon map of the photons
+ * stored without their first flight (multiple scattering only, beside next-event estimation). */
+enum { RD_NEEDS_PHOTONS = 1, RD_NEEDS_GUIDE = 2, RD_NEEDS_INDIRECT = 4 };
 int rd_method_count(void);
 /* Name, one-line summary and needs of method i (0 <= i < rd_method_count()). */
 const char *rd_method_name(int i);
@@ -154,6 +156,8 @@ typedef struct {
     int threads;               /* 0 = all; results do not depend on it */
     const char *load_photons;  /* reuse a saved .pmap instead of tracing (NULL: trace) */
     int no_guide;              /* 1: stop after the photon map */
+    int indirect;              /* 1: also the map of photons stored without their first flight
+                                  (same photons, same seed: the first collisions left out) */
 } rd_bake_opts;
 
 typedef struct {

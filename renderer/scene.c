@@ -732,6 +732,36 @@ static rd_status parse_guide(vctx *c, const cJSON *j, rd_guide_settings *g)
     return RD_OK;
 }
 
+/* Ray marching of the guided methods (docs/scene-format.md "march"). */
+static rd_status parse_march(vctx *c, const cJSON *j, rd_march_settings *m)
+{
+    m->samples = 16;
+    m->min_samples = 1;
+    m->max_samples = 64;
+    m->alpha = 0.2;
+    m->ls = RD_LS_NEE_PHOTONS;
+    if (!j) return RD_OK;
+    const char *path = "march";
+    TRY(need_object(c, j, path));
+    static const char *const keys[] = {"samples", "min_samples", "max_samples", "alpha", "ls", NULL};
+    TRY(check_keys(c, j, path, keys));
+    long long v;
+    TRY(get_int(c, j, path, "samples", 0, 16, 1, 4096, &v));
+    m->samples = (int)v;
+    TRY(get_int(c, j, path, "min_samples", 0, 1, 1, 4096, &v));
+    m->min_samples = (int)v;
+    TRY(get_int(c, j, path, "max_samples", 0, 64, 1, 4096, &v));
+    m->max_samples = (int)v;
+    if (m->max_samples < m->min_samples)
+        return fail(c, "march.max_samples", "must be >= march.min_samples (%d), found %d", m->min_samples, m->max_samples);
+    TRY(get_num(c, j, path, "alpha", 0, 0.2, 0, 1, 1, 0, &m->alpha));
+    static const char *const ls[] = {"nee+photons", "photons", "nee", NULL};
+    int k = 0;
+    TRY(get_enum(c, j, path, "ls", 0, ls, 0, &k));
+    m->ls = (rd_ls_kind)k;
+    return RD_OK;
+}
+
 /* ---- --set overrides ----------------------------------------------------------------------- */
 /* Walk a dotted path with [i] indices, creating missing object members, and replace the leaf. */
 static rd_status apply_override(vctx *c, cJSON *root, const rd_override *ov)
@@ -851,7 +881,7 @@ void rd_scene_free(rd_scene *s)
 static rd_status validate(vctx *c, const cJSON *root, rd_scene *s)
 {
     if (!cJSON_IsObject(root)) return fail(c, "(top level)", "expected an object, found %s", type_name(root));
-    static const char *const keys[] = {"camera", "media", "lights", "background", "settings", "photons", "guide", NULL};
+    static const char *const keys[] = {"camera", "media", "lights", "background", "settings", "photons", "guide", "march", NULL};
     TRY(check_keys(c, root, "", keys));
     const cJSON *cam = cJSON_GetObjectItemCaseSensitive(root, "camera");
     if (!cam) return fail(c, "camera", "missing (required)");
@@ -906,6 +936,7 @@ static rd_status validate(vctx *c, const cJSON *root, rd_scene *s)
                     s->settings.track_step, 2.0 * rd_scene_radius(s));
     TRY(parse_photons(c, cJSON_GetObjectItemCaseSensitive(root, "photons"), &s->photons));
     TRY(parse_guide(c, cJSON_GetObjectItemCaseSensitive(root, "guide"), &s->guide));
+    TRY(parse_march(c, cJSON_GetObjectItemCaseSensitive(root, "march"), &s->march));
     if (s->guide.track && !s->photons.segments)
         s->photons.segments = 1; /* the track-length bake needs the segments */
     /* Lights by power for next-event estimation, and the lights a path can hit. */

@@ -1,0 +1,334 @@
+/* integrator_march.c: ray marching with importance-sampled sample positions, the method of
+ * seed 001 (§3.3-4; THEORY.md §6) and its two baselines, as one integrator with three
+ * placements of the samples along a camera ray:
+ *
+ *   guided         p(t) = the histogram PDF of the ray through the SH guide grid (eq. 16),
+ *                  mixed with a uniform defensive component (weight guide.alpha), N_ray samples
+ *                  by eq. 17 from a pilot pass;
+ *   uniform        a fixed step with one random offset per ray (eq. 5): N evenly spaced samples;
+ *   transmittance  p(t) proportional to sigma_t T(0,t) (eq. 11), from a piecewise-constant
+ *                  extinction of 4N midpoint lookups, mixed with the same defensive component.
+ *
+ * All three draw stratified samples t_n = P^-1((n + u)/N) from one rd_guide_pdf (the uniform
+ * placement is that PDF with alpha = 1), so they differ only in where the samples go. At each
+ * sample the estimator (THEORY.md §6) is
+ *
+ *   L ~= T(0,t_end) L_behind + (1/N) sum_n T(0,t_n) S(x_n, -d) / p(t_n),
+ *
+ * with T from the free-path engine's unbiased estimator, swept once along the sorted samples
+ * (T(0,t_n) = T(0,t_{n-1}) T(t_{n-1},t_n), independent pieces), and S = sigma_s L_s from the
+ * source chosen by guide.ls:
+ *   photons      the photon-map radiance estimate alone (the seed's original),
+ *   nee+photons  sigma_s x next-event estimation (direct light) + the photon map of photons
+ *                stored without their first flight (multiple scattering),
+ *   nee          sigma_s x next-event estimation only (single scattering; for tests).
+ * Given S, the estimate is unbiased for every placement (the defensive mixture keeps p > 0
+ * wherever the integrand can be non-zero, and every ray gets at least one sample); what the
+ * placements change is the variance. The photon estimate's own bias is shared. */
+#include "rd_guide_pdf.h"
+#include "rd_method.h"
+#include "rd_photons.h"
+#include "sh.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+typedef enum { PLACE_GUIDED, PLACE_UNIFORM, PLACE_TRANSMITTANCE } placement;
+
+/* What every thread reads: the pilot's mean I_ray (eq. 17) and the scratch layout. */
+typedef struct {
+    double mean_I;   /* mean over the pilot's rays of I_ray, 0 when unknown */
+    int seg_cap;     /* PDF segments per ray */
+    int n_max;       /* samples per ray at most */
+    int k_steps;     /* transmittance placement: extinction lookups per ray */
+} march_state;
+
+/* Scratch of one thread: PDF segments, sample positions and densities, extinction table. */
+typedef struct {
+    rd_gpdf_seg *seg;
+    double *t, *p;
+    double *tb, *f, *sig;
+} march_scratch;
+
+static size_t scratch_layout(const march_state *st, march_scratch *ms, void *base)
+{
+    size_t off = 0;
+    char *b = base;
+#define TAKE(field, type, n)                                                                   \
+    do {                                                                                       \
+        if (b) ms->field = (type *)(b + off);                                                   \
+        off += ((size_t)(n) * sizeof(type) + 15) / 16 * 16;                                     \
+    } while (0)
+    TAKE(seg, rd_gpdf_seg, st->seg_cap);
+    TAKE(t, double, st->n_max);
+    TAKE(p, double, st->n_max);
+    TAKE(tb, double, st->k_steps + 1);
+    TAKE(f, double, st->k_steps);
+    TAKE(sig, double, st->k_steps);
+#undef TAKE
+    return off;
+}
+
+/* ---- Where the ray is, and what lies behind the media ------------------------------------- */
+
+/* What a camera ray sees beyond [t0, t1]: the sphere light it hits, or the environment and the
+ * background (camera rays: no MIS, full weight). */
+static vec3 behind(const rd_scene *s, int hit_light)
+{
+    if (hit_light >= 0) return s->lights[hit_light].value;
+    vec3 L = s->background;
+    for (int i = 0; i < s->n_lights; i++)
+        if (s->lights[i].kind == RD_LIGHT_ENVIRONMENT) L = v3_add(L, s->lights[i].value);
+    return L;
+}
+
+/* The part of the ray inside the media bounds, before the nearest light: [t0, t1]. */
+static int medium_span(const rd_scene *s, ray3 r, double *t0, double *t1, int *hit_light)
+{
+    double t_light;
+    *hit_light = rd_scene_hit_light(s, r, INFINITY, -1, &t_light);
+    if (s->n_media == 0) return 0;
+    return rd_box_intersect(s->bmin, s->bmax, r, 0.0, t_light, t0, t1) && *t1 > *t0;
+}
+
+/* ---- The three placements ------------------------------------------------------------------ */
+
+/* Build the PDF of `place` over [t0, t1] for ray r into pdf. Returns the samples to take. */
+static int build_pdf(const rd_render_ctx *ctx, placement place, const march_scratch *ms, ray3 r,
+                     double t0, double t1, rd_guide_pdf *pdf, rd_track_counters *c)
+{
+    const rd_scene *s = ctx->scene;
+    const rd_march_settings *ms_set = &s->march;
+    const march_state *st = ctx->state;
+    rd_guide_pdf_init(pdf, ms->seg, st->seg_cap);
+    int N = ms_set->samples;
+    if (place == PLACE_GUIDED) {
+        double o[3] = {r.o.x, r.o.y, r.o.z}, d[3] = {r.d.x, r.d.y, r.d.z};
+        if (rd_guide_pdf_build_guide(pdf, ctx->guide, o, d, t0, t1, ms_set->alpha, NULL, 0) != RD_OK)
+            rd_guide_pdf_build(pdf, 0, NULL, NULL, NULL, t0, t1, 1.0, NULL, 0); /* defensive only */
+        N = rd_guide_samples_per_ray(pdf->I, st->mean_I, ms_set->samples, ms_set->min_samples, ms_set->max_samples);
+    } else if (place == PLACE_UNIFORM) {
+        rd_guide_pdf_build(pdf, 0, NULL, NULL, NULL, t0, t1, 1.0, NULL, 0);
+    } else {
+        /* Piecewise-constant extinction from K midpoint lookups: p ~ sigma~ T~ (eq. 11) is the
+         * histogram PDF with f_j = sigma_j, sampled exactly; the defensive mixture covers where
+         * the midpoints saw no medium. */
+        int K = st->k_steps;
+        double h = (t1 - t0) / K;
+        for (int j = 0; j < K; j++) {
+            ms->tb[j] = t0 + j * h;
+            vec3 x = ray_at(r, t0 + (j + 0.5) * h);
+            const rd_medium *m = rd_scene_medium_at(s, x);
+            ms->sig[j] = m ? rd_medium_sigma_t(m, x) : 0.0;
+            ms->f[j] = ms->sig[j];
+            c->lookups += m != NULL;
+        }
+        ms->tb[K] = t1;
+        rd_guide_pdf_build(pdf, K, ms->tb, ms->f, ms->sig, t0, t1, ms_set->alpha, NULL, 0);
+    }
+    return N > st->n_max ? st->n_max : (N < 1 ? 1 : N);
+}
+
+/* ---- The in-scattered radiance source S = sigma_s L_s ------------------------------------- */
+
+static double phase_cb(double cos_theta, void *user) { return rd_hg_eval(*(const double *)user, cos_theta); }
+
+static vec3 photon_estimate(const pm_map *map, vec3 x, vec3 w, double g, int k)
+{
+    float xf[3] = {(float)x.x, (float)x.y, (float)x.z}, wf[3] = {(float)w.x, (float)w.y, (float)w.z}, out[3];
+    if (!map || pm_map_radiance(map, xf, wf, k, phase_cb, &g, out) < 0) return v3(0, 0, 0);
+    return v3(out[0], out[1], out[2]);
+}
+
+static vec3 source(const rd_render_ctx *ctx, const rd_medium *m, vec3 x, vec3 d, double sigma_t,
+                   pcg32 *rng, rd_track_counters *c)
+{
+    const rd_scene *s = ctx->scene;
+    vec3 S = v3(0, 0, 0);
+    vec3 w = v3_scale(d, -1.0);
+    switch (s->march.ls) {
+    case RD_LS_PHOTONS:
+        return photon_estimate(ctx->photons, x, w, m->g, s->guide.k);
+    case RD_LS_NEE_PHOTONS:
+        S = photon_estimate(ctx->photons_indirect, x, w, m->g, s->guide.k);
+        /* fall through: add the direct light */
+    case RD_LS_NEE:
+    default: {
+        vec3 sigma_s = v3_scale(m->albedo, sigma_t);
+        return v3_add(S, v3_mul(sigma_s, rd_nee(s, x, d, m->g, rng, c)));
+    }
+    }
+}
+
+/* ---- The estimator -------------------------------------------------------------------------- */
+
+static vec3 march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp,
+                           placement place)
+{
+    const rd_scene *s = ctx->scene;
+    rd_track_counters *c = &th->counters;
+    double t0, t1;
+    int hit_light;
+    if (!medium_span(s, r, &t0, &t1, &hit_light)) return behind(s, hit_light);
+    march_scratch ms;
+    scratch_layout(ctx->state, &ms, th->scratch);
+    rd_guide_pdf pdf;
+    int N = build_pdf(ctx, place, &ms, r, t0, t1, &pdf, c);
+    rd_guide_pdf_sample_stratified(&pdf, N, rd_sampler_1d(smp), ms.t, ms.p);
+    pcg32 rng = rd_sampler_stream(smp);
+    vec3 L = v3(0, 0, 0);
+    double T = 1.0, tp = t0;
+    for (int n = 0; n < N && T != 0.0; n++) {
+        T *= rd_transmittance(s, r, tp, ms.t[n], &rng, c); /* T(0, t_n), one sweep */
+        tp = ms.t[n];
+        vec3 x = ray_at(r, ms.t[n]);
+        const rd_medium *m = rd_scene_medium_at(s, x);
+        if (!m || !(ms.p[n] > 0.0)) continue;
+        double sigma_t = rd_medium_sigma_t(m, x);
+        c->lookups++;
+        if (sigma_t <= 0.0) continue;
+        vec3 S = source(ctx, m, x, r.d, sigma_t, &rng, c);
+        L = v3_madd(L, S, T / (N * ms.p[n]));
+    }
+    if (T != 0.0) T *= rd_transmittance(s, r, tp, t1, &rng, c);
+    return v3_madd(L, behind(s, hit_light), T);
+}
+
+static vec3 radiance_guided(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
+{
+    return march_radiance(ctx, th, r, smp, PLACE_GUIDED);
+}
+static vec3 radiance_uniform(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
+{
+    return march_radiance(ctx, th, r, smp, PLACE_UNIFORM);
+}
+static vec3 radiance_transmittance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
+{
+    return march_radiance(ctx, th, r, smp, PLACE_TRANSMITTANCE);
+}
+
+/* ---- Set-up: scratch sizes and the pilot pass ---------------------------------------------- */
+
+static size_t march_scratch_bytes(const rd_render_ctx *ctx)
+{
+    march_scratch ms;
+    return scratch_layout(ctx->state, &ms, NULL);
+}
+
+static rd_status march_prepare_common(rd_render_ctx *ctx, char *err, size_t errlen)
+{
+    const rd_march_settings *m = &ctx->scene->march;
+    rd_status st = rd_guide_sampler_check(m->alpha, m->min_samples, m->max_samples, err, errlen);
+    if (st != RD_OK) return st;
+    march_state *ms = calloc(1, sizeof *ms);
+    if (!ms) {
+        snprintf(err, errlen, "out of memory for the marcher");
+        return RD_ERR_NOMEM;
+    }
+    ms->n_max = m->max_samples > m->samples ? m->max_samples : m->samples;
+    ms->k_steps = 4 * m->samples;
+    ms->seg_cap = ms->k_steps + 2;
+    if (ctx->guide) {
+        /* A uniform grid is crossed in at most nx + ny + nz - 2 cells; an adaptive one in at
+         * most 3 x 2^depth leaves. Plus two fillers (rd_guide_pdf.h). A ray that needs more
+         * falls back to the defensive PDF alone (still unbiased). */
+        sh_guide_stats gs;
+        sh_guide_stats_get(ctx->guide, &gs);
+        int need = gs.kind == SH_GRID_UNIFORM ? gs.res[0] + gs.res[1] + gs.res[2] + 2
+                                              : 3 * (1 << (gs.depth_max < 12 ? gs.depth_max : 12)) + 2;
+        if (need > ms->seg_cap) ms->seg_cap = need;
+    }
+    ctx->state = ms;
+    return RD_OK;
+}
+
+static rd_status prepare_plain(rd_render_ctx *ctx, char *err, size_t errlen)
+{
+    return march_prepare_common(ctx, err, errlen);
+}
+
+/* The pilot pass of eq. 17: mean I_ray over a sparse grid of camera rays through pixel centres
+ * (every 4th pixel each way) that enter the media. Costs a guide walk per ray, no tracking. */
+static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
+{
+    rd_status st = march_prepare_common(ctx, err, errlen);
+    if (st != RD_OK) return st;
+    march_state *mst = ctx->state;
+    const rd_scene *s = ctx->scene;
+    march_scratch ms;
+    size_t bytes = scratch_layout(mst, &ms, NULL);
+    void *buf = aligned_alloc(16, (bytes + 15) / 16 * 16);
+    if (!buf) {
+        snprintf(err, errlen, "out of memory for the pilot pass");
+        return RD_ERR_NOMEM;
+    }
+    scratch_layout(mst, &ms, buf);
+    double sum = 0.0;
+    long n = 0;
+    for (int y = 2; y < s->camera.height; y += 4)
+        for (int x = 2; x < s->camera.width; x += 4) {
+            ray3 r = rd_camera_ray(&s->camera, x + 0.5, y + 0.5);
+            double t0, t1;
+            int hit;
+            if (!medium_span(s, r, &t0, &t1, &hit)) continue;
+            rd_guide_pdf pdf;
+            rd_guide_pdf_init(&pdf, ms.seg, mst->seg_cap);
+            double o[3] = {r.o.x, r.o.y, r.o.z}, d[3] = {r.d.x, r.d.y, r.d.z};
+            if (rd_guide_pdf_build_guide(&pdf, ctx->guide, o, d, t0, t1, s->march.alpha, NULL, 0) != RD_OK) continue;
+            sum += pdf.I;
+            n++;
+        }
+    free(buf);
+    mst->mean_I = n > 0 ? sum / n : 0.0;
+    return RD_OK;
+}
+
+static void march_release(rd_render_ctx *ctx)
+{
+    free(ctx->state);
+    ctx->state = NULL;
+}
+
+/* What the scene's source needs baked: the photon map (photons) or its indirect part
+ * (nee+photons); the guided placement needs the guide (and so a photon map) in any case. */
+static unsigned source_needs(const rd_scene *s)
+{
+    return s->march.ls == RD_LS_PHOTONS ? RD_NEEDS_PHOTONS
+           : s->march.ls == RD_LS_NEE_PHOTONS ? RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT
+                                              : 0u;
+}
+static unsigned needs_guided(const rd_scene *s) { return source_needs(s) | RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE; }
+#define MARCH_NEEDS (RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | RD_NEEDS_INDIRECT)
+
+const rd_method rd_method_guided = {
+    .name = "guided",
+    .summary = "seed 001: ray marching with samples placed by the photon-map SH guide (eq. 16-17)",
+    .needs = MARCH_NEEDS,
+    .needs_for = needs_guided,
+    .scratch_bytes = march_scratch_bytes,
+    .prepare = prepare_guided,
+    .release = march_release,
+    .radiance = radiance_guided,
+};
+
+const rd_method rd_method_uniform = {
+    .name = "uniform",
+    .summary = "seed 001 baseline: ray marching with a fixed step and one random offset (eq. 5)",
+    .needs = RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT,
+    .needs_for = source_needs,
+    .scratch_bytes = march_scratch_bytes,
+    .prepare = prepare_plain,
+    .release = march_release,
+    .radiance = radiance_uniform,
+};
+
+const rd_method rd_method_transmittance = {
+    .name = "transmittance",
+    .summary = "seed 001 baseline: ray marching with samples placed by sigma_t T (eq. 11)",
+    .needs = RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT,
+    .needs_for = source_needs,
+    .scratch_bytes = march_scratch_bytes,
+    .prepare = prepare_plain,
+    .release = march_release,
+    .radiance = radiance_transmittance,
+};
