@@ -35,13 +35,15 @@ Test(photons, first_collision_density_of_a_point_light, .timeout = 120)
     pm_map *map = trace(s, n, 1, 1, 7, 2, &st);
     cr_assert(pm_map_photon_count(map) == n, "every photon collides once: %zu", pm_map_photon_count(map));
     const pm_photon *ph = pm_map_photons(map);
+    double o[3]; /* stored positions are offsets from the map origin (the media centre) */
+    pm_map_origin(map, o);
     const double phi = 8.0 * M_PI, sig = 1.5;
     enum { NS = 24 };
     double edges[NS + 1], obs[NS + 1] = {0};
     for (int i = 0; i <= NS; i++) edges[i] = 4.0 * i / NS; /* shells to r = 4, then the tail */
     double power_sum = 0;
     for (size_t i = 0; i < n; i++) {
-        double dx = ph[i].pos[0] - 0.3, dy = ph[i].pos[1] + 0.2, dz = ph[i].pos[2] - 0.1;
+        double dx = o[0] + ph[i].pos[0] - 0.3, dy = o[1] + ph[i].pos[1] + 0.2, dz = o[2] + ph[i].pos[2] - 0.1;
         double r = sqrt(dx * dx + dy * dy + dz * dz);
         int b = (int)(r / 4.0 * NS);
         obs[b < NS ? b : NS] += 1;
@@ -63,7 +65,7 @@ Test(photons, first_collision_density_of_a_point_light, .timeout = 120)
     for (int k = 0; k < 3; k++) {
         double r1 = radii[k] - 0.05, r2 = radii[k] + 0.05, cnt = 0;
         for (size_t i = 0; i < n; i++) {
-            double dx = ph[i].pos[0] - 0.3, dy = ph[i].pos[1] + 0.2, dz = ph[i].pos[2] - 0.1;
+            double dx = o[0] + ph[i].pos[0] - 0.3, dy = o[1] + ph[i].pos[1] + 0.2, dz = o[2] + ph[i].pos[2] - 0.1;
             double r = sqrt(dx * dx + dy * dy + dz * dz);
             if (r >= r1 && r < r2) cnt++;
         }
@@ -207,7 +209,7 @@ Test(photons, knn_radiance_converges_to_delta_tracking, .timeout = 300)
         cr_assert(pm_map_build(map, err, sizeof err) == PM_OK, "%s", err);
         double e2 = 0;
         for (int i = 0; i < NP; i++) {
-            float x[3] = {(float)xs[i].x, (float)xs[i].y, (float)xs[i].z};
+            double x[3] = {xs[i].x, xs[i].y, xs[i].z};
             float w[3] = {(float)ws[i].x, (float)ws[i].y, (float)ws[i].z};
             float out[3];
             cr_assert(pm_map_radiance(map, x, w, ks[j], rd_phase_hg_cb, &gg, out) == ks[j]);
