@@ -226,3 +226,59 @@ Test(photons, knn_radiance_converges_to_delta_tracking, .timeout = 300)
     cr_log_info("k-NN RMS relative error: %.3f %.3f %.3f (slope %.3f)", rms[0], rms[1], rms[2], slope);
     rd_scene_free(s);
 }
+
+/* ---- Positions far from the world origin, errors ----------------------------------------- */
+
+Test(photons, map_origin_is_the_media_centre_far_from_zero)
+{
+    /* A medium 1e5 m from the world origin: the map's origin is the centre of the media
+     * bounds, and every stored photon (origin + offset, in double) lies inside the medium, to
+     * the float precision of an offset (1 ulp at 1 m is 1.2e-7 m). */
+    rd_scene *s = rt_scene("far.json",
+                           "{\"camera\":{\"position\":[100000,100000,100010],\"look_at\":[100000,100000,100000],\"resolution\":[4,4]},"
+                           "\"media\":[{\"bounds\":{\"min\":[99999,99999.5,99999],\"max\":[100001,100000.5,100002]},"
+                           "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":2,\"albedo\":0.9}],"
+                           "\"lights\":[{\"type\":\"point\",\"position\":[100000,100000,100000.5],\"intensity\":1}]}");
+    rd_photon_stats st;
+    pm_map *map = trace(s, 20000, 1, 8, 3, 2, &st);
+    double o[3];
+    pm_map_origin(map, o);
+    cr_assert(o[0] == 100000.0 && o[1] == 100000.0 && o[2] == 100000.5, "origin (%.17g, %.17g, %.17g)",
+              o[0], o[1], o[2]);
+    const pm_photon *ph = pm_map_photons(map);
+    size_t n = pm_map_photon_count(map);
+    cr_assert(n > 10000, "%zu photons", n);
+    const double lo[3] = {99999, 99999.5, 99999}, hi[3] = {100001, 100000.5, 100002};
+    for (size_t i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) {
+            double x = o[a] + ph[i].pos[a];
+            cr_assert(x >= lo[a] - 2e-7 && x <= hi[a] + 2e-7, "photon %zu axis %d at %.9f", i, a, x);
+        }
+    pm_map_free(map);
+    rd_scene_free(s);
+}
+
+Test(photons, out_of_memory_writes_a_one_line_message)
+{
+    /* SIZE_MAX photons need SIZE_MAX / 4096 work blocks, far more bytes than an address space
+     * holds: calloc fails deterministically. (This used to return RD_ERR_NOMEM with err left
+     * empty, and the block count overflowed to 0.) */
+    rd_scene *s = rt_scene("oom.json",
+                           "{\"camera\":{\"position\":[0,0,5],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
+                           "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
+                           "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1,\"albedo\":0.5}],"
+                           "\"lights\":[{\"type\":\"point\",\"position\":[0,0,0],\"intensity\":1}]}");
+    pm_map *map = pm_map_new();
+    char err[RD_ERRLEN] = "";
+    rd_photon_stats st;
+    rd_photon_opts o = {.count = SIZE_MAX, .store_direct = 1, .max_depth = 4, .seed = 1, .threads = 1};
+    rd_status rc = rd_trace_photons(s, &o, map, &st, err, sizeof err);
+    cr_assert_eq(rc, RD_ERR_NOMEM, "status %d (%s)", rc, err);
+    cr_assert(err[0] != 0, "no message");
+    cr_assert_null(strchr(err, '\n'), "message is not one line: %s", err);
+    cr_assert_not_null(strstr(err, "out of memory for"), "message does not say what: %s", err);
+    cr_assert_not_null(strstr(err, "block"), "message does not name the allocation: %s", err);
+    cr_assert_eq(pm_map_photon_count(map), 0);
+    pm_map_free(map);
+    rd_scene_free(s);
+}
