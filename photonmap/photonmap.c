@@ -28,6 +28,10 @@
  *    a slightly enlarged radius search and sorted (first_within). With random positions this
  *    fallback runs for about 1.5 PM_TIE_REL k of the queries (0.8% at k = 256, measured);
  *    with duplicate photons it is what makes the answer independent of the tree.
+ *  - Coordinates. FLANN indexes the stored float positions, which are offsets from the map's
+ *    origin (double). A query point arrives in world coordinates as double; to_local()
+ *    subtracts the origin in double and rounds once to float, so a scene 1e5 m from the world
+ *    origin is searched with the precision of one near it.
  */
 #include "photonmap.h"
 
@@ -65,6 +69,7 @@
 #define PM_BATCH_CHUNK 64
 
 struct pm_map {
+    double origin[3]; /* world position that stored positions are relative to */
     pm_photon *ph; /* nph photons, room for capph */
     size_t nph, capph;
     pm_segment *seg; /* nseg segments, room for capseg */
@@ -94,6 +99,19 @@ static void set_err(char *err, size_t errlen, const char *fmt, ...)
 }
 
 static int finite3(const float v[3])
+{
+    return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]);
+}
+
+/* World point (double) to the float offset from the origin that FLANN indexes: the difference
+ * is taken in double, then rounded once. */
+static void to_local(const pm_map *map, const double x[3], float q[3])
+{
+    for (int a = 0; a < 3; a++)
+        q[a] = (float)(x[a] - map->origin[a]);
+}
+
+static int finite3d(const double v[3])
 {
     return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]);
 }
@@ -327,6 +345,32 @@ pm_status pm_map_add_segments(pm_map *map, const pm_segment *seg, size_t n, char
     return PM_OK;
 }
 
+pm_status pm_map_set_origin(pm_map *map, const double origin[3], char *err, size_t errlen)
+{
+    if (map == NULL || origin == NULL) {
+        set_err(err, errlen, "pm_map_set_origin: NULL argument");
+        return PM_ERR_ARG;
+    }
+    if (!finite3d(origin)) {
+        set_err(err, errlen, "pm_map_set_origin: origin (%g, %g, %g) is not finite", origin[0],
+                origin[1], origin[2]);
+        return PM_ERR_ARG;
+    }
+    if (map->nph > 0 || map->nseg > 0) {
+        set_err(err, errlen, "pm_map_set_origin: the map already holds %zu photons and %zu "
+                             "segments (set the origin before adding any)", map->nph, map->nseg);
+        return PM_ERR_ARG;
+    }
+    memcpy(map->origin, origin, sizeof map->origin);
+    return PM_OK;
+}
+
+void pm_map_origin(const pm_map *map, double origin[3])
+{
+    for (int a = 0; a < 3; a++)
+        origin[a] = map ? map->origin[a] : 0.0;
+}
+
 pm_status pm_map_build(pm_map *map, char *err, size_t errlen)
 {
     if (map == NULL) {
@@ -391,8 +435,17 @@ const pm_segment *pm_map_segments(const pm_map *map)
 void pm_map_bounds(const pm_map *map, float lo[3], float hi[3])
 {
     for (int a = 0; a < 3; a++) {
-        lo[a] = (map && map->nph > 0) ? map->lo[a] : 0.0f;
-        hi[a] = (map && map->nph > 0) ? map->hi[a] : 0.0f;
+        lo[a] = hi[a] = 0.0f;
+        if (map == NULL || map->nph == 0)
+            continue;
+        /* world = origin + offset in double, then rounded outward to float */
+        double l = map->origin[a] + (double)map->lo[a], h = map->origin[a] + (double)map->hi[a];
+        lo[a] = (float)l;
+        hi[a] = (float)h;
+        if ((double)lo[a] > l)
+            lo[a] = nextafterf(lo[a], -INFINITY);
+        if ((double)hi[a] < h)
+            hi[a] = nextafterf(hi[a], INFINITY);
     }
 }
 
@@ -545,10 +598,10 @@ static void fill_empty(int *fi, float *fd, size_t n)
     }
 }
 
-int pm_map_knn(const pm_map *map, const float x[3], int k, int *idx, float *dist2)
+/* k-NN for a point already in map-local float coordinates (see to_local). */
+static int knn_local(const pm_map *map, const float x[3], int k, int *idx, float *dist2)
 {
-    if (map == NULL || x == NULL || idx == NULL || dist2 == NULL || k <= 0 || !map->built ||
-        !finite3(x))
+    if (idx == NULL || dist2 == NULL || k <= 0 || !map->built || !finite3(x))
         return -1;
     if (map->nph == 0)
         return 0;
@@ -569,10 +622,24 @@ int pm_map_knn(const pm_map *map, const float x[3], int k, int *idx, float *dist
     return r;
 }
 
-int pm_map_radius(const pm_map *map, const float x[3], float r, int max, int *idx, float *dist2)
+int pm_map_knn(const pm_map *map, const double world[3], int k, int *idx, float *dist2)
 {
-    if (map == NULL || x == NULL || idx == NULL || dist2 == NULL || max <= 0 || !map->built ||
-        !finite3(x) || !(r >= 0.0f))
+    if (map == NULL || world == NULL || !finite3d(world))
+        return -1;
+    float x[3];
+    to_local(map, world, x);
+    return knn_local(map, x, k, idx, dist2);
+}
+
+int pm_map_radius(const pm_map *map, const double world[3], float r, int max, int *idx,
+                  float *dist2)
+{
+    if (map == NULL || world == NULL || idx == NULL || dist2 == NULL || max <= 0 ||
+        !map->built || !finite3d(world) || !(r >= 0.0f))
+        return -1;
+    float x[3];
+    to_local(map, world, x);
+    if (!finite3(x))
         return -1;
     if (map->nph == 0)
         return 0;
@@ -614,7 +681,7 @@ int pm_map_radius(const pm_map *map, const float x[3], float r, int max, int *id
     return out;
 }
 
-pm_status pm_map_knn_batch(const pm_map *map, const float *queries, size_t nq, int k, int *idx,
+pm_status pm_map_knn_batch(const pm_map *map, const double *queries, size_t nq, int k, int *idx,
                            float *dist2, int threads, char *err, size_t errlen)
 {
     if (map == NULL || (nq > 0 && (queries == NULL || idx == NULL || dist2 == NULL))) {
@@ -634,7 +701,10 @@ pm_status pm_map_knn_batch(const pm_map *map, const float *queries, size_t nq, i
         return PM_ERR_ARG;
     }
     for (size_t i = 0; i < nq; i++) {
-        if (!finite3(queries + 3 * i)) {
+        float q[3];
+        if (finite3d(queries + 3 * i))
+            to_local(map, queries + 3 * i, q);
+        if (!finite3d(queries + 3 * i) || !finite3(q)) {
             set_err(err, errlen, "pm_map_knn_batch: query %zu is not finite", i);
             return PM_ERR_ARG;
         }
@@ -657,6 +727,7 @@ pm_status pm_map_knn_batch(const pm_map *map, const float *queries, size_t nq, i
         size_t cells = (size_t)PM_BATCH_CHUNK * (size_t)kq;
         int *fi = malloc(cells * sizeof(int));
         float *fd = malloc(cells * sizeof(float));
+        float ql[3 * PM_BATCH_CHUNK]; /* the chunk's query rows in map-local float */
         if (fi == NULL || fd == NULL) {
 #pragma omp atomic write
             failed = 1;
@@ -672,9 +743,10 @@ pm_status pm_map_knn_batch(const pm_map *map, const float *queries, size_t nq, i
             size_t q0 = c * PM_BATCH_CHUNK;
             size_t nb = nq - q0 < PM_BATCH_CHUNK ? nq - q0 : PM_BATCH_CHUNK;
             fill_empty(fi, fd, nb * (size_t)kq);
-            /* FLANN reads the query rows only; its C API just lacks const. */
-            if (flann_find_nearest_neighbors_index_float(map->index, (float *)(queries + 3 * q0),
-                                                         (int)nb, fi, fd, kq, &p) != 0) {
+            for (size_t j = 0; j < nb; j++)
+                to_local(map, queries + 3 * (q0 + j), ql + 3 * j);
+            if (flann_find_nearest_neighbors_index_float(map->index, ql, (int)nb, fi, fd, kq,
+                                                         &p) != 0) {
 #pragma omp atomic write
                 failed = 2;
                 continue;
@@ -683,7 +755,7 @@ pm_status pm_map_knn_batch(const pm_map *map, const float *queries, size_t nq, i
                 size_t row = q0 + j;
                 int *oi = idx + row * ks;
                 float *od = dist2 + row * ks;
-                if (finish_knn(map, queries + 3 * row, want, fi + j * (size_t)kq,
+                if (finish_knn(map, ql + 3 * j, want, fi + j * (size_t)kq,
                                fd + j * (size_t)kq, kq, oi, od) < 0) {
 #pragma omp atomic write
                     failed = 2;
@@ -711,7 +783,7 @@ pm_status pm_map_knn_batch(const pm_map *map, const float *queries, size_t nq, i
 
 /* Jensen & Christensen's k-NN estimate: out = sum_k w_k dPhi_k / ((4/3) pi r^3), r = distance
  * to the farthest of the photons used, with w_k = p(w'_k . w) for radiance or 1 for density. */
-static int estimate(const pm_map *map, const float x[3], int k, const float w[3],
+static int estimate(const pm_map *map, const double x[3], int k, const float w[3],
                     pm_phase_fn phase, void *user, float out[3])
 {
     if (map == NULL || k <= 0)
@@ -747,7 +819,7 @@ static int estimate(const pm_map *map, const float x[3], int k, const float w[3]
     return n;
 }
 
-int pm_map_density(const pm_map *map, const float x[3], int k, float out[3])
+int pm_map_density(const pm_map *map, const double x[3], int k, float out[3])
 {
     if (out == NULL)
         return -1;
@@ -755,7 +827,7 @@ int pm_map_density(const pm_map *map, const float x[3], int k, float out[3])
     return estimate(map, x, k, NULL, NULL, NULL, out);
 }
 
-int pm_map_radiance(const pm_map *map, const float x[3], const float w[3], int k,
+int pm_map_radiance(const pm_map *map, const double x[3], const float w[3], int k,
                     pm_phase_fn phase, void *phase_user, float out[3])
 {
     if (out == NULL)
@@ -769,8 +841,9 @@ int pm_map_radiance(const pm_map *map, const float x[3], const float w[3], int k
 /* ---------------------------------------------------------------------------------------- */
 /* File format (docs/photonmap-format.md)                                                    */
 
-#define PM_FILE_VERSION 1u
+#define PM_FILE_VERSION 2u   /* 2 added the origin; 1 is still read, with origin 0 */
 #define PM_HEADER_BYTES 24u  /* magic, version, photon count, segment count */
+#define PM_ORIGIN_BYTES 24u  /* version 2: origin x, y, z as float64 */
 #define PM_PHOTON_BYTES 36u  /* 9 float32 */
 #define PM_SEGMENT_BYTES 40u /* 10 float32 */
 #define PM_CHECKSUM_BYTES 8u /* FNV-1a 64 of everything before it */
@@ -779,6 +852,7 @@ int pm_map_radiance(const pm_map *map, const float x[3], const float w[3], int k
 
 /* The records are written as their in-memory floats; that needs these exact layouts. */
 _Static_assert(sizeof(float) == 4, "float must be IEEE-754 binary32");
+_Static_assert(sizeof(double) == 8, "double must be IEEE-754 binary64");
 _Static_assert(sizeof(pm_photon) == PM_PHOTON_BYTES, "pm_photon must be 9 packed floats");
 _Static_assert(sizeof(pm_segment) == PM_SEGMENT_BYTES, "pm_segment must be 10 packed floats");
 
@@ -827,6 +901,24 @@ static uint64_t get_le(const unsigned char *p, int nbytes)
     for (int i = 0; i < nbytes; i++)
         v |= (uint64_t)p[i] << (8 * i);
     return v;
+}
+
+/* The origin as three little-endian IEEE-754 binary64 values. */
+static void put_origin(unsigned char *p, const double origin[3])
+{
+    for (int a = 0; a < 3; a++) {
+        uint64_t bits;
+        memcpy(&bits, &origin[a], 8);
+        put_le(p + 8 * a, bits, 8);
+    }
+}
+
+static void get_origin(const unsigned char *p, double origin[3])
+{
+    for (int a = 0; a < 3; a++) {
+        uint64_t bits = get_le(p + 8 * a, 8);
+        memcpy(&origin[a], &bits, 8);
+    }
 }
 
 /* Write n bytes of float records in little-endian order, updating the checksum. */
@@ -880,11 +972,12 @@ pm_status pm_map_save(const pm_map *map, const char *path, char *err, size_t err
         free(tmp);
         return PM_ERR_IO;
     }
-    unsigned char head[PM_HEADER_BYTES];
+    unsigned char head[PM_HEADER_BYTES + PM_ORIGIN_BYTES];
     memcpy(head, "PMAP", 4);
     put_le(head + 4, PM_FILE_VERSION, 4);
     put_le(head + 8, (uint64_t)map->nph, 8);
     put_le(head + 16, (uint64_t)map->nseg, 8);
+    put_origin(head + PM_HEADER_BYTES, map->origin);
     uint64_t h = fnv1a(FNV_OFFSET, head, sizeof head);
     int ok = fwrite(head, 1, sizeof head, f) == sizeof head;
     ok = ok && write_records(f, map->ph, map->nph * sizeof(pm_photon), &h);
@@ -949,12 +1042,12 @@ pm_status pm_map_load(pm_map **out, const char *path, char *err, size_t errlen)
         goto fail;
     }
     const uint64_t size = (uint64_t)st.st_size;
-    const uint64_t minimum = PM_HEADER_BYTES + PM_CHECKSUM_BYTES;
 
-    /* 1. Header: magic, version, counts, all checked against the file size before any
-     *    allocation, so a corrupt count can never make us allocate an absurd amount. */
-    unsigned char head[PM_HEADER_BYTES];
-    size_t got = fread(head, 1, sizeof head, f);
+    /* 1. Header: magic, version, counts (and from version 2 the origin), all checked against
+     *    the file size before any allocation, so a corrupt count can never make us allocate
+     *    an absurd amount. */
+    unsigned char head[PM_HEADER_BYTES + PM_ORIGIN_BYTES];
+    size_t got = fread(head, 1, PM_HEADER_BYTES, f);
     if (size == 0) {
         set_err(err, errlen, "%s: empty file (not a photon map)", path);
         goto fail;
@@ -963,12 +1056,17 @@ pm_status pm_map_load(pm_map **out, const char *path, char *err, size_t errlen)
         set_err(err, errlen, "%s: not a photon map (bad magic)", path);
         goto fail;
     }
-    if (got >= 8 && get_le(head + 4, 4) != PM_FILE_VERSION) {
-        set_err(err, errlen, "%s: unsupported version %" PRIu64 " (expected %u)", path,
-                get_le(head + 4, 4), PM_FILE_VERSION);
+    const uint64_t version = got >= 8 ? get_le(head + 4, 4) : PM_FILE_VERSION;
+    if (version != 1 && version != PM_FILE_VERSION) {
+        set_err(err, errlen, "%s: unsupported version %" PRIu64 " (expected 1 or %u)", path,
+                version, PM_FILE_VERSION);
         goto fail;
     }
-    if (size < minimum || got < sizeof head) {
+    const size_t headlen = PM_HEADER_BYTES + (version >= 2 ? PM_ORIGIN_BYTES : 0);
+    const uint64_t minimum = headlen + PM_CHECKSUM_BYTES;
+    if (got == PM_HEADER_BYTES && version >= 2)
+        got += fread(head + PM_HEADER_BYTES, 1, PM_ORIGIN_BYTES, f);
+    if (size < minimum || got < headlen) {
         set_err(err, errlen, "%s: truncated: expected at least %" PRIu64 " bytes, found %" PRIu64,
                 path, minimum, size);
         goto fail;
@@ -993,6 +1091,9 @@ pm_status pm_map_load(pm_map **out, const char *path, char *err, size_t errlen)
                 INT_MAX);
         goto fail;
     }
+    double origin[3] = {0.0, 0.0, 0.0}; /* version 1 files have none: origin 0 */
+    if (version >= 2)
+        get_origin(head + PM_HEADER_BYTES, origin);
 
     /* 2. Records, then the checksum over header and records. */
     map = pm_map_new();
@@ -1008,7 +1109,7 @@ pm_status pm_map_load(pm_map **out, const char *path, char *err, size_t errlen)
     }
     map->capph = (size_t)nph;
     map->capseg = (size_t)nseg;
-    uint64_t h = fnv1a(FNV_OFFSET, head, sizeof head);
+    uint64_t h = fnv1a(FNV_OFFSET, head, headlen);
     unsigned char tail[PM_CHECKSUM_BYTES];
     if (!read_records(f, map->ph, (size_t)nph * sizeof(pm_photon), &h) ||
         !read_records(f, map->seg, (size_t)nseg * sizeof(pm_segment), &h) ||
@@ -1023,7 +1124,13 @@ pm_status pm_map_load(pm_map **out, const char *path, char *err, size_t errlen)
         goto fail;
     }
 
-    /* 3. Values: the same rules as pm_map_add_photons / pm_map_add_segments. */
+    /* 3. Values: a finite origin, and the same rules as pm_map_add_photons / _add_segments. */
+    if (!finite3d(origin)) {
+        set_err(err, errlen, "%s: origin (%g, %g, %g) is not finite", path, origin[0], origin[1],
+                origin[2]);
+        goto fail;
+    }
+    memcpy(map->origin, origin, sizeof map->origin);
     for (size_t i = 0; i < (size_t)nph; i++) {
         if (!check_photon(&map->ph[i], why, sizeof why)) {
             set_err(err, errlen, "%s: photon %zu: %s", path, i, why);

@@ -9,7 +9,13 @@
  * photon, w = direction the scattered light leaves in).
  *
  * Units and conventions (what the renderer stores, and what the estimates therefore mean):
- *   pos       metres (scene units), float
+ *   origin    a point in world coordinates (double, metres) held by the map, 0 by default.
+ *             Stored positions (photon pos, segment org) are float offsets from it, so a scene
+ *             far from the world origin keeps float precision relative to its own size (float
+ *             spacing at 1e5 m is 0.008 m; at 1 m from the origin it is 1.2e-7 m). Set it to
+ *             the middle of the scene before adding anything (pm_map_set_origin). Queries take
+ *             world coordinates in double and subtract the origin in double.
+ *   pos       metres (scene units), float, relative to the map origin
  *   dir       unit propagation direction w' of the photon *before* the event
  *   power     RGB watts *scattered* at the event: incident power times the medium's RGB albedo.
  *             With that convention the estimates below return sigma_s-weighted quantities
@@ -51,14 +57,14 @@ typedef enum {
 
 /* One stored photon. Open value type. */
 typedef struct {
-    float pos[3];   /* m */
+    float pos[3];   /* m, relative to the map origin (world = origin + pos) */
     float dir[3];   /* unit propagation direction w' */
     float power[3]; /* W, RGB, scattered power (see above) */
 } pm_photon;
 
 /* One photon path segment (seed 004 idea taken to volumes). Open value type. */
 typedef struct {
-    float org[3];   /* m */
+    float org[3];   /* m, relative to the map origin (world = origin + org) */
     float dir[3];   /* unit */
     float length;   /* m, > 0 */
     float power[3]; /* W, RGB, flowing along the segment */
@@ -78,6 +84,12 @@ pm_status pm_map_add_photons(pm_map *map, const pm_photon *ph, size_t n, char *e
 pm_status pm_map_add_segments(pm_map *map, const pm_segment *seg, size_t n, char *err,
                               size_t errlen);
 
+/* The origin [m, world coordinates] that stored positions are relative to; default (0, 0, 0).
+ * It can be set only while the map holds no photons and no segments (PM_ERR_ARG otherwise,
+ * and for a non-finite value): records already stored would silently move. */
+pm_status pm_map_set_origin(pm_map *map, const double origin[3], char *err, size_t errlen);
+void pm_map_origin(const pm_map *map, double origin[3]); /* 0 for a NULL map */
+
 /* Build the FLANN kd-tree over photon positions. Must be called (again) after adding photons
  * and before any query. A map with zero photons builds and answers every query with 0 found. */
 pm_status pm_map_build(pm_map *map, char *err, size_t errlen);
@@ -87,23 +99,28 @@ size_t pm_map_photon_count(const pm_map *map);
 const pm_photon *pm_map_photons(const pm_map *map);
 size_t pm_map_segment_count(const pm_map *map);
 const pm_segment *pm_map_segments(const pm_map *map);
-void pm_map_bounds(const pm_map *map, float lo[3], float hi[3]); /* of photon positions; 0 if none */
+/* Bounds of the photon positions in world coordinates (origin + pos), rounded outward to float
+ * so that every photon lies inside; 0 if there are none. */
+void pm_map_bounds(const pm_map *map, float lo[3], float hi[3]);
 size_t pm_map_memory_bytes(const pm_map *map); /* photons + segments + index (approximate) */
 double pm_map_build_seconds(const pm_map *map); /* wall time of the last pm_map_build */
 
-/* k nearest photons to x, sorted by distance. Writes up to k indices and squared distances;
+/* Every query point x is in world coordinates [m], double; the map subtracts its origin in
+ * double and searches with the float offset. Distances are in metres as float.
+ *
+ * k nearest photons to x, sorted by distance. Writes up to k indices and squared distances;
  * returns the number found (min(k, count)), or -1 on error (not built, k <= 0). */
-int pm_map_knn(const pm_map *map, const float x[3], int k, int *idx, float *dist2);
+int pm_map_knn(const pm_map *map, const double x[3], int k, int *idx, float *dist2);
 
 /* Photons within radius r of x, sorted by distance, at most max of them; returns the number
  * written, or -1 on error. "Within" is inclusive (dist2 <= r*r); when more than max lie
  * within r, the max nearest are returned (ties by index). Errors: not built, max <= 0, r < 0
  * or NaN. */
-int pm_map_radius(const pm_map *map, const float x[3], float r, int max, int *idx, float *dist2);
+int pm_map_radius(const pm_map *map, const double x[3], float r, int max, int *idx, float *dist2);
 
-/* Batch k-NN for nq query points (row-major nq x 3) with `threads` OpenMP threads (0 = all).
+/* Batch k-NN for nq world query points (row-major nq x 3 doubles) with `threads` OpenMP threads (0 = all).
  * idx and dist2 are nq x k; rows with fewer than k photons are padded with -1 / INFINITY. */
-pm_status pm_map_knn_batch(const pm_map *map, const float *queries, size_t nq, int k, int *idx,
+pm_status pm_map_knn_batch(const pm_map *map, const double *queries, size_t nq, int k, int *idx,
                            float *dist2, int threads, char *err, size_t errlen);
 
 /* Density estimate from the k nearest photons: out = sum dPhi / ((4/3) pi r^3), r = distance
@@ -111,16 +128,16 @@ pm_status pm_map_knn_batch(const pm_map *map, const float *queries, size_t nq, i
  * A map with fewer than k photons uses all of them (r = distance to the farthest). If r = 0
  * (every photon used sits exactly at x) there is no volume: out = 0 and the return is 0.
  * The same two rules hold for pm_map_radiance. */
-int pm_map_density(const pm_map *map, const float x[3], int k, float out[3]);
+int pm_map_density(const pm_map *map, const double x[3], int k, float out[3]);
 
 /* Radiance estimate sigma_s L_s(x, w) from the k nearest photons (THEORY.md §3):
  * out = sum p(w'_k . w) dPhi_k / ((4/3) pi r^3). w is the outgoing direction (unit).
  * Returns the number of photons used, -1 on error. */
-int pm_map_radiance(const pm_map *map, const float x[3], const float w[3], int k,
+int pm_map_radiance(const pm_map *map, const double x[3], const float w[3], int k,
                     pm_phase_fn phase, void *phase_user, float out[3]);
 
 /* Photon map file (format in docs/photonmap-format.md): magic "PMAP", version, counts,
- * photons, segments, FNV-1a 64 checksum. Save writes to a temporary name and renames. Load
+ * origin, photons, segments, FNV-1a 64 checksum. Version 1 files (no origin) load with origin 0. Save writes to a temporary name and renames. Load
  * rejects wrong magic/version, truncation, absurd counts and checksum mismatches with
  * PM_ERR_FORMAT and a message naming the file. A loaded map is not built: call pm_map_build. */
 pm_status pm_map_save(const pm_map *map, const char *path, char *err, size_t errlen);

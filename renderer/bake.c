@@ -95,8 +95,11 @@ rd_status rd_photon_image(const rd_scene *s, const pm_map *map, rd_image *img, c
     double half_h = 0.5 * cam->ortho_width / aspect;
     const pm_photon *ph = pm_map_photons(map);
     size_t n = pm_map_photon_count(map);
+    double o[3]; /* stored positions are offsets from the map origin */
+    pm_map_origin(map, o);
     for (size_t i = 0; i < n; i++) {
-        vec3 v = v3_sub(v3(ph[i].pos[0], ph[i].pos[1], ph[i].pos[2]), cam->pos);
+        vec3 x = v3(o[0] + ph[i].pos[0], o[1] + ph[i].pos[1], o[2] + ph[i].pos[2]);
+        vec3 v = v3_sub(x, cam->pos);
         double z = v3_dot(v, cam->forward), sx, sy;
         if (cam->kind == RD_CAM_PERSPECTIVE) {
             if (z <= 0) continue;

@@ -6,6 +6,10 @@
  * with Russian roulette on the albedo. Optionally the path segments (the flights between
  * events, clipped to the media bounds) are stored too, for the track-length estimate.
  *
+ * Positions: the map stores float offsets from its origin (photonmap.h), which this file sets
+ * to the centre of the media bounds, so a scene far from the world origin keeps float precision
+ * relative to its own size. Offsets are taken in double, then rounded once.
+ *
  * Determinism: photon i draws from the PCG32 stream (i, seed); photons are traced in blocks
  * whose results are concatenated in block order, so the map is the same whatever the thread
  * count. */
@@ -19,6 +23,7 @@
 #define BLOCK 4096 /* photons per work unit */
 
 typedef struct {
+    const double *origin; /* the map's origin: stored positions are relative to it */
     pm_photon *ph;
     size_t n_ph, cap_ph;
     pm_segment *seg;
@@ -37,7 +42,9 @@ static void push_photon(block_out *b, vec3 x, vec3 d, vec3 power)
         b->cap_ph = cap;
     }
     pm_photon *p = &b->ph[b->n_ph++];
-    p->pos[0] = (float)x.x; p->pos[1] = (float)x.y; p->pos[2] = (float)x.z;
+    p->pos[0] = (float)(x.x - b->origin[0]);
+    p->pos[1] = (float)(x.y - b->origin[1]);
+    p->pos[2] = (float)(x.z - b->origin[2]);
     p->dir[0] = (float)d.x; p->dir[1] = (float)d.y; p->dir[2] = (float)d.z;
     p->power[0] = (float)power.x; p->power[1] = (float)power.y; p->power[2] = (float)power.z;
 }
@@ -56,7 +63,9 @@ static void push_segment(block_out *b, const rd_scene *s, ray3 r, double tmax, v
     }
     pm_segment *g = &b->seg[b->n_seg++];
     vec3 o = ray_at(r, t0);
-    g->org[0] = (float)o.x; g->org[1] = (float)o.y; g->org[2] = (float)o.z;
+    g->org[0] = (float)(o.x - b->origin[0]);
+    g->org[1] = (float)(o.y - b->origin[1]);
+    g->org[2] = (float)(o.z - b->origin[2]);
     g->dir[0] = (float)r.d.x; g->dir[1] = (float)r.d.y; g->dir[2] = (float)r.d.z;
     g->length = (float)(t1 - t0);
     g->power[0] = (float)power.x; g->power[1] = (float)power.y; g->power[2] = (float)power.z;
@@ -64,9 +73,9 @@ static void push_segment(block_out *b, const rd_scene *s, ray3 r, double tmax, v
 
 static void acc(double a[3], vec3 v) { a[0] += v.x; a[1] += v.y; a[2] += v.z; }
 
-/* Sample an emitted photon from light l: ray and power (RGB watts per unit pdf, i.e. the
- * light's total power for an estimator that averages over photons). Returns 0 if none. */
-static int emit(const rd_scene *s, const rd_light *l, pcg32 *rng, ray3 *r, vec3 *power)
+/* Emission sampling (rd_photons.h documents each light's distribution). */
+int rd_light_sample_emission(const rd_scene *s, const rd_light *l, pcg32 *rng, ray3 *r,
+                             vec3 *power)
 {
     double u1 = pcg32_uniform(rng), u2 = pcg32_uniform(rng);
     vec3 centre = v3_scale(v3_add(s->bmin, s->bmax), 0.5);
@@ -147,7 +156,7 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
         double p_light = cdf[lo + 1] - cdf[lo];
         ray3 r;
         vec3 beta;
-        if (!emit(s, &s->lights[lo], &rng, &r, &beta)) continue;
+        if (!rd_light_sample_emission(s, &s->lights[lo], &rng, &r, &beta)) continue;
         beta = v3_scale(beta, inv_n / p_light); /* photon power: Phi_l / (N p_l) */
         acc(b->emitted, beta);
         for (int depth = 1;; depth++) {
@@ -191,9 +200,26 @@ rd_status rd_trace_photons(const rd_scene *s, const rd_photon_opts *o, pm_map *m
         snprintf(err, errlen, "photon tracing: count and max_depth must be >= 1");
         return RD_ERR_ARG;
     }
+    /* Stored positions are offsets from the map's origin: the media centre for a new map (an
+     * appended map keeps the origin it has). */
+    char pmerr[256];
+    if (pm_map_photon_count(map) == 0 && pm_map_segment_count(map) == 0) {
+        vec3 c = v3_scale(v3_add(s->bmin, s->bmax), 0.5);
+        double centre[3] = {c.x, c.y, c.z};
+        if (pm_map_set_origin(map, centre, pmerr, sizeof pmerr) != PM_OK) {
+            snprintf(err, errlen, "photon map: %s", pmerr);
+            return RD_ERR_INTERNAL;
+        }
+    }
+    double origin[3];
+    pm_map_origin(map, origin);
     /* Light selection CDF by power (luminance). */
     double *cdf = calloc((size_t)s->n_lights + 1, sizeof *cdf);
-    if (!cdf) return RD_ERR_NOMEM;
+    if (!cdf) {
+        snprintf(err, errlen, "photon tracing: out of memory for the light selection table "
+                              "(%d lights)", s->n_lights);
+        return RD_ERR_NOMEM;
+    }
     double R = rd_scene_radius(s);
     for (int i = 0; i < s->n_lights; i++) cdf[i + 1] = cdf[i] + rd_light_power(&s->lights[i], R);
     if (s->n_lights == 0 || !(cdf[s->n_lights] > 0)) {
@@ -203,9 +229,15 @@ rd_status rd_trace_photons(const rd_scene *s, const rd_photon_opts *o, pm_map *m
     }
     for (int i = 1; i <= s->n_lights; i++) cdf[i] /= cdf[s->n_lights];
 
-    size_t nblocks = (o->count + BLOCK - 1) / BLOCK;
+    size_t nblocks = o->count / BLOCK + (o->count % BLOCK != 0); /* no overflow at SIZE_MAX */
     block_out *blocks = calloc(nblocks, sizeof *blocks);
-    if (!blocks) { free(cdf); return RD_ERR_NOMEM; }
+    if (!blocks) {
+        free(cdf);
+        snprintf(err, errlen, "photon tracing: out of memory for the %zu work blocks of %zu photons",
+                 nblocks, o->count);
+        return RD_ERR_NOMEM;
+    }
+    for (size_t bi = 0; bi < nblocks; bi++) blocks[bi].origin = origin;
     int nthreads = o->threads > 0 ? o->threads : omp_get_max_threads();
     struct timespec t0, t1;
     clock_gettime(CLOCK_MONOTONIC, &t0);
@@ -225,17 +257,19 @@ rd_status rd_trace_photons(const rd_scene *s, const rd_photon_opts *o, pm_map *m
     st->emitted = o->count;
 
     rd_status status = RD_OK;
-    char pmerr[256];
     for (size_t bi = 0; bi < nblocks; bi++) {
         block_out *b = &blocks[bi];
         if (status == RD_OK && b->oom) {
-            snprintf(err, errlen, "photon tracing: out of memory");
+            snprintf(err, errlen, "photon tracing: out of memory for the photons and segments of "
+                                  "block %zu (%zu photons, %zu segments so far)", bi, b->n_ph, b->n_seg);
             status = RD_ERR_NOMEM;
         }
-        if (status == RD_OK && (pm_map_add_photons(map, b->ph, b->n_ph, pmerr, sizeof pmerr) != PM_OK ||
-                                pm_map_add_segments(map, b->seg, b->n_seg, pmerr, sizeof pmerr) != PM_OK)) {
+        pm_status ps = PM_OK;
+        if (status == RD_OK) ps = pm_map_add_photons(map, b->ph, b->n_ph, pmerr, sizeof pmerr);
+        if (status == RD_OK && ps == PM_OK) ps = pm_map_add_segments(map, b->seg, b->n_seg, pmerr, sizeof pmerr);
+        if (ps != PM_OK) {
             snprintf(err, errlen, "photon map: %s", pmerr);
-            status = RD_ERR_INTERNAL;
+            status = ps == PM_ERR_NOMEM ? RD_ERR_NOMEM : RD_ERR_INTERNAL;
         }
         for (int c = 0; c < 3; c++) {
             st->power_emitted[c] += b->emitted[c];

@@ -30,8 +30,26 @@ typedef struct {
     double power_emitted[3], power_absorbed[3], power_escaped[3], power_carried[3];
 } rd_photon_stats;
 
+/* Sample one photon leaving light l (THEORY.md §3): its ray r (origin, unit direction) and
+ * power, RGB watts divided by the sample's pdf, so that the mean over photons is the light's
+ * power. Draws from rng. The distributions, which tests/test_photons.c checks by chi-square:
+ *   point        o = l->pos, d uniform on the sphere; power 4 pi I
+ *   spot         o = l->pos, d uniform in the cone cos(theta) >= cos_outer; power weighted by
+ *                rd_spot_falloff (so photon power is distributed like the falloff)
+ *   directional  d = l->dir; o uniform on a disc across the beam (the beam's radius and centre,
+ *                or the scene radius around the media centre) 2R upstream of the media centre
+ *   sphere       o uniform on the sphere (just outside it), d cosine-weighted about the normal
+ *   environment  d uniform on the sphere; o uniform on a disc of radius R across d, 2R upstream
+ *                of the media centre (R = rd_scene_radius)
+ * Returns 0 (no photon) for an unknown light kind. */
+int rd_light_sample_emission(const rd_scene *s, const rd_light *l, pcg32 *rng, ray3 *r,
+                             vec3 *power);
+
 /* Trace o->count photons and add the stored photons (scattered power, THEORY §3) and, when
- * asked, the segments to `map` (not built: the caller calls pm_map_build). */
+ * asked, the segments to `map` (not built: the caller calls pm_map_build). An empty map gets
+ * its origin set to the centre of the media bounds (positions are stored relative to it); a
+ * map that already holds records keeps its origin. Every error return writes a one-line
+ * message into err (out of memory names what was being allocated). */
 rd_status rd_trace_photons(const rd_scene *s, const rd_photon_opts *o, pm_map *map,
                            rd_photon_stats *st, char *err, size_t errlen);
 

@@ -103,8 +103,7 @@ sh_status shi_bake_knn(sh_guide *g, const pm_map *map, const sh_bake_params *P, 
                 c[a] = 0.5 * (lo[a] + hi[a]);
             g->sigma_t[cell] = (float)cell_mean_sigma_t(P, cell, lo, hi);
             float *out = g->coeffs + cell * (size_t)g->ncoef;
-            float xf[3] = {(float)c[0], (float)c[1], (float)c[2]};
-            int n = pm_map_knn(map, xf, k, idx, d2);
+            int n = pm_map_knn(map, c, k, idx, d2); /* world coordinates, double */
             if (n < 0) {
 #pragma omp atomic write
                 failed = 1;
@@ -208,9 +207,10 @@ static size_t collect_regions(const sh_guide *g, size_t node, const double lo[3]
     return nr;
 }
 
-/* Conservative float bounding box of a segment, padded against rounding: the end point is
- * org + length dir for a unit dir, else it lies within the cube org +- length. */
-static void segment_bbox(const pm_segment *S, double lo[3], double hi[3])
+/* Conservative bounding box of a segment in world coordinates (the map origin plus the
+ * stored float offsets), padded against rounding: the end point is org + length dir for a unit
+ * dir, else it lies within the cube org +- length. */
+static void segment_bbox(const pm_segment *S, const double origin[3], double lo[3], double hi[3])
 {
     float dd = S->dir[0] * S->dir[0] + S->dir[1] * S->dir[1] + S->dir[2] * S->dir[2];
     int unit = fabsf(dd - 1.0f) < 1e-3f;
@@ -219,7 +219,7 @@ static void segment_bbox(const pm_segment *S, double lo[3], double hi[3])
         float l = unit ? fminf(S->org[a], e) : S->org[a] - S->length;
         float h = unit ? fmaxf(S->org[a], e) : S->org[a] + S->length;
         double pad = 1e-3 * S->length + 1e-6 * (fabs(S->org[a]) + 1.0);
-        lo[a] = l - pad, hi[a] = h + pad;
+        lo[a] = origin[a] + (l - pad), hi[a] = origin[a] + (h + pad);
     }
 }
 
@@ -229,7 +229,7 @@ static void segment_bbox(const pm_segment *S, double lo[3], double hi[3])
  * at least to depth 2) the blocks a box meets are found per axis; otherwise every region is
  * tested. Returns 0, or -1 when out of memory. */
 static int bin_segments(const region *R, size_t nr, const pm_segment *seg, size_t ns,
-                        uint32_t **ids_out, size_t **off_out)
+                        const double origin[3], uint32_t **ids_out, size_t **off_out)
 {
     /* Block boundaries per axis: the distinct region lo values, plus the largest hi. */
     double bnd[3][65];
@@ -300,7 +300,7 @@ static int bin_segments(const region *R, size_t nr, const pm_segment *seg, size_
         }
         for (size_t s = 0; s < ns; s++) {
             double lo[3], hi[3];
-            segment_bbox(&seg[s], lo, hi);
+            segment_bbox(&seg[s], origin, lo, hi);
             if (regular) {
                 int j0[3], j1[3], empty = 0;
                 for (int a = 0; a < 3; a++) {
@@ -351,6 +351,8 @@ sh_status shi_bake_track(sh_guide *g, const pm_map *map, const sh_bake_params *P
     const int L = g->bands, nc = L * L;
     const size_t ns = pm_map_segment_count(map);
     const pm_segment *seg = pm_map_segments(map);
+    double origin[3]; /* segment origins are stored relative to it */
+    pm_map_origin(map, origin);
     /* Regions: up to 4 blocks per axis (uniform) or the depth-2 subtrees (adaptive). */
     region *R = NULL;
     size_t nr = 0;
@@ -388,7 +390,7 @@ sh_status shi_bake_track(sh_guide *g, const pm_map *map, const sh_bake_params *P
      * below run in a fixed order). */
     uint32_t *bin_seg = NULL;
     size_t *bin_off = NULL;
-    if (ns > UINT32_MAX || bin_segments(R, nr, seg, ns, &bin_seg, &bin_off) != 0) {
+    if (ns > UINT32_MAX || bin_segments(R, nr, seg, ns, origin, &bin_seg, &bin_off) != 0) {
         free(R);
         R = NULL; /* nomem: frees R too */
         goto nomem;
@@ -416,7 +418,8 @@ sh_status shi_bake_track(sh_guide *g, const pm_map *map, const sh_bake_params *P
         double y[SH_MAX_COEFFS];
         for (size_t q = bin_off[ri]; q < bin_off[ri + 1]; q++) {
             const pm_segment *S = &seg[bin_seg[q]];
-            double o[3] = {S->org[0], S->org[1], S->org[2]};
+            /* world start point: the map origin plus the stored offset, in double */
+            double o[3] = {origin[0] + S->org[0], origin[1] + S->org[1], origin[2] + S->org[2]};
             double d[3] = {S->dir[0], S->dir[1], S->dir[2]};
             double dn = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
             double len = S->length;

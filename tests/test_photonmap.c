@@ -40,6 +40,56 @@ static pcg32 pcg32_seed(uint64_t seed, uint64_t seq)
     return r;
 }
 
+/* The queries take world points as double (photonmap.h). Most tests below build maps with the
+ * default origin 0 and float positions, and compare against brute force in float; these
+ * wrappers widen a float point to double (exact), so the query the map sees is the very float
+ * point the brute force uses. A NULL point stays NULL (argument-error tests). */
+static const double *widen(const float *q, double *buf)
+{
+    if (q == NULL)
+        return NULL;
+    for (int a = 0; a < 3; a++)
+        buf[a] = q[a];
+    return buf;
+}
+
+static int knn_f(const pm_map *m, const float q[3], int k, int *idx, float *d2)
+{
+    double b[3];
+    return pm_map_knn(m, widen(q, b), k, idx, d2);
+}
+
+static int radius_f(const pm_map *m, const float q[3], float r, int max, int *idx, float *d2)
+{
+    double b[3];
+    return pm_map_radius(m, widen(q, b), r, max, idx, d2);
+}
+
+static int density_f(const pm_map *m, const float q[3], int k, float out[3])
+{
+    double b[3];
+    return pm_map_density(m, widen(q, b), k, out);
+}
+
+static int radiance_f(const pm_map *m, const float q[3], const float w[3], int k,
+                      pm_phase_fn phase, void *user, float out[3])
+{
+    double b[3];
+    return pm_map_radiance(m, widen(q, b), w, k, phase, user, out);
+}
+
+static pm_status knn_batch_f(const pm_map *m, const float *q, size_t nq, int k, int *idx,
+                             float *d2, int threads, char *err, size_t errlen)
+{
+    double *qd = malloc((nq ? nq : 1) * 3 * sizeof *qd);
+    cr_assert_not_null(qd);
+    for (size_t i = 0; i < 3 * nq; i++)
+        qd[i] = q[i];
+    pm_status st = pm_map_knn_batch(m, qd, nq, k, idx, d2, threads, err, errlen);
+    free(qd);
+    return st;
+}
+
 static float uniform01(pcg32 *r) /* [0, 1) with 24 random bits */
 {
     return (float)(pcg32_next(r) >> 8) * (1.0f / 16777216.0f);
@@ -212,6 +262,12 @@ static void expect_load_fails(const char *path, pm_status code, const char *need
         cr_assert_not_null(strstr(err, needle), "message lacks '%s': %s", needle, err);
 }
 
+/* File layout of version 2 (docs/photonmap-format.md): a 48-byte header (magic, version,
+ * counts, origin as three float64), the records, an 8-byte checksum. */
+#define HDR 48
+/* The origin of the sample maps: far from 0 and not representable in float. */
+static const double SAMPLE_ORIGIN[3] = {1.0e5 + 1.0 / 3.0, -2.5e4, 3.1};
+
 /* A small map with photons and segments saved to dir/name; returns the path (static). */
 static const char *save_sample(const char *dir, const char *name, size_t nph, size_t nseg,
                                char path[256])
@@ -229,6 +285,7 @@ static const char *save_sample(const char *dir, const char *name, size_t nph, si
     }
     char err[256] = "";
     pm_map *m = pm_map_new();
+    cr_assert_eq(pm_map_set_origin(m, SAMPLE_ORIGIN, err, sizeof err), PM_OK, "%s", err);
     cr_assert_eq(pm_map_add_photons(m, ph, nph, err, sizeof err), PM_OK, "%s", err);
     cr_assert_eq(pm_map_add_segments(m, seg, nseg, err, sizeof err), PM_OK, "%s", err);
     snprintf(path, 256, "%s/%s", dir, name);
@@ -263,7 +320,7 @@ Test(photonmap, knn_equals_brute_force)
                     for (size_t t = 0; t < sizeof ks / sizeof ks[0]; t++) {
                         int k = ks[t];
                         int want = k < (int)n ? k : (int)n;
-                        int got = pm_map_knn(m, q, k, idx, d2);
+                        int got = knn_f(m, q, k, idx, d2);
                         cr_assert_eq(got, want, "n=%zu k=%d: got %d", n, k, got);
                         for (int i = 0; i < got; i++) {
                             cr_assert_eq(idx[i], b[i].idx,
@@ -310,7 +367,7 @@ Test(photonmap, radius_equals_brute_force)
                         inside++;
                     for (size_t mi = 0; mi < sizeof maxes / sizeof maxes[0]; mi++) {
                         int want = inside < maxes[mi] ? inside : maxes[mi];
-                        int got = pm_map_radius(m, q, rr, maxes[mi], idx, d2);
+                        int got = radius_f(m, q, rr, maxes[mi], idx, d2);
                         cr_assert_eq(got, want, "n=%zu r=%g max=%d: got %d, want %d", n,
                                      (double)rr, maxes[mi], got, want);
                         for (int i = 0; i < got; i++) {
@@ -342,16 +399,16 @@ Test(photonmap, radius_boundary_inclusive_and_exact)
     float q[3] = {0, 0, 0}, d2[8];
     int idx[8];
     /* 2 inside r = 1, 2 in the thin shell just outside: max = 3 must still give 2 */
-    cr_assert_eq(pm_map_radius(m, q, 1.0f, 3, idx, d2), 2);
+    cr_assert_eq(radius_f(m, q, 1.0f, 3, idx, d2), 2);
     cr_assert(idx[0] == 0 && idx[1] == 1);
-    cr_assert_eq(pm_map_radius(m, q, 1.0f, 1, idx, d2), 1);
-    cr_assert_eq(pm_map_radius(m, q, 1.0f, 8, idx, d2), 2);
+    cr_assert_eq(radius_f(m, q, 1.0f, 1, idx, d2), 1);
+    cr_assert_eq(radius_f(m, q, 1.0f, 8, idx, d2), 2);
     pm_map_free(m);
     m = build_map(ph, 8); /* now photon 6 sits exactly at distance 1 */
-    cr_assert_eq(pm_map_radius(m, q, 1.0f, 3, idx, d2), 3);
+    cr_assert_eq(radius_f(m, q, 1.0f, 3, idx, d2), 3);
     cr_assert(idx[2] == 6 && d2[2] == 1.0f);
-    cr_assert_eq(pm_map_radius(m, q, 1.0f, 2, idx, d2), 2);
-    cr_assert_eq(pm_map_radius(m, q, 0.99999f, 8, idx, d2), 2);
+    cr_assert_eq(radius_f(m, q, 1.0f, 2, idx, d2), 2);
+    cr_assert_eq(radius_f(m, q, 0.99999f, 8, idx, d2), 2);
     pm_map_free(m);
 }
 
@@ -364,28 +421,28 @@ Test(photonmap, query_argument_errors)
     cr_assert_eq(pm_map_add_photons(m, ph, 10, err, sizeof err), PM_OK);
     int idx[20];
     float d2[20], q[3] = {0.5f, 0.5f, 0.5f}, out[3];
-    cr_assert_eq(pm_map_knn(m, q, 3, idx, d2), -1, "not built must fail");
-    cr_assert_eq(pm_map_radius(m, q, 0.5f, 3, idx, d2), -1);
-    cr_assert_eq(pm_map_knn_batch(m, q, 1, 3, idx, d2, 1, err, sizeof err), PM_ERR_ARG);
+    cr_assert_eq(knn_f(m, q, 3, idx, d2), -1, "not built must fail");
+    cr_assert_eq(radius_f(m, q, 0.5f, 3, idx, d2), -1);
+    cr_assert_eq(knn_batch_f(m, q, 1, 3, idx, d2, 1, err, sizeof err), PM_ERR_ARG);
     cr_assert_eq(pm_map_build(m, err, sizeof err), PM_OK);
-    cr_assert_eq(pm_map_knn(m, q, 0, idx, d2), -1);
-    cr_assert_eq(pm_map_knn(m, q, -2, idx, d2), -1);
-    cr_assert_eq(pm_map_knn(NULL, q, 3, idx, d2), -1);
-    cr_assert_eq(pm_map_radius(m, q, -1.0f, 3, idx, d2), -1);
-    cr_assert_eq(pm_map_radius(m, q, NAN, 3, idx, d2), -1);
-    cr_assert_eq(pm_map_radius(m, q, 1.0f, 0, idx, d2), -1);
-    cr_assert_eq(pm_map_density(m, q, 0, out), -1);
-    cr_assert_eq(pm_map_radiance(m, q, q, 3, NULL, NULL, out), -1);
+    cr_assert_eq(knn_f(m, q, 0, idx, d2), -1);
+    cr_assert_eq(knn_f(m, q, -2, idx, d2), -1);
+    cr_assert_eq(knn_f(NULL, q, 3, idx, d2), -1);
+    cr_assert_eq(radius_f(m, q, -1.0f, 3, idx, d2), -1);
+    cr_assert_eq(radius_f(m, q, NAN, 3, idx, d2), -1);
+    cr_assert_eq(radius_f(m, q, 1.0f, 0, idx, d2), -1);
+    cr_assert_eq(density_f(m, q, 0, out), -1);
+    cr_assert_eq(radiance_f(m, q, q, 3, NULL, NULL, out), -1);
     float qn[3] = {NAN, 0.0f, 0.0f};
-    cr_assert_eq(pm_map_knn(m, qn, 3, idx, d2), -1);
-    cr_assert_eq(pm_map_knn_batch(m, qn, 1, 3, idx, d2, 1, err, sizeof err), PM_ERR_ARG);
+    cr_assert_eq(knn_f(m, qn, 3, idx, d2), -1);
+    cr_assert_eq(knn_batch_f(m, qn, 1, 3, idx, d2, 1, err, sizeof err), PM_ERR_ARG);
     cr_assert_not_null(strstr(err, "query 0"), "%s", err);
-    cr_assert_eq(pm_map_knn(m, q, 20, idx, d2), 10, "k > count returns count");
+    cr_assert_eq(knn_f(m, q, 20, idx, d2), 10, "k > count returns count");
     /* adding photons invalidates the tree until the next build */
     cr_assert_eq(pm_map_add_photons(m, ph, 1, err, sizeof err), PM_OK);
-    cr_assert_eq(pm_map_knn(m, q, 3, idx, d2), -1);
+    cr_assert_eq(knn_f(m, q, 3, idx, d2), -1);
     cr_assert_eq(pm_map_build(m, err, sizeof err), PM_OK);
-    cr_assert_eq(pm_map_knn(m, q, 20, idx, d2), 11);
+    cr_assert_eq(knn_f(m, q, 20, idx, d2), 11);
     pm_map_free(m);
     free(ph);
 }
@@ -479,7 +536,7 @@ Test(photonmap, density_of_uniform_cloud)
         for (int j = 0; j < 5; j++)
             for (int l = 0; l < 5; l++) {
                 float x[3] = {0.2f + 0.15f * i, 0.2f + 0.15f * j, 0.2f + 0.15f * l}, out[3];
-                cr_assert_eq(pm_map_density(m, x, k, out), k);
+                cr_assert_eq(density_f(m, x, k, out), k);
                 cr_assert_lt(fabs(out[0] / expect - 1.0), 4.5 * rel_sd, "point (%d,%d,%d): %g vs %g",
                              i, j, l, (double)out[0], expect);
                 /* channels scale with the photon power exactly (up to float rounding) */
@@ -513,13 +570,13 @@ Test(photonmap, radiance_isotropic_and_hg)
         for (int a = 0; a < 3; a++)
             x[a] = 0.1f + 0.8f * uniform01(&r);
         random_unit(&r, w);
-        cr_assert_eq(pm_map_density(m, x, k, dens), k);
-        cr_assert_eq(pm_map_radiance(m, x, w, k, p_iso, NULL, iso), k);
+        cr_assert_eq(density_f(m, x, k, dens), k);
+        cr_assert_eq(radiance_f(m, x, w, k, p_iso, NULL, iso), k);
         for (int a = 0; a < 3; a++)
             cr_assert_float_eq(iso[a], dens[a] / (4.0 * PI), 1e-6 * dens[a]);
 
-        cr_assert_eq(pm_map_radiance(m, x, w, k, p_hg, &g, hg), k);
-        cr_assert_eq(pm_map_knn(m, x, k, idx, d2), k);
+        cr_assert_eq(radiance_f(m, x, w, k, p_hg, &g, hg), k);
+        cr_assert_eq(knn_f(m, x, k, idx, d2), k);
         double sum[3] = {0, 0, 0};
         for (int i = 0; i < k; i++) {
             const pm_photon *p = &ph[idx[i]];
@@ -540,8 +597,8 @@ Test(photonmap, radiance_isotropic_and_hg)
     }
     pm_map *mb = build_map(beam, 64);
     float x[3] = {0.5f, 0.5f, 0.5f}, fwd[3] = {0, 0, 1}, back[3] = {0, 0, -1}, lf[3], lb[3];
-    cr_assert_eq(pm_map_radiance(mb, x, fwd, 64, p_hg, &g, lf), 64);
-    cr_assert_eq(pm_map_radiance(mb, x, back, 64, p_hg, &g, lb), 64);
+    cr_assert_eq(radiance_f(mb, x, fwd, 64, p_hg, &g, lf), 64);
+    cr_assert_eq(radiance_f(mb, x, back, 64, p_hg, &g, lb), 64);
     /* ratio p(1)/p(-1) = ((1+g)/(1-g))^3 for HG */
     cr_assert_float_eq(lf[0] / lb[0], pow((1 + g) / (1 - g), 3), 1e-4 * pow((1 + g) / (1 - g), 3));
     pm_map_free(mb);
@@ -567,14 +624,14 @@ Test(photonmap, batch_equals_single_and_thread_count)
         int *i1 = malloc(nq * k * sizeof(int)), *i2 = malloc(nq * k * sizeof(int));
         float *d1 = malloc(nq * k * sizeof(float)), *d2 = malloc(nq * k * sizeof(float));
         char err[256] = "";
-        cr_assert_eq(pm_map_knn_batch(m, q, nq, k, i1, d1, 1, err, sizeof err), PM_OK, "%s", err);
-        cr_assert_eq(pm_map_knn_batch(m, q, nq, k, i2, d2, 2, err, sizeof err), PM_OK, "%s", err);
+        cr_assert_eq(knn_batch_f(m, q, nq, k, i1, d1, 1, err, sizeof err), PM_OK, "%s", err);
+        cr_assert_eq(knn_batch_f(m, q, nq, k, i2, d2, 2, err, sizeof err), PM_OK, "%s", err);
         cr_assert_eq(memcmp(i1, i2, nq * k * sizeof(int)), 0, "k=%d: 1 vs 2 threads differ", k);
         cr_assert_eq(memcmp(d1, d2, nq * k * sizeof(float)), 0);
         int si[100];
         float sd[100];
         for (size_t j = 0; j < nq; j++) {
-            cr_assert_eq(pm_map_knn(m, q + 3 * j, k, si, sd), k);
+            cr_assert_eq(knn_f(m, q + 3 * j, k, si, sd), k);
             cr_assert_eq(memcmp(si, i1 + j * k, k * sizeof(int)), 0, "k=%d query %zu", k, j);
             cr_assert_eq(memcmp(sd, d1 + j * k, k * sizeof(float)), 0);
         }
@@ -588,7 +645,7 @@ Test(photonmap, batch_equals_single_and_thread_count)
     int pi[3 * 8];
     float pd[3 * 8];
     char err[256];
-    cr_assert_eq(pm_map_knn_batch(small, q, 3, 8, pi, pd, 0, err, sizeof err), PM_OK);
+    cr_assert_eq(knn_batch_f(small, q, 3, 8, pi, pd, 0, err, sizeof err), PM_OK);
     for (int j = 0; j < 3; j++)
         for (int c = 0; c < 8; c++) {
             if (c < 5) {
@@ -621,14 +678,14 @@ Test(photonmap, concurrent_single_queries)
     int *ser_n = malloc(nq * sizeof(int)), *par_n = malloc(nq * sizeof(int));
     float dd[32];
     for (int j = 0; j < nq; j++) {
-        ser_n[j] = pm_map_radius(m, q + 3 * j, 0.03f, k, ser_i + j * k, dd) +
-                   1000 * pm_map_density(m, q + 3 * j, k, ser_d + 3 * j);
+        ser_n[j] = radius_f(m, q + 3 * j, 0.03f, k, ser_i + j * k, dd) +
+                   1000 * density_f(m, q + 3 * j, k, ser_d + 3 * j);
     }
 #pragma omp parallel for num_threads(2) schedule(dynamic, 7)
     for (int j = 0; j < nq; j++) {
         float d[32];
-        par_n[j] = pm_map_radius(m, q + 3 * j, 0.03f, k, par_i + j * k, d) +
-                   1000 * pm_map_density(m, q + 3 * j, k, par_d + 3 * j);
+        par_n[j] = radius_f(m, q + 3 * j, 0.03f, k, par_i + j * k, d) +
+                   1000 * density_f(m, q + 3 * j, k, par_d + 3 * j);
     }
     int nonempty = 0;
     for (int j = 0; j < nq; j++) {
@@ -662,14 +719,14 @@ Test(photonmap, free_null_and_empty_map)
     float x[3] = {0, 0, 0}, w[3] = {0, 0, 1}, out[3] = {1, 1, 1}, d2[4];
     int idx[4];
     cr_assert_eq(pm_map_photon_count(m), 0);
-    cr_assert_eq(pm_map_knn(m, x, 4, idx, d2), 0);
-    cr_assert_eq(pm_map_radius(m, x, 1.0f, 4, idx, d2), 0);
-    cr_assert_eq(pm_map_density(m, x, 4, out), 0);
+    cr_assert_eq(knn_f(m, x, 4, idx, d2), 0);
+    cr_assert_eq(radius_f(m, x, 1.0f, 4, idx, d2), 0);
+    cr_assert_eq(density_f(m, x, 4, out), 0);
     cr_assert(out[0] == 0.0f && out[1] == 0.0f && out[2] == 0.0f);
     out[0] = 1;
-    cr_assert_eq(pm_map_radiance(m, x, w, 4, p_iso, NULL, out), 0);
+    cr_assert_eq(radiance_f(m, x, w, 4, p_iso, NULL, out), 0);
     cr_assert_eq(out[0], 0.0f);
-    cr_assert_eq(pm_map_knn_batch(m, x, 1, 4, idx, d2, 2, err, sizeof err), PM_OK);
+    cr_assert_eq(knn_batch_f(m, x, 1, 4, idx, d2, 2, err, sizeof err), PM_OK);
     cr_assert(idx[0] == -1 && idx[3] == -1 && isinf(d2[0]));
     float lo[3], hi[3];
     pm_map_bounds(m, lo, hi);
@@ -681,9 +738,9 @@ Test(photonmap, free_null_and_empty_map)
                          {{1, 1, 1}, {0, 0, 1}, {1, 1, 1}}};
     pm_map *s = build_map(same, 3);
     float at[3] = {1, 1, 1};
-    cr_assert_eq(pm_map_density(s, at, 3, out), 0);
+    cr_assert_eq(density_f(s, at, 3, out), 0);
     cr_assert_eq(out[0], 0.0f);
-    cr_assert_eq(pm_map_knn(s, at, 2, idx, d2), 2);
+    cr_assert_eq(knn_f(s, at, 2, idx, d2), 2);
     cr_assert(idx[0] == 0 && idx[1] == 1, "ties go to the lower index");
     pm_map_free(s);
 }
@@ -699,22 +756,34 @@ Test(photonmap, save_load_round_trip_bit_exact)
     save_sample(dir, "a.pmap", nph, nseg, path);
     size_t len;
     unsigned char *bytes = read_bytes(path, &len);
-    cr_assert_eq(len, 32 + 36 * nph + 40 * nseg, "file size %zu", len);
+    cr_assert_eq(len, HDR + 8 + 36 * nph + 40 * nseg, "file size %zu", len);
     cr_assert_eq(memcmp(bytes, "PMAP", 4), 0);
+    cr_assert_eq(bytes[4], 2, "format version 2");
 
     pm_map *m = NULL;
     cr_assert_eq(pm_map_load(&m, path, err, sizeof err), PM_OK, "%s", err);
     cr_assert_eq(pm_map_photon_count(m), nph);
     cr_assert_eq(pm_map_segment_count(m), nseg);
+    /* the origin comes back bit for bit */
+    double o[3];
+    pm_map_origin(m, o);
+    cr_assert_eq(memcmp(o, SAMPLE_ORIGIN, sizeof o), 0, "origin (%.17g, %.17g, %.17g)", o[0],
+                 o[1], o[2]);
     /* the records are the little-endian floats, so on this host the file bytes equal memory */
-    cr_assert_eq(memcmp(pm_map_photons(m), bytes + 24, 36 * nph), 0);
-    cr_assert_eq(memcmp(pm_map_segments(m), bytes + 24 + 36 * nph, 40 * nseg), 0);
-    /* the loaded map is not built; after building it answers like the original */
-    float x[3] = {0.5f, 0.5f, 0.5f}, d2[8];
+    cr_assert_eq(memcmp(pm_map_photons(m), bytes + HDR, 36 * nph), 0);
+    cr_assert_eq(memcmp(pm_map_segments(m), bytes + HDR + 36 * nph, 40 * nseg), 0);
+    /* the loaded map is not built; after building it answers like the original, in world
+     * coordinates: the nearest photon to origin + p_0 is photon 0 at distance 0 */
+    const pm_photon *p0 = pm_map_photons(m);
+    double x[3];
+    for (int a = 0; a < 3; a++)
+        x[a] = SAMPLE_ORIGIN[a] + (double)p0->pos[a];
+    float d2[8];
     int idx[8];
     cr_assert_eq(pm_map_knn(m, x, 8, idx, d2), -1);
     cr_assert_eq(pm_map_build(m, err, sizeof err), PM_OK);
     cr_assert_eq(pm_map_knn(m, x, 8, idx, d2), 8);
+    cr_assert(idx[0] == 0 && d2[0] == 0.0f, "nearest %d at %g", idx[0], d2[0]);
     /* saving again gives the same bytes */
     snprintf(path0, sizeof path0, "%s/b.pmap", dir);
     cr_assert_eq(pm_map_save(m, path0, err, sizeof err), PM_OK, "%s", err);
@@ -762,8 +831,9 @@ Test(photonmap, load_rejects_corrupt_files)
     snprintf(bad, sizeof bad, "%s/bad.pmap", dir);
 
     /* one flipped bit anywhere in the records or the checksum: checksum mismatch */
-    const size_t flips[] = {24, 25, 24 + 36 * 20 + 7, 24 + 36 * nph + 3, len - 9, len - 8,
-                            len - 1};
+    /* ... or in the origin (bytes 24..47) */
+    const size_t flips[] = {24, 31, 47, HDR, HDR + 1, HDR + 36 * 20 + 7, HDR + 36 * nph + 3,
+                            len - 9, len - 8, len - 1};
     for (size_t i = 0; i < sizeof flips / sizeof flips[0]; i++) {
         memcpy(b, good, len);
         b[flips[i]] ^= 0x10;
@@ -777,7 +847,8 @@ Test(photonmap, load_rejects_corrupt_files)
     expect_load_fails(bad, PM_ERR_FORMAT, "expected");
 
     /* truncated at several lengths */
-    const size_t cuts[] = {1, 3, 4, 7, 8, 16, 23, 24, 31, 32, 100, len / 2, len - 8, len - 1};
+    const size_t cuts[] = {1,  3,  4,   7,       8,       16,      23,     24,
+                           31, 47, HDR, HDR + 7, HDR + 8, 100, len / 2, len - 8, len - 1};
     for (size_t i = 0; i < sizeof cuts / sizeof cuts[0]; i++) {
         write_bytes(bad, good, cuts[i]);
         expect_load_fails(bad, PM_ERR_FORMAT, "truncated");
@@ -794,36 +865,53 @@ Test(photonmap, load_rejects_corrupt_files)
     write_bytes(bad, b, len);
     expect_load_fails(bad, PM_ERR_FORMAT, "magic");
     memcpy(b, good, len);
-    b[4] = 2;
+    b[4] = 3;
     restamp_checksum(b, len);
     write_bytes(bad, b, len);
-    expect_load_fails(bad, PM_ERR_FORMAT, "version 2");
+    expect_load_fails(bad, PM_ERR_FORMAT, "version 3");
+    memcpy(b, good, len);
+    b[4] = 0;
+    restamp_checksum(b, len);
+    write_bytes(bad, b, len);
+    expect_load_fails(bad, PM_ERR_FORMAT, "version 0");
 
     /* huge counts in a tiny file: rejected before any allocation (ASan would catch a huge
      * malloc attempt as an allocation-size error) */
-    memcpy(b, good, 32);
+    memcpy(b, good, HDR + 8);
     memset(b + 8, 0xFF, 8); /* 2^64 - 1 photons */
-    write_bytes(bad, b, 32);
+    write_bytes(bad, b, HDR + 8);
     expect_load_fails(bad, PM_ERR_FORMAT, "photons");
-    memcpy(b, good, 32);
+    memcpy(b, good, HDR + 8);
     memset(b + 8, 0, 8);
-    b[8 + 5] = 0x10; /* 2^44 photons (and 7 segments): 633 TB expected */
-    write_bytes(bad, b, 32);
-    expect_load_fails(bad, PM_ERR_FORMAT, "truncated: expected 633318697599288 bytes, found 32");
+    b[8 + 5] = 0x10; /* 2^44 photons (and 7 segments): 56 + 36 2^44 + 280 = 633 TB expected */
+    write_bytes(bad, b, HDR + 8);
+    expect_load_fails(bad, PM_ERR_FORMAT, "truncated: expected 633318697599312 bytes, found 56");
 
     /* a NaN with a valid checksum is still rejected */
     memcpy(b, good, len);
     const uint32_t qnan = 0x7FC00000u;
-    memcpy(b + 24 + 36 * 3 + 4, &qnan, 4); /* photon 3, pos.y (little-endian host) */
+    memcpy(b + HDR + 36 * 3 + 4, &qnan, 4); /* photon 3, pos.y (little-endian host) */
     restamp_checksum(b, len);
     write_bytes(bad, b, len);
     expect_load_fails(bad, PM_ERR_FORMAT, "photon 3");
     memcpy(b, good, len);
     const uint32_t inf = 0x7F800000u;
-    memcpy(b + 24 + 36 * nph + 40 * 2 + 24, &inf, 4); /* segment 2, length */
+    memcpy(b + HDR + 36 * nph + 40 * 2 + 24, &inf, 4); /* segment 2, length */
     restamp_checksum(b, len);
     write_bytes(bad, b, len);
     expect_load_fails(bad, PM_ERR_FORMAT, "segment 2");
+    /* a NaN or infinite origin with a valid checksum */
+    const uint64_t dnan = 0x7FF8000000000000ull, dinf = 0x7FF0000000000000ull;
+    memcpy(b, good, len);
+    memcpy(b + 24 + 8, &dnan, 8); /* origin y */
+    restamp_checksum(b, len);
+    write_bytes(bad, b, len);
+    expect_load_fails(bad, PM_ERR_FORMAT, "origin");
+    memcpy(b, good, len);
+    memcpy(b + 24 + 16, &dinf, 8); /* origin z */
+    restamp_checksum(b, len);
+    write_bytes(bad, b, len);
+    expect_load_fails(bad, PM_ERR_FORMAT, "origin");
 
     /* empty file, a directory, and a missing file */
     write_bytes(bad, b, 0);
@@ -840,6 +928,158 @@ Test(photonmap, load_rejects_corrupt_files)
     pm_map_free(m);
 
     unlink(bad);
+    unlink(path);
+    free(b);
+    free(good);
+    cr_assert_eq(rmdir(dir), 0, "temporary files left behind in %s", dir);
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* The map origin: a scene far from the world origin                                          */
+
+static double hg_phase(double c, void *user)
+{
+    double g = *(const double *)user, d = 1.0 + g * g - 2.0 * g * c;
+    return (1.0 - g * g) / (4.0 * PI * d * sqrt(d));
+}
+
+Test(photonmap, radiance_far_from_origin_equals_near)
+{
+    /* The same photon set in a 1 m cube, once around the world origin and once around
+     * C = (1e5 + 1/3, -1e5, 2e5) (the positions built in double as C + r, then stored relative
+     * to the map origin C), queried at the same points (q and C + q). Float positions at 1e5 m
+     * are 0.0078 m apart, a tenth of the k = 64 radius here, so storing world floats moved the
+     * estimate by tens of percent; relative storage must agree to float precision relative to
+     * the scene size.
+     * Tolerance: (C + r) - C differs from r by at most ulp_double(2e5) = 3e-11 m, which can
+     * move a float coordinate in [-0.5, 0.5] by one ulp (6e-8 m), so a photon or query point
+     * moves by eps <= sqrt(3) 6e-8 = 1.04e-7 m and the k-th distance r_k by at most 2 eps;
+     * V ~ r_k^3 then changes by 6 eps / r_k relative. Plus float rounding of the output (1e-7).
+     * (A change of which photons are the k nearest would need a photon within 2 eps of the
+     * k-th distance: with fixed seeds it does not happen here, and would fail the test.) */
+    const size_t n = 20000;
+    const double C[3] = {1.0e5 + 1.0 / 3.0, -1.0e5, 2.0e5};
+    pcg32 r = pcg32_seed(91, 2);
+    pm_photon *near = malloc(n * sizeof *near), *far = malloc(n * sizeof *far);
+    cr_assert(near && far);
+    for (size_t i = 0; i < n; i++) {
+        for (int a = 0; a < 3; a++) {
+            double x = (double)uniform01(&r) - 0.5;
+            near[i].pos[a] = (float)x;
+            far[i].pos[a] = (float)((C[a] + x) - C[a]); /* world position, made relative */
+            near[i].power[a] = far[i].power[a] = 0.5f + uniform01(&r);
+        }
+        random_unit(&r, near[i].dir);
+        memcpy(far[i].dir, near[i].dir, sizeof near[i].dir);
+    }
+    char err[256] = "";
+    pm_map *a = build_map(near, n);
+    pm_map *b = pm_map_new();
+    cr_assert_eq(pm_map_set_origin(b, C, err, sizeof err), PM_OK, "%s", err);
+    cr_assert_eq(pm_map_add_photons(b, far, n, err, sizeof err), PM_OK, "%s", err);
+    cr_assert_eq(pm_map_build(b, err, sizeof err), PM_OK, "%s", err);
+    const int k = 64;
+    double g = 0.5, worst = 0.0;
+    for (int j = 0; j < 200; j++) {
+        double q[3], qc[3];
+        float w[3], la[3], lb[3], da[3], db[3], d2[64];
+        int idx[64];
+        for (int t = 0; t < 3; t++) {
+            q[t] = 0.8 * ((double)uniform01(&r) - 0.5);
+            qc[t] = C[t] + q[t];
+        }
+        random_unit(&r, w);
+        cr_assert_eq(pm_map_radiance(a, q, w, k, hg_phase, &g, la), k);
+        cr_assert_eq(pm_map_radiance(b, qc, w, k, hg_phase, &g, lb), k);
+        cr_assert_eq(pm_map_density(a, q, k, da), k);
+        cr_assert_eq(pm_map_density(b, qc, k, db), k);
+        cr_assert_eq(pm_map_knn(b, qc, k, idx, d2), k);
+        double rk = sqrt((double)d2[k - 1]);
+        double tol = 6.0 * 1.04e-7 / rk + 1e-7;
+        for (int c = 0; c < 3; c++) {
+            double e1 = fabs(lb[c] - la[c]) / la[c], e2 = fabs(db[c] - da[c]) / da[c];
+            cr_assert(e1 <= tol && e2 <= tol,
+                      "query %d channel %d: radiance %.9g vs %.9g, density %.9g vs %.9g "
+                      "(relative %.3g, %.3g > %.3g)", j, c, lb[c], la[c], db[c], da[c], e1, e2, tol);
+            worst = fmax(worst, fmax(e1, e2));
+        }
+    }
+    cr_log_info("far vs near: worst relative difference %.3g", worst);
+    /* bounds come back in world coordinates, rounded outward to float */
+    float lo[3], hi[3];
+    pm_map_bounds(b, lo, hi);
+    for (int t = 0; t < 3; t++)
+        cr_assert(lo[t] <= C[t] - 0.49 && hi[t] >= C[t] + 0.49 && hi[t] - lo[t] < 1.05,
+                  "axis %d: [%.9g, %.9g]", t, lo[t], hi[t]);
+    pm_map_free(a);
+    pm_map_free(b);
+    free(near);
+    free(far);
+}
+
+Test(photonmap, origin_is_set_before_records_and_finite)
+{
+    char err[256] = "";
+    pm_map *m = pm_map_new();
+    double o[3] = {7, 7, 7};
+    pm_map_origin(m, o);
+    cr_assert(o[0] == 0.0 && o[1] == 0.0 && o[2] == 0.0, "default origin is 0");
+    const double bad[3] = {1.0, NAN, 0.0}, good[3] = {1.0, 2.0, 3.0};
+    cr_assert_eq(pm_map_set_origin(m, bad, err, sizeof err), PM_ERR_ARG);
+    cr_assert_not_null(strstr(err, "not finite"), "%s", err);
+    cr_assert_eq(pm_map_set_origin(m, good, err, sizeof err), PM_OK, "%s", err);
+    pm_photon p = {{0, 0, 0}, {0, 0, 1}, {1, 1, 1}};
+    cr_assert_eq(pm_map_add_photons(m, &p, 1, err, sizeof err), PM_OK, "%s", err);
+    cr_assert_eq(pm_map_set_origin(m, good, err, sizeof err), PM_ERR_ARG,
+                 "moving the origin under stored photons must be refused");
+    cr_assert_not_null(strstr(err, "before adding"), "%s", err);
+    pm_map_origin(m, o);
+    cr_assert(o[0] == 1.0 && o[1] == 2.0 && o[2] == 3.0);
+    pm_map *s = pm_map_new();
+    pm_segment sg = {{0, 0, 0}, {1, 0, 0}, 1.0f, {1, 1, 1}};
+    cr_assert_eq(pm_map_add_segments(s, &sg, 1, err, sizeof err), PM_OK, "%s", err);
+    cr_assert_eq(pm_map_set_origin(s, good, err, sizeof err), PM_ERR_ARG, "segments too");
+    cr_assert_eq(pm_map_set_origin(NULL, good, err, sizeof err), PM_ERR_ARG);
+    pm_map_free(m);
+    pm_map_free(s);
+}
+
+Test(photonmap, version_1_file_loads_with_origin_zero)
+{
+    /* A version 1 file (docs/photonmap-format.md: 24-byte header, no origin) is the version 2
+     * file without bytes 24..47, with version 1 and its own checksum. It loads with origin 0
+     * and the same records; a truncated or corrupted version 1 file is still rejected. */
+    char dir[64], path[256], v1[300], err[256] = "";
+    make_tmpdir(dir);
+    const size_t nph = 40, nseg = 5;
+    save_sample(dir, "v2.pmap", nph, nseg, path);
+    size_t len;
+    unsigned char *good = read_bytes(path, &len);
+    size_t len1 = len - 24;
+    unsigned char *b = malloc(len1);
+    memcpy(b, good, 24);
+    memcpy(b + 24, good + HDR, len - HDR);
+    b[4] = 1;
+    restamp_checksum(b, len1);
+    snprintf(v1, sizeof v1, "%s/v1.pmap", dir);
+    write_bytes(v1, b, len1);
+    pm_map *m = NULL;
+    cr_assert_eq(pm_map_load(&m, v1, err, sizeof err), PM_OK, "%s", err);
+    double o[3] = {1, 1, 1};
+    pm_map_origin(m, o);
+    cr_assert(o[0] == 0.0 && o[1] == 0.0 && o[2] == 0.0, "version 1: origin 0");
+    cr_assert_eq(pm_map_photon_count(m), nph);
+    cr_assert_eq(memcmp(pm_map_photons(m), good + HDR, 36 * nph), 0);
+    cr_assert_eq(memcmp(pm_map_segments(m), good + HDR + 36 * nph, 40 * nseg), 0);
+    pm_map_free(m);
+    write_bytes(v1, b, len1 - 1);
+    expect_load_fails(v1, PM_ERR_FORMAT, "truncated");
+    write_bytes(v1, b, 30);
+    expect_load_fails(v1, PM_ERR_FORMAT, "truncated");
+    b[30] ^= 0x04;
+    write_bytes(v1, b, len1);
+    expect_load_fails(v1, PM_ERR_FORMAT, "checksum");
+    unlink(v1);
     unlink(path);
     free(b);
     free(good);

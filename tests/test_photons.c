@@ -35,13 +35,15 @@ Test(photons, first_collision_density_of_a_point_light, .timeout = 120)
     pm_map *map = trace(s, n, 1, 1, 7, 2, &st);
     cr_assert(pm_map_photon_count(map) == n, "every photon collides once: %zu", pm_map_photon_count(map));
     const pm_photon *ph = pm_map_photons(map);
+    double o[3]; /* stored positions are offsets from the map origin (the media centre) */
+    pm_map_origin(map, o);
     const double phi = 8.0 * M_PI, sig = 1.5;
     enum { NS = 24 };
     double edges[NS + 1], obs[NS + 1] = {0};
     for (int i = 0; i <= NS; i++) edges[i] = 4.0 * i / NS; /* shells to r = 4, then the tail */
     double power_sum = 0;
     for (size_t i = 0; i < n; i++) {
-        double dx = ph[i].pos[0] - 0.3, dy = ph[i].pos[1] + 0.2, dz = ph[i].pos[2] - 0.1;
+        double dx = o[0] + ph[i].pos[0] - 0.3, dy = o[1] + ph[i].pos[1] + 0.2, dz = o[2] + ph[i].pos[2] - 0.1;
         double r = sqrt(dx * dx + dy * dy + dz * dz);
         int b = (int)(r / 4.0 * NS);
         obs[b < NS ? b : NS] += 1;
@@ -63,7 +65,7 @@ Test(photons, first_collision_density_of_a_point_light, .timeout = 120)
     for (int k = 0; k < 3; k++) {
         double r1 = radii[k] - 0.05, r2 = radii[k] + 0.05, cnt = 0;
         for (size_t i = 0; i < n; i++) {
-            double dx = ph[i].pos[0] - 0.3, dy = ph[i].pos[1] + 0.2, dz = ph[i].pos[2] - 0.1;
+            double dx = o[0] + ph[i].pos[0] - 0.3, dy = o[1] + ph[i].pos[1] + 0.2, dz = o[2] + ph[i].pos[2] - 0.1;
             double r = sqrt(dx * dx + dy * dy + dz * dz);
             if (r >= r1 && r < r2) cnt++;
         }
@@ -206,7 +208,7 @@ Test(photons, knn_radiance_converges_to_delta_tracking, .timeout = 300)
         cr_assert(pm_map_build(map, err, sizeof err) == PM_OK, "%s", err);
         double e2 = 0;
         for (int i = 0; i < NP; i++) {
-            float x[3] = {(float)xs[i].x, (float)xs[i].y, (float)xs[i].z};
+            double x[3] = {xs[i].x, xs[i].y, xs[i].z};
             float w[3] = {(float)ws[i].x, (float)ws[i].y, (float)ws[i].z};
             float out[3];
             cr_assert(pm_map_radiance(map, x, w, ks[j], rd_phase_hg_cb, &gg, out) == ks[j]);
@@ -221,5 +223,323 @@ Test(photons, knn_radiance_converges_to_delta_tracking, .timeout = 300)
     cr_expect(slope < -0.16, "log10 slope %.3f per decade (expected about -0.25)", slope);
     cr_expect(rms[2] < 2.0 / sqrt(ks[2] - 2.0), "RMS relative error at 1e6 photons %.3f", rms[2]);
     cr_log_info("k-NN RMS relative error: %.3f %.3f %.3f (slope %.3f)", rms[0], rms[1], rms[2], slope);
+    rd_scene_free(s);
+}
+
+/* ---- Positions far from the world origin, errors ----------------------------------------- */
+
+Test(photons, map_origin_is_the_media_centre_far_from_zero)
+{
+    /* A medium 1e5 m from the world origin: the map's origin is the centre of the media
+     * bounds, and every stored photon (origin + offset, in double) lies inside the medium, to
+     * the float precision of an offset (1 ulp at 1 m is 1.2e-7 m). */
+    rd_scene *s = rt_scene("far.json",
+                           "{\"camera\":{\"position\":[100000,100000,100010],\"look_at\":[100000,100000,100000],\"resolution\":[4,4]},"
+                           "\"media\":[{\"bounds\":{\"min\":[99999,99999.5,99999],\"max\":[100001,100000.5,100002]},"
+                           "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":2,\"albedo\":0.9}],"
+                           "\"lights\":[{\"type\":\"point\",\"position\":[100000,100000,100000.5],\"intensity\":1}]}");
+    rd_photon_stats st;
+    pm_map *map = trace(s, 20000, 1, 8, 3, 2, &st);
+    double o[3];
+    pm_map_origin(map, o);
+    cr_assert(o[0] == 100000.0 && o[1] == 100000.0 && o[2] == 100000.5, "origin (%.17g, %.17g, %.17g)",
+              o[0], o[1], o[2]);
+    const pm_photon *ph = pm_map_photons(map);
+    size_t n = pm_map_photon_count(map);
+    cr_assert(n > 10000, "%zu photons", n);
+    const double lo[3] = {99999, 99999.5, 99999}, hi[3] = {100001, 100000.5, 100002};
+    for (size_t i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) {
+            double x = o[a] + ph[i].pos[a];
+            cr_assert(x >= lo[a] - 2e-7 && x <= hi[a] + 2e-7, "photon %zu axis %d at %.9f", i, a, x);
+        }
+    pm_map_free(map);
+    rd_scene_free(s);
+}
+
+Test(photons, out_of_memory_writes_a_one_line_message)
+{
+    /* SIZE_MAX photons need SIZE_MAX / 4096 work blocks, far more bytes than an address space
+     * holds: calloc fails deterministically. (This used to return RD_ERR_NOMEM with err left
+     * empty, and the block count overflowed to 0.) */
+    rd_scene *s = rt_scene("oom.json",
+                           "{\"camera\":{\"position\":[0,0,5],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
+                           "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
+                           "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1,\"albedo\":0.5}],"
+                           "\"lights\":[{\"type\":\"point\",\"position\":[0,0,0],\"intensity\":1}]}");
+    pm_map *map = pm_map_new();
+    char err[RD_ERRLEN] = "";
+    rd_photon_stats st;
+    rd_photon_opts o = {.count = SIZE_MAX, .store_direct = 1, .max_depth = 4, .seed = 1, .threads = 1};
+    rd_status rc = rd_trace_photons(s, &o, map, &st, err, sizeof err);
+    cr_assert_eq(rc, RD_ERR_NOMEM, "status %d (%s)", rc, err);
+    cr_assert(err[0] != 0, "no message");
+    cr_assert_null(strchr(err, '\n'), "message is not one line: %s", err);
+    cr_assert_not_null(strstr(err, "out of memory for"), "message does not say what: %s", err);
+    cr_assert_not_null(strstr(err, "block"), "message does not name the allocation: %s", err);
+    cr_assert_eq(pm_map_photon_count(map), 0);
+    pm_map_free(map);
+    rd_scene_free(s);
+}
+
+/* ---- Emission sampling: chi-square against the analytic distributions ---------------------- *
+ * DESIGN.md convention 9: fixed seeds; cells whose expected count is < 5 are pooled into one;
+ * the statistic is compared with the chi-square quantile at p = 1e-4 (z = 3.719), and each test
+ * has a negative control: the same samples against a wrong distribution must fail. */
+
+#define EM_N 200000
+
+/* Pearson chi-square of counts obs[] against probabilities p[] (summing to 1) for N samples,
+ * pooling cells with expected < 5; returns the statistic and its degrees of freedom. */
+static double em_chi2(const double *obs, const double *p, int nb, double N, int *dof)
+{
+    double chi2 = 0.0, po = 0.0, pe = 0.0;
+    int cells = 0;
+    for (int i = 0; i < nb; i++) {
+        double e = N * p[i];
+        if (e < 5.0) {
+            po += obs[i], pe += e;
+            continue;
+        }
+        chi2 += (obs[i] - e) * (obs[i] - e) / e;
+        cells++;
+    }
+    if (pe > 0.0) {
+        chi2 += (po - pe) * (po - pe) / pe;
+        cells++;
+    }
+    *dof = cells - 1;
+    return chi2;
+}
+
+/* Pass against p, fail against the wrong distribution q (negative control). */
+static void em_check(const char *what, const double *obs, const double *p, const double *q, int nb,
+                     double N)
+{
+    int dof, dofq;
+    double c = em_chi2(obs, p, nb, N, &dof), cq = em_chi2(obs, q, nb, N, &dofq);
+    double crit = rt_chi2_quantile(dof, 3.719), critq = rt_chi2_quantile(dofq, 3.719);
+    cr_expect(c < crit, "%s: chi2 %.1f >= %.1f (dof %d)", what, c, crit, dof);
+    cr_expect(cq > critq, "%s: negative control passed: chi2 %.1f <= %.1f", what, cq, critq);
+    cr_log_info("%s: chi2 %.1f (crit %.1f, dof %d); negative control %.1f", what, c, crit, dof, cq);
+}
+
+/* Bin of a unit vector w in (cos theta, phi) about the frame (a, b, n): nc x nphi cells with
+ * cos theta in [cmin, 1] cut uniformly. */
+static int em_bin(vec3 w, vec3 a, vec3 b, vec3 n, double cmin, int nc, int nphi)
+{
+    double c = v3_dot(w, n), phi = atan2(v3_dot(w, b), v3_dot(w, a)) + M_PI;
+    int ic = (int)((c - cmin) / (1.0 - cmin) * nc), ip = (int)(phi / (2.0 * M_PI) * nphi);
+    ic = ic < 0 ? 0 : (ic >= nc ? nc - 1 : ic);
+    ip = ip < 0 ? 0 : (ip >= nphi ? nphi - 1 : ip);
+    return ic * nphi + ip;
+}
+
+static rd_scene *em_scene(const char *light)
+{
+    char json[1024];
+    snprintf(json, sizeof json,
+             "{\"camera\":{\"position\":[0,0,8],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
+             "\"media\":[{\"bounds\":{\"min\":[-1,-2,-1],\"max\":[3,2,1]},"
+             "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1,\"albedo\":0.5}],"
+             "\"lights\":[%s]}", light);
+    return rt_scene("emit.json", json);
+}
+
+enum { EM_NC = 12, EM_NP = 12, EM_NB = EM_NC * EM_NP };
+
+/* Uniform-sphere cells and a tilted wrong distribution (1 + 0.15 cos theta) for controls. */
+static void em_sphere_probs(double *p, double *q)
+{
+    for (int i = 0; i < EM_NB; i++) {
+        double c0 = -1.0 + 2.0 * (i / EM_NP) / EM_NC, c1 = c0 + 2.0 / EM_NC;
+        p[i] = 1.0 / EM_NB;
+        q[i] = ((c1 - c0) + 0.075 * (c1 * c1 - c0 * c0)) / 2.0 / EM_NP;
+    }
+}
+
+Test(photons, emission_point_light_is_uniform_on_the_sphere)
+{
+    rd_scene *s = em_scene("{\"type\":\"point\",\"position\":[0.5,0,0],\"intensity\":[1,2,3]}");
+    const rd_light *l = &s->lights[0];
+    vec3 n = v3(0.2, -0.5, 0.84), a, b;
+    n = v3_norm(n);
+    v3_basis(n, &a, &b);
+    double obs[EM_NB] = {0}, p[EM_NB], q[EM_NB];
+    pcg32 rng = pcg32_seed(11, 0, 1);
+    for (int i = 0; i < EM_N; i++) {
+        ray3 r;
+        vec3 pw;
+        cr_assert(rd_light_sample_emission(s, l, &rng, &r, &pw));
+        cr_assert(r.o.x == 0.5 && r.o.y == 0 && r.o.z == 0, "photons leave the light's position");
+        cr_assert(fabs(pw.y - 4.0 * M_PI * 2.0) < 1e-12, "power 4 pi I");
+        obs[em_bin(r.d, a, b, n, -1.0, EM_NC, EM_NP)] += 1;
+    }
+    em_sphere_probs(p, q);
+    em_check("point", obs, p, q, EM_NB, EM_N);
+    rd_scene_free(s);
+}
+
+Test(photons, emission_environment_is_uniform_inward_over_a_disc)
+{
+    /* Directions uniform on the sphere; origins on a disc of radius R across d, 2R upstream of
+     * the media centre: (o - centre).d = -2R, and the squared offset radius / R^2 uniform. */
+    rd_scene *s = em_scene("{\"type\":\"environment\",\"radiance\":1}");
+    const rd_light *l = &s->lights[0];
+    vec3 c = v3_scale(v3_add(s->bmin, s->bmax), 0.5), n = v3(0, 0, 1), a, b;
+    v3_basis(n, &a, &b);
+    double R = rd_scene_radius(s);
+    double obs[EM_NB] = {0}, p[EM_NB], q[EM_NB], rad[10] = {0}, pr[10], qr[10];
+    pcg32 rng = pcg32_seed(12, 0, 1);
+    for (int i = 0; i < EM_N; i++) {
+        ray3 r;
+        vec3 pw;
+        cr_assert(rd_light_sample_emission(s, l, &rng, &r, &pw));
+        obs[em_bin(r.d, a, b, n, -1.0, EM_NC, EM_NP)] += 1;
+        vec3 off = v3_sub(r.o, c);
+        double along = v3_dot(off, r.d);
+        cr_assert(fabs(along + 2.0 * R) < 1e-9 * R, "disc 2R upstream: %g", along);
+        double rho2 = (v3_dot(off, off) - along * along) / (R * R);
+        int k = (int)(rho2 * 10);
+        rad[k < 0 ? 0 : (k > 9 ? 9 : k)] += 1;
+    }
+    em_sphere_probs(p, q);
+    em_check("environment directions", obs, p, q, EM_NB, EM_N);
+    for (int k = 0; k < 10; k++) { /* control: radius uniform in [0, R] instead of area */
+        pr[k] = 0.1;
+        qr[k] = sqrt((k + 1) / 10.0) - sqrt(k / 10.0);
+    }
+    em_check("environment disc", rad, pr, qr, 10, EM_N);
+    rd_scene_free(s);
+}
+
+Test(photons, emission_directional_is_one_direction_over_a_disc)
+{
+    /* Every photon travels along the light's direction; origins uniform over the beam disc
+     * (its centre and radius), or over a disc of the scene radius around the media centre. */
+    const char *lights[2] = {
+        "{\"type\":\"directional\",\"direction\":[0.3,-1,0.2],\"irradiance\":2,\"radius\":0.4,\"center\":[1,0,0.2]}",
+        "{\"type\":\"directional\",\"direction\":[0.3,-1,0.2],\"irradiance\":2}"};
+    for (int t = 0; t < 2; t++) {
+        rd_scene *s = em_scene(lights[t]);
+        const rd_light *l = &s->lights[0];
+        double R = rd_scene_radius(s), rad = t == 0 ? 0.4 : R;
+        vec3 axis = t == 0 ? v3(1, 0, 0.2) : v3_scale(v3_add(s->bmin, s->bmax), 0.5), a, b;
+        v3_basis(l->dir, &a, &b);
+        double obs[EM_NB] = {0}, p[EM_NB], q[EM_NB];
+        pcg32 rng = pcg32_seed(13 + t, 0, 1);
+        for (int i = 0; i < EM_N; i++) {
+            ray3 r;
+            vec3 pw;
+            cr_assert(rd_light_sample_emission(s, l, &rng, &r, &pw));
+            cr_assert(r.d.x == l->dir.x && r.d.y == l->dir.y && r.d.z == l->dir.z, "one direction");
+            cr_assert(fabs(pw.x - 2.0 * M_PI * rad * rad) < 1e-9 * pw.x, "power E pi r^2");
+            /* offset from the beam axis, in the disc's plane */
+            vec3 off = v3_sub(r.o, axis);
+            double u = v3_dot(off, a) / rad, v = v3_dot(off, b) / rad, rho2 = u * u + v * v;
+            cr_assert(rho2 <= 1.0 + 1e-9, "inside the disc: %g", rho2);
+            double phi = atan2(v, u) + M_PI;
+            int ir = (int)(rho2 * EM_NC), ip = (int)(phi / (2 * M_PI) * EM_NP);
+            ir = ir >= EM_NC ? EM_NC - 1 : ir;
+            ip = ip >= EM_NP ? EM_NP - 1 : ip;
+            obs[ir * EM_NP + ip] += 1;
+        }
+        for (int i = 0; i < EM_NB; i++) { /* uniform in area; control: uniform in radius */
+            int ir = i / EM_NP;
+            p[i] = 1.0 / EM_NB;
+            q[i] = (sqrt((ir + 1.0) / EM_NC) - sqrt((double)ir / EM_NC)) / EM_NP;
+        }
+        em_check(t == 0 ? "directional beam disc" : "directional scene disc", obs, p, q, EM_NB, EM_N);
+        rd_scene_free(s);
+    }
+}
+
+Test(photons, emission_sphere_light_is_cosine_weighted_from_a_uniform_surface)
+{
+    rd_scene *s = em_scene("{\"type\":\"sphere\",\"center\":[0.5,0.2,-0.1],\"radius\":0.3,\"radiance\":1}");
+    const rd_light *l = &s->lights[0];
+    vec3 ax = v3_norm(v3(0.6, 0.3, -0.74)), a, b;
+    v3_basis(ax, &a, &b);
+    double pos[EM_NB] = {0}, ps[EM_NB], qs[EM_NB], cosb[EM_NB] = {0}, pc[EM_NB], qc[EM_NB];
+    pcg32 rng = pcg32_seed(15, 0, 1);
+    for (int i = 0; i < EM_N; i++) {
+        ray3 r;
+        vec3 pw;
+        cr_assert(rd_light_sample_emission(s, l, &rng, &r, &pw));
+        vec3 off = v3_sub(r.o, l->pos);
+        double d = v3_len(off);
+        cr_assert(fabs(d - 0.3) < 1e-6, "on the surface: %g", d);
+        vec3 nn = v3_scale(off, 1.0 / d);
+        pos[em_bin(nn, a, b, ax, -1.0, EM_NC, EM_NP)] += 1;
+        /* cosine-weighted about the normal: cos^2 theta uniform on [0, 1]; phi about the
+         * normal uniform */
+        vec3 na, nb;
+        v3_basis(nn, &na, &nb);
+        double c = v3_dot(r.d, nn);
+        cr_assert(c >= 0.0, "outward");
+        double phi = atan2(v3_dot(r.d, nb), v3_dot(r.d, na)) + M_PI;
+        int ic = (int)(c * c * EM_NC), ip = (int)(phi / (2 * M_PI) * EM_NP);
+        ic = ic >= EM_NC ? EM_NC - 1 : ic;
+        ip = ip >= EM_NP ? EM_NP - 1 : ip;
+        cosb[ic * EM_NP + ip] += 1;
+    }
+    em_sphere_probs(ps, qs);
+    em_check("sphere light surface", pos, ps, qs, EM_NB, EM_N);
+    for (int i = 0; i < EM_NB; i++) { /* control: uniform hemisphere, P(c^2 < x) = sqrt(x) */
+        int ic = i / EM_NP;
+        pc[i] = 1.0 / EM_NB;
+        qc[i] = (sqrt((ic + 1.0) / EM_NC) - sqrt((double)ic / EM_NC)) / EM_NP;
+    }
+    em_check("sphere light directions", cosb, pc, qc, EM_NB, EM_N);
+    rd_scene_free(s);
+}
+
+/* Integral of the spot falloff over cos theta in [c0, c1] (composite Simpson, 200 steps: the
+ * smoothstep is a cubic in cos theta, so each piece is integrated exactly but for the kink at
+ * cos_inner, whose error is < 1e-9 here). */
+static double em_falloff_integral(const rd_light *l, double c0, double c1)
+{
+    const int m = 200;
+    double h = (c1 - c0) / m, sum = rd_spot_falloff(l, c0) + rd_spot_falloff(l, c1);
+    for (int i = 1; i < m; i++) sum += (i % 2 ? 4.0 : 2.0) * rd_spot_falloff(l, c0 + i * h);
+    return sum * h / 3.0;
+}
+
+Test(photons, emission_spot_light_follows_its_falloff)
+{
+    /* Directions are drawn uniformly in the cone and weighted by the falloff; the emitted power
+     * is then distributed like the falloff. Thinning each photon with probability
+     * power / max power leaves directions distributed like falloff(cos theta) over the cone:
+     * chi-square of those against the falloff's integral over each cell, the control being the
+     * cone without falloff (uniform). */
+    rd_scene *s = em_scene("{\"type\":\"spot\",\"position\":[0,0,0],\"direction\":[0.3,-0.2,1],"
+                           "\"angle\":60,\"falloff\":15,\"intensity\":2}");
+    const rd_light *l = &s->lights[0];
+    vec3 a, b;
+    v3_basis(l->dir, &a, &b);
+    double pmax = 2.0 * 2.0 * M_PI * (1.0 - l->cos_outer);
+    double obs[EM_NB] = {0}, p[EM_NB], q[EM_NB], kept = 0;
+    pcg32 rng = pcg32_seed(16, 0, 1), thin = pcg32_seed(16, 1, 1);
+    for (int i = 0; i < EM_N; i++) {
+        ray3 r;
+        vec3 pw;
+        cr_assert(rd_light_sample_emission(s, l, &rng, &r, &pw));
+        double c = v3_dot(r.d, l->dir);
+        cr_assert(c >= l->cos_outer - 1e-12, "inside the cone");
+        cr_assert(fabs(pw.x - pmax * rd_spot_falloff(l, c)) < 1e-9 * pmax, "power follows the falloff");
+        if (pcg32_uniform(&thin) < pw.x / pmax) {
+            obs[em_bin(r.d, a, b, l->dir, l->cos_outer, EM_NC, EM_NP)] += 1;
+            kept++;
+        }
+    }
+    double total = em_falloff_integral(l, l->cos_outer, 1.0);
+    for (int i = 0; i < EM_NB; i++) {
+        int ic = i / EM_NP;
+        double c0 = l->cos_outer + (1.0 - l->cos_outer) * ic / EM_NC;
+        double c1 = l->cos_outer + (1.0 - l->cos_outer) * (ic + 1) / EM_NC;
+        p[i] = em_falloff_integral(l, c0, c1) / total / EM_NP;
+        q[i] = 1.0 / EM_NB;
+    }
+    em_check("spot", obs, p, q, EM_NB, kept);
     rd_scene_free(s);
 }

@@ -167,14 +167,13 @@ Test(sh, uniform_grid_equals_direct_knn_estimate)
         sh_guide_cell_bounds(g, cell, lo, hi);
         for (int a = 0; a < 3; a++)
             x[a] = 0.5 * (lo[a] + hi[a]);
-        float xf[3] = {(float)x[0], (float)x[1], (float)x[2]};
-        cr_assert_eq(pm_map_density(m, xf, P.k, den), P.k);
+        cr_assert_eq(pm_map_density(m, x, P.k, den), P.k);
         for (int t = 0; t < 4; t++) {
             double w[3];
             rng_dir(&r, w);
             float wf[3] = {(float)w[0], (float)w[1], (float)w[2]}, ref[3], out[3];
             double wd[3] = {wf[0], wf[1], wf[2]};
-            cr_assert_eq(pm_map_radiance(m, xf, wf, P.k, trunc_cb, &tp, ref), P.k);
+            cr_assert_eq(pm_map_radiance(m, x, wf, P.k, trunc_cb, &tp, ref), P.k);
             sh_guide_eval(g, x, wd, out);
             for (int ch = 0; ch < 3; ch++) {
                 /* scale: density x max|p_L| (<= sum (2l+1)/(4pi) = L^2/(4 pi)) */
@@ -714,5 +713,106 @@ Test(sh, track_bake_uniform_fill_matches_analytic_fluence)
     cr_assert_float_eq(mean, phi, 4.0 * se_mean, "mean %g vs %g (SE %g)", mean, phi, se_mean);
     sh_guide_free(g);
     pm_map_free(m);
+    free(sg);
+}
+
+/* Bake the same photons (k-NN) or segments (track) once in the unit cube and once moved to
+ * C + the unit cube, the far map storing offsets from origin C (photonmap.h); return both
+ * guides. Positions are built in double as world C + x, then made relative. */
+static void bake_near_and_far(const pm_photon *ph, size_t n, const pm_segment *sg, size_t ns,
+                              const double C[3], sh_bake_method method, sh_guide **gn,
+                              sh_guide **gf)
+{
+    pm_photon *fp = malloc((n ? n : 1) * sizeof *fp);
+    pm_segment *fs = malloc((ns ? ns : 1) * sizeof *fs);
+    cr_assert(fp && fs);
+    for (size_t i = 0; i < n; i++) {
+        fp[i] = ph[i];
+        for (int a = 0; a < 3; a++)
+            fp[i].pos[a] = (float)((C[a] + (double)ph[i].pos[a]) - C[a]);
+    }
+    for (size_t i = 0; i < ns; i++) {
+        fs[i] = sg[i];
+        for (int a = 0; a < 3; a++)
+            fs[i].org[a] = (float)((C[a] + (double)sg[i].org[a]) - C[a]);
+    }
+    char err[256] = "";
+    pm_map *mn = build_map(ph, n, sg, ns);
+    pm_map *mf = pm_map_new();
+    cr_assert_eq(pm_map_set_origin(mf, C, err, sizeof err), PM_OK, "%s", err);
+    if (n)
+        cr_assert_eq(pm_map_add_photons(mf, fp, n, err, sizeof err), PM_OK, "%s", err);
+    if (ns)
+        cr_assert_eq(pm_map_add_segments(mf, fs, ns, err, sizeof err), PM_OK, "%s", err);
+    cr_assert_eq(pm_map_build(mf, err, sizeof err), PM_OK, "%s", err);
+    sh_bake_params P;
+    sh_bake_params_default(&P);
+    P.method = method;
+    P.k = 40;
+    P.res[0] = P.res[1] = P.res[2] = 4;
+    sh_phase_coeffs_hg(0.4, P.bands, P.phase_b);
+    for (int a = 0; a < 3; a++)
+        P.lo[a] = 0.0, P.hi[a] = 1.0;
+    cr_assert_eq(sh_guide_bake(gn, mn, &P, err, sizeof err), SH_OK, "%s", err);
+    for (int a = 0; a < 3; a++)
+        P.lo[a] = C[a], P.hi[a] = C[a] + 1.0;
+    cr_assert_eq(sh_guide_bake(gf, mf, &P, err, sizeof err), SH_OK, "%s", err);
+    pm_map_free(mn);
+    pm_map_free(mf);
+    free(fp);
+    free(fs);
+}
+
+/* Largest |far - near| over a cell's coefficients, relative to the cell's largest |c|. */
+static double coeff_rel_diff(const sh_guide *gn, const sh_guide *gf, size_t cell)
+{
+    int nc = 3 * sh_guide_bands(gn) * sh_guide_bands(gn);
+    const float *a = sh_guide_cell_coeffs(gn, cell), *b = sh_guide_cell_coeffs(gf, cell);
+    double scale = 0.0, diff = 0.0;
+    for (int i = 0; i < nc; i++) {
+        scale = fmax(scale, fabs(a[i]));
+        diff = fmax(diff, fabs((double)b[i] - a[i]));
+    }
+    return scale > 0.0 ? diff / scale : diff;
+}
+
+Test(sh, bakes_far_from_the_origin_equal_bakes_near_it)
+{
+    /* A scene 1e5 m from the world origin must bake like the same scene at the origin (the
+     * photon map stores offsets from its origin; the bakes add it back in double).
+     * k-NN tolerance: offsets (C + x) - C differ from x by <= ulp_double(2e5) = 3e-11 m, at
+     * most one float ulp (6e-8 m) per coordinate in [0, 1], so a photon moves by eps <=
+     * sqrt(3) 6e-8 = 1.04e-7 m and the cell centres (double) by 3e-11 m; the k-th distance
+     * r_k changes by <= 2 eps and |V| ~ r_k^3 by 6 eps / r_k relative (r_k >= 0.05 m here:
+     * 1.3e-5), plus float rounding of the sums (1e-6).
+     * Track tolerance: the same eps moves a segment's clipped length in a cell by <= 2 eps
+     * (one per end), relative to the cell's total length (>= 1 m here): 1e-6 with rounding.
+     * Before the fix the world floats at 1e5 m sat on a 0.0078 m grid: k-NN differed by ~10%. */
+    const double C[3] = {1.0e5 + 1.0 / 3.0, -1.0e5, 2.0e5};
+    rng r = rng_new(97);
+    const size_t n = 4000, ns = 3000;
+    const double c0[3] = {0.4, 0.5, 0.6};
+    pm_photon *ph = clustered(&r, n, c0, 0.2, 0.3);
+    pm_segment *sg = random_segments(&r, ns, -0.2, 1.2, 0.4);
+    sh_guide *gn = NULL, *gf = NULL;
+    bake_near_and_far(ph, n, NULL, 0, C, SH_BAKE_KNN, &gn, &gf);
+    double worst = 0.0;
+    for (size_t cell = 0; cell < sh_guide_cell_count(gn); cell++) {
+        double d = coeff_rel_diff(gn, gf, cell);
+        cr_assert(d <= 1.4e-5, "k-NN cell %zu: far vs near differ by %.3g", cell, d);
+        worst = fmax(worst, d);
+    }
+    sh_guide_free(gn);
+    sh_guide_free(gf);
+    bake_near_and_far(NULL, 0, sg, ns, C, SH_BAKE_TRACK, &gn, &gf);
+    for (size_t cell = 0; cell < sh_guide_cell_count(gn); cell++) {
+        double d = coeff_rel_diff(gn, gf, cell);
+        cr_assert(d <= 1e-6, "track cell %zu: far vs near differ by %.3g", cell, d);
+        worst = fmax(worst, d);
+    }
+    cr_log_info("bakes far vs near: worst relative difference %.3g", worst);
+    sh_guide_free(gn);
+    sh_guide_free(gf);
+    free(ph);
     free(sg);
 }
