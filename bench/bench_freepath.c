@@ -155,7 +155,7 @@ static double iterations_000(const pc_medium *pm, const rd_majorant *maj, double
     fm.bmin = v3(0, 0, 0);
     fm.bmax = v3(1, 1, 1);
     fm.segments = &segs;
-    rd_track_counters c = {0, 0};
+    rd_track_counters c = {0};
     uint64_t rays = 0;
     for (int i = 0; i < nrays; i++) {
         pcg32 g = pcg32_seed(seed, i, 1); /* same lines and numbers for every scheme */
@@ -267,7 +267,7 @@ static rate measure(const char *name, const rd_fp_params *p, const rd_fp_medium 
     rate out = {name, 0, 0, 0};
     double times[9];
     for (int rep = 0; rep < reps; rep++) {
-        rd_track_counters c = {0, 0};
+        rd_track_counters c = {0};
         double t0 = now_s();
         for (int i = 0; i < nrays; i++) {
             pcg32 g = pcg32_seed(77, i, 3);
@@ -392,14 +392,14 @@ static void bench_transmittance(rd_medium *m, const char *label, int nrays, int 
         p.transmittance = kinds[k];
         p.step = step;
         double var = 0, mse = 0, tt = 0;
-        rd_track_counters c = {0, 0};
+        rd_track_counters c = {0};
         for (int i = 0; i < nrays; i++) {
             pcg32 g = pcg32_seed(5, i, 5);
             double t1;
             ray3 r = random_line(&g, fm.bmin, fm.bmax, &t1);
             double exact = NAN;
             if (m->kind == RD_DENSITY_GRID) {
-                rd_track_counters cc = {0, 0};
+                rd_track_counters cc = {0};
                 exact = exp(-m->sigma_t_scale * rd_grid_optical_depth(&m->grid, r, 0, t1, &cc));
             }
             double s1 = 0, s2 = 0, t0 = now_s();

@@ -205,7 +205,7 @@ static void reference_point(const rd_scene *s, ref_point *p, uint64_t stream, co
     sh_phase_coeffs_hg(m->g, GUIDE_BANDS, b);
     double sum = 0, sum2 = 0, sumd = 0, sumL[3] = {0, 0, 0}, sumX = 0, sumX2 = 0;
     long n = 0;
-    rd_track_counters c = {0, 0};
+    rd_track_counters c = {0};
     while (n < o->max_paths) {
         for (long k = n; k < n + o->batch; k++) {
             pcg32 r = pcg32_seed(stream, (uint64_t)k, 0x726566ULL);

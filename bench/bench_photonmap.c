@@ -138,7 +138,7 @@ static void die(const char *what, const char *err)
 }
 
 /* Seconds for one batch k-NN run over nq queries. */
-static double time_batch(const pm_map *m, const float *q, size_t nq, int k, int *idx,
+static double time_batch(const pm_map *m, const double *q, size_t nq, int k, int *idx,
                          float *d2, int threads)
 {
     char err[256];
@@ -196,14 +196,17 @@ int main(int argc, char **argv)
         fclose(lf);
     }
 
-    float *q = malloc(max_nq * 3 * sizeof(float));
+    float *qf = malloc(max_nq * 3 * sizeof(float));
+    double *q = malloc(max_nq * 3 * sizeof(double)); /* queries are world points in double */
     int *idx1 = malloc(max_nq * 256 * sizeof(int)), *idx2 = malloc(max_nq * 256 * sizeof(int));
     float *d1 = malloc(max_nq * 256 * sizeof(float)), *d2 = malloc(max_nq * 256 * sizeof(float));
-    if (!q || !idx1 || !idx2 || !d1 || !d2)
+    if (!qf || !q || !idx1 || !idx2 || !d1 || !d2)
         die("malloc", "out of memory");
     splitmix64 qr = {999};
-    for (size_t j = 0; j < max_nq; j++)
-        sample_point(blobs, &qr, q + 3 * j);
+    for (size_t j = 0; j < max_nq; j++) {
+        sample_point(blobs, &qr, qf + 3 * j);
+        for (int a = 0; a < 3; a++) q[3 * j + a] = qf[3 * j + a];
+    }
 
     for (int s = 0; s < nsizes; s++) {
         size_t n = sizes[s];
@@ -302,6 +305,7 @@ int main(int argc, char **argv)
             die(json, "write failed");
     }
     free(q);
+    free(qf);
     free(idx1);
     free(idx2);
     free(d1);

@@ -91,25 +91,15 @@ rd_status rd_photon_image(const rd_scene *s, const pm_map *map, rd_image *img, c
         snprintf(err, errlen, "out of memory for the photon image");
         return RD_ERR_NOMEM;
     }
-    double aspect = (double)w / h, th = tan(0.5 * cam->fov_deg * M_PI / 180.0);
-    double half_h = 0.5 * cam->ortho_width / aspect;
     const pm_photon *ph = pm_map_photons(map);
     size_t n = pm_map_photon_count(map);
     double o[3]; /* stored positions are offsets from the map origin */
     pm_map_origin(map, o);
     for (size_t i = 0; i < n; i++) {
         vec3 x = v3(o[0] + ph[i].pos[0], o[1] + ph[i].pos[1], o[2] + ph[i].pos[2]);
-        vec3 v = v3_sub(x, cam->pos);
-        double z = v3_dot(v, cam->forward), sx, sy;
-        if (cam->kind == RD_CAM_PERSPECTIVE) {
-            if (z <= 0) continue;
-            sx = v3_dot(v, cam->right) / (z * th * aspect);
-            sy = v3_dot(v, cam->up) / (z * th);
-        } else {
-            sx = v3_dot(v, cam->right) / (half_h * aspect);
-            sy = v3_dot(v, cam->up) / half_h;
-        }
-        int px = (int)floor((sx + 1.0) * 0.5 * w), py = (int)floor((1.0 - sy) * 0.5 * h);
+        double fx, fy;
+        if (!rd_camera_project(cam, x, &fx, &fy)) continue;
+        int px = (int)floor(fx), py = (int)floor(fy);
         if (px < 0 || py < 0 || px >= w || py >= h) continue;
         float *p = &img->rgb[3 * ((size_t)py * w + px)];
         p[0] += ph[i].power[0];

@@ -135,8 +135,9 @@ static double phase_cb(double cos_theta, void *user) { return rd_hg_eval(*(const
 
 static vec3 photon_estimate(const pm_map *map, vec3 x, vec3 w, double g, int k)
 {
-    float xf[3] = {(float)x.x, (float)x.y, (float)x.z}, wf[3] = {(float)w.x, (float)w.y, (float)w.z}, out[3];
-    if (!map || pm_map_radiance(map, xf, wf, k, phase_cb, &g, out) < 0) return v3(0, 0, 0);
+    double xd[3] = {x.x, x.y, x.z};
+    float wf[3] = {(float)w.x, (float)w.y, (float)w.z}, out[3];
+    if (!map || pm_map_radiance(map, xd, wf, k, phase_cb, &g, out) < 0) return v3(0, 0, 0);
     return v3(out[0], out[1], out[2]);
 }
 
@@ -151,7 +152,8 @@ static vec3 source(const rd_render_ctx *ctx, const rd_medium *m, vec3 x, vec3 d,
         return photon_estimate(ctx->photons, x, w, m->g, s->guide.k);
     case RD_LS_NEE_PHOTONS:
         S = photon_estimate(ctx->photons_indirect, x, w, m->g, s->guide.k);
-        /* fall through: add the direct light */
+        /* add the direct light: */
+        /* fall through */
     case RD_LS_NEE:
     default: {
         vec3 sigma_s = v3_scale(m->albedo, sigma_t);

@@ -162,8 +162,8 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
         for (int depth = 1;; depth++) {
             /* Sphere lights are opaque to camera paths and shadow rays, so to photons too: a
              * photon that reaches one ends there (counted as escaped). */
-            double t_light = INFINITY;
-            for (int k = 0; k < s->n_lights; k++) t_light = fmin(t_light, rd_light_hit(&s->lights[k], r));
+            double t_light;
+            rd_scene_hit_light(s, r, INFINITY, -1, &t_light);
             rd_collision col = rd_sample_free_path(s, r, t_light, &rng, tc);
             /* The first flight carries direct light: store it only with store_direct, as for
              * the photons, so k-NN and track-length bakes see the same light. */
@@ -245,7 +245,7 @@ rd_status rd_trace_photons(const rd_scene *s, const rd_photon_opts *o, pm_map *m
 #pragma omp parallel for num_threads(nthreads) schedule(dynamic, 1) reduction(+ : coll, look)
     for (size_t bi = 0; bi < nblocks; bi++) {
         size_t first = bi * BLOCK, cnt = first + BLOCK <= o->count ? BLOCK : o->count - first;
-        rd_track_counters tc = {0, 0};
+        rd_track_counters tc = {0};
         trace_block(s, o, cdf, first, cnt, &blocks[bi], &tc);
         coll += tc.collisions;
         look += tc.lookups;

@@ -295,13 +295,15 @@ static sh_status check_params(const pm_map *map, const sh_bake_params *P, double
             lo[a] = flo[a], hi[a] = fhi[a];
     } else if (ns > 0) {
         const pm_segment *s = pm_map_segments(map);
+        double o[3];
+        pm_map_origin(map, o); /* segment origins are stored relative to the map's origin */
         for (int a = 0; a < 3; a++)
             lo[a] = INFINITY, hi[a] = -INFINITY;
         for (size_t i = 0; i < ns; i++)
             for (int a = 0; a < 3; a++) {
-                double e = s[i].org[a] + (double)s[i].length * s[i].dir[a];
-                lo[a] = fmin(lo[a], fmin(s[i].org[a], e));
-                hi[a] = fmax(hi[a], fmax(s[i].org[a], e));
+                double so = o[a] + s[i].org[a], e = so + (double)s[i].length * s[i].dir[a];
+                lo[a] = fmin(lo[a], fmin(so, e));
+                hi[a] = fmax(hi[a], fmax(so, e));
             }
     } else {
         shi_set_err(err, errlen, "sh_guide_bake: no box given (params.lo/hi) and the photon map is "
@@ -355,7 +357,7 @@ static uint32_t split_mask(const double lo[3], const double hi[3])
 /* State of one build: the guide being built, the points, and the split rule's limits. */
 typedef struct {
     sh_guide *g;
-    const float *pts; /* 3 per point */
+    const double *pts; /* 3 per point, world coordinates */
     uint32_t *idx, *tmp; /* point ids; scatter buffer */
     uint8_t *off;         /* child offset of each point during a split */
     int split_count, max_depth;
@@ -456,7 +458,7 @@ static void build_node(build_ctx *B, size_t node, const double lo[3], const doub
     size_t cnt[9] = {0};
     const double zero[3] = {0, 0, 0};
     for (size_t i = a; i < b; i++) {
-        const float *q = B->pts + 3 * (size_t)B->idx[i];
+        const double *q = B->pts + 3 * (size_t)B->idx[i];
         double p[3] = {q[0], q[1], q[2]}, cl[3] = {lo[0], lo[1], lo[2]},
                ch[3] = {hi[0], hi[1], hi[2]};
         int o = shi_child_of(mask, p, zero, cl, ch);
@@ -485,7 +487,7 @@ static sh_status build_octree(sh_guide *g, const pm_map *map, const sh_bake_para
     /* Points that drive the split: photon positions, or segment midpoints without photons. */
     size_t np = pm_map_photon_count(map), ns = pm_map_segment_count(map);
     size_t n = np > 0 ? np : ns;
-    float *pts = malloc((n ? n : 1) * 3 * sizeof *pts);
+    double *pts = malloc((n ? n : 1) * 3 * sizeof *pts);
     uint32_t *idx = malloc((n ? n : 1) * sizeof *idx);
     uint32_t *tmp = malloc((n ? n : 1) * sizeof *tmp);
     uint8_t *off = malloc(n ? n : 1);
@@ -496,18 +498,21 @@ static sh_status build_octree(sh_guide *g, const pm_map *map, const sh_bake_para
         return SH_ERR_NOMEM;
     }
     size_t m = 0;
+    double o[3];
+    pm_map_origin(map, o); /* stored positions are relative to the map's origin */
     if (np > 0) {
         const pm_photon *ph = pm_map_photons(map);
         for (size_t i = 0; i < np; i++)
-            memcpy(pts + 3 * i, ph[i].pos, 3 * sizeof(float));
+            for (int a = 0; a < 3; a++)
+                pts[3 * i + a] = o[a] + (double)ph[i].pos[a];
     } else {
         const pm_segment *s = pm_map_segments(map);
         for (size_t i = 0; i < ns; i++)
             for (int a = 0; a < 3; a++)
-                pts[3 * i + a] = s[i].org[a] + 0.5f * s[i].length * s[i].dir[a];
+                pts[3 * i + a] = o[a] + (double)s[i].org[a] + 0.5 * s[i].length * s[i].dir[a];
     }
     for (size_t i = 0; i < n; i++) {
-        const float *q = pts + 3 * i;
+        const double *q = pts + 3 * i;
         int in = 1;
         for (int a = 0; a < 3; a++)
             in &= q[a] >= g->lo[a] && q[a] <= g->hi[a];

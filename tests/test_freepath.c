@@ -63,7 +63,7 @@ static void check_distribution(const config *cf, const rd_medium *m, ray3 r, int
     double t0, t1;
     cr_assert(rd_box_intersect(m->bmin, m->bmax, r, 0, INFINITY, &t0, &t1));
     rd_fp_medium fm = rd_fp_view(m);
-    rd_track_counters c = {0, 0};
+    rd_track_counters c = {0};
     /* Exact bin probabilities: bins of equal length over [t0, t1] plus the escape bin. */
     double p[NBIN + 1], Tprev = 1.0;
     for (int b = 0; b < NBIN; b++) {
@@ -147,7 +147,7 @@ Test(freepath, transmittance_estimators_are_unbiased)
         double t0, t1;
         cr_assert(rd_box_intersect(m->bmin, m->bmax, r, 0, INFINITY, &t0, &t1));
         /* Exact optical depth against a 400000-step midpoint rule (error << 1e-6). */
-        rd_track_counters c = {0, 0};
+        rd_track_counters c = {0};
         double tau = rd_grid_optical_depth(&m->grid, r, t0, t1, &c) * m->sigma_t_scale, mid = 0.0;
         int steps = 400000;
         double h = (t1 - t0) / steps;
@@ -202,7 +202,7 @@ Test(freepath, supervoxel_tracking_in_noise_matches_quadrature)
     double exact = exp(-tau);
     rd_fp_params p;
     rd_fp_params_default(&p);
-    rd_track_counters c = {0, 0};
+    rd_track_counters c = {0};
     int n = 100000, esc = 0;
     for (int i = 0; i < n; i++) {
         pcg32 rng = pcg32_seed(4, i, 4);
@@ -222,7 +222,7 @@ Test(freepath, settings_select_the_tracker)
     cr_expect(s->settings.tracker == RD_FP_WEIGHTED && s->settings.track_b == 0.5);
     cr_expect(s->settings.transmittance == RD_TR_EXACT);
     pcg32 rng = pcg32_seed(1, 1, 1);
-    rd_track_counters c = {0, 0};
+    rd_track_counters c = {0};
     ray3 r = {v3(-3, 0, 0), v3(1, 0, 0)};
     cr_expect(fabs(rd_transmittance(s, r, 0.0, INFINITY, &rng, &c) - exp(-2.0)) < 1e-12, "exact transmittance");
     rd_scene_free(s);

@@ -12,7 +12,7 @@ typedef struct { double mean, se; } mc_result;
 
 static mc_result mc_radiance(const rd_scene *s, ray3 r, int n, uint64_t seed)
 {
-    rd_track_counters c = {0, 0};
+    rd_track_counters c = {0};
     double sum = 0, sum2 = 0;
     for (int i = 0; i < n; i++) {
         pcg32 rng = pcg32_seed(seed, i, 1234);
@@ -150,7 +150,7 @@ Test(integrator, sphere_light_seen_directly)
                            "\"media\":[],"
                            "\"lights\":[{\"type\":\"sphere\",\"center\":[0,0,-3],\"radius\":0.5,\"radiance\":[2,3,4]}]}");
     pcg32 rng = pcg32_seed(1, 1, 1);
-    rd_track_counters c = {0, 0};
+    rd_track_counters c = {0};
     vec3 L = rd_delta_radiance(s, (ray3){v3(0, 0, 2), v3(0, 0, -1)}, &rng, &c);
     cr_expect(L.x == 2 && L.y == 3 && L.z == 4, "direct view of the sphere light: (%g %g %g)", L.x, L.y, L.z);
     L = rd_delta_radiance(s, (ray3){v3(0, 0, 2), v3(0, 1, 0)}, &rng, &c);

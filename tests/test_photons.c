@@ -175,7 +175,7 @@ Test(photons, knn_radiance_converges_to_delta_tracking, .timeout = 300)
         /* reference: sigma_s * E_{w' ~ p(.|w)} [L arriving at x travelling along w'] */
         int n = 150000;
         double sum = 0, sum2 = 0;
-        rd_track_counters c = {0, 0};
+        rd_track_counters c = {0};
         for (int k = 0; k < n; k++) {
             pcg32 r = pcg32_seed(i, k, 555);
             /* w' with pdf p(w' . w): sample around -w... the phase is symmetric in

@@ -18,7 +18,7 @@ static rd_scene *slab_scene(void)
 static void estimate(const rd_scene *s, ray3 r, double tmax, int n, uint64_t seed, double *Td,
                      double *Tr, double *se_r)
 {
-    rd_track_counters c = {0, 0};
+    rd_track_counters c = {0};
     int escaped = 0;
     double sum = 0, sum2 = 0;
     for (int i = 0; i < n; i++) {
