@@ -1,7 +1,9 @@
-// vdb_io.cpp: OpenVDB behind a plain C API (rd_internal.h). Reads one float grid by name into
-// a dense array with its index-to-world transform; writes a dense array as a .vdb (for tests and
-// the scene-making scripts). Every exception is caught and turned into a one-line message.
+// vdb_io.cpp: OpenVDB behind a plain C API (rd_internal.h, rd_vdb.h). Reads one float grid by
+// name into a dense array with its index-to-world transform; writes a dense array as a .vdb
+// with a scale and translation or any affine index-to-world map (for tests and the
+// scene-making scripts). Every exception is caught and turned into a one-line message.
 #include "rd_internal.h"
+#include "rd_vdb.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/io/File.h>
@@ -134,41 +136,91 @@ extern "C" rd_status rd_vdb_load(const char *path, const char *grid_name, rd_gri
     return RD_ERR_FORMAT;
 }
 
+// Fill a float grid from a dense array (x fastest); zeros stay inactive (the background).
+static void fill_dense(openvdb::FloatGrid &grid, const float *data, int nx, int ny, int nz)
+{
+    auto acc = grid.getAccessor();
+    size_t q = 0;
+    for (int k = 0; k < nz; k++)
+        for (int j = 0; j < ny; j++)
+            for (int i = 0; i < nx; i++, q++)
+                if (data[q] != 0.0f) acc.setValue(openvdb::Coord(i, j, k), data[q]);
+}
+
+// Write one grid to a temporary name beside `path`, then rename it into place. Throws on an
+// OpenVDB error (the callers catch); returns RD_ERR_IO with a message when the rename fails.
+static rd_status write_grid(const char *path, openvdb::FloatGrid::Ptr grid, char *err, size_t errlen)
+{
+    std::string tmp = std::string(path) + ".tmp" + std::to_string((long)getpid());
+    openvdb::GridPtrVec grids{grid};
+    try {
+        openvdb::io::File file(tmp);
+        file.setCompression(openvdb::io::COMPRESS_ZIP | openvdb::io::COMPRESS_ACTIVE_MASK);
+        file.write(grids);
+        file.close();
+    } catch (...) {
+        std::remove(tmp.c_str()); /* never leave a half-written temporary behind */
+        throw;
+    }
+    if (std::rename(tmp.c_str(), path) != 0) {
+        std::snprintf(err, errlen, "%s: cannot rename into place: %s", path, std::strerror(errno));
+        std::remove(tmp.c_str());
+        return RD_ERR_IO;
+    }
+    return RD_OK;
+}
+
+static openvdb::FloatGrid::Ptr new_fog_grid(const char *grid_name)
+{
+    openvdb::FloatGrid::Ptr grid = openvdb::FloatGrid::create(0.0f);
+    grid->setName(grid_name);
+    grid->setGridClass(openvdb::GRID_FOG_VOLUME);
+    return grid;
+}
+
 extern "C" rd_status rd_vdb_save_dense(const char *path, const char *grid_name, const float *data,
                                        int nx, int ny, int nz, double voxel_size, const double origin[3],
                                        char *err, size_t errlen)
 {
     try {
         vdb_init();
-        openvdb::FloatGrid::Ptr grid = openvdb::FloatGrid::create(0.0f);
-        grid->setName(grid_name);
-        grid->setGridClass(openvdb::GRID_FOG_VOLUME);
+        openvdb::FloatGrid::Ptr grid = new_fog_grid(grid_name);
         openvdb::math::Transform::Ptr xf = openvdb::math::Transform::createLinearTransform(voxel_size);
         xf->postTranslate(openvdb::Vec3d(origin[0], origin[1], origin[2]));
         grid->setTransform(xf);
-        auto acc = grid->getAccessor();
-        size_t q = 0;
-        for (int k = 0; k < nz; k++)
-            for (int j = 0; j < ny; j++)
-                for (int i = 0; i < nx; i++, q++)
-                    if (data[q] != 0.0f) acc.setValue(openvdb::Coord(i, j, k), data[q]); // zeros: background
-        std::string tmp = std::string(path) + ".tmp" + std::to_string((long)getpid());
-        openvdb::GridPtrVec grids{grid};
-        try {
-            openvdb::io::File file(tmp);
-            file.setCompression(openvdb::io::COMPRESS_ZIP | openvdb::io::COMPRESS_ACTIVE_MASK);
-            file.write(grids);
-            file.close();
-        } catch (...) {
-            std::remove(tmp.c_str()); /* never leave a half-written temporary behind */
-            throw;
+        fill_dense(*grid, data, nx, ny, nz);
+        return write_grid(path, grid, err, errlen);
+    } catch (const std::exception &e) {
+        std::snprintf(err, errlen, "%s: %s", path, e.what());
+    } catch (...) {
+        std::snprintf(err, errlen, "%s: unknown error writing OpenVDB file", path);
+    }
+    return RD_ERR_IO;
+}
+
+extern "C" rd_status rd_vdb_save_dense_affine(const char *path, const char *grid_name, const float *data,
+                                              int nx, int ny, int nz, const double index_to_world[4][4],
+                                              char *err, size_t errlen)
+{
+    try {
+        vdb_init();
+        // OpenVDB maps row vectors (world = [i j k 1] * M): its matrix is the transpose of ours.
+        openvdb::Mat4d M;
+        for (int r = 0; r < 4; r++)
+            for (int c = 0; c < 4; c++) M(c, r) = index_to_world[r][c];
+        const double *last = index_to_world[3];
+        if (last[0] != 0.0 || last[1] != 0.0 || last[2] != 0.0 || last[3] != 1.0) {
+            std::snprintf(err, errlen, "%s: the index-to-world matrix is not affine (last row must be 0 0 0 1)", path);
+            return RD_ERR_ARG;
         }
-        if (std::rename(tmp.c_str(), path) != 0) {
-            std::snprintf(err, errlen, "%s: cannot rename into place: %s", path, std::strerror(errno));
-            std::remove(tmp.c_str());
-            return RD_ERR_IO;
+        if (!(std::fabs(M.getMat3().det()) > 1e-300)) {
+            std::snprintf(err, errlen, "%s: the index-to-world matrix is singular", path);
+            return RD_ERR_ARG;
         }
-        return RD_OK;
+        openvdb::FloatGrid::Ptr grid = new_fog_grid(grid_name);
+        grid->setTransform(openvdb::math::Transform::createLinearTransform(M));
+        fill_dense(*grid, data, nx, ny, nz);
+        return write_grid(path, grid, err, errlen);
     } catch (const std::exception &e) {
         std::snprintf(err, errlen, "%s: %s", path, e.what());
     } catch (...) {

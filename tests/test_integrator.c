@@ -3,27 +3,11 @@
  *    accurate quadrature of the single-scattering integral along the camera ray, for several g;
  *  - white furnace: an albedo-1 medium in a uniform environment of radiance 1 gives 1;
  *  - the image is the same bit for bit on 1 and 2 threads.
- * Tolerances are 5 standard errors of the Monte Carlo mean (fixed seeds). */
+ * Tolerances are 5 standard errors of the Monte Carlo mean (fixed seeds); the Monte Carlo loop
+ * is rt_delta_mc (support/rd_test.h). */
 #include "support/rd_test.h"
 
 #include <omp.h>
-
-typedef struct { double mean, se; } mc_result;
-
-static mc_result mc_radiance(const rd_scene *s, ray3 r, int n, uint64_t seed)
-{
-    rd_track_counters c = {0};
-    double sum = 0, sum2 = 0;
-    for (int i = 0; i < n; i++) {
-        pcg32 rng = pcg32_seed(seed, i, 1234);
-        double L = rd_delta_radiance(s, r, &rng, &c).y;
-        sum += L;
-        sum2 += L * L;
-    }
-    mc_result m = {sum / n, 0};
-    m.se = sqrt(fmax(0.0, sum2 / n - m.mean * m.mean) / n);
-    return m;
-}
 
 /* Length of the segment a->b inside the box (for the light's transmittance). */
 static double inside_length(vec3 bmin, vec3 bmax, vec3 a, vec3 b)
@@ -69,9 +53,9 @@ Test(integrator, single_scattering_matches_quadrature, .timeout = 120)
             q += f * (i == 0 || i == steps ? 1 : (i % 2 ? 4 : 2));
         }
         q *= h / 3.0;
-        mc_result mc = mc_radiance(s, r, 400000, 17 + gi);
-        cr_expect(fabs(mc.mean - q) < 5 * mc.se, "g=%g: delta %.6f vs quadrature %.6f (se %.6f)", gs[gi], mc.mean, q, mc.se);
-        cr_expect(mc.se < 0.02 * q, "g=%g: the estimate must be precise enough to mean something (se %.5f)", gs[gi], mc.se);
+        rt_mc mc = rt_delta_mc(s, r, 400000, 17 + gi);
+        cr_expect(fabs(mc.mean.y - q) < 5 * mc.se.y, "g=%g: delta %.6f vs quadrature %.6f (se %.6f)", gs[gi], mc.mean.y, q, mc.se.y);
+        cr_expect(mc.se.y < 0.02 * q, "g=%g: the estimate must be precise enough to mean something (se %.5f)", gs[gi], mc.se.y);
         rd_scene_free(s);
     }
 }
@@ -91,8 +75,8 @@ Test(integrator, white_furnace, .timeout = 120)
     const ray3 rays[] = {{v3(0, 0, 4), v3(0, 0, -1)}, {v3(-4, 0.3, 0.2), v3(1, 0, 0)},
                          {v3(3, 3, 3), v3_norm(v3(-1, -1, -1))}};
     for (int k = 0; k < 3; k++) {
-        mc_result mc = mc_radiance(s, rays[k], 60000, 90 + k);
-        cr_expect(fabs(mc.mean - 1.0) < 5 * mc.se + 1e-9, "ray %d: %.5f (se %.5f)", k, mc.mean, mc.se);
+        rt_mc mc = rt_delta_mc(s, rays[k], 60000, 90 + k);
+        cr_expect(fabs(mc.mean.y - 1.0) < 5 * mc.se.y + 1e-9, "ray %d: %.5f (se %.5f)", k, mc.mean.y, mc.se.y);
     }
     rd_scene_free(s);
 }
@@ -116,8 +100,8 @@ Test(integrator, white_furnace_every_tracker, .timeout = 240)
                  "\"lights\":[{\"type\":\"environment\",\"radiance\":1}],"
                  "\"settings\":{\"max_depth\":100000,\"rr_depth\":3,%s}}", trackers[k]);
         rd_scene *s = rt_scene("furnace_t.json", json);
-        mc_result mc = mc_radiance(s, (ray3){v3(0, 0.2, 4), v3(0, 0, -1)}, 40000, 300 + k);
-        cr_expect(fabs(mc.mean - 1.0) < 5 * mc.se + 1e-9, "%s: %.5f (se %.5f)", trackers[k], mc.mean, mc.se);
+        rt_mc mc = rt_delta_mc(s, (ray3){v3(0, 0.2, 4), v3(0, 0, -1)}, 40000, 300 + k);
+        cr_expect(fabs(mc.mean.y - 1.0) < 5 * mc.se.y + 1e-9, "%s: %.5f (se %.5f)", trackers[k], mc.mean.y, mc.se.y);
         rd_scene_free(s);
     }
 }
@@ -134,9 +118,9 @@ Test(integrator, background_through_a_medium_every_tracker, .timeout = 120)
                  "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":0.8,\"albedo\":0.5}],"
                  "\"background\":1,\"settings\":{%s}}", trackers[k]);
         rd_scene *s = rt_scene("bg_t.json", json);
-        mc_result mc = mc_radiance(s, (ray3){v3(0.1, 0.2, 4), v3(0, 0, -1)}, 100000, 400 + k);
+        rt_mc mc = rt_delta_mc(s, (ray3){v3(0.1, 0.2, 4), v3(0, 0, -1)}, 100000, 400 + k);
         double exact = exp(-1.6);
-        cr_expect(fabs(mc.mean - exact) < 5 * mc.se + 1e-9, "%s: %.5f vs %.5f (se %.5f)", trackers[k], mc.mean, exact, mc.se);
+        cr_expect(fabs(mc.mean.y - exact) < 5 * mc.se.y + 1e-9, "%s: %.5f vs %.5f (se %.5f)", trackers[k], mc.mean.y, exact, mc.se.y);
         rd_scene_free(s);
     }
 }

@@ -101,6 +101,59 @@ static inline int rt_run(char *const argv[], char *out, size_t outlen, char *err
     return WEXITSTATUS(status);
 }
 
+/* Monte Carlo estimate of the radiance the `delta` integrator carries along camera ray r:
+ * the mean of n samples and its standard error, per channel. Sample i draws from the PCG32
+ * stream pcg32_seed(seed, i, 1234). Every integrator test goes through this one helper, so
+ * only it changes when rd_delta_radiance's signature does. */
+typedef struct {
+    vec3 mean, se;
+} rt_mc;
+
+static inline rt_mc rt_delta_mc(const rd_scene *s, ray3 r, int n, uint64_t seed)
+{
+    rd_track_counters c = {0};
+    double sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0};
+    for (int i = 0; i < n; i++) {
+        pcg32 rng = pcg32_seed(seed, (uint64_t)i, 1234);
+        vec3 L = rd_delta_radiance(s, r, &rng, &c);
+        for (int k = 0; k < 3; k++) {
+            double v = v3_get(L, k);
+            sum[k] += v;
+            sum2[k] += v * v;
+        }
+    }
+    double mean[3], se[3];
+    for (int k = 0; k < 3; k++) {
+        mean[k] = sum[k] / n;
+        se[k] = sqrt(fmax(0.0, sum2[k] / n - mean[k] * mean[k]) / n);
+    }
+    rt_mc m = {v3(mean[0], mean[1], mean[2]), v3(se[0], se[1], se[2])};
+    return m;
+}
+
+/* Composite Simpson rule for the integral of f over [a, b] with n (even) intervals. Its error
+ * is -(b-a) h^4 f''''(xi)/180 for a smooth f: callers split at every jump of their integrand. */
+static inline double rt_simpson(double (*f)(double t, const void *ctx), const void *ctx, double a,
+                                double b, int n)
+{
+    if (!(b > a)) return 0.0;
+    if (n % 2) n++;
+    double h = (b - a) / n, q = f(a, ctx) + f(b, ctx);
+    for (int i = 1; i < n; i++) q += (i % 2 ? 4.0 : 2.0) * f(a + i * h, ctx);
+    return q * h / 3.0;
+}
+
+/* Length of the segment a->b inside the box [bmin, bmax]. */
+static inline double rt_inside_length(vec3 bmin, vec3 bmax, vec3 a, vec3 b)
+{
+    vec3 d = v3_sub(b, a);
+    double len = v3_len(d), t0, t1;
+    if (len <= 0.0) return 0.0;
+    ray3 r = {a, v3_scale(d, 1.0 / len)};
+    if (!rd_box_intersect(bmin, bmax, r, 0.0, len, &t0, &t1)) return 0.0;
+    return t1 - t0;
+}
+
 /* Wilson-Hilferty approximation of the chi-square quantile for `dof` degrees of freedom at
  * standard-normal quantile z (z = 3.719 for an upper tail of 1e-4). */
 static inline double rt_chi2_quantile(int dof, double z)
