@@ -176,6 +176,11 @@ static vec3 march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_s
     scratch_layout(ctx->state, &ms, th->scratch);
     rd_guide_pdf pdf;
     int N = build_pdf(ctx, place, &ms, r, t0, t1, &pdf, c);
+    if (th->rays == 0 || (uint32_t)N < th->samples_min) th->samples_min = (uint32_t)N;
+    if ((uint32_t)N > th->samples_max) th->samples_max = (uint32_t)N;
+    th->rays++;
+    th->ray_samples += (uint64_t)N;
+    th->cells += (uint64_t)pdf.n;
     rd_guide_pdf_sample_stratified(&pdf, N, rd_sampler_1d(smp), ms.t, ms.p);
     pcg32 rng = rd_sampler_stream(smp);
     vec3 L = v3(0, 0, 0);

@@ -76,6 +76,8 @@ static char *report_json(const rd_scene *s, const rd_render_opts *o, const rd_re
     cJSON_AddNumberToObject(j, "threads", o->threads);
     cJSON_AddNumberToObject(j, "seconds", st->seconds);
     cJSON_AddNumberToObject(j, "bake_seconds", st->bake_seconds);
+    cJSON_AddNumberToObject(j, "prepare_seconds", st->prepare_seconds);
+    cJSON_AddNumberToObject(j, "render_seconds", st->seconds - st->bake_seconds - st->prepare_seconds);
     cJSON_AddNumberToObject(j, "time_limit", o->time_limit);
     cJSON_AddBoolToObject(j, "interrupted", st->cancelled);
     cJSON_AddBoolToObject(j, "timed_out", st->timed_out);
@@ -87,6 +89,17 @@ static char *report_json(const rd_scene *s, const rd_render_opts *o, const rd_re
     cJSON_AddNumberToObject(j, "lookups_per_path", st->lookups / paths);
     cJSON_AddNumberToObject(j, "paths_per_second", st->seconds > 0 ? st->paths / st->seconds : 0.0);
     cJSON_AddNumberToObject(j, "invalid_samples", (double)st->invalid);
+    if (st->rays_marched) { /* the marching methods' per-ray statistics */
+        cJSON *mr = cJSON_AddObjectToObject(j, "march");
+        if (mr) {
+            cJSON_AddNumberToObject(mr, "rays", (double)st->rays_marched);
+            cJSON_AddNumberToObject(mr, "samples_per_ray", st->samples_per_ray);
+            cJSON_AddNumberToObject(mr, "samples_min", st->samples_min);
+            cJSON_AddNumberToObject(mr, "samples_max", st->samples_max);
+            cJSON_AddNumberToObject(mr, "pdf_segments_per_ray", st->cells_per_ray);
+            cJSON_AddNumberToObject(mr, "lookups_per_ray", (double)st->lookups / (double)st->rays_marched);
+        }
+    }
     /* Mean per-pixel standard error (luminance), a one-number noise level of the image. */
     size_t np = (size_t)res->image.w * res->image.h;
     double se = 0.0;

@@ -23,6 +23,11 @@ struct sh_guide;
 typedef struct rd_thread {
     int index;
     rd_track_counters counters;
+    /* Per-ray statistics of the marching methods (zero for the others). */
+    uint64_t rays;          /* camera rays that entered the media */
+    uint64_t ray_samples;   /* samples placed along them */
+    uint64_t cells;         /* PDF segments (guide cells, extinction steps) built */
+    uint32_t samples_min, samples_max;
     void *scratch;
     size_t scratch_bytes;
 } rd_thread;

@@ -259,6 +259,7 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         rd_baked_free(own);
         return st;
     }
+    res->stats.prepare_seconds = now_seconds() - t_start - res->stats.bake_seconds;
 
     /* Per-thread contexts with the method's scratch, and the film. */
     size_t scratch = m->scratch_bytes ? m->scratch_bytes(&ctx) : 0;
@@ -329,10 +330,22 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
     rs->spp_mean = (double)total / (double)npix;
     rs->paths = total + invalid;
     rs->invalid = invalid;
+    uint64_t samples = 0, cells = 0;
+    rs->samples_min = 0;
     for (int i = 0; i < ctx.threads; i++) {
         rs->collisions += th[i].counters.collisions;
         rs->lookups += th[i].counters.lookups;
         rs->shadow_rays += th[i].counters.shadow_rays;
+        if (th[i].rays == 0) continue;
+        if (rs->rays_marched == 0 || (int)th[i].samples_min < rs->samples_min) rs->samples_min = (int)th[i].samples_min;
+        if ((int)th[i].samples_max > rs->samples_max) rs->samples_max = (int)th[i].samples_max;
+        rs->rays_marched += th[i].rays;
+        samples += th[i].ray_samples;
+        cells += th[i].cells;
+    }
+    if (rs->rays_marched) {
+        rs->samples_per_ray = (double)samples / rs->rays_marched;
+        rs->cells_per_ray = (double)cells / rs->rays_marched;
     }
     rs->seconds = now_seconds() - t_start;
 done:

@@ -119,6 +119,13 @@ typedef struct {
     uint64_t invalid;        /* non-finite samples dropped (should be 0; reported if not) */
     int cancelled;           /* 1 when the cancel flag stopped the render early */
     int timed_out;           /* 1 when the time limit stopped it */
+    double prepare_seconds;  /* the method's set-up after the bake (e.g. a pilot pass) */
+    /* Ray-marching methods: camera rays that entered the media, samples per such ray (mean,
+     * min, max) and PDF segments built per ray (guide cells crossed; 0 for other methods). */
+    uint64_t rays_marched;
+    double samples_per_ray;
+    int samples_min, samples_max;
+    double cells_per_ray;
 } rd_render_stats;
 
 /* One point of the convergence curve: RMSE of the image so far against the reference. */

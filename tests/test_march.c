@@ -1,0 +1,151 @@
+/* Guided ray marching and its baselines (renderer/integrator_march.c) against independent
+ * estimators of the same image:
+ *  - with single scattering and direct light only (max_depth 1, march.ls = nee), guided,
+ *    uniform, transmittance and delta agree (their estimators are all unbiased for it);
+ *  - with multiple scattering from the photon map, guided and transmittance agree (they share
+ *    the estimator of sigma_s L_s; only the placement of the samples differs);
+ *  - alpha = 1 (the defensive sampler alone) and a guide that is wrong on purpose (baked with
+ *    the light elsewhere) leave the expected image unchanged.
+ * Comparisons are z-scores of the image mean and of 8x8-pixel region means, with standard
+ * errors from the films' per-pixel standard errors (pixels are independent). Under equal
+ * expectations each z is standard normal; with at most 12 regions per comparison the region
+ * bound 4.5 keeps the chance of a false alarm per test below 1e-4, the image bound is 5. */
+#include "support/rd_test.h"
+
+typedef struct {
+    double z_image, z_max;
+    int regions;
+} cmp_result;
+
+/* z-scores between two renders of the same scene (luminance of 8x8 regions and the image). */
+static cmp_result compare(const rd_render_result *a, const rd_render_result *b)
+{
+    cmp_result c = {0, 0, 0};
+    int w = a->image.w, h = a->image.h;
+    double img[2] = {0, 0}, img_v[2] = {0, 0};
+    for (int ry = 0; ry < h; ry += 8)
+        for (int rx = 0; rx < w; rx += 8) {
+            double m[2] = {0, 0}, v[2] = {0, 0};
+            int n = 0;
+            for (int y = ry; y < ry + 8 && y < h; y++)
+                for (int x = rx; x < rx + 8 && x < w; x++, n++)
+                    for (int k = 0; k < 2; k++) {
+                        const rd_render_result *r = k ? b : a;
+                        const float *p = &r->image.rgb[3 * ((size_t)y * w + x)];
+                        const float *e = &r->stderr_img.rgb[3 * ((size_t)y * w + x)];
+                        m[k] += v3_lum(v3(p[0], p[1], p[2]));
+                        /* the luminance's standard error, channels taken as fully correlated
+                         * (they come from the same paths): an upper bound */
+                        double se = v3_lum(v3(e[0], e[1], e[2]));
+                        v[k] += se * se;
+                    }
+            for (int k = 0; k < 2; k++) {
+                img[k] += m[k];
+                img_v[k] += v[k];
+            }
+            if (v[0] + v[1] <= 0.0) continue;
+            double z = (m[0] - m[1]) / sqrt(v[0] + v[1]);
+            if (fabs(z) > fabs(c.z_max)) c.z_max = z;
+            c.regions++;
+        }
+    c.z_image = (img[0] - img[1]) / sqrt(img_v[0] + img_v[1]);
+    return c;
+}
+
+static rd_render_result render(const rd_scene *s, const char *method, int spp, uint64_t seed,
+                               const rd_baked *baked)
+{
+    rd_render_opts o = {.method = method, .spp = spp, .seed = seed, .threads = 2, .baked = baked};
+    rd_render_result r;
+    char err[RD_ERRLEN];
+    cr_assert(rd_render(s, &o, &r, err, sizeof err) == RD_OK, "%s: %s", method, err);
+    for (size_t i = 0; i < (size_t)r.image.w * r.image.h * 3; i++)
+        cr_assert(isfinite(r.image.rgb[i]), "%s: non-finite pixel", method);
+    return r;
+}
+
+static void expect_same(const rd_render_result *a, const rd_render_result *b, const char *what)
+{
+    cmp_result c = compare(a, b);
+    cr_assert(c.regions >= 4, "%s: too few lit regions (%d)", what, c.regions);
+    cr_expect(fabs(c.z_image) < 5.0, "%s: image means differ, z = %.2f", what, c.z_image);
+    cr_expect(fabs(c.z_max) < 4.5, "%s: a region differs, z = %.2f (of %d)", what, c.z_max, c.regions);
+}
+
+/* A heterogeneous, anisotropic medium lit by a spot (with falloff) and a directional beam. */
+#define SCENE_BODY                                                                                  \
+    "\"camera\":{\"position\":[0,0.3,4.2],\"look_at\":[0,0,0],\"fov\":34,\"resolution\":[32,24]},"  \
+    "\"media\":[{\"bounds\":{\"min\":[-1.3,-1,-1],\"max\":[1.3,1,1]},"                              \
+    "\"density\":{\"type\":\"noise\",\"octaves\":3,\"frequency\":2,\"amplitude\":2,\"seed\":3,"       \
+    "\"shape\":\"ellipsoid\",\"edge\":0.5},\"sigma_t\":2.5,\"albedo\":0.85,\"g\":0.6}],"
+
+static const char *scene_json(const char *extra, double spot_x)
+{
+    static char buf[2048];
+    snprintf(buf, sizeof buf,
+             "{" SCENE_BODY
+             "\"lights\":[{\"type\":\"spot\",\"position\":[%g,2,1.5],\"look_at\":[-0.2,0,0],\"angle\":30,"
+             "\"falloff\":8,\"intensity\":[20,16,12]},"
+             "{\"type\":\"directional\",\"direction\":[1,-0.2,-0.3],\"irradiance\":[2,3,4],\"radius\":0.25,"
+             "\"center\":[0.3,0.1,0]}],"
+             "\"photons\":{\"count\":40000},\"guide\":{\"bands\":4},%s}",
+             spot_x, extra);
+    return buf;
+}
+
+Test(march, single_scattering_agrees_with_delta, .timeout = 300)
+{
+    rd_scene *s = rt_scene("ss_march.json", scene_json("\"settings\":{\"max_depth\":1},\"march\":{\"ls\":\"nee\",\"samples\":8}", -2.5));
+    rd_render_result d = render(s, "delta", 512, 11, NULL);
+    const char *methods[] = {"guided", "uniform", "transmittance"};
+    for (int i = 0; i < 3; i++) {
+        rd_render_result m = render(s, methods[i], 64, 20 + i, NULL);
+        expect_same(&d, &m, methods[i]);
+        rd_render_result_free(&m);
+    }
+    rd_render_result_free(&d);
+    rd_scene_free(s);
+}
+
+Test(march, guided_and_transmittance_share_the_multiple_scattering_estimate, .timeout = 300)
+{
+    /* nee+photons: direct light by NEE, multiple scattering from the indirect photon map. Both
+     * renders bake the same photons (same seed): their expectations are equal. */
+    rd_scene *s = rt_scene("ms_march.json", scene_json("\"march\":{\"samples\":8}", -2.5));
+    char err[RD_ERRLEN];
+    rd_baked *b = NULL;
+    rd_bake_opts bo = {.seed = -1, .indirect = 1};
+    cr_assert(rd_bake(s, &bo, &b, err, sizeof err) == RD_OK, "%s", err);
+    rd_render_result g = render(s, "guided", 64, 5, b);
+    rd_render_result t = render(s, "transmittance", 64, 6, b);
+    expect_same(&g, &t, "guided vs transmittance, nee+photons");
+    rd_render_result_free(&g);
+    rd_render_result_free(&t);
+    rd_baked_free(b);
+    rd_scene_free(s);
+}
+
+Test(march, defensive_only_and_wrong_guides_keep_the_expectation, .timeout = 300)
+{
+    rd_scene *s = rt_scene("w_march.json", scene_json("\"settings\":{\"max_depth\":1},\"march\":{\"ls\":\"nee\",\"samples\":8}", -2.5));
+    rd_render_result u = render(s, "uniform", 96, 31, NULL);
+    /* alpha = 1: the guided method samples the defensive (uniform) component only. */
+    rd_scene *s1 = rt_scene("w1_march.json", scene_json("\"settings\":{\"max_depth\":1},\"march\":{\"ls\":\"nee\",\"samples\":8,\"alpha\":1}", -2.5));
+    rd_render_result a1 = render(s1, "guided", 96, 32, NULL);
+    expect_same(&u, &a1, "alpha = 1");
+    /* A guide baked with the spot on the other side of the medium: wrong on purpose. */
+    rd_scene *sw = rt_scene("ww_march.json", scene_json("\"settings\":{\"max_depth\":1},\"march\":{\"ls\":\"nee\",\"samples\":8}", 2.5));
+    char err[RD_ERRLEN];
+    rd_baked *wrong = NULL;
+    rd_bake_opts bo = {.seed = -1};
+    cr_assert(rd_bake(sw, &bo, &wrong, err, sizeof err) == RD_OK, "%s", err);
+    rd_render_result gw = render(s, "guided", 96, 33, wrong);
+    expect_same(&u, &gw, "guide baked with the light elsewhere");
+    rd_render_result_free(&u);
+    rd_render_result_free(&a1);
+    rd_render_result_free(&gw);
+    rd_baked_free(wrong);
+    rd_scene_free(s);
+    rd_scene_free(s1);
+    rd_scene_free(sw);
+}
