@@ -226,7 +226,13 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
     bs->index_seconds = pm_map_build_seconds(b->map);
     /* 2b. The same photons without their first flight, for multiple scattering beside
      * next-event estimation (photon i follows the same path: its stream is keyed by i). */
-    if (o->indirect) {
+    if (o->indirect && o->load_indirect) {
+        if (pm_map_load(&b->indirect, o->load_indirect, pmerr, sizeof pmerr) != PM_OK) {
+            snprintf(err, errlen, "%s", pmerr);
+            st = RD_ERR_FORMAT;
+            goto fail;
+        }
+    } else if (o->indirect) {
         rd_photon_opts po = {.count = o->photons > 0 ? o->photons : s->photons.count,
                              .store_direct = 0,
                              .segments = 0,
@@ -241,15 +247,23 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
             goto fail;
         }
         if ((st = rd_trace_photons(s, &po, b->indirect, &ps, err, errlen)) != RD_OK) goto fail;
-        if (pm_map_build(b->indirect, pmerr, sizeof pmerr) != PM_OK) {
-            snprintf(err, errlen, "photon map: %s", pmerr);
-            st = RD_ERR_INTERNAL;
-            goto fail;
-        }
+    }
+    if (b->indirect && pm_map_build(b->indirect, pmerr, sizeof pmerr) != PM_OK) {
+        snprintf(err, errlen, "photon map: %s", pmerr);
+        st = RD_ERR_INTERNAL;
+        goto fail;
     }
     /* 3. The SH guide grid (THEORY.md §5). */
-    if (!o->no_guide) {
-        if ((st = rd_guide_bake(s, b->map, o->threads, &b->guide, err, errlen)) != RD_OK) goto fail;
+    if (!o->no_guide && o->load_guide) {
+        if (sh_guide_load(&b->guide, o->load_guide, pmerr, sizeof pmerr) != SH_OK) {
+            snprintf(err, errlen, "%s", pmerr);
+            st = RD_ERR_FORMAT;
+            goto fail;
+        }
+    } else if (!o->no_guide && (st = rd_guide_bake(s, b->map, o->threads, &b->guide, err, errlen)) != RD_OK) {
+        goto fail;
+    }
+    if (b->guide) {
         sh_guide_stats gst;
         sh_guide_stats_get(b->guide, &gst);
         bs->has_guide = 1;
@@ -270,6 +284,49 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
 fail:
     rd_baked_free(b);
     return st;
+}
+
+/* ---- The bake cache -------------------------------------------------------------------- */
+
+rd_status rd_bake_cached(const rd_scene *s, const rd_bake_opts *o, const char *dir, rd_baked **out,
+                         int *hit, char *err, size_t errlen)
+{
+    /* The key: the scene's bake key and the options that change what is baked. */
+    uint64_t k = s->bake_key;
+    uint64_t extra[4] = {o->photons, (uint64_t)o->seed, (uint64_t)o->indirect, (uint64_t)o->no_guide};
+    for (size_t i = 0; i < sizeof extra; i++) k = (k ^ ((const unsigned char *)extra)[i]) * 0x100000001b3ULL;
+    char pmap[1100], ind[1100], guide[1100], msg[RD_ERRLEN];
+    snprintf(pmap, sizeof pmap, "%s/%016llx.pmap", dir, (unsigned long long)k);
+    snprintf(ind, sizeof ind, "%s/%016llx-indirect.pmap", dir, (unsigned long long)k);
+    snprintf(guide, sizeof guide, "%s/%016llx.guide", dir, (unsigned long long)k);
+    *hit = 0;
+    FILE *f;
+    int have = (f = fopen(pmap, "rb")) != NULL;
+    if (f) fclose(f);
+    if (have && o->indirect) { have = (f = fopen(ind, "rb")) != NULL; if (f) fclose(f); }
+    if (have && !o->no_guide) { have = (f = fopen(guide, "rb")) != NULL; if (f) fclose(f); }
+    if (have) {
+        rd_bake_opts lo = *o;
+        lo.load_photons = pmap;
+        lo.load_indirect = o->indirect ? ind : NULL;
+        lo.load_guide = o->no_guide ? NULL : guide;
+        if (rd_bake(s, &lo, out, msg, sizeof msg) == RD_OK) {
+            *hit = 1;
+            return RD_OK;
+        }
+        /* A damaged or foreign cache file: bake anew and replace it. */
+    }
+    rd_status st = rd_bake(s, o, out, err, errlen);
+    if (st != RD_OK) return st;
+    const rd_baked *b = *out;
+    if (rd_make_parent_dirs(pmap, msg, sizeof msg) != RD_OK ||
+        pm_map_save(b->map, pmap, msg, sizeof msg) != PM_OK ||
+        (b->indirect && pm_map_save(b->indirect, ind, msg, sizeof msg) != PM_OK) ||
+        (b->guide && sh_guide_save(b->guide, guide, msg, sizeof msg) != SH_OK)) {
+        snprintf(err, errlen, "bake cache not saved: %s", msg); /* the bake itself is good */
+        *hit = -1;
+    }
+    return RD_OK;
 }
 
 /* Write img as PREFIX<suffix>.exr (unless png_only) and, normalised, .png. */

@@ -71,7 +71,12 @@ static const char *usage_render =
     "  --threads N       worker threads (default: all cores)\n"
     "  -o, --output OUT.exr   output path (default: out/<scene name>.exr); also writes\n"
     "                    OUT-stderr.exr, the per-pixel standard error of the mean\n"
-    "  --reference REF.exr    a converged image of the same size: the report records the RMSE\n"
+    "  --photons FILE    a photon map saved by `bake` (methods that need one; otherwise they\n"
+    "                    bake their own, cached in OUT's folder under .photonmarch-cache/,\n"
+    "                    named by a hash of everything the bake depends on)\n"
+    "  --guide FILE      a guide grid saved by `bake` (the guided method)\n"
+    "  --no-cache        bake afresh and do not write the cache\n"
+  "  --reference REF.exr    a converged image of the same size: the report records the RMSE\n"
     "                    against it after every pass (\"convergence\")\n"
     "  --set KEY=VALUE   override a scene field before validation, e.g. --set settings.spp=64,\n"
     "                    --set camera.resolution=[320,240], --set media[0].g=0.9 (repeatable)\n"
@@ -279,10 +284,10 @@ static int report_error(rd_status st, const char *err)
 static int cmd_render(int argc, char **argv)
 {
     scene_args a = {0};
-    const char *method = NULL, *outpath = NULL, *refpath = NULL;
+    const char *method = NULL, *outpath = NULL, *refpath = NULL, *photons_path = NULL, *guide_path = NULL;
     long spp = -1, seed = -1, threads = 0;
     double time_limit = -1;
-    int quiet = 0;
+    int quiet = 0, no_cache = 0;
     for (int i = 0; i < argc; i++) {
         const char *o = argv[i];
         int t = take_set(&a, argc, argv, &i);
@@ -293,6 +298,9 @@ static int cmd_render(int argc, char **argv)
         else if (!strcmp(o, "-q") || !strcmp(o, "--quiet")) quiet = 1;
         else if (!strcmp(o, "--method") && has_val) method = argv[++i];
         else if (!strcmp(o, "--reference") && has_val) refpath = argv[++i];
+        else if (!strcmp(o, "--photons") && has_val) photons_path = argv[++i];
+        else if (!strcmp(o, "--guide") && has_val) guide_path = argv[++i];
+        else if (!strcmp(o, "--no-cache")) no_cache = 1;
         else if (!strcmp(o, "--spp") && has_val) { if (!parse_int(o, argv[++i], 1, 1 << 24, &spp)) return EXIT_USAGE; }
         else if (!strcmp(o, "--time") && has_val) { if (!parse_double(o, argv[++i], 0.001, 1e7, &time_limit)) return EXIT_USAGE; }
         else if (!strcmp(o, "--seed") && has_val) { if (!parse_int(o, argv[++i], 0, 0x7fffffffL, &seed)) return EXIT_USAGE; }
@@ -342,6 +350,36 @@ static int cmd_render(int argc, char **argv)
         code = report_error(st, err);
         goto out;
     }
+    /* What the method needs baked: from --photons/--guide, the cache, or a fresh bake. */
+    rd_baked *baked = NULL;
+    unsigned needs = rd_method_needs_for(ro.method, scene);
+    if (needs) {
+        rd_bake_opts bo = {0};
+        bo.seed = -1;
+        bo.threads = (int)threads;
+        bo.no_guide = !(needs & RD_NEEDS_GUIDE);
+        bo.indirect = (needs & RD_NEEDS_INDIRECT) != 0;
+        bo.load_photons = photons_path;
+        bo.load_guide = guide_path;
+        double t0 = wall_seconds();
+        int hit = 0;
+        if (photons_path || guide_path || no_cache) {
+            st = rd_bake(scene, &bo, &baked, err, sizeof err);
+        } else {
+            char dir[1100];
+            const char *slash = strrchr(outpath, '/');
+            snprintf(dir, sizeof dir, "%.*s.photonmarch-cache", slash ? (int)(slash - outpath + 1) : 0, outpath);
+            st = rd_bake_cached(scene, &bo, dir, &baked, &hit, err, sizeof err);
+            if (st == RD_OK && hit < 0 && !quiet) fprintf(stderr, "warning: %s\n", err);
+            if (st == RD_OK && !quiet) fprintf(stderr, "%s photon map and guide (%s)\n", hit > 0 ? "reused the cached" : "baked the", dir);
+        }
+        if (st) {
+            code = report_error(st, err);
+            goto out;
+        }
+        ro.baked = baked;
+        ro.baked_seconds = wall_seconds() - t0;
+    }
     signal(SIGINT, on_sigint);
     rd_render_result res;
     st = rd_render(scene, &ro, &res, err, sizeof err);
@@ -378,6 +416,7 @@ static int cmd_render(int argc, char **argv)
     }
     rd_render_result_free(&res);
 out:
+    rd_baked_free(baked);
     rd_image_free_pixels(&ref);
     rd_scene_free(scene);
     return code;

@@ -40,3 +40,10 @@ size_t rd_methods(char *buf, size_t n)
     if (buf && n) buf[written] = 0;
     return len;
 }
+
+unsigned rd_method_needs_for(const char *name, const rd_scene *s)
+{
+    const rd_method *m = rd_method_find(name);
+    if (!m) return 0u;
+    return m->needs_for ? m->needs_for(s) : m->needs;
+}

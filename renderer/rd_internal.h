@@ -242,6 +242,7 @@ struct rd_scene {
     rd_guide_settings guide;
     rd_march_settings march;
     rd_light_sampler light_sampler; /* lights by power, built by the loader */
+    uint64_t bake_key;    /* hash of what a bake depends on (scene.c bake_key), for the cache */
     int *sphere_lights;   /* indices of the sphere lights (the lights a path can hit) */
     int n_sphere_lights;
 };

@@ -75,6 +75,8 @@ const char *rd_method_summary(int i);
 unsigned rd_method_needs(int i);
 /* The method names, comma-separated, into buf (truncated to n); returns the length needed. */
 size_t rd_methods(char *buf, size_t n);
+/* What `method` needs baked for this scene's settings (RD_NEEDS_*; 0 for an unknown method). */
+unsigned rd_method_needs_for(const char *method, const rd_scene *scene);
 
 /* ---- Rendering --------------------------------------------------------------------------- */
 
@@ -102,6 +104,8 @@ typedef struct {
     /* Photon map and guide for the methods that need them (rd_method_needs); borrowed. NULL:
      * rd_render bakes them itself when the method needs them (time counted in the render). */
     const rd_baked *baked;
+    double baked_seconds;  /* time the caller spent obtaining `baked` (a bake or a cache load):
+                              counted in the render's seconds and against its time limit */
     /* Optional converged image of the same size: the RMSE of the running mean against it is
      * recorded after every pass (rd_render_result.curve). Borrowed. */
     const rd_image *reference;
@@ -162,6 +166,8 @@ typedef struct {
     long long seed;            /* photon seed; < 0 = the scene's photons.seed */
     int threads;               /* 0 = all; results do not depend on it */
     const char *load_photons;  /* reuse a saved .pmap instead of tracing (NULL: trace) */
+    const char *load_indirect; /* reuse a saved indirect .pmap (with `indirect`) */
+    const char *load_guide;    /* reuse a saved .guide instead of baking one (NULL: bake) */
     int no_guide;              /* 1: stop after the photon map */
     int indirect;              /* 1: also the map of photons stored without their first flight
                                   (same photons, same seed: the first collisions left out) */
@@ -191,6 +197,15 @@ typedef struct {
 /* Trace (or load) the scene's photon map, build its FLANN index, bake the SH guide grid. */
 rd_status rd_bake(const rd_scene *scene, const rd_bake_opts *opts, rd_baked **out, char *err,
                   size_t errlen);
+
+/* rd_bake through a cache folder: the files are named by a hash of everything the bake depends
+ * on (the scene without camera, march and render-only settings; grid voxel data; photon count,
+ * seed, indirect map); when they are there and load cleanly they are used (*hit = 1), else the
+ * bake runs and saves them (through temporary names; *hit = 0). A damaged cache file is
+ * rebaked. If the files cannot be saved the bake is still returned, with *hit = -1 and the
+ * reason in err. */
+rd_status rd_bake_cached(const rd_scene *scene, const rd_bake_opts *opts, const char *cache_dir,
+                         rd_baked **out, int *hit, char *err, size_t errlen);
 void rd_baked_free(rd_baked *b);
 const rd_bake_stats *rd_baked_stats(const rd_baked *b);
 

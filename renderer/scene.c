@@ -948,6 +948,41 @@ static rd_status validate(vctx *c, const cJSON *root, rd_scene *s)
     return RD_OK;
 }
 
+/* FNV-1a 64 over bytes, continuing from h. */
+static uint64_t fnv1a(uint64_t h, const void *data, size_t n)
+{
+    const unsigned char *p = data;
+    for (size_t i = 0; i < n; i++) h = (h ^ p[i]) * 0x100000001b3ULL;
+    return h;
+}
+
+/* The key of what a bake depends on: the scene's JSON after overrides without the parts that
+ * cannot change photons or the guide (camera, march, and the render-only settings), printed
+ * canonically by cJSON, and the voxel data of every grid medium (so a volume file replaced on
+ * disk changes the key). */
+static uint64_t bake_key(const cJSON *root, const rd_scene *s)
+{
+    uint64_t h = 0xcbf29ce484222325ULL;
+    cJSON *copy = cJSON_Duplicate(root, 1);
+    if (!copy) return 0;
+    cJSON_DeleteItemFromObjectCaseSensitive(copy, "camera");
+    cJSON_DeleteItemFromObjectCaseSensitive(copy, "march");
+    cJSON *set = cJSON_GetObjectItemCaseSensitive(copy, "settings");
+    static const char *const render_only[] = {"spp", "time", "seed", "method", "max_depth", "rr_depth", NULL};
+    for (int i = 0; set && render_only[i]; i++) cJSON_DeleteItemFromObjectCaseSensitive(set, render_only[i]);
+    char *text = cJSON_PrintUnformatted(copy);
+    cJSON_Delete(copy);
+    if (!text) return 0;
+    h = fnv1a(h, text, strlen(text));
+    cJSON_free(text);
+    for (int i = 0; i < s->n_media; i++) {
+        const rd_grid *g = &s->media[i].grid;
+        if (s->media[i].kind == RD_DENSITY_GRID && g->data)
+            h = fnv1a(h, g->data, (size_t)g->nx * g->ny * g->nz * sizeof *g->data);
+    }
+    return h;
+}
+
 rd_status rd_scene_load(rd_scene **out, const char *path, const rd_override *ov, int nov, char *err,
                         size_t errlen)
 {
@@ -984,6 +1019,7 @@ rd_status rd_scene_load(rd_scene **out, const char *path, const rd_override *ov,
     if (!s) { cJSON_Delete(root); snprintf(err, errlen, "%s: out of memory", path); return RD_ERR_NOMEM; }
     snprintf(s->path, sizeof s->path, "%s", path);
     st = validate(&c, root, s);
+    if (st == RD_OK) s->bake_key = bake_key(root, s);
     cJSON_Delete(root);
     if (st) {
         if (st == RD_ERR_NOMEM) snprintf(err, errlen, "%s: out of memory", path);
