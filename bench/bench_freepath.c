@@ -4,14 +4,19 @@
  *     acceleration over Woodcock tracking (WT) of the uniform grid (UG, eq. 16-17) and octree
  *     (OC, §5.2), estimated (eq. 14) and measured (iterations = tentative collisions + cell
  *     crossings, random lines), beside the paper's Tables 1b and 2b.
+ *  B0. The rewind cost t_rewind / t_iter of eq. 15, calibrated on media that B never uses.
  *  B. Seed 003 (Szirmay-Kalos et al. 2011) §6: M rays/s of ray marching (RM), WT and super-voxel
- *     delta tracking with constant and tri-linear bounds at several super-voxel resolutions, on a
- *     256^3-effective noise cloud (low and high variation) and a 512^3 dense grid; density
- *     lookups per ray against the effective resolution 256^3 .. 4096^3.
- *  C. Transmittance estimators: variance x cost on the same rays.
+ *     delta tracking with constant and tri-linear bounds at several super-voxel resolutions, and
+ *     the cost-model choice three ways (eq. 14 alone; the scene loader's default rewind cost;
+ *     the calibrated one), on a 256^3-effective noise cloud (low and high variation) and a 512^3
+ *     dense grid; density lookups per ray against the effective resolution 256^3 .. 4096^3.
+ *  C. Transmittance estimators: variance x time on the same rays, per density kind (constant,
+ *     grid, noise). bench_render_tr.c measures what they do to a whole render.
  *
- * Usage: bench_freepath [--quick] [--json FILE]. Timings: one thread, median of repeats; every
- * ratio is taken within one run. */
+ * Usage: bench_freepath [--quick] [--json FILE] [--baseline K] [--only000]. Timings: one
+ * thread; the configurations of a table are timed interleaved (1, 2, ..., n, 1, 2, ...) and the
+ * median and min-max over the repeats are printed, so every ratio is taken within one run under
+ * the same load. */
 #include "rd_internal.h"
 
 #include <omp.h>
