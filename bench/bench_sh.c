@@ -1,6 +1,6 @@
 /* bench_sh.c: guide-grid bake time and memory (sh/; THEORY.md §5; seed 001 §3.1, §4).
  *
- *   bench_sh [--quick] [--json FILE] [--runs N]
+ *   bench_sh [--quick] [--json FILE] [--runs N] [--only001]   (--only001: table 5 alone)
  *
  * Tables 1-4: synthetic clustered photons (Gaussian blobs plus a uniform background in the unit
  * cube, directions biased toward +x, one path segment per photon of exponential length) are
@@ -218,6 +218,7 @@ static pm_photon *scene_photons(const rd_scene *s, size_t n)
 
 typedef struct {
     double build_s, bake_s, total_s;
+    double bake_nosigma_s; /* the same bake without the medium (not part of total_s) */
     sh_guide_stats st;
 } timed_bake;
 
@@ -252,6 +253,15 @@ static timed_bake bake_from_photons(const rd_scene *s, const pm_photon *ph, size
     }
     double t2 = omp_get_wtime();
     sh_guide_stats_get(g, &out.st);
+    sh_guide_free(g);
+    /* What the old comparison timed: the bake alone from a built map, no sigma_t lookups. */
+    P.sigma_t = NULL;
+    double t3 = omp_get_wtime();
+    if (sh_guide_bake(&g, m, &P, err, sizeof err) != SH_OK) {
+        fprintf(stderr, "bench_sh: %s\n", err);
+        exit(1);
+    }
+    out.bake_nosigma_s = omp_get_wtime() - t3;
     sh_guide_free(g);
     pm_map_free(m);
     out.build_s = t1 - t0;
@@ -288,7 +298,7 @@ static void seed001_table(result *R, int *nr, int runs, int k)
     }
     pm_photon *ph = scene_photons(s, n);
     const double lambdas[2] = {1.0, 16.0};
-    double tb[2][16], tk[2][16], tt[2][16];
+    double tb[2][16], tk[2][16], tt[2][16], tn[2][16];
     timed_bake last[2];
     /* Interleaved: lambda 1, lambda 16, lambda 1, ... so that other load falls on both. */
     for (int rep = 0; rep < runs; rep++)
@@ -297,6 +307,7 @@ static void seed001_table(result *R, int *nr, int runs, int k)
             tb[i][rep] = last[i].build_s;
             tk[i][rep] = last[i].bake_s;
             tt[i][rep] = last[i].total_s;
+            tn[i][rep] = last[i].bake_nosigma_s;
         }
     printf("\n### Seed 001 comparison (1e5 photons of %s, L = 4, grid by the rule, k-NN, "
            "1 thread, median (min-max) of %d)\n\n", path, runs);
@@ -304,16 +315,17 @@ static void seed001_table(result *R, int *nr, int runs, int k)
            "the scene's noise medium (%d sigma_t lookups a cell). Not timed: photon tracing.\n\n",
            lookups_per_cell());
     printf("| lambda | resolution | cells | kd-tree build s | bake incl. sigma_t s | total s | paper s | "
-           "paper / ours (total) |\n|---|---|---|---|---|---|---|---|\n");
+           "paper / ours (total) | bake alone, no medium s (not like-for-like) |\n|---|---|---|---|---|---|---|---|---|\n");
     for (int i = 0; i < 2; i++) {
-        double a0, a1, a2, b0, b1, b2, c0, c1, c2;
+        double a0, a1, a2, b0, b1, b2, c0, c1, c2, d0, d1, d2;
+        min_med_max(tn[i], runs, &d0, &d1, &d2);
         min_med_max(tb[i], runs, &a0, &a1, &a2);
         min_med_max(tk[i], runs, &b0, &b1, &b2);
         min_med_max(tt[i], runs, &c0, &c1, &c2);
         const sh_guide_stats *st = &last[i].st;
-        printf("| %.0f | %dx%dx%d | %zu | %.4f (%.4f-%.4f) | %.4f (%.4f-%.4f) | %.4f (%.4f-%.4f) | 7.0-8.4 | %.0f-%.0f |\n",
+        printf("| %.0f | %dx%dx%d | %zu | %.4f (%.4f-%.4f) | %.4f (%.4f-%.4f) | %.4f (%.4f-%.4f) | 7.0-8.4 | %.0f-%.0f | %.4f (%.4f-%.4f) |\n",
                lambdas[i], st->res[0], st->res[1], st->res[2], st->cells, a1, a0, a2, b1, b0, b2, c1, c0, c2,
-               7.0 / c1, 8.4 / c1);
+               7.0 / c1, 8.4 / c1, d1, d0, d2);
         result *r = &R[(*nr)++];
         *r = (result){"seed001", n, 4, k, 1, lambdas[i], SH_GRID_UNIFORM, SH_BAKE_KNN, c1, c0, *st};
     }
@@ -323,7 +335,7 @@ static void seed001_table(result *R, int *nr, int runs, int k)
 
 int main(int argc, char **argv)
 {
-    int quick = 0, runs = 3;
+    int quick = 0, runs = 3, only001 = 0;
     const char *json = NULL;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--quick"))
@@ -332,8 +344,10 @@ int main(int argc, char **argv)
             json = argv[++i];
         else if (!strcmp(argv[i], "--runs") && i + 1 < argc)
             runs = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--only001"))
+            only001 = 1;
         else {
-            fprintf(stderr, "usage: %s [--quick] [--json FILE] [--runs N]\n", argv[0]);
+            fprintf(stderr, "usage: %s [--quick] [--json FILE] [--runs N] [--only001]\n", argv[0]);
             return 2;
         }
     }
@@ -363,64 +377,68 @@ int main(int argc, char **argv)
     printf("\n");
 
     pm_map *maps[3] = {NULL, NULL, NULL};
-    printf("\n| photons | map build s | map MiB |\n|---|---|---|\n");
-    for (int s = 0; s < nsizes; s++) {
-        double bs;
-        maps[s] = make_map(sizes[s], 1234 + (uint64_t)s, &bs);
-        char nb[32];
-        fmt_n(sizes[s], nb, sizeof nb);
-        printf("| %s | %.2f | %.1f |\n", nb, bs, pm_map_memory_bytes(maps[s]) / 1048576.0);
-    }
+    if (only001)
+        nsizes = 0;
+    else {
+        printf("\n| photons | map build s | map MiB |\n|---|---|---|\n");
+        for (int s = 0; s < nsizes; s++) {
+            double bs;
+            maps[s] = make_map(sizes[s], 1234 + (uint64_t)s, &bs);
+            char nb[32];
+            fmt_n(sizes[s], nb, sizeof nb);
+            printf("| %s | %.2f | %.1f |\n", nb, bs, pm_map_memory_bytes(maps[s]) / 1048576.0);
+        }
 
-    /* 1. Photon count x threads (uniform, k-NN, L = 4, lambda = 1). */
-    print_header("Photon count and threads (uniform grid by the rule, k-NN, L = 4)");
-    for (int s = 0; s < nsizes; s++)
-        for (int th = 1; th <= 2; th++) {
+        /* 1. Photon count x threads (uniform, k-NN, L = 4, lambda = 1). */
+        print_header("Photon count and threads (uniform grid by the rule, k-NN, L = 4)");
+        for (int s = 0; s < nsizes; s++)
+            for (int th = 1; th <= 2; th++) {
+                result *r = &R[nr++];
+                *r = (result){"photons", sizes[s], 4, k, th, 1.0, SH_GRID_UNIFORM, SH_BAKE_KNN, 0, 0,
+                              {0}};
+                run(maps[s], r, runs);
+                print_row(r);
+            }
+
+        /* 2. Band count. */
+        int sb = quick ? 0 : 1;
+        char title[160], nb0[32];
+        fmt_n(sizes[sb], nb0, sizeof nb0);
+        snprintf(title, sizeof title, "Band count L (%s photons, uniform, k-NN, 2 threads)", nb0);
+        print_header(title);
+        for (int L = 1; L <= (quick ? 4 : 8); L++) {
             result *r = &R[nr++];
-            *r = (result){"photons", sizes[s], 4, k, th, 1.0, SH_GRID_UNIFORM, SH_BAKE_KNN, 0, 0,
-                          {0}};
-            run(maps[s], r, runs);
+            *r = (result){"bands", sizes[sb], L, k, 2, 1.0, SH_GRID_UNIFORM, SH_BAKE_KNN, 0, 0, {0}};
+            run(maps[sb], r, runs);
             print_row(r);
         }
 
-    /* 2. Band count. */
-    int sb = quick ? 0 : 1;
-    char title[160], nb0[32];
-    fmt_n(sizes[sb], nb0, sizeof nb0);
-    snprintf(title, sizeof title, "Band count L (%s photons, uniform, k-NN, 2 threads)", nb0);
-    print_header(title);
-    for (int L = 1; L <= (quick ? 4 : 8); L++) {
-        result *r = &R[nr++];
-        *r = (result){"bands", sizes[sb], L, k, 2, 1.0, SH_GRID_UNIFORM, SH_BAKE_KNN, 0, 0, {0}};
-        run(maps[sb], r, runs);
-        print_row(r);
-    }
+        /* 3. Quality lambda. */
+        snprintf(title, sizeof title, "Quality lambda (%s photons, uniform, k-NN, L = 4, 2 threads)",
+                 nb0);
+        print_header(title);
+        const double lambdas[4] = {0.25, 1.0, 4.0, 16.0};
+        for (int i = 0; i < (quick ? 3 : 4); i++) {
+            result *r = &R[nr++];
+            *r = (result){"lambda", sizes[sb], 4, k, 2, lambdas[i], SH_GRID_UNIFORM, SH_BAKE_KNN, 0,
+                          0, {0}};
+            run(maps[sb], r, runs);
+            print_row(r);
+        }
 
-    /* 3. Quality lambda. */
-    snprintf(title, sizeof title, "Quality lambda (%s photons, uniform, k-NN, L = 4, 2 threads)",
-             nb0);
-    print_header(title);
-    const double lambdas[4] = {0.25, 1.0, 4.0, 16.0};
-    for (int i = 0; i < (quick ? 3 : 4); i++) {
-        result *r = &R[nr++];
-        *r = (result){"lambda", sizes[sb], 4, k, 2, lambdas[i], SH_GRID_UNIFORM, SH_BAKE_KNN, 0,
-                      0, {0}};
-        run(maps[sb], r, runs);
-        print_row(r);
+        /* 4. k-NN vs track-length, uniform vs adaptive. */
+        print_header("k-NN vs track-length, uniform vs adaptive (L = 4, lambda = 1)");
+        for (int s = 0; s < (quick ? 1 : 2); s++)
+            for (int kind = 0; kind < 2; kind++)
+                for (int method = 0; method < 2; method++)
+                    for (int th = 1; th <= 2; th++) {
+                        result *r = &R[nr++];
+                        *r = (result){"method", sizes[s], 4, k, th, 1.0, (sh_grid_kind)kind,
+                                      (sh_bake_method)method, 0, 0, {0}};
+                        run(maps[s], r, runs);
+                        print_row(r);
+                    }
     }
-
-    /* 4. k-NN vs track-length, uniform vs adaptive. */
-    print_header("k-NN vs track-length, uniform vs adaptive (L = 4, lambda = 1)");
-    for (int s = 0; s < (quick ? 1 : 2); s++)
-        for (int kind = 0; kind < 2; kind++)
-            for (int method = 0; method < 2; method++)
-                for (int th = 1; th <= 2; th++) {
-                    result *r = &R[nr++];
-                    *r = (result){"method", sizes[s], 4, k, th, 1.0, (sh_grid_kind)kind,
-                                  (sh_bake_method)method, 0, 0, {0}};
-                    run(maps[s], r, runs);
-                    print_row(r);
-                }
 
     /* 5. Seed 001 §4, like-for-like (see the header). */
     seed001_table(R, &nr, runs, k);
