@@ -1,6 +1,10 @@
 #!/usr/bin/env bash
 # make bench: run every benchmark in bench/ and collect JSON + markdown under bench/results/.
-# Figures are medians of repeated timings taken in one run on this machine (docs/benchmarks.md).
+# Run from the repository root (bench_sh and bench_render_tr load scenes/*.json).
+# Within a benchmark, the configurations compared are timed interleaved (A, B, A, B, ...) and
+# reported as medians with their min-max, so every ratio comes from one run under one load.
+# The load average before each benchmark is written at the top of its markdown: on a shared
+# machine absolute times move, ratios much less (docs/benchmarks.md).
 set -euo pipefail
 BUILD=${1:-build}
 OUT=bench/results
@@ -10,6 +14,7 @@ for b in "$BUILD"/bench/*; do
   [ -x "$b" ] || continue
   name=$(basename "$b")
   echo "== $name" >&2
-  "$b" $QUICK --json "$OUT/$name.json" | tee "$OUT/$name.md"
+  { echo "load average before the run: $(cut -d' ' -f1-3 /proc/loadavg)"; echo;
+    "$b" $QUICK --json "$OUT/$name.json"; } | tee "$OUT/$name.md"
 done
 echo "results in $OUT/" >&2

@@ -156,7 +156,8 @@ typedef enum {
 } rd_fp_kind;
 
 typedef enum {
-    RD_TR_AUTO,          /* = ratio-global: lowest variance x time measured (docs/benchmarks.md) */
+    RD_TR_AUTO,          /* by the render efficiency measured per density kind (docs/free-path.md):
+                            exact for constant media, ratio-global for grids, residual for noise */
     RD_TR_RATIO_GLOBAL,  /* ratio tracking with the global majorant */
     RD_TR_RATIO,         /* ratio tracking over the majorant structure */
     RD_TR_RESIDUAL,      /* residual ratio tracking, control = per-cell minorant */
