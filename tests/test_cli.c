@@ -391,3 +391,52 @@ Test(cli, bake_track_length_adaptive, .timeout = 120)
     cr_assert(code == 0, "exit %d: %s", code, err);
     cr_expect(strstr(out, "adaptive grid, track-length bake") != NULL, "%s", out);
 }
+
+/* The pixels of two image files are the same bit for bit (the files differ in their date). */
+static int same_pixels(const char *a, const char *b)
+{
+    rd_image ia, ib;
+    char msg[RD_ERRLEN];
+    cr_assert(rd_image_read(a, &ia, msg, sizeof msg) == RD_OK, "%s", msg);
+    cr_assert(rd_image_read(b, &ib, msg, sizeof msg) == RD_OK, "%s", msg);
+    int same = ia.w == ib.w && ia.h == ib.h && !memcmp(ia.rgb, ib.rgb, (size_t)ia.w * ia.h * 3 * sizeof(float));
+    rd_image_free_pixels(&ia);
+    rd_image_free_pixels(&ib);
+    return same;
+}
+
+/* A method that needs a photon map bakes it once and reuses it from the cache beside the
+ * output: the second run says so and gives the same image bit for bit (same seed, same maps);
+ * a damaged cache file is baked anew, not trusted. */
+Test(cli, bake_cache_is_reused_and_checked, .timeout = 120)
+{
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char a[256], b[256], out[4096], err[4096], copy[300];
+    snprintf(a, sizeof a, "%s/cache/a.exr", rt_tmpdir());
+    snprintf(b, sizeof b, "%s/cache/b.exr", rt_tmpdir());
+    snprintf(copy, sizeof copy, "%s/cache/a-copy.exr", rt_tmpdir());
+    char *argv_a[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", a, "--method", "uniform", "--spp", "2",
+                      "--set", "photons.count=2000", "--set", "march.ls=\"photons\"", NULL};
+    cr_assert(rt_run(argv_a, out, sizeof out, err, sizeof err, 0) == 0, "%s", err);
+    cr_expect(strstr(err, "baked the photon map") != NULL, "%s", err);
+    char cmd[700];
+    snprintf(cmd, sizeof cmd, "cp '%s' '%s'", a, copy);
+    cr_assert(system(cmd) == 0);
+    cr_assert(rt_run(argv_a, out, sizeof out, err, sizeof err, 0) == 0, "%s", err);
+    cr_expect(strstr(err, "reused the cached") != NULL, "%s", err);
+    cr_expect(same_pixels(a, copy), "the cached bake gave another image");
+    /* Damage every cached photon map: the next run must bake again. */
+    snprintf(cmd, sizeof cmd, "for f in '%s'/cache/.photonmarch-cache/*.pmap; do printf 'XXXX' | dd of=\"$f\" bs=1 seek=20 conv=notrunc 2>/dev/null; done", rt_tmpdir());
+    cr_assert(system(cmd) == 0);
+    char *argv_b[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", b, "--method", "uniform", "--spp", "2",
+                      "--set", "photons.count=2000", "--set", "march.ls=\"photons\"", NULL};
+    cr_assert(rt_run(argv_b, out, sizeof out, err, sizeof err, 0) == 0, "%s", err);
+    cr_expect(strstr(err, "baked the photon map") != NULL, "a damaged cache was trusted: %s", err);
+    cr_expect(same_pixels(b, copy), "the rebaked photon map gave another image");
+    /* A render setting (spp) does not change the key; a photon setting does. */
+    char *argv_c[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", b, "--method", "uniform", "--spp", "1",
+                      "--set", "photons.count=2001", "--set", "march.ls=\"photons\"", NULL};
+    cr_assert(rt_run(argv_c, out, sizeof out, err, sizeof err, 0) == 0, "%s", err);
+    cr_expect(strstr(err, "baked the photon map") != NULL, "a changed photon count reused the cache: %s", err);
+}
