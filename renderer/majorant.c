@@ -219,15 +219,19 @@ static void grid_dims(vec3 ext, int res, int n[3])
     }
 }
 
-/* Bounds of every cell of an n grid; eq. 14 for that grid. Returns 0 on out-of-memory. */
+/* Bounds of every cell of an n grid; eq. 14 for that grid. Returns 0 on out-of-memory.
+ * The cells are bounded in parallel, but eq. 14's first sum is taken afterwards over the
+ * per-cell terms in cell order: a floating-point sum in thread-schedule order (an OpenMP
+ * reduction) would change its last bits with the thread count, and a near-tie between two
+ * levels would then choose a different structure (and image) on another machine. */
 static int grid_bounds(const build_ctx *b, const int n[3], float **pmax, float **pmin, double *N,
                        double *T, double rewind)
 {
     size_t nc = (size_t)n[0] * n[1] * n[2];
     float *mx = malloc(nc * sizeof *mx), *mn = malloc(nc * sizeof *mn);
-    if (!mx || !mn) { free(mx); free(mn); return 0; }
-    double sum = 0.0;
-#pragma omp parallel for schedule(dynamic, 1) reduction(+ : sum) if (nc > 4096)
+    double *term = malloc(nc * sizeof *term);
+    if (!mx || !mn || !term) { free(mx); free(mn); free(term); return 0; }
+#pragma omp parallel for schedule(dynamic, 1) if (nc > 4096)
     for (int k = 0; k < n[2]; k++)
         for (int j = 0; j < n[1]; j++)
             for (int i = 0; i < n[0]; i++) {
@@ -238,8 +242,11 @@ static int grid_bounds(const build_ctx *b, const int n[3], float **pmax, float *
                 mx[q] = up_f(hi);
                 mn[q] = down_f(lo);
                 vec3 e = v3_sub(c, a);
-                sum += 4.0 * mx[q] * b->scale * e.x * e.y * e.z; /* eq. 14, first sum */
+                term[q] = 4.0 * mx[q] * b->scale * e.x * e.y * e.z; /* eq. 14, first sum's term */
             }
+    double sum = 0.0;
+    for (size_t q = 0; q < nc; q++) sum += term[q]; /* fixed order: same bits on any thread count */
+    free(term);
     /* Internal planes: (n_x - 1) planes of area ext_y ext_z, and so on (eq. 14, second sum). */
     double planes = (n[0] - 1) * b->ext.y * b->ext.z + (n[1] - 1) * b->ext.x * b->ext.z +
                     (n[2] - 1) * b->ext.x * b->ext.y;
