@@ -112,15 +112,28 @@ asan: deps
 
 # The suite: the release binary and the sanitizer binary (the malformed-scene catalogue runs
 # against both), then every test in one Criterion run, then the whole suite again built with
-# ASan + UBSan (build-asan/tests/run_tests). SAN_ENV makes the first sanitizer finding end the
+# ASan + UBSan (build-asan/tests/run_tests); both runs always run, and the target fails if
+# either does. SAN_ENV makes the first sanitizer finding end the
 # test process with a non-zero status, which Criterion reports as a failed (crashed) test.
+# Criterion's runner process leaks 96 bytes at exit (a calloc in libcriterion.so, not our code),
+# which LeakSanitizer turns into a failed run: LSAN_SUPP suppresses stacks through that library.
+# Note that a leak inside a test never failed the run anyway (Criterion reports the test before
+# the worker's leak check; checked with a leaking test); the CLI's leaks are caught by the
+# malformed-scene catalogue, run against build-asan/photonmarch with detect_leaks=1.
+LSAN_SUPP := build-asan/lsan.supp
 SAN_ENV := ASAN_OPTIONS=halt_on_error=1:detect_leaks=1 \
-           UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
+           UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
+           LSAN_OPTIONS=suppressions=$(LSAN_SUPP):print_suppressions=0
 test: deps
 	$(MAKE) $(BIN) $(TEST_BIN)
 	$(MAKE) BUILD=build-asan SAN=1 build-asan/photonmarch build-asan/tests/run_tests
-	PHOTONMARCH_BIN=$(BIN) PHOTONMARCH_ASAN_BIN=build-asan/photonmarch $(TEST_BIN) $(CRITERION_FLAGS)
-	$(SAN_ENV) PHOTONMARCH_BIN=$(BIN) build-asan/tests/run_tests $(CRITERION_FLAGS)
+	@printf 'leak:libcriterion.so\n' > $(LSAN_SUPP)
+	@status=0; \
+	echo "== release suite"; \
+	PHOTONMARCH_BIN=$(BIN) PHOTONMARCH_ASAN_BIN=build-asan/photonmarch $(TEST_BIN) $(CRITERION_FLAGS) || status=1; \
+	echo "== sanitizer suite (ASan + UBSan)"; \
+	$(SAN_ENV) PHOTONMARCH_BIN=$(BIN) build-asan/tests/run_tests $(CRITERION_FLAGS) || status=1; \
+	exit $$status
 
 test-walk: deps $(BUILD)/tests/run_wk
 	$(BUILD)/tests/run_wk $(CRITERION_FLAGS)
