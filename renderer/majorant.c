@@ -11,9 +11,11 @@
  *    node, which is eq. 18/19 for cubes and also holds for boxes), keep splitting through up to
  *    `fail_limit` failed tests, then merge bottom-up every parent whose children are all leaves
  *    created under a failed test.
- *  - The value-type iterator rd_majorant_next (3D-DDA of Amanatides and Woo for the grid, point
- *    location from the root for the octree). */
+ *  - The value-type iterator rd_majorant_next over walk/ (the 3D-DDA of Amanatides and Woo 1987
+ *    for the grid; neighbour finding by descent from the root with plane snapping for the
+ *    octree). */
 #include "rd_internal.h"
+#include "walk.h"
 
 #include <float.h>
 #include <stdio.h>
@@ -217,15 +219,19 @@ static void grid_dims(vec3 ext, int res, int n[3])
     }
 }
 
-/* Bounds of every cell of an n grid; eq. 14 for that grid. Returns 0 on out-of-memory. */
+/* Bounds of every cell of an n grid; eq. 14 for that grid. Returns 0 on out-of-memory.
+ * The cells are bounded in parallel, but eq. 14's first sum is taken afterwards over the
+ * per-cell terms in cell order: a floating-point sum in thread-schedule order (an OpenMP
+ * reduction) would change its last bits with the thread count, and a near-tie between two
+ * levels would then choose a different structure (and image) on another machine. */
 static int grid_bounds(const build_ctx *b, const int n[3], float **pmax, float **pmin, double *N,
                        double *T, double rewind)
 {
     size_t nc = (size_t)n[0] * n[1] * n[2];
     float *mx = malloc(nc * sizeof *mx), *mn = malloc(nc * sizeof *mn);
-    if (!mx || !mn) { free(mx); free(mn); return 0; }
-    double sum = 0.0;
-#pragma omp parallel for schedule(dynamic, 1) reduction(+ : sum) if (nc > 4096)
+    double *term = malloc(nc * sizeof *term);
+    if (!mx || !mn || !term) { free(mx); free(mn); free(term); return 0; }
+#pragma omp parallel for schedule(dynamic, 1) if (nc > 4096)
     for (int k = 0; k < n[2]; k++)
         for (int j = 0; j < n[1]; j++)
             for (int i = 0; i < n[0]; i++) {
@@ -236,8 +242,11 @@ static int grid_bounds(const build_ctx *b, const int n[3], float **pmax, float *
                 mx[q] = up_f(hi);
                 mn[q] = down_f(lo);
                 vec3 e = v3_sub(c, a);
-                sum += 4.0 * mx[q] * b->scale * e.x * e.y * e.z; /* eq. 14, first sum */
+                term[q] = 4.0 * mx[q] * b->scale * e.x * e.y * e.z; /* eq. 14, first sum's term */
             }
+    double sum = 0.0;
+    for (size_t q = 0; q < nc; q++) sum += term[q]; /* fixed order: same bits on any thread count */
+    free(term);
     /* Internal planes: (n_x - 1) planes of area ext_y ext_z, and so on (eq. 14, second sum). */
     double planes = (n[0] - 1) * b->ext.y * b->ext.z + (n[1] - 1) * b->ext.x * b->ext.z +
                     (n[2] - 1) * b->ext.x * b->ext.y;
@@ -535,6 +544,43 @@ oom:
 
 /* ---- iterator --------------------------------------------------------------------------------- */
 
+/* The octree's locate callback for walk/ (wk_locate_fn): descend from the root to the leaf
+ * holding p; a coordinate on a splitting plane goes to the side the ray heads to (d > 0: the
+ * upper half). Children are numbered with bit a = upper half of axis a. Returns the node. */
+static long oct_locate(const void *tree, const double p[3], const double d[3], double lo[3],
+                       double hi[3])
+{
+    const rd_majorant *m = tree;
+    for (int a = 0; a < 3; a++) {
+        lo[a] = v3_get(m->bmin, a);
+        hi[a] = v3_get(m->bmax, a);
+    }
+    int node = 0;
+    while (m->nodes[node].child >= 0) {
+        int c = 0;
+        for (int a = 0; a < 3; a++) {
+            double mid = 0.5 * (lo[a] + hi[a]);
+            int right = p[a] > mid || (p[a] == mid && d[a] > 0);
+            if (right) { c |= 1 << a; lo[a] = mid; } else hi[a] = mid;
+        }
+        node = m->nodes[node].child + c;
+    }
+    return node;
+}
+
+/* The axis through whose face the ray enters the box exactly at t0, or -1 (t0 inside the box, or
+ * not the entry parameter wk_box_clip computes). Lets the walks take the first cell from the
+ * direction instead of a rounded point lookup, as the guide's iterator does. */
+static int entry_axis(const rd_majorant *m, const double o[3], const double d[3], double t0,
+                      double t1)
+{
+    const double lo[3] = {m->bmin.x, m->bmin.y, m->bmin.z}, hi[3] = {m->bmax.x, m->bmax.y, m->bmax.z};
+    double c0, c1;
+    int axis;
+    if (!wk_box_clip(lo, hi, o, d, t0, t1, &c0, &c1, &axis) || c0 != t0) return -1;
+    return axis;
+}
+
 rd_maj_iter rd_majorant_iter(const rd_majorant *m, ray3 r, double t0, double t1,
                              double sigma_global, double sigma_min_global)
 {
@@ -546,21 +592,15 @@ rd_maj_iter rd_majorant_iter(const rd_majorant *m, ray3 r, double t0, double t1,
     it.tmax = t1;
     it.sigma_global = sigma_global;
     it.sigma_global_min = sigma_min_global;
-    it.exit_axis = -1;
     it.done = !(t0 < t1);
-    if (it.m && it.m->kind == RD_MAJ_GRID) {
-        /* 3D-DDA set-up (Amanatides and Woo 1987): the cell of the entry point. */
-        vec3 p = ray_at(r, t0);
-        for (int a = 0; a < 3; a++) {
-            double u = (v3_get(p, a) - v3_get(m->bmin, a)) * v3_get(m->inv_cell, a);
-            int i = (int)floor(u);
-            if (i < 0) i = 0;
-            if (i >= m->n[a]) i = m->n[a] - 1;
-            it.idx[a] = i;
-            double d = v3_get(r.d, a);
-            it.step[a] = d > 0 ? 1 : (d < 0 ? -1 : 0);
-        }
-    }
+    if (!it.m || it.done) return it;
+    const double lo[3] = {m->bmin.x, m->bmin.y, m->bmin.z}, hi[3] = {m->bmax.x, m->bmax.y, m->bmax.z};
+    const double o[3] = {r.o.x, r.o.y, r.o.z}, d[3] = {r.d.x, r.d.y, r.d.z};
+    int enter = entry_axis(m, o, d, t0, t1);
+    if (m->kind == RD_MAJ_GRID) /* 3D-DDA (Amanatides and Woo 1987) over the super-voxels */
+        wk_dda_begin(&it.walk.grid, lo, hi, m->n, o, d, t0, t1, enter);
+    else /* octree: neighbour finding by descent from the root (walk/) */
+        wk_tree_begin(&it.walk.tree, oct_locate, m, lo, hi, o, d, t0, t1, enter, m->depth);
     return it;
 }
 
@@ -586,109 +626,72 @@ void rd_trilinear_cubic(const double v[8], const double E[3], const double O[3],
 
 static double clamp01(double x) { return x < 0 ? 0 : (x > 1 ? 1 : x); }
 
+/* The global majorant over the whole interval (no structure, Woodcock). */
+static int next_global(rd_maj_iter *it, rd_maj_seg *seg)
+{
+    seg->t0 = it->t;
+    seg->t1 = it->tmax;
+    seg->c[0] = it->sigma_global;
+    seg->c[1] = seg->c[2] = seg->c[3] = 0.0;
+    seg->cubic = 0;
+    seg->sigma_min = it->sigma_global_min;
+    seg->cell = -1;
+    it->done = 1;
+    return 1;
+}
+
+/* The majorant of super-voxel s.cell on [s.ta, s.tb): the constant bound, or the tri-linear
+ * bound as a cubic along the segment (seed 003 §3.3.2). */
+static void grid_seg(const rd_majorant *m, ray3 r, const wk_dda_seg *s, rd_maj_seg *seg)
+{
+    double sc = m->sigma_t_scale;
+    size_t cell = (size_t)s->cell;
+    seg->t0 = s->ta;
+    seg->t1 = s->tb;
+    seg->cell = (int)cell;
+    seg->sigma_min = m->dmin[cell] * sc;
+    if (m->bound == RD_BOUND_TRILINEAR) {
+        double E[3], O[3];
+        vec3 pe = ray_at(r, seg->t0), po = ray_at(r, seg->t1);
+        for (int a = 0; a < 3; a++) {
+            double lo = wk_plane(v3_get(m->bmin, a), v3_get(m->bmax, a), v3_get(m->cell, a),
+                                 m->n[a], s->ijk[a]);
+            E[a] = clamp01((v3_get(pe, a) - lo) * v3_get(m->inv_cell, a));
+            O[a] = clamp01((v3_get(po, a) - lo) * v3_get(m->inv_cell, a));
+        }
+        double v[8];
+        for (int q = 0; q < 8; q++) v[q] = m->tri[8 * cell + q];
+        rd_trilinear_cubic(v, E, O, seg->c);
+        for (int d = 0; d < 4; d++) seg->c[d] *= sc;
+        seg->cubic = 1;
+    } else {
+        seg->c[0] = m->dmax[cell] * sc;
+        seg->c[1] = seg->c[2] = seg->c[3] = 0.0;
+        seg->cubic = 0;
+    }
+}
+
 int rd_majorant_next(rd_maj_iter *it, rd_maj_seg *seg)
 {
     if (it->done) return 0;
     const rd_majorant *m = it->m;
-    if (!m) {
-        seg->t0 = it->t;
-        seg->t1 = it->tmax;
-        seg->c[0] = it->sigma_global;
-        seg->c[1] = seg->c[2] = seg->c[3] = 0.0;
-        seg->cubic = 0;
-        seg->sigma_min = it->sigma_global_min;
-        seg->cell = -1;
-        it->done = 1;
-        return 1;
-    }
-    double s = m->sigma_t_scale;
+    if (!m) return next_global(it, seg);
     if (m->kind == RD_MAJ_GRID) {
-        /* Exit distance of the current cell along each axis, from the cell index (no drift). */
-        double texit = INFINITY;
-        int axis = -1;
-        for (int a = 0; a < 3; a++) {
-            if (!it->step[a]) continue;
-            double plane = v3_get(m->bmin, a) + (it->idx[a] + (it->step[a] > 0)) * v3_get(m->cell, a);
-            double ta = (plane - v3_get(it->r.o, a)) / v3_get(it->r.d, a);
-            if (ta < texit) { texit = ta; axis = a; }
-        }
-        if (texit < it->t) texit = it->t;
-        size_t cell = ((size_t)it->idx[2] * m->n[1] + it->idx[1]) * m->n[0] + it->idx[0];
-        seg->t0 = it->t;
-        seg->t1 = fmin(texit, it->tmax);
-        seg->cell = (int)cell;
-        seg->sigma_min = m->dmin[cell] * s;
-        if (m->bound == RD_BOUND_TRILINEAR) {
-            double E[3], O[3];
-            vec3 pe = ray_at(it->r, seg->t0), po = ray_at(it->r, seg->t1);
-            for (int a = 0; a < 3; a++) {
-                double lo = v3_get(m->bmin, a) + it->idx[a] * v3_get(m->cell, a);
-                E[a] = clamp01((v3_get(pe, a) - lo) * v3_get(m->inv_cell, a));
-                O[a] = clamp01((v3_get(po, a) - lo) * v3_get(m->inv_cell, a));
-            }
-            double v[8];
-            for (int q = 0; q < 8; q++) v[q] = m->tri[8 * cell + q];
-            rd_trilinear_cubic(v, E, O, seg->c);
-            for (int d = 0; d < 4; d++) seg->c[d] *= s;
-            seg->cubic = 1;
-        } else {
-            seg->c[0] = m->dmax[cell] * s;
-            seg->c[1] = seg->c[2] = seg->c[3] = 0.0;
-            seg->cubic = 0;
-        }
-        if (texit >= it->tmax || axis < 0) {
-            it->done = 1;
-        } else {
-            it->t = texit;
-            it->idx[axis] += it->step[axis];
-            if (it->idx[axis] < 0 || it->idx[axis] >= m->n[axis]) it->done = 1;
-        }
+        wk_dda_seg s;
+        if (!wk_dda_next(&it->walk.grid, &s)) { it->done = 1; return 0; }
+        grid_seg(m, it->r, &s, seg);
         return 1;
     }
-    /* Octree: locate the leaf holding the current point, descending from the root; a coordinate
-     * on a splitting plane goes to the side the ray is heading (the exit axis's coordinate is
-     * the exact plane value). */
-    vec3 p = ray_at(it->r, it->t);
-    double pc[3] = {p.x, p.y, p.z};
-    if (it->exit_axis >= 0) pc[it->exit_axis] = it->exit_plane;
-    double lo[3] = {m->bmin.x, m->bmin.y, m->bmin.z}, hi[3] = {m->bmax.x, m->bmax.y, m->bmax.z};
-    int node = 0;
-    while (m->nodes[node].child >= 0) {
-        int c = 0;
-        for (int a = 0; a < 3; a++) {
-            double mid = 0.5 * (lo[a] + hi[a]), d = v3_get(it->r.d, a);
-            int right = pc[a] > mid || (pc[a] == mid && d > 0);
-            if (right) { c |= 1 << a; lo[a] = mid; } else hi[a] = mid;
-        }
-        node = m->nodes[node].child + c;
-    }
-    double texit = INFINITY, plane = 0.0;
-    int axis = -1;
-    for (int a = 0; a < 3; a++) {
-        double d = v3_get(it->r.d, a);
-        if (d == 0.0) continue;
-        double pl = d > 0 ? hi[a] : lo[a];
-        double ta = (pl - v3_get(it->r.o, a)) / d;
-        if (ta < texit) { texit = ta; axis = a; plane = pl; }
-    }
-    if (!(texit > it->t)) texit = nextafter(it->t, INFINITY); /* guard against a stall */
-    seg->t0 = it->t;
-    seg->t1 = fmin(texit, it->tmax);
-    seg->c[0] = m->nodes[node].dmax * s;
+    wk_tree_seg s;
+    if (!wk_tree_next(&it->walk.tree, &s)) { it->done = 1; return 0; }
+    const rd_octnode *leaf = &m->nodes[s.leaf];
+    seg->t0 = s.ta;
+    seg->t1 = s.tb;
+    seg->c[0] = leaf->dmax * m->sigma_t_scale;
     seg->c[1] = seg->c[2] = seg->c[3] = 0.0;
     seg->cubic = 0;
-    seg->sigma_min = m->nodes[node].dmin * s;
-    seg->cell = node;
-    if (texit >= it->tmax || axis < 0) it->done = 1;
-    else {
-        it->t = texit;
-        it->exit_axis = axis;
-        it->exit_plane = plane;
-        double q = plane;
-        if ((q <= v3_get(m->bmin, axis) && v3_get(it->r.d, axis) < 0) ||
-            (q >= v3_get(m->bmax, axis) && v3_get(it->r.d, axis) > 0))
-            it->done = 1;
-    }
+    seg->sigma_min = leaf->dmin * m->sigma_t_scale;
+    seg->cell = (int)s.leaf;
     return 1;
 }
 

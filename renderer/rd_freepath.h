@@ -16,6 +16,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "walk.h"
+
 /* ---- Majorant structures ------------------------------------------------------------------ */
 typedef enum { RD_MAJ_AUTO, RD_MAJ_NONE, RD_MAJ_GRID, RD_MAJ_OCTREE } rd_maj_kind;
 typedef enum { RD_BOUND_CONSTANT, RD_BOUND_TRILINEAR } rd_bound_kind;
@@ -86,16 +88,17 @@ typedef struct {
     int cell;            /* grid cell / octree node index, -1 for the global majorant */
 } rd_maj_seg;
 
-/* Value-type 3D-DDA iterator (pbrt-v4 DDAMajorantIterator). */
+/* Value-type iterator (pbrt-v4 DDAMajorantIterator) over walk/'s grid DDA or octree walk. */
 typedef struct {
     const rd_majorant *m;   /* NULL: one segment with the global majorant */
     ray3 r;
-    double t, tmax;
+    double t, tmax;         /* the global-majorant segment */
     double sigma_global, sigma_global_min;
-    int idx[3], step[3];
-    int exit_axis;          /* octree: axis of the last exit plane, -1 none */
-    double exit_plane;
     int done;
+    union {
+        wk_dda grid;        /* RD_MAJ_GRID */
+        wk_tree_walk tree;  /* RD_MAJ_OCTREE */
+    } walk;
 } rd_maj_iter;
 
 /* Walk r over [t0, t1] (already clipped to the medium's box). m == NULL or kind NONE gives one

@@ -10,7 +10,7 @@
  *               point location and evaluation, statistics, free.
  *   sh_bake.c   filling the cells once the layout exists: the k-NN bake, the track-length
  *               bake, and the cell-mean extinction.
- *   sh_ray.c    the ray iterator over both grid kinds.
+ *   sh_ray.c    the ray iterator over both grid kinds (the walks themselves are walk/'s).
  *   sh_io.c     slice images and the guide file (save / load).
  *
  * Names: functions shared between these files start with shi_ (sh internal); everything else
@@ -23,6 +23,7 @@
 #include <stdint.h>
 
 #include "sh.h"
+#include "walk.h"
 
 #define SH_MAX_DEPTH 20        /* deepest octree level a bake or a file may have */
 #define SH_MAX_RES (1 << 20)   /* most uniform cells per axis */
@@ -93,29 +94,18 @@ sh_status shi_bake_track(sh_guide *g, const pm_map *map, const sh_bake_params *P
 /* ---- Uniform-grid geometry ------------------------------------------------------------------ */
 
 /* Plane i of axis a of the uniform grid; planes 0 and n are the box faces exactly, so the DDA
- * and the box clip agree to the bit. */
+ * and the box clip agree to the bit (walk/walk.h wk_plane: the one definition). */
 static inline double shi_uplane(const sh_guide *g, int a, int i)
 {
-    if (i <= 0)
-        return g->lo[a];
-    if (i >= g->res[a])
-        return g->hi[a];
-    return g->lo[a] + g->h[a] * i;
+    return wk_plane(g->lo[a], g->hi[a], g->h[a], g->res[a], i);
 }
 
 /* Index of the uniform cell holding coordinate p on axis a: half-open [plane_i, plane_i+1),
- * clamped to the grid. The division only gives a first guess; the comparison with the planes
- * themselves (as shi_uplane computes them) decides, so that lookups and the DDA agree. */
+ * clamped to the grid, decided by the planes themselves so that lookups and the DDA agree
+ * (walk/walk.h wk_cell_of). */
 static inline int shi_ucell(const sh_guide *g, int a, double p)
 {
-    int n = g->res[a];
-    double f = (p - g->lo[a]) / g->h[a];
-    int i = f < 0.0 ? 0 : f >= n ? n - 1 : (int)f;
-    if (i > 0 && p < shi_uplane(g, a, i))
-        i--;
-    else if (i < n - 1 && p >= shi_uplane(g, a, i + 1))
-        i++;
-    return i;
+    return wk_cell_of(g->lo[a], g->hi[a], g->h[a], g->res[a], p);
 }
 
 /* ---- Octree geometry ------------------------------------------------------------------------ */

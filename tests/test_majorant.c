@@ -8,6 +8,7 @@
  *  - the octree keeps no parent whose failed split left only leaves (seed 000 §5.2 merge). */
 #include "support/rd_test.h"
 
+#include <omp.h>
 #include <stdio.h>
 
 static rd_scene *grid_scene(const char *name, const char *majorant)
@@ -308,5 +309,50 @@ Test(majorant, constant_medium_is_not_partitioned)
                  "\"majorant\":{\"type\":\"grid\",\"resolution\":4}}]}");
     cr_expect(s->media[0].majorant->kind == RD_MAJ_GRID);
     cr_expect(s->media[0].majorant->N_chosen > s->media[0].majorant->N_nopart);
+    rd_scene_free(s);
+}
+
+/* Build the auto-chosen majorant of m (levels up to max_level) on `threads` OpenMP threads. */
+static rd_majorant *build_on_threads(const rd_medium *m, int max_level, int threads)
+{
+    rd_majorant_opts o = {RD_MAJ_AUTO, 0, RD_BOUND_CONSTANT, 0, max_level, 0.0};
+    char err[256];
+    omp_set_num_threads(threads);
+    rd_majorant *mj = rd_majorant_build(m->bmin, m->bmax, m->sigma_t_scale, m->sigma_maj,
+                                        rd_medium_box_bound, m, &o, err, sizeof err);
+    cr_assert(mj != NULL, "%s", err);
+    return mj;
+}
+
+Test(majorant, cost_model_does_not_depend_on_the_thread_count)
+{
+    /* The eq. 14/15 sums decide the structure (and so the image): they must be the same bits on
+     * any thread count. Levels 5 and 6 (32^3 and 64^3 cells) are the ones built in parallel;
+     * the noise gives every cell a different bound, and the box edges and sigma_t are not
+     * dyadic, so every term of the sums carries a full mantissa and a sum whose order follows
+     * the thread schedule differs in its last bits. Two-thread builds are repeated because a
+     * dynamic schedule can differ from run to run. */
+    rd_scene *s = rt_scene("thr.json",
+                           "{\"camera\":{\"position\":[0,0,5],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
+                           "\"media\":[{\"bounds\":{\"min\":[-1.1,-0.7,-0.45],\"max\":[0.9,1.3,0.5]},"
+                           "\"density\":{\"type\":\"noise\",\"octaves\":3,\"frequency\":2.3,\"amplitude\":1.5,\"seed\":4},"
+                           "\"sigma_t\":1.37,\"majorant\":{\"type\":\"grid\",\"resolution\":4}}]}");
+    const rd_medium *m = &s->media[0];
+    rd_majorant *one = build_on_threads(m, 6, 1);
+    cr_assert(one->n_levels == 7);
+    for (int rep = 0; rep < 3; rep++) {
+        rd_majorant *two = build_on_threads(m, 6, 2);
+        for (int l = 0; l < one->n_levels; l++) {
+            cr_expect(memcmp(&one->N_level[l], &two->N_level[l], sizeof(double)) == 0,
+                      "N_level[%d]: 1 thread %a, 2 threads %a", l, one->N_level[l], two->N_level[l]);
+            cr_expect(memcmp(&one->T_level[l], &two->T_level[l], sizeof(double)) == 0,
+                      "T_level[%d]: 1 thread %a, 2 threads %a", l, one->T_level[l], two->T_level[l]);
+        }
+        cr_expect(memcmp(&one->N_chosen, &two->N_chosen, sizeof(double)) == 0,
+                  "N_chosen: 1 thread %a, 2 threads %a", one->N_chosen, two->N_chosen);
+        cr_expect(one->kind == two->kind && memcmp(one->n, two->n, sizeof one->n) == 0);
+        rd_majorant_free(two);
+    }
+    rd_majorant_free(one);
     rd_scene_free(s);
 }
