@@ -5,6 +5,7 @@
  * octree (seed 003 §3.3 SuperVoxelTraversal: draw tau* = -ln(1-u), accumulate the majorant's
  * optical depth segment by segment, solve inside the segment where it passes tau*). */
 #include "rd_internal.h"
+#include "walk.h"
 
 #include <string.h>
 
@@ -273,70 +274,43 @@ double rd_grid_optical_depth(const rd_grid *gr, ray3 r, double t0, double t1, rd
     /* Interpolation cells: in v = u - 0.5 (u = A x + b) the density is trilinear on every unit
      * cell [i, i+1]^3 with voxel values at the corners (zero outside the grid), i = -1..n-1.
      * Along the ray v(t) = v0 + t dv; in each cell the density is a cubic in t (seed 003
-     * PolyCoeff), integrated exactly. */
+     * PolyCoeff), integrated exactly. The cells are walked by walk/'s DDA over the lattice box
+     * [-1, n]^3 with n + 1 unit cells per axis (its planes are the integers exactly). */
     double v0[3], dv[3];
     const int n[3] = {gr->nx, gr->ny, gr->nz};
     for (int a = 0; a < 3; a++) {
         v0[a] = gr->w2g[a][0] * r.o.x + gr->w2g[a][1] * r.o.y + gr->w2g[a][2] * r.o.z + gr->w2g[a][3] - 0.5;
         dv[a] = gr->w2g[a][0] * r.d.x + gr->w2g[a][1] * r.d.y + gr->w2g[a][2] * r.d.z;
     }
-    /* Clip to the lattice box [-1, n]^3 where the density can be non-zero. */
-    double ta = t0, tb = t1;
-    for (int a = 0; a < 3; a++) {
-        if (dv[a] == 0.0) {
-            if (v0[a] < -1.0 || v0[a] > n[a]) return 0.0;
-            continue;
+    const double lo[3] = {-1.0, -1.0, -1.0}, hi[3] = {n[0], n[1], n[2]};
+    const int res[3] = {n[0] + 1, n[1] + 1, n[2] + 1};
+    double ta, tb;
+    int enter;
+    if (!wk_box_clip(lo, hi, v0, dv, t0, t1, &ta, &tb, &enter)) return 0.0;
+    wk_dda w;
+    wk_dda_seg sg;
+    wk_dda_begin(&w, lo, hi, res, v0, dv, ta, tb, enter);
+    double tau = 0.0;
+    while (wk_dda_next(&w, &sg)) {
+        int idx[3] = {sg.ijk[0] - 1, sg.ijk[1] - 1, sg.ijk[2] - 1}; /* lattice cell [i, i+1] */
+        double val[8];
+        int any = 0;
+        for (int q = 0; q < 8; q++) {
+            int i = idx[0] + (q & 1), j = idx[1] + ((q >> 1) & 1), k = idx[2] + ((q >> 2) & 1);
+            val[q] = (i < 0 || j < 0 || k < 0 || i >= n[0] || j >= n[1] || k >= n[2])
+                         ? 0.0
+                         : gr->data[((size_t)k * gr->ny + j) * gr->nx + i];
+            any |= val[q] != 0.0;
         }
-        double x0 = (-1.0 - v0[a]) / dv[a], x1 = (n[a] - v0[a]) / dv[a];
-        if (x0 > x1) { double tmp = x0; x0 = x1; x1 = tmp; }
-        ta = fmax(ta, x0);
-        tb = fmin(tb, x1);
-    }
-    if (!(ta < tb)) return 0.0;
-    int idx[3], step[3];
-    for (int a = 0; a < 3; a++) {
-        double v = v0[a] + ta * dv[a];
-        int i = (int)floor(v);
-        if (dv[a] < 0 && v == floor(v)) i--; /* on a plane heading down: the lower cell */
-        idx[a] = i < -1 ? -1 : (i > n[a] - 1 ? n[a] - 1 : i);
-        step[a] = dv[a] > 0 ? 1 : (dv[a] < 0 ? -1 : 0);
-    }
-    double tau = 0.0, t = ta;
-    for (;;) {
-        double texit = tb;
-        int axis = -1;
+        c->lookups++;
+        if (!any) continue;
+        double E[3], O[3], cc[4];
         for (int a = 0; a < 3; a++) {
-            if (!step[a]) continue;
-            double plane = idx[a] + (step[a] > 0);
-            double x = (plane - v0[a]) / dv[a];
-            if (x < texit) { texit = x; axis = a; }
+            E[a] = v0[a] + sg.ta * dv[a] - idx[a];
+            O[a] = v0[a] + sg.tb * dv[a] - idx[a];
         }
-        if (texit < t) texit = t;
-        if (texit > t) {
-            double val[8];
-            int any = 0;
-            for (int q = 0; q < 8; q++) {
-                int i = idx[0] + (q & 1), j = idx[1] + ((q >> 1) & 1), k = idx[2] + ((q >> 2) & 1);
-                val[q] = (i < 0 || j < 0 || k < 0 || i >= n[0] || j >= n[1] || k >= n[2])
-                             ? 0.0
-                             : gr->data[((size_t)k * gr->ny + j) * gr->nx + i];
-                any |= val[q] != 0.0;
-            }
-            c->lookups++;
-            if (any) {
-                double E[3], O[3], cc[4];
-                for (int a = 0; a < 3; a++) {
-                    E[a] = v0[a] + t * dv[a] - idx[a];
-                    O[a] = v0[a] + texit * dv[a] - idx[a];
-                }
-                rd_trilinear_cubic(val, E, O, cc);
-                tau += (texit - t) * (cc[0] + cc[1] / 2 + cc[2] / 3 + cc[3] / 4);
-            }
-        }
-        if (axis < 0 || texit >= tb) break;
-        t = texit;
-        idx[axis] += step[axis];
-        if (idx[axis] < -1 || idx[axis] > n[axis] - 1) break;
+        rd_trilinear_cubic(val, E, O, cc);
+        tau += (sg.tb - sg.ta) * (cc[0] + cc[1] / 2 + cc[2] / 3 + cc[3] / 4);
     }
     return tau;
 }

@@ -12,6 +12,7 @@
 #include <string.h>
 
 #include "sh_internal.h"
+#include "walk.h"
 
 #ifndef M_PI
 #define M_PI 3.14159265358979323846
@@ -427,22 +428,9 @@ sh_status shi_bake_track(sh_guide *g, const pm_map *map, const sh_bake_params *P
                 continue;
             for (int a = 0; a < 3; a++)
                 d[a] /= dn;
-            /* Clip [0, len] to the region's box (slabs). */
-            double t0 = 0.0, t1 = len;
-            for (int a = 0; a < 3 && t0 < t1; a++) {
-                if (d[a] == 0.0) {
-                    if (o[a] < r->lo[a] || o[a] > r->hi[a])
-                        t1 = -1.0;
-                    continue;
-                }
-                double ta = (r->lo[a] - o[a]) / d[a], tb = (r->hi[a] - o[a]) / d[a];
-                if (ta > tb) {
-                    double t = ta;
-                    ta = tb, tb = t;
-                }
-                t0 = fmax(t0, ta), t1 = fmin(t1, tb);
-            }
-            if (!(t0 < t1))
+            /* Clip [0, len] to the region's box (walk/'s slab clip). */
+            double t0, t1;
+            if (!wk_box_clip(r->lo, r->hi, o, d, 0.0, len, &t0, &t1, NULL))
                 continue;
             int have_y = 0;
             sh_guide_ray it;
