@@ -169,6 +169,24 @@ const pm_map *rd_baked_map(const rd_baked *b) { return b ? b->map : NULL; }
 const pm_map *rd_baked_indirect_map(const rd_baked *b) { return b ? b->indirect : NULL; }
 const sh_guide *rd_baked_guide(const rd_baked *b) { return b ? b->guide : NULL; }
 
+/* Trace the scene's photons into a new map (*map); store_direct and segments as asked. */
+static rd_status trace_new_map(const rd_scene *s, const rd_bake_opts *o, int store_direct, int segments,
+                               pm_map **map, rd_photon_stats *ps, char *err, size_t errlen)
+{
+    rd_photon_opts po = {.count = o->photons > 0 ? o->photons : s->photons.count,
+                         .store_direct = store_direct,
+                         .segments = segments,
+                         .max_depth = s->photons.max_depth,
+                         .seed = o->seed >= 0 ? (uint64_t)o->seed : s->photons.seed,
+                         .threads = o->threads};
+    memset(ps, 0, sizeof *ps);
+    if (!(*map = pm_map_new())) {
+        snprintf(err, errlen, "%s: out of memory for the photon map", s->path);
+        return RD_ERR_NOMEM;
+    }
+    return rd_trace_photons(s, &po, *map, ps, err, errlen);
+}
+
 rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char *err,
                   size_t errlen)
 {
@@ -191,21 +209,9 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
         }
         bs->loaded = 1;
     } else {
-        rd_photon_opts po = {.count = o->photons > 0 ? o->photons : s->photons.count,
-                             .store_direct = s->photons.store_direct,
-                             .segments = s->photons.segments,
-                             .max_depth = s->photons.max_depth,
-                             .seed = o->seed >= 0 ? (uint64_t)o->seed : s->photons.seed,
-                             .threads = o->threads};
         rd_photon_stats ps;
-        memset(&ps, 0, sizeof ps);
-        b->map = pm_map_new();
-        if (!b->map) {
-            snprintf(err, errlen, "%s: out of memory for the photon map", s->path);
-            st = RD_ERR_NOMEM;
+        if ((st = trace_new_map(s, o, s->photons.store_direct, s->photons.segments, &b->map, &ps, err, errlen)) != RD_OK)
             goto fail;
-        }
-        if ((st = rd_trace_photons(s, &po, b->map, &ps, err, errlen)) != RD_OK) goto fail;
         bs->emitted = ps.emitted;
         bs->trace_seconds = ps.seconds;
         bs->collisions_per_photon = ps.emitted ? (double)ps.collisions / ps.emitted : 0.0;
@@ -233,20 +239,8 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
             goto fail;
         }
     } else if (o->indirect) {
-        rd_photon_opts po = {.count = o->photons > 0 ? o->photons : s->photons.count,
-                             .store_direct = 0,
-                             .segments = 0,
-                             .max_depth = s->photons.max_depth,
-                             .seed = o->seed >= 0 ? (uint64_t)o->seed : s->photons.seed,
-                             .threads = o->threads};
         rd_photon_stats ps;
-        b->indirect = pm_map_new();
-        if (!b->indirect) {
-            snprintf(err, errlen, "%s: out of memory for the photon map", s->path);
-            st = RD_ERR_NOMEM;
-            goto fail;
-        }
-        if ((st = rd_trace_photons(s, &po, b->indirect, &ps, err, errlen)) != RD_OK) goto fail;
+        if ((st = trace_new_map(s, o, 0, 0, &b->indirect, &ps, err, errlen)) != RD_OK) goto fail;
     }
     if (b->indirect && pm_map_build(b->indirect, pmerr, sizeof pmerr) != PM_OK) {
         snprintf(err, errlen, "photon map: %s", pmerr);

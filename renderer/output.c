@@ -41,13 +41,12 @@ static void sibling(const char *exr, const char *ext, char *out, size_t n)
     snprintf(out, n, "%.*s%s", (int)(len > 4 ? len - 4 : len), exr, ext);
 }
 
-/* Write text to path through a temporary name and a rename. */
-static rd_status write_text(const char *path, const char *text, char *err, size_t errlen)
+rd_status rd_write_atomic(const char *path, const void *data, size_t n, char *err, size_t errlen)
 {
     char tmp[2200];
     snprintf(tmp, sizeof tmp, "%.2100s.tmp%ld", path, (long)getpid());
-    FILE *f = fopen(tmp, "w");
-    int ok = f && fputs(text, f) >= 0;
+    FILE *f = fopen(tmp, "wb");
+    int ok = f && fwrite(data, 1, n, f) == n;
     if (f && fclose(f) != 0) ok = 0;
     if (!ok || rename(tmp, path) != 0) {
         snprintf(err, errlen, "%s: cannot write: %s", path, strerror(errno));
@@ -141,7 +140,7 @@ rd_status rd_render_write(const rd_scene *s, const rd_render_opts *o, const rd_r
         snprintf(err, errlen, "%s: out of memory for the report", json);
         return RD_ERR_NOMEM;
     }
-    st = write_text(json, text, err, errlen);
+    st = rd_write_atomic(json, text, strlen(text), err, errlen);
     cJSON_free(text);
     return st;
 }

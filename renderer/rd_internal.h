@@ -303,6 +303,10 @@ vec3 rd_nee(const rd_scene *s, vec3 x, vec3 d, double g, pcg32 *rng, rd_track_co
  * roulette, multiple importance sampling for area and environment lights). */
 vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c);
 
+/* Write n bytes to path through a temporary name in its folder and a rename (output.c), so a
+ * failed write never leaves a partial file; RD_ERR_OUTPUT naming the path. */
+rd_status rd_write_atomic(const char *path, const void *data, size_t n, char *err, size_t errlen);
+
 /* Volume loading shims (C++ behind a C API; never throw). Both fill g->data, dims, w2g,
  * vmin/vmax and return the world-space bounds of the voxels. */
 rd_status rd_vdb_load(const char *path, const char *grid_name, rd_grid *g, vec3 *bmin,

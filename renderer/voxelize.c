@@ -2,25 +2,8 @@
  * (docs/cli.md, voxelize; the format of raw grids in docs/scene-format.md). */
 #include "rd_internal.h"
 
-#include <errno.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
-
-static rd_status write_raw(const char *path, const float *data, size_t n, char *err, size_t errlen)
-{
-    char tmp[2200];
-    snprintf(tmp, sizeof tmp, "%.2100s.tmp%ld", path, (long)getpid());
-    FILE *f = fopen(tmp, "wb");
-    int ok = f && fwrite(data, sizeof *data, n, f) == n;
-    if (f && fclose(f) != 0) ok = 0;
-    if (!ok || rename(tmp, path) != 0) {
-        snprintf(err, errlen, "%s: cannot write: %s", path, strerror(errno));
-        remove(tmp);
-        return RD_ERR_OUTPUT;
-    }
-    return RD_OK;
-}
 
 rd_status rd_voxelize(const rd_scene *s, int medium, int res, const char *out_path, int dims[3],
                       char *err, size_t errlen)
@@ -66,7 +49,7 @@ rd_status rd_voxelize(const rd_scene *s, int medium, int res, const char *out_pa
         if (rd_vdb_save_dense(out_path, "density", data, dims[0], dims[1], dims[2], vs, origin, err, errlen))
             st = RD_ERR_OUTPUT;
     } else if (st == RD_OK) {
-        st = write_raw(out_path, data, n, err, errlen);
+        st = rd_write_atomic(out_path, data, n * sizeof *data, err, errlen);
     }
     free(data);
     return st;
