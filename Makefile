@@ -54,7 +54,7 @@ CRITERION_FLAGS ?= --jobs 2
 BENCH_SRC := $(wildcard bench/*.c)
 BENCH_BIN := $(patsubst bench/%.c,$(BUILD)/bench/%,$(BENCH_SRC))
 
-.SECONDARY:
+.SECONDARY: $(patsubst bench/%.c,$(BUILD)/bench/%.o,$(BENCH_SRC))
 .PHONY: all deps asan test test-walk test-pm test-sh test-rd demo bench clean
 all: $(BIN)
 
@@ -120,8 +120,10 @@ asan: deps
 # Note that a leak inside a test never failed the run anyway (Criterion reports the test before
 # the worker's leak check; checked with a leaking test); the CLI's leaks are caught by the
 # malformed-scene catalogue, run against build-asan/photonmarch with detect_leaks=1.
+# allocator_may_return_null=1: an impossible allocation returns NULL as malloc does without
+# ASan, so the out-of-memory paths (and their tests) run as in a release build.
 LSAN_SUPP := build-asan/lsan.supp
-SAN_ENV := ASAN_OPTIONS=halt_on_error=1:detect_leaks=1 \
+SAN_ENV := ASAN_OPTIONS=halt_on_error=1:detect_leaks=1:allocator_may_return_null=1 \
            UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
            LSAN_OPTIONS=suppressions=$(LSAN_SUPP):print_suppressions=0
 test: deps
