@@ -127,6 +127,7 @@ static double quantile(const double *v, size_t n, double q)
 
 typedef struct {
     double var, time, tmin, tmax, bias2, floor_k, rel_median, rel_iqr, rel_cv;
+    double dmean, dmean_se; /* (image mean of the group - of the reference) / reference's, +- se */
     size_t lit;
 } stats;
 
@@ -206,6 +207,31 @@ static void homogeneity(const double *pvar, const double *refc, size_t npix, dou
     free(r);
 }
 
+/* The bias of the image mean, which averages the noise away where the per-pixel bias^2 cannot:
+ * d = (mean over runs of the run's image mean - the reference's image mean) / the latter, with
+ * its standard error from the spread of the K run means and the reference's per-pixel standard
+ * errors (independent pixels: se of its mean = sqrt(sum se^2) / n). */
+static void image_mean_bias(const group *g, const rd_image *ref, const rd_image *ref_se, stats *st)
+{
+    size_t nv = (size_t)ref->w * ref->h * 3;
+    double r = 0.0, rse2 = 0.0, s = 0.0, s2 = 0.0;
+    for (size_t i = 0; i < nv; i++) {
+        r += ref->rgb[i] / nv;
+        rse2 += (double)ref_se->rgb[i] * ref_se->rgb[i] / ((double)nv * nv);
+    }
+    for (int k = 0; k < g->k; k++) {
+        rd_image img = read_exr(g->path[k]);
+        double m = 0.0;
+        for (size_t i = 0; i < nv; i++) m += img.rgb[i] / nv;
+        s += m;
+        s2 += m * m;
+        rd_image_free_pixels(&img);
+    }
+    double m = s / g->k, v = (s2 - g->k * m * m) / (g->k - 1);
+    st->dmean = (m - r) / r;
+    st->dmean_se = sqrt(fmax(v, 0.0) / g->k + rse2) / r;
+}
+
 /* Everything about one group against the reference (ref, its stderr image and its channel
  * means refc). */
 static stats group_stats(const group *g, const rd_image *ref, const rd_image *ref_se,
@@ -227,6 +253,7 @@ static stats group_stats(const group *g, const rd_image *ref, const rd_image *re
     st.floor_k = st.var / g->k + se2 / (npix * 3);
     st.bias2 = d2 / (npix * 3) - st.floor_k;
     homogeneity(pvar, refc, npix, lit_level, &st);
+    image_mean_bias(g, ref, ref_se, &st);
     free(mean);
     free(pvar);
     return st;
@@ -246,7 +273,17 @@ static double half_efficiency(const group *g, int a, int b, const rd_image *ref)
 static int cmd_rmse(int argc, char **argv)
 {
     rd_image ref = read_exr(argv[0]);
-    printf("| image | seconds | spp_mean | RMSE |\n|---|---|---|---|\n");
+    char *se_path = sibling(argv[0], "-stderr.exr");
+    rd_image ref_se = read_exr(se_path);
+    free(se_path);
+    double se2 = 0.0;
+    size_t n = (size_t)ref.w * ref.h * 3;
+    for (size_t j = 0; j < n; j++) se2 += (double)ref_se.rgb[j] * ref_se.rgb[j] / n;
+    rd_image_free_pixels(&ref_se);
+    /* E[RMSE^2] = the image's own MSE + the reference's variance se_ref^2: the last column
+     * removes the latter, the part of the RMSE that belongs to the reference. */
+    printf("reference noise: mean se_ref^2 = %.4g (RMSE floor %.4g)\n\n", se2, sqrt(se2));
+    printf("| image | seconds | spp_mean | RMSE | MSE - se_ref^2 |\n|---|---|---|---|---|\n");
     for (int i = 1; i < argc; i++) {
         rd_image img = read_exr(argv[i]);
         check_size(&img, &ref, argv[i]);
@@ -256,8 +293,8 @@ static int cmd_rmse(int argc, char **argv)
             double d = (double)img.rgb[j] - ref.rgb[j];
             s += d * d;
         }
-        printf("| %s | %.2f | %.2f | %.6g |\n", argv[i], report_number(argv[i], "seconds"),
-               report_number(argv[i], "spp_mean"), sqrt(s / nv));
+        printf("| %s | %.2f | %.2f | %.6g | %.4g |\n", argv[i], report_number(argv[i], "seconds"),
+               report_number(argv[i], "spp_mean"), sqrt(s / nv), s / nv - se2);
         rd_image_free_pixels(&img);
     }
     rd_image_free_pixels(&ref);
@@ -285,14 +322,14 @@ static void print_groups(group *gs, int ng, const rd_image *ref, const rd_image 
     double ref_mean = 0.0;
     for (size_t p = 0; p < npix; p++) ref_mean += refc[p] / npix;
     stats st[MAX_GROUPS];
-    printf("| method | K | time s (min-max) | var | eff = 1/(var t) | bias^2 | noise floor | rel. RMS bias | lit px | median rel. sd | IQR/median | CV |\n");
-    printf("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    printf("| method | K | time s (min-max) | var | eff = 1/(var t) | bias^2 | noise floor | rel. RMS bias | image-mean bias (+- se) | lit px | median rel. sd | IQR/median | CV |\n");
+    printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (int i = 0; i < ng; i++) {
         st[i] = group_stats(&gs[i], ref, ref_se, refc, lit_level);
         double rb = st[i].bias2 > 0 ? sqrt(st[i].bias2) / ref_mean : 0.0;
-        printf("| %s | %d | %.2f (%.2f-%.2f) | %.4g | %.4g | %.3g | %.3g | %.3g | %zu | %.3g | %.3g | %.3g |\n",
+        printf("| %s | %d | %.2f (%.2f-%.2f) | %.4g | %.4g | %.3g | %.3g | %.3g | %+.2f%% (%.2f%%) | %zu | %.3g | %.3g | %.3g |\n",
                gs[i].name, gs[i].k, st[i].time, st[i].tmin, st[i].tmax, st[i].var, 1.0 / (st[i].var * st[i].time),
-               st[i].bias2, st[i].floor_k, rb, st[i].lit, st[i].rel_median, st[i].rel_iqr, st[i].rel_cv);
+               st[i].bias2, st[i].floor_k, rb, 100 * st[i].dmean, 100 * st[i].dmean_se, st[i].lit, st[i].rel_median, st[i].rel_iqr, st[i].rel_cv);
     }
     printf("\nreference channel mean over pixels %.5g; lit pixels: reference >= %.3g (%.2f x its 99th percentile)\n\n",
            ref_mean, lit_level, lit_fraction);
