@@ -42,6 +42,10 @@ int main(int argc, char **argv)
     int sep = -1;
     for (int i = 1; i < argc; i++)
         if (!strcmp(argv[i], "--")) sep = i;
+    if (sep < 0) { /* `make bench` runs every tool with --json: this one needs renders */
+        printf("bench_same_mean: a tool for two sets of renders (see its header); nothing to run here\n");
+        return 0;
+    }
     int ka = sep - 1, kb = argc - sep - 1;
     if (sep < 0 || ka < 2 || kb < 2) {
         fprintf(stderr, "usage: bench_same_mean A1.exr ... AK.exr -- B1.exr ... BK.exr (K >= 2 each)\n");

@@ -220,7 +220,7 @@ Test(render, time_budget_is_kept_within_a_tenth, .timeout = 120)
                            "\"density\":{\"type\":\"noise\",\"octaves\":6},\"sigma_t\":20,\"albedo\":0.99}],"
                            "\"lights\":[{\"type\":\"environment\",\"radiance\":1}]}");
     char err[RD_ERRLEN];
-    const double budget = 1.0;
+    const double budget = 2.0;
     rd_render_opts o = {.method = "delta", .spp = 1 << 24, .seed = 1, .threads = 1, .time_limit = budget};
     rd_render_result r;
     cr_assert(rd_render(s, &o, &r, err, sizeof err) == RD_OK, "%s", err);
