@@ -13,7 +13,8 @@ end=$(date +%s)
 cat <<MSG
 done in $((end - start)) s
 image   out/default.exr (linear, float)  and  out/default.png (sRGB preview)
-report  out/default.json (method, samples, time, collisions and lookups per path)
+noise   out/default-stderr.exr (per-pixel standard error of the image)
+report  out/default.json (method, samples, time, collisions and lookups per path, noise)
 photons out/default.pmap, picture of where the light went: out/default-photons.png
 guide   out/default.guide, a slice of it: out/default-slice-z.png
 MSG
