@@ -249,6 +249,8 @@ static rd_status march_prepare_common(rd_render_ctx *ctx, char *err, size_t errl
     return RD_OK;
 }
 
+static void march_release(rd_render_ctx *ctx);
+
 static rd_status prepare_plain(rd_render_ctx *ctx, char *err, size_t errlen)
 {
     return march_prepare_common(ctx, err, errlen);
@@ -267,6 +269,7 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
     void *buf = aligned_alloc(16, (bytes + 15) / 16 * 16);
     if (!buf) {
         snprintf(err, errlen, "out of memory for the pilot pass");
+        march_release(ctx);
         return RD_ERR_NOMEM;
     }
     scratch_layout(mst, &ms, buf);
