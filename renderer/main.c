@@ -394,7 +394,11 @@ static int cmd_render(int argc, char **argv)
         code = report_error(st, err);
         goto out;
     }
-    if (res.stats.spp_mean <= 0.0) {
+    if (res.stats.spp_mean <= 0.0 && !res.stats.cancelled) {
+        fprintf(stderr, "photonmarch render: --time %g: the time ran out before any pixel was sampled (the bake took "
+                        "%.1f s); nothing written\n", ro.time_limit, res.stats.bake_seconds);
+        code = EXIT_USAGE;
+    } else if (res.stats.spp_mean <= 0.0) {
         fprintf(stderr, "photonmarch render: interrupted before any pixel was sampled; nothing written\n");
         code = EXIT_INTERRUPTED;
     } else if ((st = rd_render_write(scene, &ro, &res, outpath, err, sizeof err)) != RD_OK) {
