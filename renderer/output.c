@@ -72,7 +72,7 @@ static char *report_json(const rd_scene *s, const rd_render_opts *o, const rd_re
     cJSON_AddNumberToObject(j, "spp", st->spp);
     cJSON_AddNumberToObject(j, "spp_mean", st->spp_mean);
     cJSON_AddNumberToObject(j, "seed", (double)o->seed);
-    cJSON_AddNumberToObject(j, "threads", o->threads);
+    cJSON_AddNumberToObject(j, "threads", st->threads); /* used, not asked (0 = all) */
     cJSON_AddNumberToObject(j, "seconds", st->seconds);
     cJSON_AddNumberToObject(j, "bake_seconds", st->bake_seconds);
     cJSON_AddNumberToObject(j, "prepare_seconds", st->prepare_seconds);

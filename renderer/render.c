@@ -226,7 +226,9 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
     /* The caller's bake (o->baked_seconds) counts as if it had happened inside this call. */
     double t_start = now_seconds() - (o->baked ? fmax(0.0, o->baked_seconds) : 0.0);
     double deadline = o->time_limit > 0 ? t_start + o->time_limit : 0.0;
-    rd_render_ctx ctx = {s, m, NULL, NULL, NULL, NULL, o->seed, o->threads > 0 ? o->threads : omp_get_max_threads()};
+    rd_render_ctx ctx = {.scene = s, .method = m, .seed = o->seed,
+                         .threads = o->threads > 0 ? o->threads : omp_get_max_threads()};
+    res->stats.threads = ctx.threads;
 
     /* What the method needs baked: given, or baked here (its time is part of the render). */
     rd_baked *own = NULL;

@@ -123,6 +123,7 @@ typedef struct {
     uint64_t invalid;        /* non-finite samples dropped (should be 0; reported if not) */
     int cancelled;           /* 1 when the cancel flag stopped the render early */
     int timed_out;           /* 1 when the time limit stopped it */
+    int threads;             /* worker threads used */
     double prepare_seconds;  /* the method's set-up after the bake (e.g. a pilot pass) */
     /* Ray-marching methods: camera rays that entered the media, samples per such ray (mean,
      * min, max) and PDF segments built per ray (guide cells crossed; 0 for other methods). */
