@@ -26,13 +26,24 @@ static void cb_sigma_s(const double x[3], void *user, double out[3])
     out[2] = m ? st * m->albedo.z : 0.0;
 }
 
-/* HG Legendre coefficients b_l = g^l of the medium at x (seed 001 appendix). */
-typedef struct { const rd_scene *s; int bands; } phase_ctx;
+/* The guide's phase coefficients: HG b_l = g^l (seed 001 appendix), times the Hann window
+ * w_l when guide.window is on (sh_window_hann: truncated HG at g >= 0.7 rings below zero and
+ * would call a forward-scattering beam seen from the side dark). */
+static void guide_phase_coeffs(const rd_guide_settings *gs, double g, double *b)
+{
+    double w[SH_MAX_BANDS];
+    sh_phase_coeffs_hg(g, gs->bands, b);
+    if (gs->window && sh_window_hann(gs->bands, w) == SH_OK)
+        for (int l = 0; l < gs->bands; l++) b[l] *= w[l];
+}
+
+/* Phase coefficients of the medium at x (media with different g). */
+typedef struct { const rd_scene *s; } phase_ctx;
 static void cb_phase_at(const double x[3], void *user, double *b)
 {
     const phase_ctx *pc = user;
     const rd_medium *m = rd_scene_medium_at(pc->s, v3(x[0], x[1], x[2]));
-    sh_phase_coeffs_hg(m ? m->g : 0.0, pc->bands, b);
+    guide_phase_coeffs(&pc->s->guide, m ? m->g : 0.0, b);
 }
 
 rd_status rd_guide_bake(const rd_scene *s, const pm_map *map, int threads, sh_guide **out,
@@ -55,8 +66,8 @@ rd_status rd_guide_bake(const rd_scene *s, const pm_map *map, int threads, sh_gu
     /* One phase function for all media when they agree, else per cell. */
     int same_g = 1;
     for (int i = 1; i < s->n_media; i++) same_g &= s->media[i].g == s->media[0].g;
-    phase_ctx pc = {s, gs->bands};
-    if (same_g) sh_phase_coeffs_hg(s->n_media ? s->media[0].g : 0.0, gs->bands, p.phase_b);
+    phase_ctx pc = {s};
+    if (same_g) guide_phase_coeffs(gs, s->n_media ? s->media[0].g : 0.0, p.phase_b);
     else {
         p.phase_at = cb_phase_at;
         p.phase_user = &pc;

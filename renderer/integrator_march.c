@@ -19,7 +19,8 @@
  * (T(0,t_n) = T(0,t_{n-1}) T(t_{n-1},t_n), independent pieces), and S = sigma_s L_s from the
  * source chosen by guide.ls:
  *   photons      the photon-map radiance estimate alone (the seed's original),
- *   nee+photons  sigma_s x next-event estimation (direct light) + the photon map of photons
+ *   nee+photons  sigma_s x next-event estimation of every light (direct light; rd_nee_all,
+ *                no MIS: no other estimator here reaches the lights) + the photon map of photons
  *                stored without their first flight (multiple scattering),
  *   nee          sigma_s x next-event estimation only (single scattering; for tests).
  * Given S, the estimate is unbiased for every placement (the defensive mixture keeps p > 0
@@ -40,7 +41,8 @@ typedef struct {
     double mean_I;   /* mean over the pilot's rays of I_ray, 0 when unknown */
     int seg_cap;     /* PDF segments per ray */
     int n_max;       /* samples per ray at most */
-    int k_steps;     /* transmittance placement: extinction lookups per ray */
+    int k_steps;     /* extinction lookups per ray (transmittance; guided detail lattice) */
+    int piece_cap;   /* entries of the tb/f/sig tables: k_steps, or cells + k_steps (detail) */
 } march_state;
 
 /* Scratch of one thread: PDF segments, sample positions and densities, extinction table. */
@@ -62,9 +64,9 @@ static size_t scratch_layout(const march_state *st, march_scratch *ms, void *bas
     TAKE(seg, rd_gpdf_seg, st->seg_cap);
     TAKE(t, double, st->n_max);
     TAKE(p, double, st->n_max);
-    TAKE(tb, double, st->k_steps + 1);
-    TAKE(f, double, st->k_steps);
-    TAKE(sig, double, st->k_steps);
+    TAKE(tb, double, st->piece_cap + 1);
+    TAKE(f, double, st->piece_cap);
+    TAKE(sig, double, st->piece_cap);
 #undef TAKE
     return off;
 }
@@ -93,6 +95,62 @@ static int medium_span(const rd_scene *s, ray3 r, double *t0, double *t1, int *h
 
 /* ---- The three placements ------------------------------------------------------------------ */
 
+/* Guided placement with detail (march.detail = "lookups"): the guide says how bright the
+ * in-scattered light of each cell is, lookups say where inside the cell the medium is. Each
+ * guide segment j is cut at the K-step lattice of the ray; piece i gets the extinction of a
+ * lookup at its midpoint and the height f_j sigma_t(mid_i) / sigma_j, so h(t) follows
+ * sigma_t(t) T~(0,t) L~_s(cell) instead of the cell mean (eq. 16 with sigma_s at the
+ * lookup's resolution). Writes the pieces into ms->tb/f/sig and rebuilds pdf from them (the
+ * guide segments are read before the rebuild overwrites their storage). */
+static void refine_by_lookups(const rd_render_ctx *ctx, const march_scratch *ms, ray3 r,
+                              rd_guide_pdf *pdf, rd_track_counters *c)
+{
+    const rd_scene *s = ctx->scene;
+    const march_state *st = ctx->state;
+    double t0 = pdf->tmin, t1 = pdf->tmax, h = (t1 - t0) / st->k_steps;
+    int n = 0;
+    for (int j = 0; j < pdf->n && n < st->piece_cap; j++) {
+        const rd_gpdf_seg sg = pdf->seg[j];
+        double a = sg.t0;
+        while (a < sg.t1 && n < st->piece_cap) {
+            double lattice = t0 + (floor((a - t0) / h) + 1.0) * h; /* next lattice point > a */
+            if (lattice <= a) lattice += h;                             /* rounding */
+            double b = lattice < sg.t1 ? lattice : sg.t1;
+            vec3 x = ray_at(r, 0.5 * (a + b));
+            const rd_medium *m = sg.f > 0.0 ? rd_scene_medium_at(s, x) : NULL;
+            double sig = m ? rd_medium_sigma_t(m, x) : 0.0;
+            c->lookups += m != NULL;
+            ms->tb[n] = a;
+            ms->sig[n] = sg.f > 0.0 ? sig : sg.sigma; /* dark cells: T~ from the cell mean */
+            ms->f[n] = sg.sigma > 0.0 ? sg.f * sig / sg.sigma : (sig > 0.0 ? sg.f : 0.0);
+            n++;
+            a = b;
+        }
+    }
+    ms->tb[n] = n > 0 ? pdf->seg[pdf->n - 1].t1 : t1;
+    double alpha = pdf->alpha;
+    if (n == 0 || ms->tb[n] <= ms->tb[0] ||
+        rd_guide_pdf_build(pdf, n, ms->tb, ms->f, ms->sig, t0, t1, alpha, NULL, 0) != RD_OK)
+        rd_guide_pdf_build(pdf, 0, NULL, NULL, NULL, t0, t1, 1.0, NULL, 0); /* defensive only */
+}
+
+/* The guide's PDF of ray r over [t0, t1] (cells, or cells x lookups; defensive only when the
+ * guide walk fails). */
+static void build_guided(const rd_render_ctx *ctx, const march_scratch *ms, ray3 r, double t0,
+                         double t1, rd_guide_pdf *pdf, rd_track_counters *c)
+{
+    const rd_march_settings *m = &ctx->scene->march;
+    double o[3] = {r.o.x, r.o.y, r.o.z}, d[3] = {r.d.x, r.d.y, r.d.z};
+    if (rd_guide_pdf_build_guide(pdf, ctx->guide, o, d, t0, t1, m->alpha, NULL, 0) != RD_OK) {
+        rd_guide_pdf_build(pdf, 0, NULL, NULL, NULL, t0, t1, 1.0, NULL, 0);
+        return;
+    }
+    if (m->detail && pdf->I > 0.0) {
+        pdf->alpha = m->alpha; /* the mixture weight asked for, not the I == 0 fallback */
+        refine_by_lookups(ctx, ms, r, pdf, c);
+    }
+}
+
 /* Build the PDF of `place` over [t0, t1] for ray r into pdf. Returns the samples to take. */
 static int build_pdf(const rd_render_ctx *ctx, placement place, const march_scratch *ms, ray3 r,
                      double t0, double t1, rd_guide_pdf *pdf, rd_track_counters *c)
@@ -103,9 +161,7 @@ static int build_pdf(const rd_render_ctx *ctx, placement place, const march_scra
     rd_guide_pdf_init(pdf, ms->seg, st->seg_cap);
     int N = ms_set->samples;
     if (place == PLACE_GUIDED) {
-        double o[3] = {r.o.x, r.o.y, r.o.z}, d[3] = {r.d.x, r.d.y, r.d.z};
-        if (rd_guide_pdf_build_guide(pdf, ctx->guide, o, d, t0, t1, ms_set->alpha, NULL, 0) != RD_OK)
-            rd_guide_pdf_build(pdf, 0, NULL, NULL, NULL, t0, t1, 1.0, NULL, 0); /* defensive only */
+        build_guided(ctx, ms, r, t0, t1, pdf, c);
         N = rd_guide_samples_per_ray(pdf->I, st->mean_I, ms_set->samples, ms_set->min_samples, ms_set->max_samples);
     } else if (place == PLACE_UNIFORM) {
         rd_guide_pdf_build(pdf, 0, NULL, NULL, NULL, t0, t1, 1.0, NULL, 0);
@@ -157,7 +213,7 @@ static vec3 source(const rd_render_ctx *ctx, const rd_medium *m, vec3 x, vec3 d,
     case RD_LS_NEE:
     default: {
         vec3 sigma_s = v3_scale(m->albedo, sigma_t);
-        return v3_add(S, v3_mul(sigma_s, rd_nee(s, x, d, m->g, rng, c)));
+        return v3_add(S, v3_mul(sigma_s, rd_nee_all(s, x, d, m->g, rng, c)));
     }
     }
 }
@@ -245,6 +301,13 @@ static rd_status march_prepare_common(rd_render_ctx *ctx, char *err, size_t errl
                                               : 3 * (1 << (gs.depth_max < 12 ? gs.depth_max : 12)) + 2;
         if (need > ms->seg_cap) ms->seg_cap = need;
     }
+    /* Detail pieces: every guide segment cut at most once per lattice step, so at most
+     * (segments) + k_steps pieces; the rebuilt PDF needs as many entries plus the fillers. */
+    ms->piece_cap = ms->k_steps;
+    if (ctx->guide && m->detail) {
+        ms->piece_cap = ms->seg_cap + ms->k_steps;
+        ms->seg_cap = ms->piece_cap + 2;
+    }
     ctx->state = ms;
     return RD_OK;
 }
@@ -283,8 +346,8 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
             if (!medium_span(s, r, &t0, &t1, &hit)) continue;
             rd_guide_pdf pdf;
             rd_guide_pdf_init(&pdf, ms.seg, mst->seg_cap);
-            double o[3] = {r.o.x, r.o.y, r.o.z}, d[3] = {r.d.x, r.d.y, r.d.z};
-            if (rd_guide_pdf_build_guide(&pdf, ctx->guide, o, d, t0, t1, s->march.alpha, NULL, 0) != RD_OK) continue;
+            rd_track_counters c = {0};
+            build_guided(ctx, &ms, r, t0, t1, &pdf, &c);
             sum += pdf.I;
             n++;
         }

@@ -241,22 +241,42 @@ double rd_power_heuristic(double a, double b)
  *   L_nee = p(d . wi) Li T(x, light) / (pmf_i pdf_i)  x  w_MIS
  * with the power heuristic against phase sampling for lights a phase-sampled path can hit
  * (sphere and environment: pdf_i > 0); delta lights take weight 1. */
-vec3 rd_nee(const rd_scene *s, vec3 x, vec3 d, double g, pcg32 *rng, rd_track_counters *c)
+/* One sample of light i seen from x: phase x Li x unbiased shadow transmittance / pdf, with
+ * the MIS weight against phase sampling when `pick_pmf` > 0 (the probability that light i was
+ * the one chosen), none when it is 0 (no phase-sampled path will find the light). */
+static vec3 nee_light(const rd_scene *s, int i, double pick_pmf, vec3 x, vec3 d, double g,
+                      pcg32 *rng, rd_track_counters *c)
 {
-    double pmf;
-    int i = rd_light_sampler_pick(&s->light_sampler, pcg32_uniform(rng), &pmf);
     double u1 = pcg32_uniform(rng), u2 = pcg32_uniform(rng);
-    if (i < 0 || !(pmf > 0.0)) return v3(0, 0, 0);
     const rd_light *l = &s->lights[i];
     rd_light_sample ls;
     if (!rd_light_sample_li(l, x, u1, u2, &ls)) return v3(0, 0, 0);
     double p = rd_hg_eval(g, v3_dot(d, ls.wi));
-    double w = ls.pdf > 0.0 ? rd_power_heuristic(pmf * ls.pdf, p) : 1.0;
+    double w = pick_pmf > 0.0 && ls.pdf > 0.0 ? rd_power_heuristic(pick_pmf * ls.pdf, p) : 1.0;
     ray3 sr = {x, ls.wi};
     /* Another sphere light in front of this one blocks the shadow ray. */
     if (rd_scene_hit_light(s, sr, ls.dist, i, NULL) >= 0) return v3(0, 0, 0);
     c->shadow_rays++;
     double T = rd_transmittance(s, sr, 0.0, ls.dist, rng, c);
     if (!(T != 0.0)) return v3(0, 0, 0);
-    return v3_scale(ls.contrib, p * T * w / pmf);
+    return v3_scale(ls.contrib, p * T * w / (pick_pmf > 0.0 ? pick_pmf : 1.0));
+}
+
+vec3 rd_nee(const rd_scene *s, vec3 x, vec3 d, double g, pcg32 *rng, rd_track_counters *c)
+{
+    double pmf;
+    int i = rd_light_sampler_pick(&s->light_sampler, pcg32_uniform(rng), &pmf);
+    if (i < 0 || !(pmf > 0.0)) {
+        pcg32_uniform(rng), pcg32_uniform(rng); /* keep the stream's use fixed */
+        return v3(0, 0, 0);
+    }
+    return nee_light(s, i, pmf, x, d, g, rng, c);
+}
+
+vec3 rd_nee_all(const rd_scene *s, vec3 x, vec3 d, double g, pcg32 *rng, rd_track_counters *c)
+{
+    vec3 L = v3(0, 0, 0);
+    for (int i = 0; i < s->n_lights; i++)
+        L = v3_add(L, nee_light(s, i, 0.0, x, d, g, rng, c));
+    return L;
 }

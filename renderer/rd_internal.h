@@ -216,6 +216,7 @@ typedef struct {
     int res[3];          /* explicit uniform resolution, 0 = the rule */
     double min_cell;     /* adaptive: smallest cell edge [m], 0 = default */
     int max_depth;       /* adaptive: deepest level */
+    int window;          /* 1 (default): Hann window on the phase's b_l (sh_window_hann), 0: none */
 } rd_guide_settings;
 
 /* Ray-marching settings of the guided methods (scene key "march", docs/scene-format.md). */
@@ -226,6 +227,8 @@ typedef struct {
     int max_samples;     /* guided: N_max */
     double alpha;        /* defensive weight of the mixture, in (0, 1] */
     rd_ls_kind ls;       /* source of sigma_s L_s at a sample */
+    int detail;          /* guided: 1 (default) scales each cell's f_j by sigma_t(t) / sigma_j from
+                          * lookups along the ray; 0 uses the cells alone (seed 001 eq. 16) */
 } rd_march_settings;
 
 struct rd_scene {
@@ -297,6 +300,12 @@ double rd_scene_radius(const rd_scene *s);
  * travelling along d: one light chosen by power (s->light_sampler), one sample of it, phase,
  * unbiased shadow transmittance, MIS against phase sampling. Multiply by the path weight. */
 vec3 rd_nee(const rd_scene *s, vec3 x, vec3 d, double g, pcg32 *rng, rd_track_counters *c);
+
+/* Direct light at x with no path to share it with (the ray marchers): one sample of every
+ * light, summed, no MIS weight (nothing else estimates the direct part, so a weight < 1 would
+ * lose light from sphere and environment lights). A light that gives nothing at x (outside a
+ * spot's cone, behind a finite beam) costs no shadow ray. */
+vec3 rd_nee_all(const rd_scene *s, vec3 x, vec3 d, double g, pcg32 *rng, rd_track_counters *c);
 
 /* Radiance arriving at the camera along r with the `delta` method: unbiased volumetric path
  * tracing (delta tracking, next-event estimation with ratio tracking, HG sampling, Russian

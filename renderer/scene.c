@@ -700,15 +700,18 @@ static rd_status parse_guide(vctx *c, const cJSON *j, rd_guide_settings *g)
     g->k = 64;
     g->lambda = 1.0;
     g->max_depth = 8;
+    g->window = 1;
     if (!j) return RD_OK;
     const char *path = "guide";
     TRY(need_object(c, j, path));
-    static const char *const keys[] = {"grid", "bake", "bands", "k", "lambda", "resolution", "min_cell", "max_depth", NULL};
+    static const char *const keys[] = {"grid", "bake", "bands", "k", "lambda", "resolution", "min_cell", "max_depth", "window", NULL};
     TRY(check_keys(c, j, path, keys));
     static const char *const grids[] = {"uniform", "adaptive", NULL};
     static const char *const bakes[] = {"knn", "track", NULL};
     TRY(get_enum(c, j, path, "grid", 0, grids, 0, &g->adaptive));
     TRY(get_enum(c, j, path, "bake", 0, bakes, 0, &g->track));
+    static const char *const windows[] = {"none", "hann", NULL};
+    TRY(get_enum(c, j, path, "window", 0, windows, 1, &g->window));
     long long v;
     TRY(get_int(c, j, path, "bands", 0, 4, 1, 8, &v));
     g->bands = (int)v;
@@ -742,10 +745,11 @@ static rd_status parse_march(vctx *c, const cJSON *j, rd_march_settings *m)
     m->max_samples = 64;
     m->alpha = 0.2;
     m->ls = RD_LS_NEE_PHOTONS;
+    m->detail = 1;
     if (!j) return RD_OK;
     const char *path = "march";
     TRY(need_object(c, j, path));
-    static const char *const keys[] = {"samples", "min_samples", "max_samples", "alpha", "ls", NULL};
+    static const char *const keys[] = {"samples", "min_samples", "max_samples", "alpha", "ls", "detail", NULL};
     TRY(check_keys(c, j, path, keys));
     long long v;
     TRY(get_int(c, j, path, "samples", 0, 16, 1, 4096, &v));
@@ -761,6 +765,8 @@ static rd_status parse_march(vctx *c, const cJSON *j, rd_march_settings *m)
     int k = 0;
     TRY(get_enum(c, j, path, "ls", 0, ls, 0, &k));
     m->ls = (rd_ls_kind)k;
+    static const char *const detail[] = {"cells", "lookups", NULL};
+    TRY(get_enum(c, j, path, "detail", 0, detail, 1, &m->detail));
     return RD_OK;
 }
 
@@ -964,7 +970,9 @@ static uint64_t fnv1a(uint64_t h, const void *data, size_t n)
  * disk changes the key). */
 static uint64_t bake_key(const cJSON *root, const rd_scene *s)
 {
-    uint64_t h = 0xcbf29ce484222325ULL;
+    /* Bump when a bake's result changes for the same scene text (2: Hann-windowed guide). */
+    static const char version[] = "photonmarch bake 2";
+    uint64_t h = fnv1a(0xcbf29ce484222325ULL, version, sizeof version);
     cJSON *copy = cJSON_Duplicate(root, 1);
     if (!copy) return 0;
     cJSON_DeleteItemFromObjectCaseSensitive(copy, "camera");

@@ -123,6 +123,14 @@ sh_status sh_phase_coeffs(sh_phase_fn phase, void *user, int bands, double *b, c
 /* The truncated phase p_L(mu) = sum_{l<bands} (2l+1)/(4 pi) b_l P_l(mu). */
 double sh_phase_truncated(const double *b, int bands, double mu);
 
+/* Hann window for a band-limited zonal kernel: w_l = (1 + cos(pi l / bands)) / 2, l < bands,
+ * to multiply into b_l. Truncating HG at g = 0.85 to 4 bands rings to -0.064/sr at 90 degrees
+ * (true value +0.0098) and to 20% of the peak below zero overall; with the window the kernel
+ * gives +0.0077 at 90 degrees and dips at most 1.3% of its peak below zero, at the price of a
+ * lower forward peak (Sloan 2008, "Stupid spherical harmonics tricks", windowing). w_0 = 1, so
+ * the fluence (l = 0) is unchanged. Returns SH_ERR_ARG for bands outside 1..SH_MAX_BANDS. */
+sh_status sh_window_hann(int bands, double *w);
+
 /* ------------------------------------------------------------------------------------------
  * 3. Projection and evaluation of one cell's coefficients
  * ------------------------------------------------------------------------------------------ */

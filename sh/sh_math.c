@@ -236,6 +236,15 @@ double sh_phase_truncated(const double *b, int bands, double mu)
     return s;
 }
 
+sh_status sh_window_hann(int bands, double *w)
+{
+    if (!w || bands < 1 || bands > SH_MAX_BANDS)
+        return SH_ERR_ARG;
+    for (int l = 0; l < bands; l++) /* w_l = (1 + cos(pi l / L)) / 2 */
+        w[l] = 0.5 * (1.0 + cos(M_PI * l / bands));
+    return SH_OK;
+}
+
 /* Adaptive composite Gauss-Legendre for the vector integrand p(mu) P_l(mu), l < bands. */
 #define GL_PANEL 20
 typedef struct {

@@ -107,6 +107,24 @@ Test(march, single_scattering_agrees_with_delta, .timeout = 300)
     rd_scene_free(s);
 }
 
+Test(march, sphere_and_environment_light_keep_their_full_direct_light, .timeout = 300)
+{
+    /* The marchers have no phase-sampled continuation, so their next-event estimate must carry
+     * no MIS weight: a sphere light inside the medium's bounds and an environment light, single
+     * scattering, against delta (whose MIS pair of NEE and phase sampling is unbiased). */
+    rd_scene *s = rt_scene("sph_march.json",
+        "{" SCENE_BODY
+        "\"lights\":[{\"type\":\"sphere\",\"center\":[0.6,0.5,0.2],\"radius\":0.3,\"radiance\":[6,5,4]},"
+        "{\"type\":\"environment\",\"radiance\":[0.3,0.4,0.5]}],"
+        "\"photons\":{\"count\":20000},\"settings\":{\"max_depth\":1},\"march\":{\"ls\":\"nee\",\"samples\":8}}");
+    rd_render_result d = render(s, "delta", 512, 41, NULL);
+    rd_render_result g = render(s, "guided", 64, 42, NULL);
+    expect_same(&d, &g, "guided, sphere + environment light");
+    rd_render_result_free(&g);
+    rd_render_result_free(&d);
+    rd_scene_free(s);
+}
+
 Test(march, guided_and_transmittance_share_the_multiple_scattering_estimate, .timeout = 300)
 {
     /* nee+photons: direct light by NEE, multiple scattering from the indirect photon map. Both
