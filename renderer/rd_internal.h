@@ -27,6 +27,9 @@ typedef struct {
     double fov_deg;          /* perspective: vertical field of view */
     double ortho_width;      /* orthographic: width of the view in scene units */
     double exposure;         /* PNG preview: value * 2^exposure */
+    int jitter;              /* 1 (default): a random position inside the pixel per sample;
+                              * 0: every sample through the pixel centre (for measurements that
+                              * must hold the camera ray fixed, docs/guided-marching.md) */
 } rd_camera;
 
 /* Primary ray through the film position (px, py) in pixels (0,0 = top-left corner). */

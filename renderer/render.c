@@ -172,6 +172,7 @@ static int render_pass(const rd_render_ctx *ctx, rd_thread *th, film *f, int s0,
                 for (int i = s0; i < s1; i++) {
                     rd_sampler smp = rd_sampler_start(pix, (uint64_t)i, ctx->seed);
                     double jx = rd_sampler_1d(&smp), jy = rd_sampler_1d(&smp); /* RD_DIM_FILM */
+                    if (!cam->jitter) jx = jy = 0.5; /* pixel centres (camera.jitter false) */
                     ray3 r = rd_camera_ray(cam, x + jx, y + jy);
                     vec3 L = m->radiance(ctx, t, r, &smp);
                     /* A non-finite sample would poison the pixel: drop and count it. */

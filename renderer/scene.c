@@ -213,10 +213,10 @@ static rd_status parse_camera(vctx *c, const cJSON *j, rd_camera *cam)
     TRY(get_enum(c, j, path, "type", 0, kinds, 0, &kind));
     cam->kind = kind == 0 ? RD_CAM_PERSPECTIVE : RD_CAM_ORTHOGRAPHIC;
     if (cam->kind == RD_CAM_PERSPECTIVE) {
-        static const char *const keys[] = {"type", "position", "look_at", "up", "fov", "resolution", "exposure", NULL};
+        static const char *const keys[] = {"type", "position", "look_at", "up", "fov", "resolution", "exposure", "jitter", NULL};
         TRY(check_keys(c, j, path, keys));
     } else {
-        static const char *const keys[] = {"type", "position", "direction", "up", "width", "resolution", "exposure", NULL};
+        static const char *const keys[] = {"type", "position", "direction", "up", "width", "resolution", "exposure", "jitter", NULL};
         TRY(check_keys(c, j, path, keys));
     }
     const cJSON *res = cJSON_GetObjectItemCaseSensitive(j, "resolution");
@@ -236,6 +236,7 @@ static rd_status parse_camera(vctx *c, const cJSON *j, rd_camera *cam)
     vec3 up;
     TRY(get_vec3(c, j, path, "up", 0, v3(0, 1, 0), 0, -1e9, 1e9, &up));
     TRY(get_num(c, j, path, "exposure", 0, 0.0, -30, 0, 30, 0, &cam->exposure));
+    TRY(get_bool(c, j, path, "jitter", 1, &cam->jitter));
     vec3 fwd;
     if (cam->kind == RD_CAM_PERSPECTIVE) {
         vec3 at;
