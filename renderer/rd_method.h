@@ -69,6 +69,10 @@ const struct sh_guide *rd_baked_guide(const rd_baked *b);
 /* The table (methods.c). NULL for an unknown name. */
 const rd_method *rd_method_find(const char *name);
 
+/* explain (integrator_march.c): fill res for ray r on a context prepared for `guided`. */
+rd_status rd_march_explain(const rd_render_ctx *ctx, ray3 r, int n, uint64_t seed,
+                           rd_explain_result *res, char *err, size_t errlen);
+
 extern const rd_method rd_method_delta;
 extern const rd_method rd_method_guided, rd_method_uniform, rd_method_transmittance;
 

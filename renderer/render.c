@@ -206,6 +206,42 @@ static rd_status fail(char *err, size_t errlen, rd_status st, const char *msg)
     return st;
 }
 
+/* Attach what ctx's method needs baked to ctx: `given`, or a bake made here (*own, which the
+ * caller frees). */
+static rd_status attach_bake(rd_render_ctx *ctx, const rd_baked *given, int threads,
+                             rd_baked **own, char *err, size_t errlen)
+{
+    const rd_scene *s = ctx->scene;
+    const rd_method *m = ctx->method;
+    *own = NULL;
+    unsigned needs = m->needs_for ? m->needs_for(s) : m->needs;
+    if (!needs) return RD_OK;
+    const rd_baked *b = given;
+    if (!b) {
+        rd_bake_opts bo = {0};
+        bo.seed = -1;
+        bo.threads = threads;
+        bo.no_guide = !(needs & RD_NEEDS_GUIDE);
+        bo.indirect = (needs & RD_NEEDS_INDIRECT) != 0;
+        rd_status st = rd_bake(s, &bo, own, err, errlen);
+        if (st != RD_OK) return st;
+        b = *own;
+    }
+    ctx->photons = rd_baked_map(b);
+    ctx->photons_indirect = rd_baked_indirect_map(b);
+    ctx->guide = rd_baked_guide(b);
+    const char *missing = (needs & RD_NEEDS_GUIDE) && !ctx->guide ? "a guide grid"
+                          : (needs & RD_NEEDS_INDIRECT) && !ctx->photons_indirect ? "an indirect photon map"
+                                                                                  : NULL;
+    if (missing) {
+        rd_baked_free(*own);
+        *own = NULL;
+        snprintf(err, errlen, "--method %s: needs %s, and the bake given has none", m->name, missing);
+        return RD_ERR_ARG;
+    }
+    return RD_OK;
+}
+
 rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result *res,
                     char *err, size_t errlen)
 {
@@ -233,31 +269,8 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
 
     /* What the method needs baked: given, or baked here (its time is part of the render). */
     rd_baked *own = NULL;
-    rd_status st = RD_OK;
-    unsigned needs = m->needs_for ? m->needs_for(s) : m->needs;
-    if (needs) {
-        const rd_baked *b = o->baked;
-        if (!b) {
-            rd_bake_opts bo = {0};
-            bo.seed = -1;
-            bo.threads = o->threads;
-            bo.no_guide = !(needs & RD_NEEDS_GUIDE);
-            bo.indirect = (needs & RD_NEEDS_INDIRECT) != 0;
-            if ((st = rd_bake(s, &bo, &own, err, errlen)) != RD_OK) return st;
-            b = own;
-        }
-        ctx.photons = rd_baked_map(b);
-        ctx.photons_indirect = rd_baked_indirect_map(b);
-        ctx.guide = rd_baked_guide(b);
-        const char *missing = (needs & RD_NEEDS_GUIDE) && !ctx.guide ? "a guide grid"
-                              : (needs & RD_NEEDS_INDIRECT) && !ctx.photons_indirect ? "an indirect photon map"
-                                                                                      : NULL;
-        if (missing) {
-            rd_baked_free(own);
-            snprintf(err, errlen, "--method %s: needs %s, and the bake given has none", m->name, missing);
-            return RD_ERR_ARG;
-        }
-    }
+    rd_status st = attach_bake(&ctx, o->baked, o->threads, &own, err, errlen);
+    if (st != RD_OK) return st;
     res->stats.bake_seconds = now_seconds() - t_start;
     if (m->prepare && (st = m->prepare(&ctx, err, errlen)) != RD_OK) {
         rd_baked_free(own);
@@ -359,5 +372,48 @@ done:
     free(th);
     if (m->release) m->release(&ctx);
     rd_baked_free(own);
+    return st;
+}
+
+/* ---- explain ------------------------------------------------------------------------------- */
+
+const char *rd_explain_placement_name(int k)
+{
+    static const char *const names[RD_EXPLAIN_PLACEMENTS] = {"guided", "transmittance", "uniform"};
+    return k >= 0 && k < RD_EXPLAIN_PLACEMENTS ? names[k] : "?";
+}
+
+void rd_explain_result_free(rd_explain_result *e)
+{
+    if (!e) return;
+    free(e->t), free(e->T), free(e->f);
+    for (int k = 0; k < RD_EXPLAIN_PLACEMENTS; k++) free(e->p[k]), free(e->samples[k]);
+    memset(e, 0, sizeof *e);
+}
+
+rd_status rd_explain(const rd_scene *s, const rd_explain_opts *o, rd_explain_result *e,
+                     char *err, size_t errlen)
+{
+    memset(e, 0, sizeof *e);
+    const rd_camera *cam = &s->camera;
+    if (o->px < 0 || o->py < 0 || o->px >= cam->width || o->py >= cam->height) {
+        snprintf(err, errlen, "--pixel %d,%d: outside the %dx%d image", o->px, o->py, cam->width, cam->height);
+        return RD_ERR_ARG;
+    }
+    int n = o->n > 0 ? o->n : 2000;
+    if (n < 16 || n > 1000000) return fail(err, errlen, RD_ERR_ARG, "explain: dense points must be in [16, 1e6]");
+    rd_render_ctx ctx = {.scene = s, .method = &rd_method_guided, .seed = o->seed,
+                         .threads = o->threads > 0 ? o->threads : omp_get_max_threads()};
+    rd_baked *own = NULL;
+    rd_status st = attach_bake(&ctx, o->baked, o->threads, &own, err, errlen);
+    if (st != RD_OK) return st;
+    if ((st = ctx.method->prepare(&ctx, err, errlen)) == RD_OK) {
+        e->px = o->px, e->py = o->py;
+        ray3 r = rd_camera_ray(cam, o->px + 0.5, o->py + 0.5);
+        st = rd_march_explain(&ctx, r, n, o->seed, e, err, errlen);
+        ctx.method->release(&ctx);
+    }
+    rd_baked_free(own);
+    if (st != RD_OK) rd_explain_result_free(e);
     return st;
 }

@@ -152,6 +152,55 @@ void rd_render_result_free(rd_render_result *res); /* frees the images and the c
 rd_status rd_render(const rd_scene *scene, const rd_render_opts *opts, rd_render_result *res,
                     char *err, size_t errlen);
 
+/* ---- Explain one pixel (docs/guided-marching.md "explain") ------------------------------- *
+ * For the camera ray through the centre of pixel (px, py): the integrand of the marchers,
+ * f(t) = T(0,t) sigma_s L_s(x(t), -d) (luminance), evaluated densely and deterministically
+ * (T by a midpoint quadrature of sigma_t on the dense points, L_s from the scene's march.ls
+ * source averaged over 16 draws of its next-event estimate), beside the PDF each placement
+ * would sample (guided, transmittance, uniform), where one draw of each placement puts its
+ * samples, and the variance each placement's stratified estimate of the integral I would have
+ * (from 4000 simulated draws against the dense integrand). Uses the scene's march settings. */
+enum { RD_EXPLAIN_GUIDED, RD_EXPLAIN_TRANSMITTANCE, RD_EXPLAIN_UNIFORM, RD_EXPLAIN_PLACEMENTS };
+
+typedef struct {
+    int px, py;
+    const rd_baked *baked;  /* the guided method's bake (rd_bake / rd_bake_cached); NULL bakes */
+    int n;                  /* dense points, >= 16 (0: 2000) */
+    uint64_t seed;
+    int threads;
+} rd_explain_opts;
+
+typedef struct {
+    int px, py;
+    double origin[3], dir[3];
+    int hits_media;          /* 0: the ray misses the media; the arrays below are then NULL */
+    double t0, t1;           /* the medium span along the ray [scene units] */
+    int n;
+    double *t, *T, *f;       /* dense midpoints, T(0,t), integrand f(t) */
+    double *p[RD_EXPLAIN_PLACEMENTS];       /* each placement's pdf at t [1/unit] */
+    int n_samples[RD_EXPLAIN_PLACEMENTS];   /* samples it takes on this ray */
+    double *samples[RD_EXPLAIN_PLACEMENTS]; /* one draw of their positions */
+    double I;                /* integral of f (midpoint rule over the dense points) */
+    double T_end;            /* T(0, t1) */
+    double I_ray, mean_I;    /* the guide's I_ray and the pilot's mean I (eq. 17) */
+    double var[RD_EXPLAIN_PLACEMENTS];      /* variance of the estimate of I */
+    double var_se[RD_EXPLAIN_PLACEMENTS];   /* standard error of that variance (from the draws) */
+    double m4[RD_EXPLAIN_PLACEMENTS];       /* fourth central moment of the estimate */
+} rd_explain_result;
+
+const char *rd_explain_placement_name(int k); /* "guided", "transmittance", "uniform" */
+rd_status rd_explain(const rd_scene *scene, const rd_explain_opts *opts, rd_explain_result *res,
+                     char *err, size_t errlen);
+void rd_explain_result_free(rd_explain_result *res);
+
+/* Write PREFIX.json (scalars, variances, sample positions), and when the ray meets the media
+ * PREFIX.csv (t, T, f, p_ideal = f/I, p_guided, p_transmittance, p_uniform) and PREFIX.gp (a
+ * gnuplot script drawing PREFIX.png from the CSV), each through a temporary name. */
+rd_status rd_explain_write(const rd_scene *scene, const rd_explain_result *res, const char *prefix,
+                           char *err, size_t errlen);
+/* Run gnuplot on PREFIX.gp (in its folder). 1 on success; 0 with the reason in err. */
+int rd_explain_plot(const char *prefix, char *err, size_t errlen);
+
 /* Write a finished render: OUT.exr (mean, linear), OUT-stderr.exr (per-pixel standard error),
  * OUT.png (sRGB preview at camera.exposure) and OUT.json (the report: method, samples, times,
  * counters, convergence curve), each through a temporary name and a rename. `exr_path` ends in

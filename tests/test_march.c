@@ -167,3 +167,49 @@ Test(march, defensive_only_and_wrong_guides_keep_the_expectation, .timeout = 300
     rd_scene_free(s1);
     rd_scene_free(sw);
 }
+
+Test(march, explain_agrees_with_the_renderer_on_one_ray, .timeout = 300)
+{
+    /* explain's dense integral I of one camera ray and its predicted per-ray variance of the
+     * guided and uniform estimates, against what the renderer measures on that same ray
+     * (camera.jitter false: every sample through the pixel centre). Deterministic source and T
+     * (march.ls = photons from one bake, constant medium: exact T), a grey scene (the three
+     * channels equal the luminance), background 0, so each render sample is exactly explain's
+     * stratified estimate (1/N) sum f(t_n)/p(t_n) up to the dense table's resolution.
+     * Tolerances: the mean within 5 standard errors of the render (plus 0.5% for the 20000-point
+     * table); the variance within 5 standard errors of the difference of two sample variances,
+     * each from explain's fourth moment: se^2 = (m4 - var^2) / spp + var_se^2. */
+    rd_scene *s = rt_scene("explain_march.json",
+        "{\"camera\":{\"position\":[0,0,4],\"look_at\":[0,0,0],\"fov\":30,\"resolution\":[5,5],\"jitter\":false},"
+        "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1.2,\"albedo\":0.8,\"g\":0.5}],"
+        "\"lights\":[{\"type\":\"spot\",\"position\":[-2.5,0.3,0],\"look_at\":[0,0,0],\"angle\":20,\"intensity\":[30,30,30]}],"
+        "\"photons\":{\"count\":30000},\"march\":{\"ls\":\"photons\",\"samples\":8}}");
+    char err[RD_ERRLEN];
+    rd_baked *b = NULL;
+    rd_bake_opts bo = {.seed = -1};
+    cr_assert(rd_bake(s, &bo, &b, err, sizeof err) == RD_OK, "%s", err);
+    const int px = 2, py = 2, spp = 800;
+    rd_explain_opts eo = {.px = px, .py = py, .baked = b, .n = 20000, .seed = 9};
+    rd_explain_result e;
+    cr_assert(rd_explain(s, &eo, &e, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(e.hits_media && e.I > 0.0, "the centre ray must see lit medium");
+    const char *methods[] = {"guided", "uniform"};
+    const int which[] = {RD_EXPLAIN_GUIDED, RD_EXPLAIN_UNIFORM};
+    for (int k = 0; k < 2; k++) {
+        rd_render_result r = render(s, methods[k], spp, 70 + k, b);
+        size_t i = 3 * ((size_t)py * r.image.w + px);
+        double mean = r.image.rgb[i], se = r.stderr_img.rgb[i];
+        double var = se * se * spp; /* per-sample variance the film measured */
+        int j = which[k];
+        cr_expect(fabs(mean - e.I) < 5.0 * se + 0.005 * e.I, "%s: pixel %g vs explain's I %g (se %g)",
+                  methods[k], mean, e.I, se);
+        double var_tol = 5.0 * sqrt(fmax(0.0, e.m4[j] - e.var[j] * e.var[j]) / spp + e.var_se[j] * e.var_se[j]);
+        cr_expect(fabs(var - e.var[j]) < var_tol, "%s: measured variance %g vs explain's %g (tolerance %g)",
+                  methods[k], var, e.var[j], var_tol);
+        cr_log_info("%s: mean %g I %g se %g; var %g predicted %g tol %g", methods[k], mean, e.I, se, var, e.var[j], var_tol);
+        rd_render_result_free(&r);
+    }
+    rd_explain_result_free(&e);
+    rd_baked_free(b);
+    rd_scene_free(s);
+}
