@@ -154,6 +154,7 @@ struct rd_baked {
     pm_map *map;
     pm_map *indirect;  /* NULL unless rd_bake_opts.indirect */
     sh_guide *guide;
+    sh_guide *guide_indirect; /* NULL unless rd_bake_opts.indirect_guide */
     rd_bake_stats stats;
 };
 
@@ -170,6 +171,7 @@ void rd_baked_free(rd_baked *b)
 {
     if (!b) return;
     sh_guide_free(b->guide);
+    sh_guide_free(b->guide_indirect);
     pm_map_free(b->map);
     pm_map_free(b->indirect);
     free(b);
@@ -179,6 +181,14 @@ const rd_bake_stats *rd_baked_stats(const rd_baked *b) { return &b->stats; }
 const pm_map *rd_baked_map(const rd_baked *b) { return b ? b->map : NULL; }
 const pm_map *rd_baked_indirect_map(const rd_baked *b) { return b ? b->indirect : NULL; }
 const sh_guide *rd_baked_guide(const rd_baked *b) { return b ? b->guide : NULL; }
+const sh_guide *rd_baked_indirect_guide(const rd_baked *b) { return b ? b->guide_indirect : NULL; }
+
+void rd_bake_opts_for(rd_bake_opts *o, unsigned needs)
+{
+    o->no_guide = !(needs & RD_NEEDS_GUIDE);
+    o->indirect = (needs & (RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE)) != 0;
+    o->indirect_guide = (needs & RD_NEEDS_INDIRECT_GUIDE) != 0;
+}
 
 /* Trace the scene's photons into a new map (*map); store_direct and segments as asked. */
 static rd_status trace_new_map(const rd_scene *s, const rd_bake_opts *o, int store_direct, int segments,
@@ -268,6 +278,17 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
     } else if (!o->no_guide && (st = rd_guide_bake(s, b->map, o->threads, &b->guide, err, errlen)) != RD_OK) {
         goto fail;
     }
+    /* 3b. The guide of the indirect map: multiple scattering for march.ls = nee+guide. */
+    if (b->indirect && o->indirect_guide && o->load_indirect_guide) {
+        if (sh_guide_load(&b->guide_indirect, o->load_indirect_guide, pmerr, sizeof pmerr) != SH_OK) {
+            snprintf(err, errlen, "%s", pmerr);
+            st = RD_ERR_FORMAT;
+            goto fail;
+        }
+    } else if (b->indirect && o->indirect_guide &&
+               (st = rd_guide_bake(s, b->indirect, o->threads, &b->guide_indirect, err, errlen)) != RD_OK) {
+        goto fail;
+    }
     if (b->guide) {
         sh_guide_stats gst;
         sh_guide_stats_get(b->guide, &gst);
@@ -298,23 +319,27 @@ rd_status rd_bake_cached(const rd_scene *s, const rd_bake_opts *o, const char *d
 {
     /* The key: the scene's bake key and the options that change what is baked. */
     uint64_t k = s->bake_key;
-    uint64_t extra[4] = {o->photons, (uint64_t)o->seed, (uint64_t)o->indirect, (uint64_t)o->no_guide};
+    uint64_t extra[5] = {o->photons, (uint64_t)o->seed, (uint64_t)o->indirect, (uint64_t)o->no_guide,
+                         (uint64_t)o->indirect_guide};
     for (size_t i = 0; i < sizeof extra; i++) k = (k ^ ((const unsigned char *)extra)[i]) * 0x100000001b3ULL;
-    char pmap[1100], ind[1100], guide[1100], msg[RD_ERRLEN];
+    char pmap[1100], ind[1100], guide[1100], iguide[1100], msg[RD_ERRLEN];
     snprintf(pmap, sizeof pmap, "%s/%016llx.pmap", dir, (unsigned long long)k);
     snprintf(ind, sizeof ind, "%s/%016llx-indirect.pmap", dir, (unsigned long long)k);
     snprintf(guide, sizeof guide, "%s/%016llx.guide", dir, (unsigned long long)k);
+    snprintf(iguide, sizeof iguide, "%s/%016llx-indirect.guide", dir, (unsigned long long)k);
     *hit = 0;
     FILE *f;
     int have = (f = fopen(pmap, "rb")) != NULL;
     if (f) fclose(f);
     if (have && o->indirect) { have = (f = fopen(ind, "rb")) != NULL; if (f) fclose(f); }
     if (have && !o->no_guide) { have = (f = fopen(guide, "rb")) != NULL; if (f) fclose(f); }
+    if (have && o->indirect_guide) { have = (f = fopen(iguide, "rb")) != NULL; if (f) fclose(f); }
     if (have) {
         rd_bake_opts lo = *o;
         lo.load_photons = pmap;
         lo.load_indirect = o->indirect ? ind : NULL;
         lo.load_guide = o->no_guide ? NULL : guide;
+        lo.load_indirect_guide = o->indirect_guide ? iguide : NULL;
         if (rd_bake(s, &lo, out, msg, sizeof msg) == RD_OK) {
             *hit = 1;
             return RD_OK;
@@ -327,7 +352,8 @@ rd_status rd_bake_cached(const rd_scene *s, const rd_bake_opts *o, const char *d
     if (rd_make_parent_dirs(pmap, msg, sizeof msg) != RD_OK ||
         pm_map_save(b->map, pmap, msg, sizeof msg) != PM_OK ||
         (b->indirect && pm_map_save(b->indirect, ind, msg, sizeof msg) != PM_OK) ||
-        (b->guide && sh_guide_save(b->guide, guide, msg, sizeof msg) != SH_OK)) {
+        (b->guide && sh_guide_save(b->guide, guide, msg, sizeof msg) != SH_OK) ||
+        (b->guide_indirect && sh_guide_save(b->guide_indirect, iguide, msg, sizeof msg) != SH_OK)) {
         snprintf(err, errlen, "bake cache not saved: %s", msg); /* the bake itself is good */
         *hit = -1;
     }

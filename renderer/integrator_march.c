@@ -22,6 +22,8 @@
  *   nee+photons  sigma_s x next-event estimation of every light (direct light; rd_nee_all,
  *                no MIS: no other estimator here reaches the lights) + the photon map of photons
  *                stored without their first flight (multiple scattering),
+ *   nee+guide    the same direct light + multiple scattering read from the guide baked from
+ *                the indirect photons (a cell lookup instead of a k-NN query),
  *   nee          sigma_s x next-event estimation only (single scattering; for tests).
  * Given S, the estimate is unbiased for every placement (the defensive mixture keeps p > 0
  * wherever the integrand can be non-zero, and every ray gets at least one sample); what the
@@ -206,6 +208,17 @@ static vec3 source(const rd_render_ctx *ctx, const rd_medium *m, vec3 x, vec3 d,
     switch (s->march.ls) {
     case RD_LS_PHOTONS:
         return photon_estimate(ctx->photons, x, w, m->g, s->guide.k);
+    case RD_LS_NEE_GUIDE: {
+        /* Multiple scattering read from the guide of the indirect photons: one cell lookup
+         * and one SH evaluation instead of a k-NN query (smoother, coarser: the cell's
+         * average, band-limited). Negative lobes of the truncation are clamped per channel. */
+        double xd[3] = {x.x, x.y, x.z}, wd[3] = {w.x, w.y, w.z};
+        float out[3] = {0, 0, 0};
+        if (ctx->guide_indirect) sh_guide_eval(ctx->guide_indirect, xd, wd, out);
+        S = v3(fmax(0.0, out[0]), fmax(0.0, out[1]), fmax(0.0, out[2]));
+        vec3 sigma_s = v3_scale(m->albedo, sigma_t);
+        return v3_add(S, v3_mul(sigma_s, rd_nee_all(s, x, d, m->g, rng, c)));
+    }
     case RD_LS_NEE_PHOTONS:
         S = photon_estimate(ctx->photons_indirect, x, w, m->g, s->guide.k);
         /* add the direct light: */
@@ -366,12 +379,15 @@ static void march_release(rd_render_ctx *ctx)
  * (nee+photons); the guided placement needs the guide (and so a photon map) in any case. */
 static unsigned source_needs(const rd_scene *s)
 {
-    return s->march.ls == RD_LS_PHOTONS ? RD_NEEDS_PHOTONS
-           : s->march.ls == RD_LS_NEE_PHOTONS ? RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT
-                                              : 0u;
+    switch (s->march.ls) {
+    case RD_LS_PHOTONS: return RD_NEEDS_PHOTONS;
+    case RD_LS_NEE_PHOTONS: return RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT;
+    case RD_LS_NEE_GUIDE: return RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE;
+    default: return 0u;
+    }
 }
 static unsigned needs_guided(const rd_scene *s) { return source_needs(s) | RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE; }
-#define MARCH_NEEDS (RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | RD_NEEDS_INDIRECT)
+#define MARCH_NEEDS (RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE)
 
 const rd_method rd_method_guided = {
     .name = "guided",
@@ -387,7 +403,7 @@ const rd_method rd_method_guided = {
 const rd_method rd_method_uniform = {
     .name = "uniform",
     .summary = "seed 001 baseline: ray marching with a fixed step and one random offset (eq. 5)",
-    .needs = RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT,
+    .needs = RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE,
     .needs_for = source_needs,
     .scratch_bytes = march_scratch_bytes,
     .prepare = prepare_plain,
@@ -398,7 +414,7 @@ const rd_method rd_method_uniform = {
 const rd_method rd_method_transmittance = {
     .name = "transmittance",
     .summary = "seed 001 baseline: ray marching with samples placed by sigma_t T (eq. 11)",
-    .needs = RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT,
+    .needs = RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE,
     .needs_for = source_needs,
     .scratch_bytes = march_scratch_bytes,
     .prepare = prepare_plain,

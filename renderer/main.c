@@ -382,8 +382,7 @@ static int cmd_render(int argc, char **argv)
         rd_bake_opts bo = {0};
         bo.seed = -1;
         bo.threads = (int)threads;
-        bo.no_guide = !(needs & RD_NEEDS_GUIDE);
-        bo.indirect = (needs & RD_NEEDS_INDIRECT) != 0;
+        rd_bake_opts_for(&bo, needs);
         bo.load_photons = photons_path;
         bo.load_guide = guide_path;
         double t0 = wall_seconds();
@@ -697,8 +696,7 @@ static int cmd_explain(int argc, char **argv)
     rd_bake_opts bo = {0};
     bo.seed = -1;
     bo.threads = (int)threads;
-    unsigned needs = rd_method_needs_for("guided", scene);
-    bo.indirect = (needs & RD_NEEDS_INDIRECT) != 0;
+    rd_bake_opts_for(&bo, rd_method_needs_for("guided", scene));
     if (no_cache) {
         st = rd_bake(scene, &bo, &baked, err, sizeof err);
     } else {

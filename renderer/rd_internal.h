@@ -223,7 +223,7 @@ typedef struct {
 } rd_guide_settings;
 
 /* Ray-marching settings of the guided methods (scene key "march", docs/scene-format.md). */
-typedef enum { RD_LS_NEE_PHOTONS, RD_LS_PHOTONS, RD_LS_NEE } rd_ls_kind;
+typedef enum { RD_LS_NEE_PHOTONS, RD_LS_PHOTONS, RD_LS_NEE, RD_LS_NEE_GUIDE } rd_ls_kind;
 typedef struct {
     int samples;         /* N_mean: samples per ray (uniform and transmittance: every ray) */
     int min_samples;     /* guided: N_min >= 1 */

@@ -39,6 +39,7 @@ typedef struct rd_render_ctx {
     const struct pm_map *photons;   /* built photon map, when the method needs it */
     const struct pm_map *photons_indirect; /* photons stored without their first flight */
     const struct sh_guide *guide;   /* guide grid, when the method needs it */
+    const struct sh_guide *guide_indirect; /* guide of the indirect map (march.ls nee+guide) */
     void *state;                    /* the method's own, from prepare (freed by release) */
     uint64_t seed;
     int threads;
@@ -65,6 +66,7 @@ typedef struct rd_method {
 const struct pm_map *rd_baked_map(const rd_baked *b);
 const struct pm_map *rd_baked_indirect_map(const rd_baked *b);
 const struct sh_guide *rd_baked_guide(const rd_baked *b);
+const struct sh_guide *rd_baked_indirect_guide(const rd_baked *b);
 
 /* The table (methods.c). NULL for an unknown name. */
 const rd_method *rd_method_find(const char *name);

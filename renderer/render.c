@@ -221,8 +221,7 @@ static rd_status attach_bake(rd_render_ctx *ctx, const rd_baked *given, int thre
         rd_bake_opts bo = {0};
         bo.seed = -1;
         bo.threads = threads;
-        bo.no_guide = !(needs & RD_NEEDS_GUIDE);
-        bo.indirect = (needs & RD_NEEDS_INDIRECT) != 0;
+        rd_bake_opts_for(&bo, needs);
         rd_status st = rd_bake(s, &bo, own, err, errlen);
         if (st != RD_OK) return st;
         b = *own;
@@ -230,8 +229,10 @@ static rd_status attach_bake(rd_render_ctx *ctx, const rd_baked *given, int thre
     ctx->photons = rd_baked_map(b);
     ctx->photons_indirect = rd_baked_indirect_map(b);
     ctx->guide = rd_baked_guide(b);
+    ctx->guide_indirect = rd_baked_indirect_guide(b);
     const char *missing = (needs & RD_NEEDS_GUIDE) && !ctx->guide ? "a guide grid"
                           : (needs & RD_NEEDS_INDIRECT) && !ctx->photons_indirect ? "an indirect photon map"
+                          : (needs & RD_NEEDS_INDIRECT_GUIDE) && !ctx->guide_indirect ? "a guide of the indirect photons"
                                                                                   : NULL;
     if (missing) {
         rd_baked_free(*own);

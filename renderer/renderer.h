@@ -67,7 +67,7 @@ int rd_scene_spp_given(const rd_scene *scene);    /* 1 when settings.spp is in t
  * report and rd_render all read it. */
 /* What a method needs baked: a photon map, its guide grid, and the photon map of the photons
  * stored without their first flight (multiple scattering only, beside next-event estimation). */
-enum { RD_NEEDS_PHOTONS = 1, RD_NEEDS_GUIDE = 2, RD_NEEDS_INDIRECT = 4 };
+enum { RD_NEEDS_PHOTONS = 1, RD_NEEDS_GUIDE = 2, RD_NEEDS_INDIRECT = 4, RD_NEEDS_INDIRECT_GUIDE = 8 };
 int rd_method_count(void);
 /* Name, one-line summary and needs of method i (0 <= i < rd_method_count()). */
 const char *rd_method_name(int i);
@@ -221,7 +221,14 @@ typedef struct {
     int no_guide;              /* 1: stop after the photon map */
     int indirect;              /* 1: also the map of photons stored without their first flight
                                   (same photons, same seed: the first collisions left out) */
+    int indirect_guide;        /* 1 (with indirect): also a guide grid baked from that map, the
+                                  multiple-scattering source of march.ls = nee+guide */
+    const char *load_indirect_guide; /* reuse a saved indirect .guide (with indirect_guide) */
 } rd_bake_opts;
+
+/* Set the bake options that a method's needs (RD_NEEDS_*, from rd_method_needs_for) decide:
+ * no_guide, indirect, indirect_guide. The rest of *opts is left alone. */
+void rd_bake_opts_for(rd_bake_opts *opts, unsigned needs);
 
 typedef struct {
     /* photon map */

@@ -762,7 +762,7 @@ static rd_status parse_march(vctx *c, const cJSON *j, rd_march_settings *m)
     if (m->max_samples < m->min_samples)
         return fail(c, "march.max_samples", "must be >= march.min_samples (%d), found %d", m->min_samples, m->max_samples);
     TRY(get_num(c, j, path, "alpha", 0, 0.2, 0, 1, 1, 0, &m->alpha));
-    static const char *const ls[] = {"nee+photons", "photons", "nee", NULL};
+    static const char *const ls[] = {"nee+photons", "photons", "nee", "nee+guide", NULL};
     int k = 0;
     TRY(get_enum(c, j, path, "ls", 0, ls, 0, &k));
     m->ls = (rd_ls_kind)k;
