@@ -11,14 +11,16 @@
 # placement (anti-aliasing, next-event estimation, T along the ray), which bench_march.sh sees.
 #
 #   bench/bench_placement.sh [BUILD]   environment: SCENES ("default beam"), RES (160,120),
-#                                      STEP (16: every 16th pixel each way), SET (extra --set)
+#                                      STEP (16: every 16th pixel each way), SET (extra --set,
+#                                      space-separated KEY=VALUE), LABEL (results subfolder)
 set -euo pipefail
 BUILD=${1:-build}
 SCENES=${SCENES:-default beam}
 RES=${RES:-160,120}
 STEP=${STEP:-16}
 SET=${SET:-}
-OUT=bench/results/placement
+LABEL=${LABEL:-default}
+OUT=bench/results/placement/$LABEL
 BIN="$BUILD/photonmarch"
 make -s "$BIN"
 mkdir -p "$OUT"
@@ -27,11 +29,11 @@ for scene in $SCENES; do
   d="$OUT/$scene"; mkdir -p "$d"
   extra=(--set "camera.resolution=[$RES]")
   for s in $SET; do extra+=(--set "$s"); done
+  pixels=()
   for ((y = STEP / 2; y < H; y += STEP)); do
-    for ((x = STEP / 2; x < W; x += STEP)); do
-      "$BIN" explain "scenes/$scene.json" --pixel "$x,$y" "${extra[@]}" -q -o "$d/px-$x-$y" >/dev/null
-    done
+    for ((x = STEP / 2; x < W; x += STEP)); do pixels+=(--pixel "$x,$y"); done
   done
+  "$BIN" explain "scenes/$scene.json" "${pixels[@]}" "${extra[@]}" -q -o "$d/px" >/dev/null
   python3 - "$d" "$scene" <<'PY'
 import json, glob, sys, statistics as st
 d, scene = sys.argv[1], sys.argv[2]
@@ -46,7 +48,7 @@ Imax = max(r["I"] for r in rows)
 lit = [r for r in rows if r["I"] > 0.01 * Imax]
 def per_sample(r, k):
     p = r["placements"][k]; return p["variance"] * p["samples"]
-print(f"### {scene}: {len(lit)} lit rays of {len(rows)} that meet the media")
+print(f"### {scene} ({d}): {len(lit)} lit rays of {len(rows)} that meet the media")
 print()
 print("| other placement | median ratio | quartiles | guided better on |")
 print("|---|---|---|---|")

@@ -66,7 +66,8 @@ static const char *usage_explain =
     "guided (cache beside PREFIX).\n"
     "\n"
     "options:\n"
-    "  --pixel X,Y      the pixel (required)\n"
+    "  --pixel X,Y      the pixel (required; repeat it for several rays, which share one bake:\n"
+    "                   each then writes PREFIX-X-Y.*)\n"
     "  -o PREFIX        output prefix (default out/SCENE-explain-X-Y)\n"
     "  --points N       dense points along the ray (default 2000, at least 16)\n"
     "  --seed N         seed of the draws (default: settings.seed)\n"
@@ -636,12 +637,33 @@ done:
     return code;
 }
 
-/* explain: one camera ray laid open (rd_explain). */
+/* The explain summary of one ray on stdout. */
+static void print_explain(const rd_explain_result *e)
+{
+    printf("pixel (%d, %d): ray from (%.4g, %.4g, %.4g) along (%.4f, %.4f, %.4f)\n", e->px, e->py, e->origin[0],
+           e->origin[1], e->origin[2], e->dir[0], e->dir[1], e->dir[2]);
+    if (!e->hits_media) {
+        printf("the ray misses the media: nothing to march\n");
+        return;
+    }
+    printf("media from t = %.4g to %.4g; T(0, end) = %.4g; I = integral of f = %.6g\n", e->t0, e->t1, e->T_end, e->I);
+    printf("guide: I_ray = %.6g, pilot mean I = %.6g -> N_ray = %d (eq. 17)\n", e->I_ray, e->mean_I,
+           e->n_samples[RD_EXPLAIN_GUIDED]);
+    printf("%-14s %8s %12s %12s %10s\n", "placement", "samples", "variance", "+- (se)", "rel. sd");
+    for (int k = 0; k < RD_EXPLAIN_PLACEMENTS; k++)
+        printf("%-14s %8d %12.4g %12.2g %9.3g%%\n", rd_explain_placement_name(k), e->n_samples[k], e->var[k],
+               e->var_se[k], e->I > 0 ? 100.0 * sqrt(e->var[k]) / e->I : 0.0);
+}
+
+/* explain: camera rays laid open (rd_explain). */
 static int cmd_explain(int argc, char **argv)
 {
     scene_args a = {0};
     const char *prefix = NULL;
-    long seed = -1, threads = 0, points = 2000, px = -1, py = -1;
+    long seed = -1, threads = 0, points = 2000;
+    enum { MAX_PIXELS = 4096 };
+    static long pxs[MAX_PIXELS][2];
+    int npx = 0;
     int quiet = 0, no_cache = 0;
     for (int i = 0; i < argc; i++) {
         const char *o = argv[i];
@@ -659,21 +681,28 @@ static int cmd_explain(int argc, char **argv)
         else if (!strcmp(o, "--pixel") && has_val) {
             const char *v = argv[++i];
             char tail;
-            if (sscanf(v, "%ld,%ld%c", &px, &py, &tail) != 2 || px < 0 || py < 0) {
+            long x, y;
+            if (sscanf(v, "%ld,%ld%c", &x, &y, &tail) != 2 || x < 0 || y < 0) {
                 fprintf(stderr, "photonmarch explain: --pixel %s: expected X,Y (two integers >= 0)\n", v);
                 return EXIT_USAGE;
             }
+            if (npx == MAX_PIXELS) {
+                fprintf(stderr, "photonmarch explain: --pixel %s: at most %d pixels per run\n", v, MAX_PIXELS);
+                return EXIT_USAGE;
+            }
+            pxs[npx][0] = x, pxs[npx][1] = y, npx++;
         } else if (take_positional(&a, "explain", o)) return EXIT_USAGE;
     }
     if (need_scene(&a, "explain")) return EXIT_USAGE;
-    if (px < 0) {
+    if (npx == 0) {
         fprintf(stderr, "photonmarch explain: missing --pixel X,Y (see photonmarch explain --help)\n");
         return EXIT_USAGE;
     }
     char defout[1024];
     if (!prefix) {
         char suffix[64];
-        snprintf(suffix, sizeof suffix, "-explain-%ld-%ld", px, py);
+        if (npx == 1) snprintf(suffix, sizeof suffix, "-explain-%ld-%ld", pxs[0][0], pxs[0][1]);
+        else snprintf(suffix, sizeof suffix, "-explain");
         default_output(a.scene, suffix, defout, sizeof defout);
         prefix = defout;
     }
@@ -711,32 +740,26 @@ static int cmd_explain(int argc, char **argv)
         code = report_error(st, err);
         goto out;
     }
-    rd_explain_opts eo = {.px = (int)px, .py = (int)py, .baked = baked, .n = (int)points,
-                          .seed = seed >= 0 ? (uint64_t)seed : rd_scene_seed(scene), .threads = (int)threads};
-    if ((st = rd_explain(scene, &eo, &e, err, sizeof err)) != RD_OK ||
-        (st = rd_explain_write(scene, &e, prefix, err, sizeof err)) != RD_OK) {
-        code = report_error(st, err);
-        goto out;
-    }
-    if (!quiet) {
-        printf("pixel (%ld, %ld): ray from (%.4g, %.4g, %.4g) along (%.4f, %.4f, %.4f)\n", px, py, e.origin[0],
-               e.origin[1], e.origin[2], e.dir[0], e.dir[1], e.dir[2]);
-        if (!e.hits_media) printf("the ray misses the media: nothing to march\n");
-        else {
-            printf("media from t = %.4g to %.4g; T(0, end) = %.4g; I = integral of f = %.6g\n", e.t0, e.t1, e.T_end, e.I);
-            printf("guide: I_ray = %.6g, pilot mean I = %.6g -> N_ray = %d (eq. 17)\n", e.I_ray, e.mean_I,
-                   e.n_samples[RD_EXPLAIN_GUIDED]);
-            printf("%-14s %8s %12s %12s %10s\n", "placement", "samples", "variance", "+- (se)", "rel. sd");
-            for (int k = 0; k < RD_EXPLAIN_PLACEMENTS; k++)
-                printf("%-14s %8d %12.4g %12.2g %9.3g%%\n", rd_explain_placement_name(k), e.n_samples[k], e.var[k],
-                       e.var_se[k], e.I > 0 ? 100.0 * sqrt(e.var[k]) / e.I : 0.0);
+    for (int q = 0; q < npx && code == 0; q++) {
+        long px = pxs[q][0], py = pxs[q][1];
+        char one[1100];
+        if (npx == 1) snprintf(one, sizeof one, "%s", prefix);
+        else snprintf(one, sizeof one, "%s-%ld-%ld", prefix, px, py);
+        rd_explain_opts eo = {.px = (int)px, .py = (int)py, .baked = baked, .n = (int)points,
+                              .seed = seed >= 0 ? (uint64_t)seed : rd_scene_seed(scene), .threads = (int)threads};
+        rd_explain_result_free(&e);
+        if ((st = rd_explain(scene, &eo, &e, err, sizeof err)) != RD_OK ||
+            (st = rd_explain_write(scene, &e, one, err, sizeof err)) != RD_OK) {
+            code = report_error(st, err);
+            break;
         }
-    }
-    printf("report %s.json\n", prefix);
-    if (e.hits_media) {
-        printf("table  %s.csv\n", prefix);
-        if (rd_explain_plot(prefix, err, sizeof err)) printf("plot   %s.png\n", prefix);
-        else fprintf(stderr, "warning: %s (the table and %s.gp are written)\n", err, prefix);
+        if (!quiet) print_explain(&e);
+        printf("report %s.json\n", one);
+        if (e.hits_media) {
+            printf("table  %s.csv\n", one);
+            if (rd_explain_plot(one, err, sizeof err)) printf("plot   %s.png\n", one);
+            else fprintf(stderr, "warning: %s (the table and %s.gp are written)\n", err, one);
+        }
     }
 out:
     rd_explain_result_free(&e);
