@@ -300,6 +300,7 @@ static rd_status reference_render(rd_comparison *c, const rd_scene *s, const cha
     rd_render_opts ro = {.method = "delta", .spp = o->ref_spp, .time_limit = o->ref_time,
                          .seed = REF_SEED(o->seed), .threads = o->threads, .cancel = o->cancel,
                          .progress = reference_progress, .progress_user = c};
+    reference_progress(c, 0, o->ref_spp, 0.0);
     rd_render_result res;
     rd_status st = rd_render(s, &ro, &res, err, errlen);
     if (st) return st;
@@ -1141,6 +1142,7 @@ static const char *page_js =
     "  }, {once: true});\n"
     "  view.click();\n"
     "}\n"
+    "show(0);\n"
     "window.addEventListener('load', () => { if (location.hash === '#selftest') selftest(); });\n";
 
 static void page_head(sbuf *b, const rd_comparison *c, const rd_scene *s)
@@ -1246,9 +1248,9 @@ static rd_status write_page(const rd_comparison *c, const rd_scene *s, const cha
 {
     sbuf b = {0};
     page_head(&b, c, s);
+    page_table(&b, c);
     page_viewer(&b, c);
     page_images(&b, c, scale, bx);
-    page_table(&b, c);
     sb_printf(&b, "<h2>Convergence</h2>\n<p>RMSE against time during each run (log-log; drawn by gnuplot from "
                   "curve-*.dat).</p>\n<img src=convergence.svg alt=\"RMSE against time\" style=\"max-width:100%%\">\n");
     sb_printf(&b, "<pre id=selftest hidden></pre>\n<script>\n%s</script>\n</body></html>\n", page_js);

@@ -662,9 +662,11 @@ static void print_compare_help(void)
 static void compare_progress(void *user, const rd_cmp_progress *p)
 {
     progress_state *ps = user;
+    /* Not a terminal: a line when a run starts, then at most every 10 s. */
     if (!ps->tty) {
         double now = wall_seconds();
-        if (ps->last_print > 0 && now - ps->last_print < 10.0) return;
+        int started = p->spp_done == 0;
+        if (!started && ps->last_print > 0 && now - ps->last_print < 10.0) return;
         ps->last_print = now;
     }
     const char *lead = ps->tty ? "\r" : "", *tail = ps->tty ? "      " : "\n";
