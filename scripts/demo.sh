@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# make demo: render the default scene with the unbiased reference and bake its photon map and
-# guide grid, then say where everything is.
+# make demo: render the default scene with the unbiased reference, bake its photon map and
+# guide grid, compare guided with delta at equal time, then say where everything is.
 set -euo pipefail
 BIN=${1:-build/photonmarch}
 SCENE=scenes/default.json
@@ -9,6 +9,9 @@ echo "photonmarch demo: rendering $SCENE with the unbiased reference (delta trac
 start=$(date +%s)
 "$BIN" render "$SCENE" -o out/default.exr -q
 "$BIN" bake "$SCENE" -o out/default -q
+echo "photonmarch demo: comparing guided and delta at equal time (2 runs of 10 s each, against a" >&2
+echo "  256-spp delta reference, rendered once and cached in out/.photonmarch-cache/)..." >&2
+"$BIN" compare "$SCENE" --methods guided,delta --budget 10 --runs 2 --ref-spp 256 -o out/compare
 end=$(date +%s)
 cat <<MSG
 done in $((end - start)) s
@@ -17,4 +20,5 @@ noise   out/default-stderr.exr (per-pixel standard error of the image)
 report  out/default.json (method, samples, time, collisions and lookups per path, noise)
 photons out/default.pmap, picture of where the light went: out/default-photons.png
 guide   out/default.guide, a slice of it: out/default-slice-z.png
+compare out/compare/index.html (open it in a browser: guided vs delta, error maps, metrics, plot)
 MSG
