@@ -464,7 +464,7 @@ static rd_status run_one(rd_comparison *c, const rd_scene *s, int mi, int run, c
     }
     if (res.stats.spp < 1) {
         rd_render_result_free(&res);
-        snprintf(err, errlen, "--budget %g: %s had no time to sample every pixel once (its bake took %.2f s)",
+        snprintf(err, errlen, "--budget %g: %s had no time to sample every pixel once (its bake took %.2f s; give it more)",
                  o->budget, m->name, m->bake_seconds);
         return RD_ERR_ARG;
     }
@@ -744,8 +744,8 @@ static double error_scale(const rd_comparison *c)
 typedef struct { int x, y, s; } crop_box;
 static crop_box worst_region(const rd_comparison *c)
 {
-    int w = c->w, h = c->h, s = (w < h ? w : h) / 4;
-    if (s < 8) s = w < h ? w : h < 8 ? h : 8;
+    int w = c->w, h = c->h, shorter = w < h ? w : h, s = shorter / 4;
+    if (s < 8) s = shorter < 8 ? shorter : 8;
     crop_box best = {0, 0, s};
     double *sat = calloc((size_t)(w + 1) * (h + 1), sizeof *sat);
     if (!sat) return best;

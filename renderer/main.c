@@ -764,8 +764,9 @@ static int cmd_compare(int argc, char **argv)
     if (code) return code < 0 ? 0 : code;
     char defout[1024], cache[1100];
     if (!ca.outdir) {
-        default_output(ca.a.scene, "", defout, sizeof defout);
-        snprintf(defout + 4, sizeof defout - 4, "compare-%.900s", strrchr(defout, '/') + 1);
+        char name[1024];
+        default_output(ca.a.scene, "", name, sizeof name); /* out/<scene name> */
+        snprintf(defout, sizeof defout, "out/compare-%.900s", name + 4);
         ca.outdir = defout;
     }
     /* The reference cache: beside the report folder unless --cache says otherwise. */
