@@ -305,6 +305,127 @@ rd_status rd_image_write_png(const char *path, const rd_image *img, double expos
  * replicated). */
 rd_status rd_image_read(const char *path, rd_image *out, char *err, size_t errlen);
 
+/* ==== Comparing methods: `photonmarch compare` (issue 11; THEORY.md §7; docs/compare.md) ==== *
+ * This section is the compare module's (renderer/compare.c, renderer/compare_report.c).
+ * Metrics are over every pixel and the three channels unless said otherwise. */
+
+/* Error of one image x against a reference r (THEORY.md §7). eps = RD_CMP_EPS keeps the
+ * relative errors finite where r = 0. */
+#define RD_CMP_EPS 1e-2
+typedef struct {
+    double mse;    /* mean (x - r)^2 */
+    double rmse;   /* sqrt(mse) */
+    double relmse; /* mean (x - r)^2 / (r^2 + eps) */
+    double mare;   /* mean |x - r| / (|r| + eps): mean absolute relative error */
+} rd_cmp_errors;
+/* RD_ERR_ARG when the sizes differ. */
+rd_status rd_cmp_errors_of(const rd_image *x, const rd_image *r, rd_cmp_errors *out, char *err,
+                           size_t errlen);
+
+/* Bias and variance from k >= 2 independent images of the same method (THEORY.md §7):
+ * per pixel-channel the mean m and unbiased sample variance s^2 over the k images;
+ * variance = mean of s^2 (the variance of ONE run), bias2 = mean (m - r)^2 - variance / k
+ * - ref_var (the reference's own variance, mean of its stderr^2; 0 when r_stderr is NULL).
+ * bias2 may come out slightly negative from noise; it is reported as computed. */
+typedef struct {
+    double bias2, variance;
+    double bias2_se; /* standard error of bias2 from the spread over pixels (docs/compare.md) */
+} rd_cmp_split;
+rd_status rd_cmp_split_of(const rd_image *runs, int k, const rd_image *r, const rd_image *r_stderr,
+                          rd_cmp_split *out, char *err, size_t errlen);
+
+/* Noise homogeneity: over the lit pixels (reference luminance > 1% of its mean), the ratio of
+ * the 90th to the 50th percentile of the per-pixel relative error |x - r| / (r + eps)
+ * (luminance). 1 = the error is spread evenly; large = concentrated in a few pixels. 0 when
+ * fewer than 10 pixels are lit. */
+double rd_cmp_homogeneity(const rd_image *x, const rd_image *r);
+
+/* An image from elsewhere (--add LABEL=IMAGE.exr[@SECONDS]). */
+typedef struct {
+    const char *label, *path;
+    double seconds; /* its render time; <= 0 when not given (time-based metrics left out) */
+} rd_cmp_extra;
+/* Parse "LABEL=PATH[@SECONDS]" into e (pointers into buf, a copy the caller keeps alive).
+ * RD_ERR_ARG with a one-line message when it does not have that shape. */
+rd_status rd_cmp_extra_parse(const char *arg, char *buf, size_t bufn, rd_cmp_extra *e, char *err,
+                             size_t errlen);
+
+/* What the progress callback is told: before each run and after every pass of it. */
+typedef struct {
+    const char *label; /* method, or "reference" */
+    int run, runs;     /* 1-based run of this method */
+    int spp_done;
+    double run_seconds, run_budget; /* budget: seconds (equal time) or spp (equal spp) */
+    double left_seconds;            /* estimate for the whole comparison */
+} rd_cmp_progress;
+
+typedef struct {
+    const char *const *methods; /* names from the method table */
+    int n_methods;
+    int equal_spp;       /* 0: equal time (default), 1: equal samples per pixel */
+    double budget;       /* equal time: seconds per run (bake included); equal spp: spp */
+    int runs;            /* K >= 1 independent runs per method, seeds seed+1 .. seed+K */
+    uint64_t seed;
+    int threads;         /* 0 = all */
+    const char *reference; /* REF.exr (REF-stderr.exr beside it is read when present), or NULL:
+                              rendered by delta and cached */
+    int ref_spp;         /* the rendered reference: samples per pixel ... */
+    double ref_time;     /* ... and time cap in seconds (<= 0: none) */
+    const char *cache_dir; /* where the rendered reference is cached; NULL: no cache */
+    const rd_cmp_extra *extras;
+    int n_extras;
+    const volatile int *cancel; /* as rd_render_opts.cancel: stops the comparison; what
+                                   finished is kept */
+    void (*progress)(void *user, const rd_cmp_progress *p);
+    void *progress_user;
+} rd_cmp_opts;
+
+/* One row of the comparison: a method (its K runs) or an added image. Absent values are NaN. */
+typedef struct {
+    char label[64];
+    int is_extra;
+    int runs;              /* runs finished */
+    double seconds;        /* mean wall time per run, the bake charged to it included */
+    double bake_seconds;   /* of which the bake (the comparison's one bake of this method) */
+    double spp;            /* mean samples per pixel per run */
+    rd_cmp_errors err;     /* mean over the runs of each run's errors (rmse = sqrt(mean mse)) */
+    rd_cmp_split split;    /* from the runs (K >= 2); from the stderr image when K = 1 */
+    int split_from_runs;
+    double efficiency;     /* 1 / (mse x seconds) */
+    double ttuv;           /* seed 002's TTUV: seconds x rmse */
+    double collisions_pp, lookups_pp, shadow_rays_pp; /* per pixel per run */
+    double homogeneity;    /* rd_cmp_homogeneity of the first run */
+} rd_cmp_row;
+
+typedef struct {
+    const rd_cmp_row *rows;
+    int n_rows;
+    char ref_source[1100];  /* the file given, or the cache file used/written */
+    int ref_rendered;       /* 1 rendered now, 2 taken from the cache, 0 given */
+    double ref_spp, ref_seconds;
+    double ref_var;         /* mean of the reference's stderr^2; NaN when unknown */
+    int ref_too_noisy;      /* ref_var > a quarter of the smallest method MSE (docs/compare.md) */
+    int cancelled;          /* Ctrl-C: the rows hold what finished */
+} rd_cmp_summary;
+
+typedef struct rd_comparison rd_comparison; /* the runs' images, curves and rows; opaque */
+
+/* Check the options and load or render the reference (errors name the file: a reference of
+ * the wrong size is RD_ERR_FORMAT, a missing one RD_ERR_IO; an --add image likewise), then run
+ * every method K times and compute the rows. Cancelled: RD_OK with summary.cancelled = 1. */
+rd_status rd_compare_run(const rd_scene *scene, const rd_cmp_opts *opts, rd_comparison **out,
+                         char *err, size_t errlen);
+const rd_cmp_summary *rd_comparison_summary(const rd_comparison *c);
+/* The report folder (docs/compare.md): index.html, metrics.json, convergence.svg (gnuplot),
+ * the EXR and PNG images, error maps and crops. Created if missing; RD_ERR_OUTPUT naming the
+ * file that could not be written. */
+rd_status rd_compare_write_report(const rd_comparison *c, const rd_scene *scene, const char *dir,
+                                  char *err, size_t errlen);
+/* The metrics table as fixed-width text (the CLI prints it on stdout). */
+void rd_compare_print_table(const rd_comparison *c, FILE *out);
+void rd_comparison_free(rd_comparison *c);
+/* ==== end of the compare section ===================================================== */
+
 #ifdef __cplusplus
 }
 #endif

@@ -11,6 +11,7 @@ PACKAGES=(
   libopenvdb-dev libtbb-dev    # .vdb volumes
   libcriterion-dev             # test framework
   gnuplot-nox                  # charts in reports and benchmarks
+  chromium                     # headless check of the compare report page (make test)
 )
 
 missing=()

@@ -7,7 +7,7 @@ out=docs/cli.md
 tmp=$(mktemp)
 {
   sed -n '1,/^<!-- help -->$/p' "$out"
-  for c in "" render info bake voxelize; do
+  for c in "" render info bake voxelize compare explain; do
     if [ -z "$c" ]; then echo '## photonmarch --help'; else echo "## photonmarch $c"; fi
     echo; echo '```'; "$BIN" $c --help; echo '```'; echo
   done
