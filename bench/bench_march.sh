@@ -77,7 +77,7 @@ for scene in $SCENES; do
       "$STATS" --rmse "$d/ref.exr" "${imgs[@]}"; echo; } | tee "$d/equal-time.md"
   fi
   [ "$SWEEP" = 1 ] || continue
-  configs="bands2:guide.bands=2 bands4:guide.bands=4 bands6:guide.bands=6 adaptive4:guide.grid=adaptive"
+  configs="bands2:guide.bands=2 bands4:guide.bands=4 bands6:guide.bands=6 bands8:guide.bands=8 adaptive8:guide.grid=adaptive"
   for k in $(seq 1 "$K"); do
     for c in $configs; do
       echo "== $scene sweep run $k: guided, ${c#*:}" >&2

@@ -230,8 +230,8 @@ typedef struct {
     int max_samples;     /* guided: N_max */
     double alpha;        /* defensive weight of the mixture, in (0, 1] */
     rd_ls_kind ls;       /* source of sigma_s L_s at a sample */
-    int detail;          /* guided: 1 (default) scales each cell's f_j by sigma_t(t) / sigma_j from
-                          * lookups along the ray; 0 uses the cells alone (seed 001 eq. 16) */
+    int detail;          /* guided: 1 scales each cell's f_j by sigma_t(t) / sigma_j from lookups
+                          * along the ray; 0 (default) uses the cells alone (seed 001 eq. 16) */
 } rd_march_settings;
 
 struct rd_scene {

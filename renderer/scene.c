@@ -697,7 +697,7 @@ static rd_status parse_photons(vctx *c, const cJSON *j, rd_photon_settings *p)
 static rd_status parse_guide(vctx *c, const cJSON *j, rd_guide_settings *g)
 {
     memset(g, 0, sizeof *g);
-    g->bands = 4;
+    g->bands = 8; /* calibrated on beam-vdb and cloud (docs/guided-marching.md) */
     g->k = 64;
     g->lambda = 1.0;
     g->max_depth = 8;
@@ -714,7 +714,7 @@ static rd_status parse_guide(vctx *c, const cJSON *j, rd_guide_settings *g)
     static const char *const windows[] = {"none", "hann", NULL};
     TRY(get_enum(c, j, path, "window", 0, windows, 1, &g->window));
     long long v;
-    TRY(get_int(c, j, path, "bands", 0, 4, 1, 8, &v));
+    TRY(get_int(c, j, path, "bands", 0, 8, 1, 8, &v));
     g->bands = (int)v;
     TRY(get_int(c, j, path, "k", 0, 64, 1, 4096, &v));
     g->k = (int)v;
@@ -741,19 +741,19 @@ static rd_status parse_guide(vctx *c, const cJSON *j, rd_guide_settings *g)
 /* Ray marching of the guided methods (docs/scene-format.md "march"). */
 static rd_status parse_march(vctx *c, const cJSON *j, rd_march_settings *m)
 {
-    m->samples = 16;
+    m->samples = 8; /* calibrated on cloud and smoke-vdb (docs/guided-marching.md) */
     m->min_samples = 1;
     m->max_samples = 64;
     m->alpha = 0.2;
     m->ls = RD_LS_NEE_PHOTONS;
-    m->detail = 1;
+    m->detail = 0; /* "cells": lookups mislead where the photon estimate dominates (cloud) */
     if (!j) return RD_OK;
     const char *path = "march";
     TRY(need_object(c, j, path));
     static const char *const keys[] = {"samples", "min_samples", "max_samples", "alpha", "ls", "detail", NULL};
     TRY(check_keys(c, j, path, keys));
     long long v;
-    TRY(get_int(c, j, path, "samples", 0, 16, 1, 4096, &v));
+    TRY(get_int(c, j, path, "samples", 0, 8, 1, 4096, &v));
     m->samples = (int)v;
     TRY(get_int(c, j, path, "min_samples", 0, 1, 1, 4096, &v));
     m->min_samples = (int)v;
@@ -767,7 +767,7 @@ static rd_status parse_march(vctx *c, const cJSON *j, rd_march_settings *m)
     TRY(get_enum(c, j, path, "ls", 0, ls, 0, &k));
     m->ls = (rd_ls_kind)k;
     static const char *const detail[] = {"cells", "lookups", NULL};
-    TRY(get_enum(c, j, path, "detail", 0, detail, 1, &m->detail));
+    TRY(get_enum(c, j, path, "detail", 0, detail, 0, &m->detail));
     return RD_OK;
 }
 
