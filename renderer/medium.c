@@ -20,11 +20,31 @@ int rd_box_intersect(vec3 bmin, vec3 bmax, ray3 r, double tmin, double tmax, dou
 
 /* ---- Voxel grid ---------------------------------------------------------------------------- */
 
-static inline double voxel(const rd_grid *g, int i, int j, int k)
+void rd_grid_free(rd_grid *g)
 {
-    if (i < 0 || j < 0 || k < 0 || i >= g->nx || j >= g->ny || k >= g->nz) return 0.0;
-    return g->data[((size_t)k * g->ny + j) * g->nx + i];
+    free(g->data);
+    g->data = NULL;
+    if (g->bricks) {
+        free(g->bricks->brick);
+        free(g->bricks->cmin);
+        free(g->bricks->cmax);
+        free(g->bricks->voxels);
+        free(g->bricks);
+        g->bricks = NULL;
+    }
 }
+
+size_t rd_grid_bytes(const rd_grid *g)
+{
+    if (g->data) return (size_t)g->nx * g->ny * g->nz * sizeof(float);
+    if (!g->bricks) return 0;
+    const rd_bricks *b = g->bricks;
+    size_t cells = (size_t)b->nb[0] * b->nb[1] * b->nb[2];
+    return sizeof *b + cells * (sizeof *b->brick + 2 * sizeof(float)) +
+           b->n_bricks * RD_BRICK * RD_BRICK * RD_BRICK * sizeof(float);
+}
+
+static inline double voxel(const rd_grid *g, int i, int j, int k) { return rd_grid_voxel(g, i, j, k); }
 
 double rd_grid_lookup(const rd_grid *g, vec3 x)
 {
@@ -96,6 +116,7 @@ rd_status rd_raw_load(const char *path, int nx, int ny, int nz, rd_grid *g, char
     g->ny = ny;
     g->nz = nz;
     g->data = data;
+    g->bricks = NULL;
     g->vmin = vmin;
     g->vmax = vmax;
     return RD_OK;
