@@ -1,7 +1,8 @@
 /* majorant.c: majorant structures of the free-path engine (THEORY.md §2).
  *
  *  - Bound oracles: conservative [min, max] of the density over a box, for constant media, for
- *    trilinear voxel grids (every voxel whose interpolation support touches the box) and for
+ *    trilinear voxel grids (every voxel whose interpolation support touches the box; a sparse
+ *    grid answers from its bricks' own min and max) and for
  *    procedural fBm noise (seed 003 §4.2, eq. 15: each octave is bounded on the box from the
  *    noise definition, never by sampling a fine grid).
  *  - Super-voxel grid (seed 003 §3.1-3.3) with piecewise-constant or tri-linear upper bounds;
@@ -30,6 +31,47 @@
 static float up_f(double v) { return v <= 0.0 ? 0.0f : (float)(v * (1.0 + 1e-6) + 1e-30); }
 static float down_f(double v) { return v <= 0.0 ? 0.0f : (float)(v * (1.0 - 1e-6)); }
 
+/* Min and max of the voxels i0..i1 (inclusive, inside the grid) of a sparse grid, from its
+ * brick map (rd_internal.h rd_bricks): a constant table cell (tile or background) by its value,
+ * a brick the range covers whole by its stored min and max, a brick the range cuts voxel by
+ * voxel. The result equals the dense scan's, but empty space costs one read per 8^3 cell. */
+static void bricks_range_bound(const rd_grid *g, const int i0[3], const int i1[3], float *mn, float *mx)
+{
+    const rd_bricks *b = g->bricks;
+    const int n[3] = {g->nx, g->ny, g->nz};
+    int c0[3], c1[3];
+    for (int a = 0; a < 3; a++) {
+        c0[a] = (i0[a] + b->off[a]) >> RD_BRICK_LOG2;
+        c1[a] = (i1[a] + b->off[a]) >> RD_BRICK_LOG2;
+    }
+    for (int ck = c0[2]; ck <= c1[2]; ck++)
+        for (int cj = c0[1]; cj <= c1[1]; cj++)
+            for (int ci = c0[0]; ci <= c1[0]; ci++) {
+                const int c[3] = {ci, cj, ck};
+                size_t cell = ((size_t)ck * b->nb[1] + cj) * b->nb[0] + ci;
+                int lo[3], hi[3], whole = 1;
+                for (int a = 0; a < 3; a++) {
+                    int first = c[a] * RD_BRICK - b->off[a]; /* the cell's voxels, clipped to the grid */
+                    int cfirst = first > 0 ? first : 0, clast = first + RD_BRICK - 1 < n[a] ? first + RD_BRICK - 1 : n[a] - 1;
+                    lo[a] = i0[a] > cfirst ? i0[a] : cfirst;
+                    hi[a] = i1[a] < clast ? i1[a] : clast;
+                    whole &= lo[a] == cfirst && hi[a] == clast;
+                }
+                if (whole || b->brick[cell] < 0) {
+                    *mx = b->cmax[cell] > *mx ? b->cmax[cell] : *mx;
+                    *mn = b->cmin[cell] < *mn ? b->cmin[cell] : *mn;
+                    continue;
+                }
+                for (int k = lo[2]; k <= hi[2]; k++)
+                    for (int j = lo[1]; j <= hi[1]; j++)
+                        for (int i = lo[0]; i <= hi[0]; i++) {
+                            float v = (float)rd_grid_voxel(g, i, j, k);
+                            *mx = v > *mx ? v : *mx;
+                            *mn = v < *mn ? v : *mn;
+                        }
+            }
+}
+
 static void grid_box_bound(const rd_grid *g, vec3 lo, vec3 hi, double *dmin, double *dmax)
 {
     /* Image of the world box in grid coordinates (affine map: extremes at the corners, taken
@@ -53,15 +95,19 @@ static void grid_box_bound(const rd_grid *g, vec3 lo, vec3 hi, double *dmin, dou
         i1[a] = (int)f1;
     }
     float mx = 0.0f, mn = INFINITY;
-    for (int k = i0[2]; k <= i1[2]; k++)
-        for (int j = i0[1]; j <= i1[1]; j++) {
-            const float *row = g->data + ((size_t)k * g->ny + j) * g->nx;
-            for (int i = i0[0]; i <= i1[0]; i++) {
-                float v = row[i];
-                mx = v > mx ? v : mx;
-                mn = v < mn ? v : mn;
+    if (g->data) {
+        for (int k = i0[2]; k <= i1[2]; k++)
+            for (int j = i0[1]; j <= i1[1]; j++) {
+                const float *row = g->data + ((size_t)k * g->ny + j) * g->nx;
+                for (int i = i0[0]; i <= i1[0]; i++) {
+                    float v = row[i];
+                    mx = v > mx ? v : mx;
+                    mn = v < mn ? v : mn;
+                }
             }
-        }
+    } else {
+        bricks_range_bound(g, i0, i1, &mn, &mx);
+    }
     *dmax = mx;
     *dmin = border ? 0.0 : mn;
 }

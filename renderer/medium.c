@@ -20,10 +20,55 @@ int rd_box_intersect(vec3 bmin, vec3 bmax, ray3 r, double tmin, double tmax, dou
 
 /* ---- Voxel grid ---------------------------------------------------------------------------- */
 
-static inline double voxel(const rd_grid *g, int i, int j, int k)
+void rd_grid_free(rd_grid *g)
 {
-    if (i < 0 || j < 0 || k < 0 || i >= g->nx || j >= g->ny || k >= g->nz) return 0.0;
-    return g->data[((size_t)k * g->ny + j) * g->nx + i];
+    free(g->data);
+    g->data = NULL;
+    if (g->bricks) {
+        free(g->bricks->brick);
+        free(g->bricks->cmin);
+        free(g->bricks->cmax);
+        free(g->bricks->voxels);
+        free(g->bricks);
+        g->bricks = NULL;
+    }
+}
+
+size_t rd_grid_bytes(const rd_grid *g)
+{
+    if (g->data) return (size_t)g->nx * g->ny * g->nz * sizeof(float);
+    if (!g->bricks) return 0;
+    const rd_bricks *b = g->bricks;
+    size_t cells = (size_t)b->nb[0] * b->nb[1] * b->nb[2];
+    return sizeof *b + cells * (sizeof *b->brick + 2 * sizeof(float)) +
+           b->n_bricks * RD_BRICK * RD_BRICK * RD_BRICK * sizeof(float);
+}
+
+/* The 8 voxels at the corners of the interpolation cell (i..i+1, j..j+1, k..k+1), index
+ * x + 2y + 4z. A sparse grid's cell usually lies inside one brick (or one constant cell): then
+ * the table is read once; otherwise, and for dense grids, voxel by voxel. */
+static inline void cell_corners(const rd_grid *g, int i, int j, int k, double v[8])
+{
+    const rd_bricks *b = g->bricks;
+    if (!g->data && i >= 0 && j >= 0 && k >= 0 && i + 1 < g->nx && j + 1 < g->ny && k + 1 < g->nz) {
+        const int m = RD_BRICK - 1;
+        int x = i + b->off[0], y = j + b->off[1], z = k + b->off[2];
+        if ((x & m) != m && (y & m) != m && (z & m) != m) {
+            size_t cell = ((size_t)(z >> RD_BRICK_LOG2) * b->nb[1] + (y >> RD_BRICK_LOG2)) * b->nb[0] +
+                          (x >> RD_BRICK_LOG2);
+            int32_t q = b->brick[cell];
+            if (q < 0) {
+                for (int c = 0; c < 8; c++) v[c] = b->cmax[cell];
+                return;
+            }
+            const float *p = b->voxels + ((size_t)q << (3 * RD_BRICK_LOG2)) +
+                             (((z & m) << RD_BRICK_LOG2 | (y & m)) << RD_BRICK_LOG2 | (x & m));
+            for (int c = 0; c < 8; c++)
+                v[c] = p[(c & 1) + ((c >> 1) & 1) * RD_BRICK + ((c >> 2) & 1) * RD_BRICK * RD_BRICK];
+            return;
+        }
+    }
+    for (int c = 0; c < 8; c++) v[c] = rd_grid_voxel(g, i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
 }
 
 double rd_grid_lookup(const rd_grid *g, vec3 x)
@@ -36,11 +81,12 @@ double rd_grid_lookup(const rd_grid *g, vec3 x)
         return 0.0;
     double fi = floor(u[0]), fj = floor(u[1]), fk = floor(u[2]);
     int i = (int)fi, j = (int)fj, k = (int)fk;
-    double fx = u[0] - fi, fy = u[1] - fj, fz = u[2] - fk;
-    double c00 = voxel(g, i, j, k) * (1 - fx) + voxel(g, i + 1, j, k) * fx;
-    double c10 = voxel(g, i, j + 1, k) * (1 - fx) + voxel(g, i + 1, j + 1, k) * fx;
-    double c01 = voxel(g, i, j, k + 1) * (1 - fx) + voxel(g, i + 1, j, k + 1) * fx;
-    double c11 = voxel(g, i, j + 1, k + 1) * (1 - fx) + voxel(g, i + 1, j + 1, k + 1) * fx;
+    double fx = u[0] - fi, fy = u[1] - fj, fz = u[2] - fk, v[8];
+    cell_corners(g, i, j, k, v);
+    double c00 = v[0] * (1 - fx) + v[1] * fx;
+    double c10 = v[2] * (1 - fx) + v[3] * fx;
+    double c01 = v[4] * (1 - fx) + v[5] * fx;
+    double c11 = v[6] * (1 - fx) + v[7] * fx;
     double c0 = c00 * (1 - fy) + c10 * fy, c1 = c01 * (1 - fy) + c11 * fy;
     return c0 * (1 - fz) + c1 * fz;
 }
@@ -96,6 +142,7 @@ rd_status rd_raw_load(const char *path, int nx, int ny, int nz, rd_grid *g, char
     g->ny = ny;
     g->nz = nz;
     g->data = data;
+    g->bricks = NULL;
     g->vmin = vmin;
     g->vmax = vmax;
     return RD_OK;

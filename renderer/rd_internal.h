@@ -40,15 +40,54 @@ int rd_camera_project(const rd_camera *cam, vec3 p, double *px, double *py);
 /* ---- Density fields ---------------------------------------------------------------------- */
 typedef enum { RD_DENSITY_CONSTANT, RD_DENSITY_GRID, RD_DENSITY_NOISE } rd_density_kind;
 
-/* Dense voxel grid with trilinear interpolation. Grid coordinates u are continuous with the
- * centre of voxel (i,j,k) at (i+0.5, j+0.5, k+0.5); outside the voxels the density is 0
- * beyond half a voxel (clamp-to-border). world -> grid is an affine map. */
+/* Sparse storage of a voxel grid: a brick map (the layout of an OpenVDB tree's leaf level,
+ * Museth 2013 §3). Bricks are 8^3 voxels; brick (a,b,c) of the table holds grid voxels
+ * (8a - off[0] .. 8a - off[0] + 7, ...) so that each brick is one leaf node of the tree. A
+ * table cell either holds a brick (brick[cell] >= 0: 512 floats at voxels + 512 brick[cell],
+ * x fastest) or is constant (brick[cell] < 0: every voxel equals cmax[cell], a tile or the
+ * background of the tree). cmin/cmax are the exact min and max of the cell's 512 voxels. */
+#define RD_BRICK_LOG2 3
+#define RD_BRICK (1 << RD_BRICK_LOG2)
+typedef struct {
+    int off[3];          /* grid voxel i lies in table cell (i + off) / 8, 0 <= off < 8 */
+    int nb[3];           /* table cells per axis */
+    int32_t *brick;      /* nb[0] nb[1] nb[2] entries, x fastest: brick index or -1; owned */
+    float *cmin, *cmax;  /* per table cell; owned */
+    float *voxels;       /* n_bricks * 512; owned */
+    size_t n_bricks;
+} rd_bricks;
+
+/* Voxel grid with trilinear interpolation, stored dense (data) or sparse (bricks, data NULL).
+ * Grid coordinates u are continuous with the centre of voxel (i,j,k) at (i+0.5, j+0.5, k+0.5);
+ * outside the voxels the density is 0 beyond half a voxel (clamp-to-border). world -> grid is
+ * an affine map. */
 typedef struct {
     int nx, ny, nz;
-    float *data;       /* nx*ny*nz, x fastest; owned */
+    float *data;       /* dense: nx*ny*nz, x fastest; owned; NULL for a sparse grid */
+    rd_bricks *bricks; /* sparse: the brick map; owned; read only when data is NULL */
     double w2g[3][4];  /* u = A x + b, rows of [A | b] */
     double vmin, vmax; /* min and max voxel value */
 } rd_grid;
+
+/* Voxel (i, j, k) of either storage; 0 outside the grid (clamp-to-border). */
+static inline double rd_grid_voxel(const rd_grid *g, int i, int j, int k)
+{
+    if (i < 0 || j < 0 || k < 0 || i >= g->nx || j >= g->ny || k >= g->nz) return 0.0;
+    if (g->data) return g->data[((size_t)k * g->ny + j) * g->nx + i];
+    const rd_bricks *b = g->bricks;
+    int x = i + b->off[0], y = j + b->off[1], z = k + b->off[2];
+    size_t cell = ((size_t)(z >> RD_BRICK_LOG2) * b->nb[1] + (y >> RD_BRICK_LOG2)) * b->nb[0] +
+                  (x >> RD_BRICK_LOG2);
+    int32_t q = b->brick[cell];
+    if (q < 0) return b->cmax[cell];
+    const int m = RD_BRICK - 1;
+    return b->voxels[((size_t)q << (3 * RD_BRICK_LOG2)) +
+                     (((z & m) << RD_BRICK_LOG2 | (y & m)) << RD_BRICK_LOG2 | (x & m))];
+}
+/* Free what a grid owns (either storage) and zero its pointers; safe on a zeroed grid. */
+void rd_grid_free(rd_grid *g);
+/* Bytes the grid's voxel storage takes (dense array, or table, bounds and bricks). */
+size_t rd_grid_bytes(const rd_grid *g);
 
 typedef enum { RD_SHAPE_NONE, RD_SHAPE_ELLIPSOID } rd_shape_kind;
 
@@ -236,6 +275,7 @@ typedef struct {
 
 struct rd_scene {
     char path[1024];
+    char *description;    /* the scene's "description" (what it shows, what to look at), or NULL */
     rd_camera camera;
     rd_medium *media;
     int n_media;
@@ -319,8 +359,11 @@ vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters 
  * failed write never leaves a partial file; RD_ERR_OUTPUT naming the path. */
 rd_status rd_write_atomic(const char *path, const void *data, size_t n, char *err, size_t errlen);
 
-/* Volume loading shims (C++ behind a C API; never throw). Both fill g->data, dims, w2g,
- * vmin/vmax and return the world-space bounds of the voxels. */
+/* Volume loading shims (C++ behind a C API; never throw). Both fill the grid's storage, dims,
+ * w2g, vmin/vmax and return the world-space bounds of the voxels. rd_vdb_load reads the float
+ * grid `grid_name` over its active bounding box, sparsely (g->bricks: the tree's leaves become
+ * bricks, its tiles and background constants) unless the dense box would take at most twice
+ * the bytes of the bricks (then g->data); rd_raw_load fills g->data. */
 rd_status rd_vdb_load(const char *path, const char *grid_name, rd_grid *g, vec3 *bmin,
                       vec3 *bmax, char *err, size_t errlen);
 /* Write a dense float grid as a .vdb: voxel (i,j,k) centred at origin + voxel_size (i,j,k).

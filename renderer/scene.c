@@ -14,6 +14,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #define MAX_SCENE_BYTES (64u << 20)
 #define MAX_RESOLUTION 16384
@@ -287,6 +288,17 @@ static rd_status parse_bounds(vctx *c, const cJSON *m, const char *path, int req
     return RD_OK;
 }
 
+/* What to add to a density file's error (written into buf): a file that does not exist and that
+ * the scene says a script makes ("made_by") is not committed, so name the script to run. */
+static const char *missing_hint(const char *file, const char *made_by, char *buf, size_t n)
+{
+    buf[0] = '\0';
+    struct stat sb;
+    if (made_by && stat(file, &sb) != 0)
+        snprintf(buf, n, " (not committed: made by %s; run it first)", made_by);
+    return buf;
+}
+
 static rd_status parse_density(vctx *c, const cJSON *m, const char *mpath, rd_medium *med,
                                int has_bounds)
 {
@@ -318,16 +330,17 @@ static rd_status parse_density(vctx *c, const cJSON *m, const char *mpath, rd_me
         med->kind = RD_DENSITY_CONSTANT;
         TRY(get_num(c, d, path, "value", 1, 0, 0, 0, 1e12, 0, &med->constant));
     } else if (kind == 1) {
-        static const char *const keys[] = {"type", "file", "grid", NULL};
+        static const char *const keys[] = {"type", "file", "grid", "made_by", NULL};
         TRY(check_keys(c, d, path, keys));
         if (has_bounds) {
             char p[300];
             join(p, sizeof p, mpath, "bounds");
             return fail(c, p, "not allowed with a vdb density (the bounds come from the grid and its transform)");
         }
-        const char *file, *grid;
+        const char *file, *grid, *made_by;
         TRY(get_str(c, d, path, "file", 1, NULL, &file));
         TRY(get_str(c, d, path, "grid", 0, "density", &grid));
+        TRY(get_str(c, d, path, "made_by", 0, NULL, &made_by));
         resolve_path(c, file, full, sizeof full);
         med->kind = RD_DENSITY_GRID;
         char msg[RD_ERRLEN];
@@ -335,14 +348,16 @@ static rd_status parse_density(vctx *c, const cJSON *m, const char *mpath, rd_me
         if (st) {
             char p[300];
             join(p, sizeof p, path, "file");
-            fail(c, p, "%s", msg);
+            char hint[300];
+            fail(c, p, "%s%s", msg, missing_hint(full, made_by, hint, sizeof hint));
             return st;
         }
     } else if (kind == 2) {
-        static const char *const keys[] = {"type", "file", "dims", NULL};
+        static const char *const keys[] = {"type", "file", "dims", "made_by", NULL};
         TRY(check_keys(c, d, path, keys));
-        const char *file;
+        const char *file, *made_by;
         TRY(get_str(c, d, path, "file", 1, NULL, &file));
+        TRY(get_str(c, d, path, "made_by", 0, NULL, &made_by));
         char p[300];
         join(p, sizeof p, path, "dims");
         const cJSON *dims = cJSON_GetObjectItemCaseSensitive(d, "dims");
@@ -363,7 +378,8 @@ static rd_status parse_density(vctx *c, const cJSON *m, const char *mpath, rd_me
         rd_status st = rd_raw_load(full, n[0], n[1], n[2], &med->grid, msg, sizeof msg);
         if (st) {
             join(p, sizeof p, path, "file");
-            fail(c, p, "%s", msg);
+            char hint[300];
+            fail(c, p, "%s%s", msg, missing_hint(full, made_by, hint, sizeof hint));
             return st;
         }
         /* The voxels fill the medium bounds: u = n (x - bmin) / (bmax - bmin). */
@@ -872,7 +888,7 @@ static char *read_file(const char *path, char *err, size_t errlen, rd_status *st
 
 static void medium_release(rd_medium *m)
 {
-    free(m->grid.data);
+    rd_grid_free(&m->grid);
     rd_majorant_free(m->majorant);
 }
 
@@ -884,14 +900,18 @@ void rd_scene_free(rd_scene *s)
     free(s->lights);
     rd_light_sampler_free(&s->light_sampler);
     free(s->sphere_lights);
+    free(s->description);
     free(s);
 }
 
 static rd_status validate(vctx *c, const cJSON *root, rd_scene *s)
 {
     if (!cJSON_IsObject(root)) return fail(c, "(top level)", "expected an object, found %s", type_name(root));
-    static const char *const keys[] = {"camera", "media", "lights", "background", "settings", "photons", "guide", "march", NULL};
+    static const char *const keys[] = {"description", "camera", "media", "lights", "background", "settings", "photons", "guide", "march", NULL};
     TRY(check_keys(c, root, "", keys));
+    const char *desc;
+    TRY(get_str(c, root, "", "description", 0, NULL, &desc));
+    if (desc && !(s->description = strdup(desc))) return RD_ERR_NOMEM;
     const cJSON *cam = cJSON_GetObjectItemCaseSensitive(root, "camera");
     if (!cam) return fail(c, "camera", "missing (required)");
     TRY(parse_camera(c, cam, &s->camera));
@@ -976,6 +996,7 @@ static uint64_t bake_key(const cJSON *root, const rd_scene *s)
     uint64_t h = fnv1a(0xcbf29ce484222325ULL, version, sizeof version);
     cJSON *copy = cJSON_Duplicate(root, 1);
     if (!copy) return 0;
+    cJSON_DeleteItemFromObjectCaseSensitive(copy, "description");
     cJSON_DeleteItemFromObjectCaseSensitive(copy, "camera");
     cJSON_DeleteItemFromObjectCaseSensitive(copy, "march");
     cJSON *set = cJSON_GetObjectItemCaseSensitive(copy, "settings");
@@ -990,6 +1011,13 @@ static uint64_t bake_key(const cJSON *root, const rd_scene *s)
         const rd_grid *g = &s->media[i].grid;
         if (s->media[i].kind == RD_DENSITY_GRID && g->data)
             h = fnv1a(h, g->data, (size_t)g->nx * g->ny * g->nz * sizeof *g->data);
+        if (s->media[i].kind == RD_DENSITY_GRID && g->bricks) { /* sparse: table and bricks */
+            const rd_bricks *b = g->bricks;
+            size_t cells = (size_t)b->nb[0] * b->nb[1] * b->nb[2];
+            h = fnv1a(h, b->brick, cells * sizeof *b->brick);
+            h = fnv1a(h, b->cmax, cells * sizeof *b->cmax);
+            h = fnv1a(h, b->voxels, b->n_bricks * RD_BRICK * RD_BRICK * RD_BRICK * sizeof *b->voxels);
+        }
     }
     return h;
 }
@@ -1063,6 +1091,7 @@ void rd_scene_info(const rd_scene *s, FILE *out)
     static const char *const lkind[] = {"point", "spot", "directional", "sphere", "environment"};
     const rd_camera *cam = &s->camera;
     fprintf(out, "scene      %s\n", s->path);
+    if (s->description) fprintf(out, "about      %s\n", s->description);
     fprintf(out, "camera     %s, %dx%d, position (%g, %g, %g), forward (%.3f, %.3f, %.3f)",
             cam->kind == RD_CAM_PERSPECTIVE ? "perspective" : "orthographic", cam->width, cam->height,
             cam->pos.x, cam->pos.y, cam->pos.z, cam->forward.x, cam->forward.y, cam->forward.z);
@@ -1077,9 +1106,14 @@ void rd_scene_info(const rd_scene *s, FILE *out)
         if (m->kind == RD_DENSITY_CONSTANT) {
             dmin = dmax = m->constant;
         } else if (m->kind == RD_DENSITY_GRID) {
-            size_t n = (size_t)m->grid.nx * m->grid.ny * m->grid.nz;
-            mem += n * sizeof(float);
-            fprintf(out, " %dx%dx%d (%.1f MiB)", m->grid.nx, m->grid.ny, m->grid.nz, n * 4.0 / 1048576.0);
+            size_t n = (size_t)m->grid.nx * m->grid.ny * m->grid.nz, bytes = rd_grid_bytes(&m->grid);
+            mem += bytes;
+            fprintf(out, " %dx%dx%d", m->grid.nx, m->grid.ny, m->grid.nz);
+            if (m->grid.bricks)
+                fprintf(out, " sparse, %zu bricks of 8^3 (%.1f MiB; dense would be %.1f MiB)", m->grid.bricks->n_bricks,
+                        bytes / 1048576.0, n * 4.0 / 1048576.0);
+            else
+                fprintf(out, " (%.1f MiB)", bytes / 1048576.0);
             dmin = m->grid.vmin;
             dmax = m->grid.vmax;
         } else {

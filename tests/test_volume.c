@@ -449,3 +449,177 @@ Test(volume, affine_vdb_writer_refuses_singular_matrices)
     cr_expect(strstr(err, path) && strstr(err, "singular"), "%s", err);
     cr_expect(access(path, F_OK) != 0, "nothing is written");
 }
+
+/* ---- Sparse OpenVDB grids (brick map) ------------------------------------------------------- */
+
+/* A test grid with leaves, tiles and (optionally) a non-zero background inside its active box:
+ * a 37x29x21 block of values (a third of them zero) at index (-13, 5, 3), whose origin is not a
+ * multiple of 8, plus a filled 16^3 box at an aligned place (two 8^3 tiles per axis) and a
+ * filled 5^3 box that cuts leaves. Returns the file's path in `path`. */
+static void write_mixed_grid(char *path, size_t n, const char *name, float background)
+{
+    enum { NX = 37, NY = 29, NZ = 21 };
+    static float v[NX * NY * NZ];
+    pcg32 rng = pcg32_seed(12, 1, 0);
+    for (int q = 0; q < NX * NY * NZ; q++) {
+        double u = pcg32_uniform(&rng);
+        v[q] = u < 1.0 / 3.0 ? 0.0f : (float)(4.0 * u);
+    }
+    const int origin[3] = {-13, 5, 3};
+    const int boxes[2][6] = {{8, 40, 8, 23, 55, 23}, {-20, 1, 1, -16, 5, 5}};
+    const float values[2] = {0.75f, 2.5f};
+    char err[RD_ERRLEN];
+    snprintf(path, n, "%s/%s", rt_tmpdir(), name);
+    cr_assert(rd_vdb_save_test(path, "density", "float", background, v, NX, NY, NZ, origin, boxes, values, 2, err,
+                               sizeof err) == RD_OK, "%s", err);
+}
+
+/* The sparse grid gives the dense grid's voxels, trilinear lookups and box bounds exactly (the
+ * same floats through the same arithmetic, so equality is bit-exact, not a tolerance). */
+static void check_sparse_matches_dense(float background)
+{
+    char path[256], err[RD_ERRLEN];
+    write_mixed_grid(path, sizeof path, "mixed.vdb", background);
+    rd_grid sp, de;
+    vec3 slo, shi, dlo, dhi;
+    memset(&sp, 0, sizeof sp);
+    memset(&de, 0, sizeof de);
+    cr_assert(rd_vdb_load_sparse(path, "density", &sp, &slo, &shi, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_vdb_load_dense(path, "density", &de, &dlo, &dhi, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(sp.data == NULL && sp.bricks != NULL && de.data != NULL);
+    cr_expect(sp.nx == de.nx && sp.ny == de.ny && sp.nz == de.nz);
+    cr_expect(memcmp(sp.w2g, de.w2g, sizeof sp.w2g) == 0);
+    cr_expect(v3_len(v3_sub(slo, dlo)) == 0.0 && v3_len(v3_sub(shi, dhi)) == 0.0);
+    cr_expect(sp.vmin == de.vmin && sp.vmax == de.vmax, "vmin %g/%g vmax %g/%g", sp.vmin, de.vmin, sp.vmax, de.vmax);
+    /* Active box: x from -20 (the small box) to 23, y 1..55, z 1..23: 44 x 55 x 23 voxels. */
+    cr_expect(sp.nx == 44 && sp.ny == 55 && sp.nz == 23, "%dx%dx%d", sp.nx, sp.ny, sp.nz);
+    const rd_bricks *b = sp.bricks;
+    size_t cells = (size_t)b->nb[0] * b->nb[1] * b->nb[2], tiles = 0;
+    for (size_t c = 0; c < cells; c++) tiles += b->brick[c] < 0 && b->cmax[c] == 0.75f;
+    cr_expect(tiles == 8, "the 16^3 fill is 8 constant cells, found %zu", tiles);
+    cr_expect(b->n_bricks < cells);
+    /* Every voxel, one layer of border beyond the grid included. */
+    for (int k = -1; k <= sp.nz; k++)
+        for (int j = -1; j <= sp.ny; j++)
+            for (int i = -1; i <= sp.nx; i++)
+                cr_assert(rd_grid_voxel(&sp, i, j, k) == rd_grid_voxel(&de, i, j, k), "voxel (%d %d %d)", i, j, k);
+    /* Lookups at random points of the bounds grown by 10%, and bounds of random boxes (as the
+     * majorant grids ask them: rd_medium_box_bound on a grid medium). */
+    rd_medium ms, md;
+    memset(&ms, 0, sizeof ms);
+    memset(&md, 0, sizeof md);
+    ms.kind = md.kind = RD_DENSITY_GRID;
+    ms.grid = sp;
+    md.grid = de;
+    vec3 ext = v3_sub(shi, slo), lo0 = v3_sub(slo, v3_scale(ext, 0.05));
+    pcg32 rng = pcg32_seed(12, 2, 0);
+    for (int n = 0; n < 200000; n++) {
+        vec3 x = v3(lo0.x + 1.1 * ext.x * pcg32_uniform(&rng), lo0.y + 1.1 * ext.y * pcg32_uniform(&rng),
+                    lo0.z + 1.1 * ext.z * pcg32_uniform(&rng));
+        double a = rd_grid_lookup(&sp, x), d = rd_grid_lookup(&de, x);
+        cr_assert(a == d, "lookup at (%g %g %g): sparse %.17g, dense %.17g", x.x, x.y, x.z, a, d);
+    }
+    for (int n = 0; n < 20000; n++) {
+        vec3 p = v3(lo0.x + 1.1 * ext.x * pcg32_uniform(&rng), lo0.y + 1.1 * ext.y * pcg32_uniform(&rng),
+                    lo0.z + 1.1 * ext.z * pcg32_uniform(&rng));
+        double s = n < 10000 ? 3.0 : 25.0; /* boxes of up to 3 and up to 25 voxels per side */
+        vec3 q = v3(p.x + s * pcg32_uniform(&rng), p.y + s * pcg32_uniform(&rng), p.z + s * pcg32_uniform(&rng));
+        double smin, smax, dmin, dmax;
+        rd_medium_box_bound(&ms, p, q, &smin, &smax);
+        rd_medium_box_bound(&md, p, q, &dmin, &dmax);
+        cr_assert(smin == dmin && smax == dmax, "box bound: sparse [%g, %g], dense [%g, %g]", smin, smax, dmin, dmax);
+    }
+    cr_expect(rd_grid_bytes(&sp) < rd_grid_bytes(&de));
+    rd_grid_free(&sp);
+    rd_grid_free(&de);
+    cr_expect(sp.bricks == NULL && de.data == NULL);
+}
+
+Test(volume, sparse_vdb_matches_dense, .timeout = 60)
+{
+    check_sparse_matches_dense(0.0f);
+}
+
+Test(volume, sparse_vdb_matches_dense_with_a_background, .timeout = 60)
+{
+    /* Inactive voxels inside the active box read the background (0.125), as a dense read does. */
+    check_sparse_matches_dense(0.125f);
+}
+
+Test(volume, vdb_grid_errors_are_one_line, .timeout = 60)
+{
+    char path[256], garbage[256], err[RD_ERRLEN];
+    float one = 1.0f;
+    const int origin[3] = {0, 0, 0};
+    snprintf(path, sizeof path, "%s/typed.vdb", rt_tmpdir());
+    rd_grid g;
+    vec3 lo, hi;
+    static const char *const types[] = {"double", "vec3s"};
+    for (int t = 0; t < 2; t++) {
+        cr_assert(rd_vdb_save_test(path, "density", types[t], 0.0f, &one, 1, 1, 1, origin, NULL, NULL, 0, err,
+                                   sizeof err) == RD_OK, "%s", err);
+        memset(&g, 0, sizeof g);
+        cr_expect(rd_vdb_load(path, "density", &g, &lo, &hi, err, sizeof err) == RD_ERR_FORMAT);
+        char want[128];
+        snprintf(want, sizeof want, "grid \"density\" is of type %s, expected float", types[t]);
+        cr_expect(strstr(err, want) && strncmp(err, path, strlen(path)) == 0 && !strchr(err, '\n'), "%s", err);
+        cr_expect(g.data == NULL && g.bricks == NULL);
+    }
+    /* A missing grid name lists the grids there are. */
+    cr_assert(rd_vdb_save_test(path, "smoke", "float", 0.0f, &one, 1, 1, 1, origin, NULL, NULL, 0, err,
+                               sizeof err) == RD_OK, "%s", err);
+    cr_expect(rd_vdb_load(path, "density", &g, &lo, &hi, err, sizeof err) == RD_ERR_FORMAT);
+    cr_expect(strstr(err, "no grid named \"density\" (grids: smoke)") && !strchr(err, '\n'), "%s", err);
+    /* A damaged file: the header of a good one followed by garbage. */
+    FILE *f = fopen(path, "rb");
+    char buf[4096];
+    size_t n = fread(buf, 1, sizeof buf, f);
+    fclose(f);
+    for (size_t q = 64; q < n; q++) buf[q] = (char)(q * 131 + 7);
+    snprintf(garbage, sizeof garbage, "%s/damaged.vdb", rt_tmpdir());
+    rt_write_file(garbage, buf, n);
+    memset(&g, 0, sizeof g);
+    rd_status st = rd_vdb_load(garbage, "smoke", &g, &lo, &hi, err, sizeof err);
+    cr_expect(st == RD_ERR_FORMAT, "status %d: %s", st, err);
+    cr_expect(strncmp(err, garbage, strlen(garbage)) == 0 && !strchr(err, '\n'), "%s", err);
+    cr_expect(g.data == NULL && g.bricks == NULL);
+}
+
+Test(volume, vdb_scene_medium_is_sparse, .timeout = 60)
+{
+    /* A scene's VDB medium is held as bricks, and its majorant grid bounds the density: the
+     * maximum over many random points of each super-voxel never exceeds its bound. */
+    enum { N = 10 };
+    float v[N * N * N];
+    pcg32 rng = pcg32_seed(12, 4, 0);
+    for (int q = 0; q < N * N * N; q++) v[q] = (float)(3.0 * pcg32_uniform(&rng));
+    /* Two clumps at opposite corners of a 133^3 box: the brick form is far smaller. */
+    const int origin[3] = {-3, -3, -3}, boxes[2][6] = {{120, 120, 120, 129, 129, 129}, {112, 0, 0, 127, 15, 15}};
+    const float values[2] = {2.0f, 0.5f};
+    char path[256], err[RD_ERRLEN];
+    snprintf(path, sizeof path, "%s/sparse.vdb", rt_tmpdir());
+    cr_assert(rd_vdb_save_test(path, "density", "float", 0.0f, v, N, N, N, origin, boxes, values, 2, err,
+                               sizeof err) == RD_OK, "%s", err);
+    rd_scene *s = rt_scene("sparse.json",
+                           "{\"camera\":{\"position\":[60,60,400],\"look_at\":[60,60,60],\"resolution\":[4,4]},"
+                           "\"media\":[{\"density\":{\"type\":\"vdb\",\"file\":\"sparse.vdb\"},\"sigma_t\":0.01,"
+                           "\"majorant\":{\"type\":\"grid\",\"resolution\":8}}]}");
+    const rd_medium *m = &s->media[0];
+    cr_assert(m->grid.bricks != NULL && m->grid.data == NULL);
+    const rd_majorant *mj = m->majorant;
+    cr_assert(mj && mj->kind == RD_MAJ_GRID);
+    cr_expect(rd_grid_bytes(&m->grid) * 20 < (size_t)133 * 133 * 133 * sizeof(float), "%zu bytes", rd_grid_bytes(&m->grid));
+    for (int n = 0; n < 100000; n++) {
+        vec3 u = v3(pcg32_uniform(&rng), pcg32_uniform(&rng), pcg32_uniform(&rng));
+        vec3 x = v3(m->bmin.x + u.x * (m->bmax.x - m->bmin.x), m->bmin.y + u.y * (m->bmax.y - m->bmin.y),
+                    m->bmin.z + u.z * (m->bmax.z - m->bmin.z));
+        int c[3];
+        for (int a = 0; a < 3; a++) {
+            c[a] = (int)(v3_get(u, a) * mj->n[a]);
+            if (c[a] >= mj->n[a]) c[a] = mj->n[a] - 1;
+        }
+        size_t cell = ((size_t)c[2] * mj->n[1] + c[1]) * mj->n[0] + c[0];
+        cr_assert(rd_medium_density(m, x) <= mj->dmax[cell], "density above the cell's majorant");
+    }
+    rd_scene_free(s);
+}
