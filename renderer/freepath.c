@@ -297,9 +297,7 @@ double rd_grid_optical_depth(const rd_grid *gr, ray3 r, double t0, double t1, rd
         int any = 0;
         for (int q = 0; q < 8; q++) {
             int i = idx[0] + (q & 1), j = idx[1] + ((q >> 1) & 1), k = idx[2] + ((q >> 2) & 1);
-            val[q] = (i < 0 || j < 0 || k < 0 || i >= n[0] || j >= n[1] || k >= n[2])
-                         ? 0.0
-                         : gr->data[((size_t)k * gr->ny + j) * gr->nx + i];
+            val[q] = rd_grid_voxel(gr, i, j, k); /* dense or sparse; 0 outside */
             any |= val[q] != 0.0;
         }
         c->lookups++;
