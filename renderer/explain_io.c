@@ -101,12 +101,12 @@ static rd_status write_gnuplot(const rd_explain_result *e, const char *prefix, c
     text b = {0};
     put(&b, "# gnuplot script written by photonmarch explain; run it in this folder: gnuplot %s\n",
         strrchr(gp, '/') ? strrchr(gp, '/') + 1 : gp);
-    put(&b, "set terminal pngcairo size 1000,640 font ',10'\nset output '%s'\n", pbase);
+    put(&b, "set terminal pngcairo size 1000,640 font ',10' noenhanced\nset output '%s'\n", pbase);
     put(&b, "set datafile separator ','\nset multiplot layout 2,1 title 'pixel (%d, %d): "
             "I = %.4g, guide I_ray = %.4g (pilot mean %.4g)'\n", e->px, e->py, e->I, e->I_ray, e->mean_I);
     put(&b, "set lmargin 10\nset xrange [%.9g:%.9g]\nset ylabel 'pdf [1/m]'\nset key top right\n",
         e->t0, e->t1);
-    put(&b, "set size 1,0.7\nset origin 0,0.3\n");
+    put(&b, "set size 1,0.64\nset origin 0,0.3\n");
     put(&b, "plot '%s' using 1:4 skip 1 with filledcurves y1=0 fs transparent solid 0.25 lc rgb '#888888' "
             "title 'ideal f/I (zero variance)', \\\n", base);
     put(&b, "  '' using 1:5 skip 1 with lines lw 2 lc rgb '#d62728' title 'guided (sd %.3g%%)', \\\n",
