@@ -867,44 +867,24 @@ static rd_status write_text_at(const char *dir, const char *name, const char *te
     return rd_write_atomic(path, text, strlen(text), err, errlen);
 }
 
-/* A growing text buffer (the plot data, the script, the HTML page). */
-typedef struct { char *s; size_t n, cap; int oom; } sbuf;
-static void sb_printf(sbuf *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-static void sb_printf(sbuf *b, const char *fmt, ...)
-{
-    if (b->oom) return;
-    for (;;) {
-        va_list ap;
-        va_start(ap, fmt);
-        int n = vsnprintf(b->s ? b->s + b->n : NULL, b->s ? b->cap - b->n : 0, fmt, ap);
-        va_end(ap);
-        if (n < 0) { b->oom = 1; return; }
-        if (b->s && b->n + (size_t)n < b->cap) { b->n += (size_t)n; return; }
-        size_t cap = (b->cap + (size_t)n + 1) * 2;
-        char *p = realloc(b->s, cap);
-        if (!p) { b->oom = 1; return; }
-        b->s = p, b->cap = cap;
-    }
-}
-
 /* curve-LABEL.dat: "seconds rmse" after every pass, one block per run (a blank line between
  * runs breaks the line in gnuplot); an added image with a time is one point. */
 static rd_status write_curves(const rd_comparison *c, const char *dir, char *err, size_t errlen)
 {
     for (int i = 0; i < c->sum.n_rows; i++) {
         const rd_cmp_row *r = &c->rows[i];
-        sbuf b = {0};
-        sb_printf(&b, "# seconds (bake included)  RMSE against the reference\n");
+        rd_text b = {0};
+        rd_text_printf(&b, "# seconds (bake included)  RMSE against the reference\n");
         if (r->is_extra) {
-            if (r->seconds > 0) sb_printf(&b, "%.6g %.6g\n", r->seconds, r->err.rmse);
+            if (r->seconds > 0) rd_text_printf(&b, "%.6g %.6g\n", r->seconds, r->err.rmse);
         } else {
             const cmp_method *m = NULL;
             for (int j = 0; j < c->n_methods; j++)
                 if (!strcmp(c->m[j].name, r->label)) m = &c->m[j];
             for (int k = 0; m && k < m->done; k++) {
                 for (int p = 0; p < m->n_curve[k]; p++)
-                    if (m->curve[k][p].rmse > 0) sb_printf(&b, "%.6g %.6g\n", m->curve[k][p].seconds, m->curve[k][p].rmse);
-                sb_printf(&b, "\n");
+                    if (m->curve[k][p].rmse > 0) rd_text_printf(&b, "%.6g %.6g\n", m->curve[k][p].seconds, m->curve[k][p].rmse);
+                rd_text_printf(&b, "\n");
             }
         }
         char name[128];
@@ -941,8 +921,8 @@ static rd_status write_plot(const rd_comparison *c, const char *dir, char *err, 
 {
     rd_status st = write_curves(c, dir, err, errlen);
     if (st) return st;
-    sbuf b = {0};
-    sb_printf(&b, "# RMSE against time, log-log (photonmarch compare; docs/compare.md)\n"
+    rd_text b = {0};
+    rd_text_printf(&b, "# RMSE against time, log-log (photonmarch compare; docs/compare.md)\n"
                   "set terminal svg size 720,440 dynamic font 'sans,12' background '#ffffff'\n"
                   "set output 'convergence.svg'\nset logscale xy\nset grid\nset key outside right\n"
                   "set xlabel 'time (s, bake included)'\nset ylabel 'RMSE'\n"
@@ -951,12 +931,12 @@ static rd_status write_plot(const rd_comparison *c, const char *dir, char *err, 
     for (int i = 0; i < c->sum.n_rows; i++) {
         const rd_cmp_row *r = &c->rows[i];
         if (r->is_extra && !(r->seconds > 0)) continue;
-        sb_printf(&b, "%s'curve-%s.dat' using 1:2 with %s lw 2 pt 7 title '%s'", plotted ? ", \\\n     " : "",
+        rd_text_printf(&b, "%s'curve-%s.dat' using 1:2 with %s lw 2 pt 7 title '%s'", plotted ? ", \\\n     " : "",
                   r->label, r->is_extra ? "points ps 1.5" : "linespoints", r->label);
         plotted++;
     }
-    if (!plotted) sb_printf(&b, "NaN notitle");
-    sb_printf(&b, "\n");
+    if (!plotted) rd_text_printf(&b, "NaN notitle");
+    rd_text_printf(&b, "\n");
     st = b.oom ? fail(err, errlen, RD_ERR_NOMEM, "%s: out of memory", "convergence.gp")
                : write_text_at(dir, "convergence.gp", b.s, err, errlen);
     free(b.s);
@@ -1066,24 +1046,24 @@ static rd_status write_json(const rd_comparison *c, const rd_scene *s, const cha
 
 /* ---- index.html: one self-contained page (inline CSS and JS, images by relative path) ---- */
 
-static void sb_escape(sbuf *b, const char *s)
+static void sb_escape(rd_text *b, const char *s)
 {
     for (; *s; s++) {
         switch (*s) {
-        case '&': sb_printf(b, "&amp;"); break;
-        case '<': sb_printf(b, "&lt;"); break;
-        case '>': sb_printf(b, "&gt;"); break;
-        case '"': sb_printf(b, "&quot;"); break;
-        default: sb_printf(b, "%c", *s);
+        case '&': rd_text_printf(b, "&amp;"); break;
+        case '<': rd_text_printf(b, "&lt;"); break;
+        case '>': rd_text_printf(b, "&gt;"); break;
+        case '"': rd_text_printf(b, "&quot;"); break;
+        default: rd_text_printf(b, "%c", *s);
         }
     }
 }
 
 /* A table cell with a number in %.3g, or "n/a". */
-static void sb_cell(sbuf *b, double v)
+static void sb_cell(rd_text *b, double v)
 {
-    if (isfinite(v)) sb_printf(b, "<td>%.3g</td>", v);
-    else sb_printf(b, "<td class=na>n/a</td>");
+    if (isfinite(v)) rd_text_printf(b, "<td>%.3g</td>", v);
+    else rd_text_printf(b, "<td class=na>n/a</td>");
 }
 
 static const char *page_css =
@@ -1145,64 +1125,64 @@ static const char *page_js =
     "show(0);\n"
     "window.addEventListener('load', () => { if (location.hash === '#selftest') selftest(); });\n";
 
-static void page_head(sbuf *b, const rd_comparison *c, const rd_scene *s)
+static void page_head(rd_text *b, const rd_comparison *c, const rd_scene *s)
 {
     const rd_cmp_opts *o = &c->opts;
     const rd_cmp_summary *S = &c->sum;
-    sb_printf(b, "<!doctype html>\n<html lang=en><head><meta charset=utf-8><title>photonmarch compare: ");
+    rd_text_printf(b, "<!doctype html>\n<html lang=en><head><meta charset=utf-8><title>photonmarch compare: ");
     sb_escape(b, s->path);
-    sb_printf(b, "</title>\n<style>\n%s</style></head><body>\n<h1>photonmarch compare: ", page_css);
+    rd_text_printf(b, "</title>\n<style>\n%s</style></head><body>\n<h1>photonmarch compare: ", page_css);
     sb_escape(b, s->path);
-    sb_printf(b, "</h1>\n<p>%dx%d pixels; equal %s: %g %s per run; %d run%s per method (seeds %llu..%llu); "
+    rd_text_printf(b, "</h1>\n<p>%dx%d pixels; equal %s: %g %s per run; %d run%s per method (seeds %llu..%llu); "
                  "bake time charged to every run of a method that needs it.</p>\n",
               c->w, c->h, o->equal_spp ? "samples" : "time", o->budget, o->equal_spp ? "spp" : "s", o->runs,
               o->runs > 1 ? "s" : "", (unsigned long long)RUN_SEED(o->seed, 0), (unsigned long long)RUN_SEED(o->seed, o->runs - 1));
-    sb_printf(b, "<p>Reference: ");
+    rd_text_printf(b, "<p>Reference: ");
     sb_escape(b, S->ref_source);
-    if (S->ref_rendered) sb_printf(b, " (delta, %.4g spp, %.1f s%s)", S->ref_spp, S->ref_seconds, S->ref_rendered == 2 ? ", from the cache" : "");
-    if (isfinite(S->ref_var)) sb_printf(b, "; its own variance (mean stderr&sup2;) %.3g.</p>\n", S->ref_var);
-    else sb_printf(b, "; its own standard error is unknown (no -stderr.exr beside it), so its noise is not accounted for.</p>\n");
+    if (S->ref_rendered) rd_text_printf(b, " (delta, %.4g spp, %.1f s%s)", S->ref_spp, S->ref_seconds, S->ref_rendered == 2 ? ", from the cache" : "");
+    if (isfinite(S->ref_var)) rd_text_printf(b, "; its own variance (mean stderr&sup2;) %.3g.</p>\n", S->ref_var);
+    else rd_text_printf(b, "; its own standard error is unknown (no -stderr.exr beside it), so its noise is not accounted for.</p>\n");
     if (S->ref_too_noisy)
-        sb_printf(b, "<p class=warn><b>The reference is too noisy to rank the methods:</b> its variance (%.3g) is more than a "
+        rd_text_printf(b, "<p class=warn><b>The reference is too noisy to rank the methods:</b> its variance (%.3g) is more than a "
                      "quarter of the best method's MSE, so every MSE below is dominated by it. Render it longer "
                      "(--ref-spp) or pass a better one (--reference).</p>\n", S->ref_var);
-    if (S->cancelled) sb_printf(b, "<p class=warn>Interrupted: this report holds the runs that finished.</p>\n");
+    if (S->cancelled) rd_text_printf(b, "<p class=warn>Interrupted: this report holds the runs that finished.</p>\n");
 }
 
-static void page_viewer(sbuf *b, const rd_comparison *c)
+static void page_viewer(rd_text *b, const rd_comparison *c)
 {
     const rd_cmp_summary *S = &c->sum;
-    sb_printf(b, "<h2>A / B / reference</h2>\n<section id=viewer>\n<div>");
-    for (int i = 0; i < S->n_rows; i++) sb_printf(b, "<button>%d %s</button>", i + 1, c->rows[i].label);
-    sb_printf(b, "<button>R reference</button></div>\n");
-    sb_printf(b, "<img id=view src=\"%s.png\" alt=\"the image being compared\">\n", S->n_rows ? c->rows[0].label : "reference");
-    sb_printf(b, "<p><b id=viewcap></b> &mdash; click the image or press Space to go to the next one at the same "
+    rd_text_printf(b, "<h2>A / B / reference</h2>\n<section id=viewer>\n<div>");
+    for (int i = 0; i < S->n_rows; i++) rd_text_printf(b, "<button>%d %s</button>", i + 1, c->rows[i].label);
+    rd_text_printf(b, "<button>R reference</button></div>\n");
+    rd_text_printf(b, "<img id=view src=\"%s.png\" alt=\"the image being compared\">\n", S->n_rows ? c->rows[0].label : "reference");
+    rd_text_printf(b, "<p><b id=viewcap></b> &mdash; click the image or press Space to go to the next one at the same "
                  "place; keys 1&ndash;%d pick a method, R the reference.</p>\n</section>\n", S->n_rows > 9 ? 9 : S->n_rows);
-    sb_printf(b, "<script type=\"application/json\" id=views>[");
-    for (int i = 0; i < S->n_rows; i++) sb_printf(b, "{\"label\":\"%s\",\"src\":\"%s.png\"},", c->rows[i].label, c->rows[i].label);
-    sb_printf(b, "{\"label\":\"reference\",\"src\":\"reference.png\"}]</script>\n");
+    rd_text_printf(b, "<script type=\"application/json\" id=views>[");
+    for (int i = 0; i < S->n_rows; i++) rd_text_printf(b, "{\"label\":\"%s\",\"src\":\"%s.png\"},", c->rows[i].label, c->rows[i].label);
+    rd_text_printf(b, "{\"label\":\"reference\",\"src\":\"reference.png\"}]</script>\n");
 }
 
-static void page_images(sbuf *b, const rd_comparison *c, double scale, crop_box bx)
+static void page_images(rd_text *b, const rd_comparison *c, double scale, crop_box bx)
 {
     const rd_cmp_summary *S = &c->sum;
-    sb_printf(b, "<h2>Side by side</h2>\n<div class=grid>\n");
+    rd_text_printf(b, "<h2>Side by side</h2>\n<div class=grid>\n");
     for (int i = 0; i < S->n_rows; i++)
-        sb_printf(b, "<figure><img src=\"%s.png\" alt=\"%s\"><figcaption>%s: RMSE %.3g</figcaption></figure>\n",
+        rd_text_printf(b, "<figure><img src=\"%s.png\" alt=\"%s\"><figcaption>%s: RMSE %.3g</figcaption></figure>\n",
                   c->rows[i].label, c->rows[i].label, c->rows[i].label, c->rows[i].err.rmse);
-    sb_printf(b, "<figure><img src=\"reference.png\" alt=reference><figcaption>reference</figcaption></figure>\n</div>\n");
-    sb_printf(b, "<h2>Error maps</h2>\n<p>Per-pixel relative error of luminance |L(x) &minus; L(ref)| / (L(ref) + 0.01), "
+    rd_text_printf(b, "<figure><img src=\"reference.png\" alt=reference><figcaption>reference</figcaption></figure>\n</div>\n");
+    rd_text_printf(b, "<h2>Error maps</h2>\n<p>Per-pixel relative error of luminance |L(x) &minus; L(ref)| / (L(ref) + 0.01), "
                  "one colour scale for every map.</p>\n<div class=bar><span>0</span><img src=colorbar.png alt=\"colour bar\">"
                  "<span>&ge; %.3g</span></div>\n<div class=grid>\n", scale);
     for (int i = 0; i < S->n_rows; i++)
-        sb_printf(b, "<figure><img src=\"%s-error.png\" alt=\"%s error\"><figcaption>%s</figcaption></figure>\n",
+        rd_text_printf(b, "<figure><img src=\"%s-error.png\" alt=\"%s error\"><figcaption>%s</figcaption></figure>\n",
                   c->rows[i].label, c->rows[i].label, c->rows[i].label);
-    sb_printf(b, "</div>\n<h2>Worst region</h2>\n<p>The %dx%d pixel window at (%d, %d) with the largest squared error "
+    rd_text_printf(b, "</div>\n<h2>Worst region</h2>\n<p>The %dx%d pixel window at (%d, %d) with the largest squared error "
                  "summed over the methods, enlarged.</p>\n<div class=grid>\n", bx.s, bx.s, bx.x, bx.y);
     for (int i = 0; i < S->n_rows; i++)
-        sb_printf(b, "<figure><img src=\"%s-crop.png\" alt=\"%s crop\"><figcaption>%s</figcaption></figure>\n",
+        rd_text_printf(b, "<figure><img src=\"%s-crop.png\" alt=\"%s crop\"><figcaption>%s</figcaption></figure>\n",
                   c->rows[i].label, c->rows[i].label, c->rows[i].label);
-    sb_printf(b, "<figure><img src=\"reference-crop.png\" alt=\"reference crop\"><figcaption>reference</figcaption></figure>\n</div>\n");
+    rd_text_printf(b, "<figure><img src=\"reference-crop.png\" alt=\"reference crop\"><figcaption>reference</figcaption></figure>\n</div>\n");
 }
 
 /* The index of the row with the smallest (dir = 1) or largest (dir = -1) value, or -1. */
@@ -1218,25 +1198,25 @@ static int best_row(const rd_comparison *c, size_t off, int dir)
     return c->sum.n_rows > 1 ? best : -1;
 }
 
-static void page_table(sbuf *b, const rd_comparison *c)
+static void page_table(rd_text *b, const rd_comparison *c)
 {
     int be = best_row(c, offsetof(rd_cmp_row, efficiency), -1), br = best_row(c, offsetof(rd_cmp_row, err.rmse), 1);
-    sb_printf(b, "<h2>Metrics</h2>\n<table><tr><th>method</th><th>runs</th><th>time s</th><th>bake s</th><th>spp</th>"
+    rd_text_printf(b, "<h2>Metrics</h2>\n<table><tr><th>method</th><th>runs</th><th>time s</th><th>bake s</th><th>spp</th>"
                  "<th>RMSE</th><th>relMSE</th><th>MARE</th><th>bias&sup2;</th><th>variance</th><th>efficiency<br>1/(MSE&middot;t)</th>"
                  "<th>TTUV<br>t&middot;RMSE</th><th>collisions /px</th><th>lookups /px</th><th>shadow rays /px</th><th>homogeneity</th></tr>\n");
     for (int i = 0; i < c->sum.n_rows; i++) {
         const rd_cmp_row *r = &c->rows[i];
-        sb_printf(b, "<tr><td>%s%s</td><td>%d</td>", r->label, r->is_extra ? " (added)" : "", r->runs);
+        rd_text_printf(b, "<tr><td>%s%s</td><td>%d</td>", r->label, r->is_extra ? " (added)" : "", r->runs);
         sb_cell(b, r->seconds), sb_cell(b, r->bake_seconds), sb_cell(b, r->spp);
-        sb_printf(b, i == br ? "<td class=best>%.3g</td>" : "<td>%.3g</td>", r->err.rmse);
+        rd_text_printf(b, i == br ? "<td class=best>%.3g</td>" : "<td>%.3g</td>", r->err.rmse);
         sb_cell(b, r->err.relmse), sb_cell(b, r->err.mare), sb_cell(b, r->split.bias2), sb_cell(b, r->split.variance);
-        if (i == be) sb_printf(b, "<td class=best>%.3g</td>", r->efficiency);
+        if (i == be) rd_text_printf(b, "<td class=best>%.3g</td>", r->efficiency);
         else sb_cell(b, r->efficiency);
         sb_cell(b, r->ttuv), sb_cell(b, r->collisions_pp), sb_cell(b, r->lookups_pp), sb_cell(b, r->shadow_rays_pp);
         sb_cell(b, r->homogeneity);
-        sb_printf(b, "</tr>\n");
+        rd_text_printf(b, "</tr>\n");
     }
-    sb_printf(b, "</table>\n<p>Errors against the reference over every pixel and channel, the mean over the runs. "
+    rd_text_printf(b, "</table>\n<p>Errors against the reference over every pixel and channel, the mean over the runs. "
                  "bias&sup2; and variance (of one run) from the %d runs%s. Efficiency: higher is better; TTUV (seed 002): lower "
                  "is better. Homogeneity: 90th / 50th percentile of the per-pixel relative error over lit pixels (1 = even). "
                  "Definitions: docs/compare.md; numbers: <a href=metrics.json>metrics.json</a>.</p>\n",
@@ -1246,14 +1226,14 @@ static void page_table(sbuf *b, const rd_comparison *c)
 static rd_status write_page(const rd_comparison *c, const rd_scene *s, const char *dir, double scale,
                             crop_box bx, char *err, size_t errlen)
 {
-    sbuf b = {0};
+    rd_text b = {0};
     page_head(&b, c, s);
     page_table(&b, c);
     page_viewer(&b, c);
     page_images(&b, c, scale, bx);
-    sb_printf(&b, "<h2>Convergence</h2>\n<p>RMSE against time during each run (log-log; drawn by gnuplot from "
+    rd_text_printf(&b, "<h2>Convergence</h2>\n<p>RMSE against time during each run (log-log; drawn by gnuplot from "
                   "curve-*.dat).</p>\n<img src=convergence.svg alt=\"RMSE against time\" style=\"max-width:100%%\">\n");
-    sb_printf(&b, "<pre id=selftest hidden></pre>\n<script>\n%s</script>\n</body></html>\n", page_js);
+    rd_text_printf(&b, "<pre id=selftest hidden></pre>\n<script>\n%s</script>\n</body></html>\n", page_js);
     rd_status st = b.oom ? fail(err, errlen, RD_ERR_NOMEM, "%s: out of memory", "index.html")
                          : write_text_at(dir, "index.html", b.s, err, errlen);
     free(b.s);

@@ -11,36 +11,16 @@
 #include <string.h>
 #include <sys/wait.h>
 
-/* A growing text buffer (the CSV). */
-typedef struct { char *s; size_t n, cap; int bad; } text;
-static void put(text *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-static void put(text *b, const char *fmt, ...)
-{
-    if (b->bad) return;
-    for (;;) {
-        va_list ap;
-        va_start(ap, fmt);
-        int k = vsnprintf(b->s ? b->s + b->n : NULL, b->s ? b->cap - b->n : 0, fmt, ap);
-        va_end(ap);
-        if (k < 0) { b->bad = 1; return; }
-        if (b->s && b->n + (size_t)k < b->cap) { b->n += (size_t)k; return; }
-        size_t cap = (b->cap ? 2 * b->cap : 1 << 16) + (size_t)k;
-        char *s = realloc(b->s, cap);
-        if (!s) { b->bad = 1; return; }
-        b->s = s, b->cap = cap;
-    }
-}
-
 static rd_status write_csv(const rd_explain_result *e, const char *path, char *err, size_t errlen)
 {
-    text b = {0};
+    rd_text b = {0};
     /* p_ideal = f / I: the zero-variance placement, on the same axis as the pdfs. */
-    put(&b, "t,T,f,p_ideal,p_guided,p_transmittance,p_uniform\n");
+    rd_text_printf(&b, "t,T,f,p_ideal,p_guided,p_transmittance,p_uniform\n");
     for (int i = 0; i < e->n; i++)
-        put(&b, "%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g\n", e->t[i], e->T[i], e->f[i],
+        rd_text_printf(&b, "%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g\n", e->t[i], e->T[i], e->f[i],
             e->I > 0.0 ? e->f[i] / e->I : 0.0, e->p[0][i], e->p[1][i], e->p[2][i]);
-    rd_status st = b.bad ? RD_ERR_NOMEM : rd_write_atomic(path, b.s, b.n, err, errlen);
-    if (b.bad) snprintf(err, errlen, "%s: out of memory", path);
+    rd_status st = b.oom ? RD_ERR_NOMEM : rd_write_atomic(path, b.s, b.n, err, errlen);
+    if (b.oom) snprintf(err, errlen, "%s: out of memory", path);
     free(b.s);
     return st;
 }
@@ -98,38 +78,38 @@ static rd_status write_gnuplot(const rd_explain_result *e, const char *prefix, c
     base = base ? base + 1 : csv;
     const char *pbase = strrchr(png, '/');
     pbase = pbase ? pbase + 1 : png;
-    text b = {0};
-    put(&b, "# gnuplot script written by photonmarch explain; run it in this folder: gnuplot %s\n",
+    rd_text b = {0};
+    rd_text_printf(&b, "# gnuplot script written by photonmarch explain; run it in this folder: gnuplot %s\n",
         strrchr(gp, '/') ? strrchr(gp, '/') + 1 : gp);
-    put(&b, "set terminal pngcairo size 1000,640 font ',10' noenhanced\nset output '%s'\n", pbase);
-    put(&b, "set datafile separator ','\nset multiplot layout 2,1 title 'pixel (%d, %d): "
+    rd_text_printf(&b, "set terminal pngcairo size 1000,640 font ',10' noenhanced\nset output '%s'\n", pbase);
+    rd_text_printf(&b, "set datafile separator ','\nset multiplot layout 2,1 title 'pixel (%d, %d): "
             "I = %.4g, guide I_ray = %.4g (pilot mean %.4g)'\n", e->px, e->py, e->I, e->I_ray, e->mean_I);
-    put(&b, "set lmargin 10\nset xrange [%.9g:%.9g]\nset ylabel 'pdf [1/m]'\nset key top right\n",
+    rd_text_printf(&b, "set lmargin 10\nset xrange [%.9g:%.9g]\nset ylabel 'pdf [1/m]'\nset key top right\n",
         e->t0, e->t1);
-    put(&b, "set size 1,0.64\nset origin 0,0.3\n");
-    put(&b, "plot '%s' using 1:4 skip 1 with filledcurves y1=0 fs transparent solid 0.25 lc rgb '#888888' "
+    rd_text_printf(&b, "set size 1,0.64\nset origin 0,0.3\n");
+    rd_text_printf(&b, "plot '%s' using 1:4 skip 1 with filledcurves y1=0 fs transparent solid 0.25 lc rgb '#888888' "
             "title 'ideal f/I (zero variance)', \\\n", base);
-    put(&b, "  '' using 1:5 skip 1 with lines lw 2 lc rgb '#d62728' title 'guided (sd %.3g%%)', \\\n",
+    rd_text_printf(&b, "  '' using 1:5 skip 1 with lines lw 2 lc rgb '#d62728' title 'guided (sd %.3g%%)', \\\n",
         e->I > 0 ? 100.0 * sqrt(e->var[0]) / e->I : 0.0);
-    put(&b, "  '' using 1:6 skip 1 with lines lw 2 lc rgb '#1f77b4' title 'transmittance (sd %.3g%%)', \\\n",
+    rd_text_printf(&b, "  '' using 1:6 skip 1 with lines lw 2 lc rgb '#1f77b4' title 'transmittance (sd %.3g%%)', \\\n",
         e->I > 0 ? 100.0 * sqrt(e->var[1]) / e->I : 0.0);
-    put(&b, "  '' using 1:7 skip 1 with lines lw 2 lc rgb '#2ca02c' title 'uniform (sd %.3g%%)'\n",
+    rd_text_printf(&b, "  '' using 1:7 skip 1 with lines lw 2 lc rgb '#2ca02c' title 'uniform (sd %.3g%%)'\n",
         e->I > 0 ? 100.0 * sqrt(e->var[2]) / e->I : 0.0);
-    put(&b, "set size 1,0.3\nset origin 0,0\nset xlabel 't along the camera ray'\nset ylabel ''\n"
+    rd_text_printf(&b, "set size 1,0.3\nset origin 0,0\nset xlabel 't along the camera ray'\nset ylabel ''\n"
             "set yrange [0.5:3.5]\nset ytics ('uniform' 1, 'transmittance' 2, 'guided' 3)\nunset key\n");
-    put(&b, "set datafile separator whitespace\n");
-    put(&b, "plot '-' using 1:2 with points pt 2 ps 1.5 lc rgb '#2ca02c', "
+    rd_text_printf(&b, "set datafile separator whitespace\n");
+    rd_text_printf(&b, "plot '-' using 1:2 with points pt 2 ps 1.5 lc rgb '#2ca02c', "
             "'-' using 1:2 with points pt 2 ps 1.5 lc rgb '#1f77b4', "
             "'-' using 1:2 with points pt 2 ps 1.5 lc rgb '#d62728'\n");
     const int order[3] = {RD_EXPLAIN_UNIFORM, RD_EXPLAIN_TRANSMITTANCE, RD_EXPLAIN_GUIDED};
     for (int q = 0; q < 3; q++) {
         int k = order[q];
-        for (int i = 0; i < e->n_samples[k]; i++) put(&b, "%.9g %d\n", e->samples[k][i], q + 1);
-        put(&b, "e\n");
+        for (int i = 0; i < e->n_samples[k]; i++) rd_text_printf(&b, "%.9g %d\n", e->samples[k][i], q + 1);
+        rd_text_printf(&b, "e\n");
     }
-    put(&b, "unset multiplot\n");
-    rd_status st = b.bad ? RD_ERR_NOMEM : rd_write_atomic(gp, b.s, b.n, err, errlen);
-    if (b.bad) snprintf(err, errlen, "%s: out of memory", gp);
+    rd_text_printf(&b, "unset multiplot\n");
+    rd_status st = b.oom ? RD_ERR_NOMEM : rd_write_atomic(gp, b.s, b.n, err, errlen);
+    if (b.oom) snprintf(err, errlen, "%s: out of memory", gp);
     free(b.s);
     return st;
 }

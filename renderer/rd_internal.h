@@ -355,6 +355,11 @@ vec3 rd_nee_all(const rd_scene *s, vec3 x, vec3 d, double g, pcg32 *rng, rd_trac
  * roulette, multiple importance sampling for area and environment lights). */
 vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c);
 
+/* A growing text buffer (text.c): rd_text_printf appends; on a failed allocation it sets oom
+ * and ignores later calls, so a writer checks oom once at the end. Start with {0}; free(s). */
+typedef struct { char *s; size_t n, cap; int oom; } rd_text;
+void rd_text_printf(rd_text *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
 /* Write n bytes to path through a temporary name in its folder and a rename (output.c), so a
  * failed write never leaves a partial file; RD_ERR_OUTPUT naming the path. */
 rd_status rd_write_atomic(const char *path, const void *data, size_t n, char *err, size_t errlen);
