@@ -585,25 +585,35 @@ Test(volume, vdb_grid_errors_are_one_line, .timeout = 60)
     cr_expect(g.data == NULL && g.bricks == NULL);
 }
 
+/* A sparse VDB (random 10^3 values, plus two clumps at opposite corners of a 133^3 box, so the
+ * brick form is far smaller than the box) written as NAME.vdb in the test folder, and a scene
+ * over it with the extra JSON `extra` (members after the medium). */
+static rd_scene *sparse_scene(const char *name, uint64_t seed, const char *medium_extra, const char *extra)
+{
+    enum { N = 10 };
+    float v[N * N * N];
+    pcg32 rng = pcg32_seed(seed, 4, 0);
+    for (int q = 0; q < N * N * N; q++) v[q] = (float)(3.0 * pcg32_uniform(&rng));
+    const int origin[3] = {-3, -3, -3}, boxes[2][6] = {{120, 120, 120, 129, 129, 129}, {112, 0, 0, 127, 15, 15}};
+    const float values[2] = {2.0f, 0.5f};
+    char path[256], err[RD_ERRLEN], json[1024], file[300];
+    snprintf(path, sizeof path, "%s/%s.vdb", rt_tmpdir(), name);
+    cr_assert(rd_vdb_save_test(path, "density", "float", 0.0f, v, N, N, N, origin, boxes, values, 2, err,
+                               sizeof err) == RD_OK, "%s", err);
+    snprintf(json, sizeof json,
+             "{\"camera\":{\"position\":[60,60,400],\"look_at\":[60,60,60],\"resolution\":[4,4]},"
+             "\"media\":[{\"density\":{\"type\":\"vdb\",\"file\":\"%s.vdb\"},\"sigma_t\":0.01%s}]%s}",
+             name, medium_extra, extra);
+    snprintf(file, sizeof file, "%s.json", name);
+    return rt_scene(file, json);
+}
+
 Test(volume, vdb_scene_medium_is_sparse, .timeout = 60)
 {
     /* A scene's VDB medium is held as bricks, and its majorant grid bounds the density: the
      * maximum over many random points of each super-voxel never exceeds its bound. */
-    enum { N = 10 };
-    float v[N * N * N];
-    pcg32 rng = pcg32_seed(12, 4, 0);
-    for (int q = 0; q < N * N * N; q++) v[q] = (float)(3.0 * pcg32_uniform(&rng));
-    /* Two clumps at opposite corners of a 133^3 box: the brick form is far smaller. */
-    const int origin[3] = {-3, -3, -3}, boxes[2][6] = {{120, 120, 120, 129, 129, 129}, {112, 0, 0, 127, 15, 15}};
-    const float values[2] = {2.0f, 0.5f};
-    char path[256], err[RD_ERRLEN];
-    snprintf(path, sizeof path, "%s/sparse.vdb", rt_tmpdir());
-    cr_assert(rd_vdb_save_test(path, "density", "float", 0.0f, v, N, N, N, origin, boxes, values, 2, err,
-                               sizeof err) == RD_OK, "%s", err);
-    rd_scene *s = rt_scene("sparse.json",
-                           "{\"camera\":{\"position\":[60,60,400],\"look_at\":[60,60,60],\"resolution\":[4,4]},"
-                           "\"media\":[{\"density\":{\"type\":\"vdb\",\"file\":\"sparse.vdb\"},\"sigma_t\":0.01,"
-                           "\"majorant\":{\"type\":\"grid\",\"resolution\":8}}]}");
+    rd_scene *s = sparse_scene("sparse", 12, ",\"majorant\":{\"type\":\"grid\",\"resolution\":8}", "");
+    pcg32 rng = pcg32_seed(99, 4, 0);
     const rd_medium *m = &s->media[0];
     cr_assert(m->grid.bricks != NULL && m->grid.data == NULL);
     const rd_majorant *mj = m->majorant;
@@ -629,20 +639,8 @@ Test(volume, exact_transmittance_through_a_sparse_vdb, .timeout = 60)
     /* settings.transmittance exact on a VDB medium held as bricks (it read the dense array and
      * crashed): the closed-form optical depth along rays through both clumps equals a fine
      * midpoint quadrature of the trilinear density (20000 steps: error far below 1e-6 here). */
-    enum { N = 10 };
-    float v[N * N * N];
-    pcg32 rng = pcg32_seed(13, 4, 0);
-    for (int q = 0; q < N * N * N; q++) v[q] = (float)(3.0 * pcg32_uniform(&rng));
-    const int origin[3] = {-3, -3, -3}, boxes[2][6] = {{120, 120, 120, 129, 129, 129}, {112, 0, 0, 127, 15, 15}};
-    const float values[2] = {2.0f, 0.5f};
-    char path[256], err[RD_ERRLEN];
-    snprintf(path, sizeof path, "%s/sparse_exact.vdb", rt_tmpdir());
-    cr_assert(rd_vdb_save_test(path, "density", "float", 0.0f, v, N, N, N, origin, boxes, values, 2, err,
-                               sizeof err) == RD_OK, "%s", err);
-    rd_scene *s = rt_scene("sparse_exact.json",
-                           "{\"camera\":{\"position\":[60,60,400],\"look_at\":[60,60,60],\"resolution\":[4,4]},"
-                           "\"media\":[{\"density\":{\"type\":\"vdb\",\"file\":\"sparse_exact.vdb\"},\"sigma_t\":0.01}],"
-                           "\"settings\":{\"transmittance\":\"exact\"}}");
+    rd_scene *s = sparse_scene("sparse_exact", 13, "", ",\"settings\":{\"transmittance\":\"exact\"}");
+    pcg32 rng = pcg32_seed(98, 4, 0);
     const rd_medium *m = &s->media[0];
     cr_assert(m->grid.bricks != NULL && m->grid.data == NULL, "the medium must be held sparse");
     const vec3 from[3] = {v3(-10, 119.5, 124.3), v3(119.7, -10, 7.2), v3(-10, -10, -10)};
