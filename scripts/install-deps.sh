@@ -11,6 +11,8 @@ PACKAGES=(
   libopenvdb-dev libtbb-dev    # .vdb volumes
   libcriterion-dev             # test framework
   gnuplot-nox                  # charts in reports and benchmarks
+  clang-14 libclang-rt-14-dev  # make fuzz: clang with libFuzzer and its ASan/UBSan runtimes
+  libomp-14-dev                # OpenMP for the clang-built fuzz targets
 )
 
 missing=()
