@@ -38,17 +38,31 @@ static void handle_stop_signals(void (*fn)(int))
     sa.sa_flags = SA_RESTART;
     sigaction(SIGINT, &sa, NULL);
     sigaction(SIGTERM, &sa, NULL);
+    /* A blocked mask is inherited through exec: unblock them, or they would never arrive. */
+    sigset_t both;
+    sigemptyset(&both);
+    sigaddset(&both, SIGINT);
+    sigaddset(&both, SIGTERM);
+    sigprocmask(SIG_UNBLOCK, &both, NULL);
 }
 
 /* While there is something to write (a render's passes and the writing of any outputs): note
  * the signal, then let the next one end the process at once (default action). Only
- * async-signal-safe calls here (sigaction, write; POSIX.1-2008 2.4.3). Every output goes
+ * async-signal-safe calls here (sigaction, write, raise; POSIX.1-2008 2.4.3). Every output goes
  * through a temporary name and a rename, so being killed mid-write keeps the previous files. */
 static void on_signal_stop(int sig)
 {
     static const char msg[] = "\nphotonmarch: stopping; writing what it has (a second Ctrl-C or SIGTERM ends at once)\n";
     static const struct sigaction dfl = {.sa_handler = SIG_DFL};
-    interrupted = sig;
+    /* Two threads can take a SIGINT and a SIGTERM at the same moment, each running this
+     * handler: only the one that turns `interrupted` from 0 to its signal (atomically; a
+     * lock-free compare-and-swap is async-signal-safe) is the first. The other is a second
+     * signal: with its default action back, re-raised, it ends the process when this returns. */
+    if (!__sync_bool_compare_and_swap(&interrupted, 0, sig)) {
+        sigaction(sig, &dfl, NULL);
+        raise(sig);
+        return;
+    }
     sigaction(SIGINT, &dfl, NULL);
     sigaction(SIGTERM, &dfl, NULL);
     ssize_t r = write(STDERR_FILENO, msg, sizeof msg - 1);

@@ -361,11 +361,11 @@ static int count_entries(const char *dir, const char *part)
 }
 
 /* A second signal ends the process at once, before it writes anything, so the previous outputs
- * stay as they were. The two signals are made pending together while the child is stopped:
- * the handler of the first blocks the other (sa_mask) until it has restored the default action,
- * so the second then kills: no race with the child's progress. --threads 1: with worker threads
- * the two could be taken by two threads at once (two hands on the keyboard), which is not the
- * case under test. */
+ * stay as they were. The two signals are made pending together while the child is stopped, so
+ * they arrive at the same moment: one thread's handler blocks the other signal (sa_mask) until it
+ * has restored the default action, and when two threads take one each, the handler's atomic
+ * first-signal check makes the later one a second signal. Either way the second one kills, with
+ * no race against the child's progress. */
 Test(cli, second_signal_ends_at_once_keeping_the_previous_output, .timeout = 120)
 {
     const char *bin = getenv("PHOTONMARCH_BIN");
@@ -380,7 +380,7 @@ Test(cli, second_signal_ends_at_once_keeping_the_previous_output, .timeout = 120
     cr_assert(rt_run(first, out, sizeof out, err, sizeof err, 0) == 0, "%s", err);
     copy_file(exr, exr0);
     copy_file(js, js0);
-    char *argv[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", exr, "--spp", "10000000", "--threads", "1",
+    char *argv[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", exr, "--spp", "10000000", "--threads", "2",
                     "--set", "camera.resolution=[64,64]", NULL};
     child c = spawn_until(argv, " spp ", err, sizeof err);
     int status;
@@ -391,7 +391,8 @@ Test(cli, second_signal_ends_at_once_keeping_the_previous_output, .timeout = 120
     kill(c.pid, SIGCONT);
     int code = child_wait(&c, err, sizeof err);
     cr_expect(code == 1000 + SIGTERM || code == 1000 + SIGINT, "exit %d: expected death by the second signal: %s", code, err);
-    cr_expect(strstr(err, "stopping; writing what it has") != NULL, "the first signal was not acknowledged: %s", err);
+    /* (The first signal's message is not checked: when two threads take the signals at once,
+     * the second can end the process before the first handler has written it.) */
     cr_expect(same_bytes(exr, exr0) && same_bytes(js, js0), "the previous output was changed");
     cr_expect(count_entries(dir, ".tmp") == 0, "a temporary was left although nothing was being written");
 }
