@@ -3,7 +3,8 @@
  *
  * Exit codes: 0 success; 1 usage error (unknown command or option, bad option value);
  * 2 invalid input (scene, volume or other input file); 3 output could not be written;
- * 4 internal error; 130 interrupted by Ctrl-C (what was rendered so far was written). */
+ * 4 internal error; 128 + N after signal N: 130 for SIGINT (Ctrl-C), 143 for SIGTERM (what was
+ * rendered so far was written). */
 #define _DEFAULT_SOURCE /* mkdir, isatty */
 #include "renderer.h"
 
@@ -13,20 +14,120 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
 
-enum { EXIT_USAGE = 1, EXIT_INPUT = 2, EXIT_OUTPUT = 3, EXIT_INTERNAL = 4, EXIT_INTERRUPTED = 130 };
+enum { EXIT_USAGE = 1, EXIT_INPUT = 2, EXIT_OUTPUT = 3, EXIT_INTERNAL = 4 };
 
-/* The one piece of mutable global state: set by the SIGINT handler, read between passes.
- * A signal handler can reach nothing else. */
-static volatile int interrupted = 0;
+/* The one piece of mutable global state: the number of the first SIGINT or SIGTERM received
+ * (0: none yet). Set by on_signal_stop, polled between pixels through rd_render_opts.cancel. */
+static volatile sig_atomic_t interrupted = 0;
 
-static void on_sigint(int sig)
+/* Both signals get one treatment (docs/cli.md, "Signals"). While a handler runs, the other
+ * signal is blocked (sa_mask), so a SIGINT and a SIGTERM arriving together count as a first and a
+ * second signal, not as two firsts. */
+static void handle_stop_signals(void (*fn)(int))
 {
-    (void)sig;
-    interrupted = 1;
-    signal(SIGINT, SIG_DFL); /* a second Ctrl-C ends the process at once */
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = fn;
+    sigemptyset(&sa.sa_mask);
+    sigaddset(&sa.sa_mask, SIGINT);
+    sigaddset(&sa.sa_mask, SIGTERM);
+    sa.sa_flags = SA_RESTART;
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+    /* A blocked mask is inherited through exec: unblock them, or they would never arrive. */
+    sigset_t both;
+    sigemptyset(&both);
+    sigaddset(&both, SIGINT);
+    sigaddset(&both, SIGTERM);
+    sigprocmask(SIG_UNBLOCK, &both, NULL);
+}
+
+/* While there is something to write (a render's passes and the writing of any outputs): note
+ * the signal, then let the next one end the process at once (default action). Only
+ * async-signal-safe calls here (sigaction, write, raise; POSIX.1-2008 2.4.3). Every output goes
+ * through a temporary name and a rename, so being killed mid-write keeps the previous files. */
+static void on_signal_stop(int sig)
+{
+    static const char msg[] = "\nphotonmarch: stopping; writing what it has (a second Ctrl-C or SIGTERM ends at once)\n";
+    static const struct sigaction dfl = {.sa_handler = SIG_DFL};
+    /* Two threads can take a SIGINT and a SIGTERM at the same moment, each running this
+     * handler: only the one that turns `interrupted` from 0 to its signal (atomically; a
+     * lock-free compare-and-swap is async-signal-safe) is the first. The other is a second
+     * signal: with its default action back, re-raised, it ends the process when this returns. */
+    if (!__sync_bool_compare_and_swap(&interrupted, 0, sig)) {
+        sigaction(sig, &dfl, NULL);
+        raise(sig);
+        return;
+    }
+    sigaction(SIGINT, &dfl, NULL);
+    sigaction(SIGTERM, &dfl, NULL);
+    ssize_t r = write(STDERR_FILENO, msg, sizeof msg - 1);
+    (void)r;
+}
+
+/* Before there is anything to write (loading the scene, tracing and baking, which cannot stop
+ * part-way): end at once with the documented status. */
+static void on_signal_quit(int sig)
+{
+    static const char msg[] = "\nphotonmarch: interrupted before anything was rendered; nothing written\n";
+    ssize_t r = write(STDERR_FILENO, msg, sizeof msg - 1);
+    (void)r;
+    _exit(128 + sig);
+}
+
+/* The exit status after signal `sig`: 128 + its number, the shell's convention (130 SIGINT,
+ * 143 SIGTERM). */
+static int exit_interrupted(int sig) { return 128 + sig; }
+
+/* 1 when `out` names the same existing file as the input `in` (after symbolic links), so
+ * writing it would replace the input. */
+static int same_file(const char *out, const char *in)
+{
+    struct stat so, si;
+    return stat(out, &so) == 0 && stat(in, &si) == 0 && so.st_dev == si.st_dev && so.st_ino == si.st_ino;
+}
+
+/* Refuse an output path that is the input scene (exit 1 after a message). */
+static int refuse_input_as_output(const char *cmd, const char *out, const char *scene)
+{
+    if (!same_file(out, scene)) return 0;
+    fprintf(stderr, "photonmarch %s: %s is the input scene %s; choose another output (-o)\n", cmd, out, scene);
+    return EXIT_USAGE;
+}
+
+/* render -o OUT.exr writes OUT.exr, OUT-stderr.exr, OUT.png and OUT.json: none may be the scene
+ * (`render scene.json -o scene.exr` would replace it with the report). */
+static int refuse_render_outputs(const char *exr, const char *scene)
+{
+    static const char *const ext[] = {".exr", "-stderr.exr", ".png", ".json"};
+    size_t stem = strlen(exr) - 4;
+    for (int i = 0; i < 4; i++) {
+        char path[1100];
+        snprintf(path, sizeof path, "%.*s%s", (int)stem, exr, ext[i]);
+        if (refuse_input_as_output("render", path, scene)) return EXIT_USAGE;
+    }
+    return 0;
+}
+
+/* bake -o PREFIX writes PREFIX.pmap, .guide, -photons.exr/.png, -slice-A.exr/.png and
+ * -cells-A.png (A = x, y, z): none may be the scene. */
+static int refuse_bake_outputs(const char *prefix, const char *scene)
+{
+    static const char *const ext[] = {".pmap", ".guide", "-photons.exr", "-photons.png", "-slice-x.exr",
+                                      "-slice-x.png", "-cells-x.png"};
+    for (int i = 0; i < 7; i++) {
+        for (char axis = 'x'; axis <= (i >= 4 ? 'z' : 'x'); axis++) {
+            char path[1100];
+            int n = snprintf(path, sizeof path, "%s%s", prefix, ext[i]);
+            if (i >= 4) path[n - 5] = axis; /* "-slice-x.exr": the x */
+            if (refuse_input_as_output("bake", path, scene)) return EXIT_USAGE;
+        }
+    }
+    return 0;
 }
 
 static const char *usage_main =
@@ -51,7 +152,8 @@ static const char *usage_main =
     "  photonmarch --version        prints the version\n"
     "\n"
     "exit codes: 0 success, 1 usage error, 2 invalid input (scene or data file),\n"
-    "            3 output not written, 4 internal error, 130 interrupted (partial image written)\n"
+    "            3 output not written, 4 internal error, 130 / 143 interrupted by SIGINT (Ctrl-C)\n"
+    "            / SIGTERM (the image so far written)\n"
     "\n"
     "docs: docs/cli.md (this reference), docs/scene-format.md (the scene file)\n";
 
@@ -119,8 +221,9 @@ static const char *usage_render =
     "Renders SCENE (JSON, docs/scene-format.md). Writes OUT.exr (linear float RGB), OUT.png\n"
     "(sRGB preview, scaled by 2^camera.exposure) and OUT.json (method, samples, time, counters).\n"
     "Files are written under a temporary name and renamed, so a failed run never destroys a\n"
-    "good image. Ctrl-C (or the time limit) stops before the next pixel and writes what it has\n"
-    "(exit 130 for Ctrl-C); the per-pixel sample counts are in the report.\n"
+    "good image. Ctrl-C or SIGTERM (or the time limit) stops before the next pixel and writes\n"
+    "what it has (exit 130 for Ctrl-C, 143 for SIGTERM); a second signal ends it at once; the\n"
+    "per-pixel sample counts are in the report.\n"
     "\n"
     "options:\n"
     "  --method M        rendering method (default: settings.method, else delta); the methods\n"
@@ -383,6 +486,8 @@ static int cmd_render(int argc, char **argv)
         fprintf(stderr, "photonmarch render: -o %s: expected a path ending in .exr\n", outpath);
         return EXIT_USAGE;
     }
+    if (refuse_render_outputs(outpath, a.scene)) return EXIT_USAGE;
+    handle_stop_signals(on_signal_quit); /* nothing to save until the passes begin */
 
     char err[RD_ERRLEN];
     rd_scene *scene;
@@ -443,10 +548,9 @@ static int cmd_render(int argc, char **argv)
         ro.baked = baked;
         ro.baked_seconds = wall_seconds() - t0;
     }
-    signal(SIGINT, on_sigint);
+    handle_stop_signals(on_signal_stop); /* from here on, a signal stops and writes what it has */
     rd_render_result res;
     st = rd_render(scene, &ro, &res, err, sizeof err);
-    signal(SIGINT, SIG_DFL);
     if (ro.progress && ps.tty) fputc('\n', stderr);
     if (refpath && st == RD_ERR_ARG) { /* the only argument rd_render checks against a file */
         fprintf(stderr, "%s: %s\n", refpath, err);
@@ -463,7 +567,7 @@ static int cmd_render(int argc, char **argv)
         code = EXIT_USAGE;
     } else if (res.stats.spp_mean <= 0.0) {
         fprintf(stderr, "photonmarch render: interrupted before any pixel was sampled; nothing written\n");
-        code = EXIT_INTERRUPTED;
+        code = exit_interrupted(interrupted);
     } else if ((st = rd_render_write(scene, &ro, &res, outpath, err, sizeof err)) != RD_OK) {
         code = report_error(st, err);
     } else {
@@ -479,7 +583,8 @@ static int cmd_render(int argc, char **argv)
             snprintf(base, sizeof base, "%.*s", (int)(strlen(outpath) - 4), outpath);
             printf("image  %s\nstderr %s-stderr.exr\npng    %s.png\nreport %s.json\n", outpath, base, base, base);
         }
-        if (res.stats.cancelled) code = EXIT_INTERRUPTED;
+        /* A signal that came after the last pixel still says so in the status. */
+        if (interrupted) code = exit_interrupted(interrupted);
     }
     rd_render_result_free(&res);
 out:
@@ -532,6 +637,7 @@ static int cmd_voxelize(int argc, char **argv)
         fprintf(stderr, "photonmarch voxelize: need SCENE and -o OUT.vdb or OUT.raw (see photonmarch voxelize --help)\n");
         return EXIT_USAGE;
     }
+    if (refuse_input_as_output("voxelize", outpath, a.scene)) return EXIT_USAGE;
     char err[RD_ERRLEN];
     rd_scene *s;
     rd_status st = rd_scene_load(&s, a.scene, a.ov, a.nov, err, sizeof err);
@@ -641,6 +747,8 @@ static int cmd_bake(int argc, char **argv)
         fprintf(stderr, "photonmarch bake: -o: path too long\n");
         return EXIT_USAGE;
     }
+    if (refuse_bake_outputs(prefix, a.scene)) return EXIT_USAGE;
+    handle_stop_signals(on_signal_quit); /* tracing and baking cannot stop part-way */
     bo.photons = photons > 0 ? (size_t)photons : 0;
     bo.seed = seed;
     bo.threads = (int)threads;
@@ -660,6 +768,7 @@ static int cmd_bake(int argc, char **argv)
     const rd_bake_stats *bs = rd_baked_stats(b);
     if (stats) print_bake_stats(bs);
     if (bs->has_guide && (stats || !quiet)) print_guide_line(bs);
+    handle_stop_signals(on_signal_stop); /* a signal now lets the files being written finish */
     if ((st = rd_baked_write(b, s, prefix, &wo, err, sizeof err)) != RD_OK) {
         code = st == RD_ERR_ARG ? (fprintf(stderr, "%s\n", err), EXIT_USAGE) : report_error(st, err);
         goto done;
@@ -669,6 +778,7 @@ static int cmd_bake(int argc, char **argv)
         printf("picture    %s-photons.png\n", prefix);
         if (bs->has_guide) printf("guide      %s.guide\nslices     %s-slice-*.png, %s-cells-*.png\n", prefix, prefix, prefix);
     }
+    if (interrupted) code = exit_interrupted(interrupted);
 done:
     rd_baked_free(b);
     rd_scene_free(s);
@@ -946,9 +1056,8 @@ static int cmd_compare(int argc, char **argv)
         ca.o.progress_user = &ps;
     }
     rd_comparison *cmp = NULL;
-    signal(SIGINT, on_sigint);
+    handle_stop_signals(on_signal_stop); /* a signal ends the run in progress; the report is written */
     st = rd_compare_run(scene, &ca.o, &cmp, err, sizeof err);
-    signal(SIGINT, SIG_DFL);
     if (!ca.quiet && ps.tty) fputc('\n', stderr);
     if (st) {
         code = report_error(st, err);
@@ -957,7 +1066,7 @@ static int cmd_compare(int argc, char **argv)
     const rd_cmp_summary *sum = rd_comparison_summary(cmp);
     if (sum->cancelled && sum->n_rows == 0) {
         fprintf(stderr, "photonmarch compare: interrupted before any run finished; nothing written\n");
-        code = EXIT_INTERRUPTED;
+        code = exit_interrupted(interrupted ? interrupted : SIGINT);
         goto out;
     }
     if ((st = rd_compare_write_report(cmp, scene, ca.outdir, err, sizeof err)) != RD_OK) {
@@ -968,7 +1077,7 @@ static int cmd_compare(int argc, char **argv)
     printf("report %s/index.html\n", ca.outdir);
     if (sum->cancelled) {
         fprintf(stderr, "photonmarch compare: interrupted; the report holds the runs that finished\n");
-        code = EXIT_INTERRUPTED;
+        code = exit_interrupted(interrupted ? interrupted : SIGINT);
     }
 out:
     rd_comparison_free(cmp);

@@ -570,10 +570,10 @@ static rd_status parse_light(vctx *c, const cJSON *j, int idx, rd_light *l)
         int has_at = cJSON_GetObjectItemCaseSensitive(j, "look_at") != NULL;
         if (has_dir == has_at) return fail(c, path, "give exactly one of direction, look_at");
         vec3 d;
-        if (has_dir) TRY(get_vec3(c, j, path, "direction", 1, d, 0, -1e9, 1e9, &d));
+        if (has_dir) TRY(get_vec3(c, j, path, "direction", 1, v3(0, 0, 0), 0, -1e9, 1e9, &d));
         else {
             vec3 at;
-            TRY(get_vec3(c, j, path, "look_at", 1, at, 0, -1e9, 1e9, &at));
+            TRY(get_vec3(c, j, path, "look_at", 1, v3(0, 0, 0), 0, -1e9, 1e9, &at));
             d = v3_sub(at, l->pos);
         }
         if (v3_len(d) < 1e-12) return fail(c, path, "direction: must not be the zero vector");

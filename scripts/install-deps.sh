@@ -12,6 +12,8 @@ PACKAGES=(
   libcriterion-dev             # test framework
   gnuplot-nox                  # charts in reports and benchmarks
   chromium                     # headless check of the compare report page (make test)
+  clang-14 libclang-rt-14-dev  # make fuzz: clang with libFuzzer and its ASan/UBSan runtimes
+  libomp-14-dev                # OpenMP for the clang-built fuzz targets
 )
 
 missing=()

@@ -6,6 +6,7 @@
 #include "support/rd_test.h"
 
 #include <cJSON.h>
+#include <dirent.h>
 #include <signal.h>
 #include <time.h>
 
@@ -189,11 +190,19 @@ Test(cli, render_writes_exr_png_and_report, .timeout = 120)
     cr_expect(tmpfiles == 0, "temporary files left behind");
 }
 
+/* Bit for bit the same contents. */
 static int same_bytes(const char *a, const char *b)
 {
     char cmd[700];
     snprintf(cmd, sizeof cmd, "cmp -s '%s' '%s'", a, b);
     return system(cmd) == 0;
+}
+
+static void copy_file(const char *from, const char *to)
+{
+    char cmd[700];
+    snprintf(cmd, sizeof cmd, "cp '%s' '%s'", from, to);
+    cr_assert(system(cmd) == 0, "%s", cmd);
 }
 
 Test(cli, failed_run_keeps_the_previous_image, .timeout = 120)
@@ -243,19 +252,33 @@ Test(cli, failed_write_leaves_no_partial_file, .timeout = 120)
     cr_expect(n == 0, "temporary files left behind");
 }
 
-/* Start argv with stderr in a file, wait until that file contains `marker` (the event), then
- * send `sig`; returns the exit status (1000 + signal when it died of one). Fails the test if the
- * child ends or 60 s pass without the marker (a safety net, not the synchronisation). */
-static int run_signal_on(char *const argv[], const char *marker, int sig, char *errbuf, size_t errlen)
+/* A child started by spawn_until: its pid and the file its stderr goes to. */
+typedef struct {
+    pid_t pid;
+    int efd;
+    char path[256];
+} child;
+
+/* The child's stderr so far, into errbuf. */
+static void child_stderr(const child *c, char *errbuf, size_t errlen)
 {
-    char fe[256];
-    snprintf(fe, sizeof fe, "%s/sig.XXXXXX", rt_tmpdir());
-    int efd = mkstemp(fe);
-    cr_assert(efd >= 0);
-    pid_t pid = fork();
-    cr_assert(pid >= 0);
-    if (pid == 0) {
-        dup2(efd, 2);
+    ssize_t n = pread(c->efd, errbuf, errlen - 1, 0);
+    errbuf[n > 0 ? n : 0] = 0;
+}
+
+/* Start argv with stderr in a file and wait until that file contains `marker` (the event the
+ * caller waits for). Fails the test if the child ends or 60 s pass without the marker (a safety
+ * net, not the synchronisation). */
+static child spawn_until(char *const argv[], const char *marker, char *errbuf, size_t errlen)
+{
+    child c;
+    snprintf(c.path, sizeof c.path, "%s/sig.XXXXXX", rt_tmpdir());
+    c.efd = mkstemp(c.path);
+    cr_assert(c.efd >= 0);
+    c.pid = fork();
+    cr_assert(c.pid >= 0);
+    if (c.pid == 0) {
+        dup2(c.efd, 2);
         int nul = open("/dev/null", O_RDWR);
         dup2(nul, 0);
         dup2(nul, 1);
@@ -264,44 +287,329 @@ static int run_signal_on(char *const argv[], const char *marker, int sig, char *
     }
     struct timespec t0, now, nap = {0, 5 * 1000 * 1000};
     clock_gettime(CLOCK_MONOTONIC, &t0);
-    int seen = 0, status = 0, ended = 0;
-    while (!seen) {
-        if (waitpid(pid, &status, WNOHANG) == pid) { ended = 1; break; }
-        ssize_t n = pread(efd, errbuf, errlen - 1, 0);
-        errbuf[n > 0 ? n : 0] = 0;
-        seen = strstr(errbuf, marker) != NULL;
+    for (;;) {
+        child_stderr(&c, errbuf, errlen);
+        if (strstr(errbuf, marker)) return c;
+        int status;
+        cr_assert(waitpid(c.pid, &status, WNOHANG) == 0, "the child ended before printing \"%s\": %s", marker, errbuf);
         clock_gettime(CLOCK_MONOTONIC, &now);
-        if (now.tv_sec - t0.tv_sec > 60) break;
-        if (!seen) nanosleep(&nap, NULL);
+        cr_assert(now.tv_sec - t0.tv_sec <= 60, "the child never printed \"%s\": %s", marker, errbuf);
+        nanosleep(&nap, NULL);
     }
-    if (seen) kill(pid, sig);
-    if (!ended) waitpid(pid, &status, 0);
-    ssize_t n = pread(efd, errbuf, errlen - 1, 0);
-    errbuf[n > 0 ? n : 0] = 0;
-    close(efd);
-    unlink(fe);
-    cr_assert(seen, "the child never printed \"%s\": %s", marker, errbuf);
+}
+
+/* Wait for the child to end; its exit status, or 1000 + signal when it died of one. */
+static int child_wait(child *c, char *errbuf, size_t errlen)
+{
+    int status = 0;
+    cr_assert(waitpid(c->pid, &status, 0) == c->pid);
+    child_stderr(c, errbuf, errlen);
+    close(c->efd);
+    unlink(c->path);
     return WIFSIGNALED(status) ? 1000 + WTERMSIG(status) : WEXITSTATUS(status);
 }
 
-Test(cli, ctrl_c_writes_what_it_has, .timeout = 120)
+/* Start argv, wait until its stderr contains `marker`, send `sig`; the exit status as child_wait. */
+static int run_signal_on(char *const argv[], const char *marker, int sig, char *errbuf, size_t errlen)
+{
+    child c = spawn_until(argv, marker, errbuf, errlen);
+    kill(c.pid, sig);
+    return child_wait(&c, errbuf, errlen);
+}
+
+/* A render far longer than the test waits for, stopped by `sig` once it has reported its first
+ * pass (the progress line written to a non-terminal stderr): exit 128 + sig, the image so far and
+ * a report marked interrupted. */
+static void signal_writes_what_it_has(int sig, const char *name)
 {
     const char *bin = getenv("PHOTONMARCH_BIN");
     cr_assert(bin != NULL);
     char exr[256], js[256], err[4096];
-    snprintf(exr, sizeof exr, "%s/int.exr", rt_tmpdir());
-    snprintf(js, sizeof js, "%s/int.json", rt_tmpdir());
-    /* Far more samples than the test will wait for; SIGINT once the render has reported its
-     * first pass (the progress line written to a non-terminal stderr). */
+    snprintf(exr, sizeof exr, "%s/%s.exr", rt_tmpdir(), name);
+    snprintf(js, sizeof js, "%s/%s.json", rt_tmpdir(), name);
     char *argv[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", exr, "--spp", "10000000",
                     "--set", "camera.resolution=[64,64]", NULL};
-    int code = run_signal_on(argv, " spp ", SIGINT, err, sizeof err);
-    cr_expect(code == 130, "exit %d (expected 130): %s", code, err);
-    cr_expect(access(exr, F_OK) == 0, "the partial image was not written");
+    int code = run_signal_on(argv, " spp ", sig, err, sizeof err);
+    cr_expect(code == 128 + sig, "%s: exit %d (expected %d): %s", name, code, 128 + sig, err);
+    cr_expect(access(exr, F_OK) == 0, "%s: the partial image was not written", name);
     cJSON *rep = read_report(js);
-    cr_expect(cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(rep, "interrupted")), "not marked interrupted");
-    cr_expect(report_num(rep, "spp") >= 1, "the first pass was reported done, so spp >= 1");
+    cr_expect(cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(rep, "interrupted")), "%s: not marked interrupted", name);
+    cr_expect(report_num(rep, "spp") >= 1, "%s: the first pass was reported done, so spp >= 1", name);
     cJSON_Delete(rep);
+}
+
+Test(cli, ctrl_c_writes_what_it_has, .timeout = 120)
+{
+    signal_writes_what_it_has(SIGINT, "int");
+}
+
+/* What batch schedulers and `timeout` send: the same treatment, exit 143. */
+Test(cli, sigterm_writes_what_it_has, .timeout = 120)
+{
+    signal_writes_what_it_has(SIGTERM, "term");
+}
+
+/* Entries of folder `dir` whose name contains `part`. */
+static int count_entries(const char *dir, const char *part)
+{
+    DIR *d = opendir(dir);
+    cr_assert(d != NULL, "%s", dir);
+    int n = 0;
+    for (struct dirent *e; (e = readdir(d)) != NULL;) n += strstr(e->d_name, part) != NULL;
+    closedir(d);
+    return n;
+}
+
+/* A second signal ends the process at once, before it writes anything, so the previous outputs
+ * stay as they were. The two signals are made pending together while the child is stopped, so
+ * they arrive at the same moment: one thread's handler blocks the other signal (sa_mask) until it
+ * has restored the default action, and when two threads take one each, the handler's atomic
+ * first-signal check makes the later one a second signal. Either way the second one kills, with
+ * no race against the child's progress. */
+Test(cli, second_signal_ends_at_once_keeping_the_previous_output, .timeout = 120)
+{
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char exr[256], js[256], exr0[300], js0[300], dir[200], out[4096], err[4096];
+    snprintf(dir, sizeof dir, "%s/twice", rt_tmpdir());
+    snprintf(exr, sizeof exr, "%s/t.exr", dir);
+    snprintf(js, sizeof js, "%s/t.json", dir);
+    snprintf(exr0, sizeof exr0, "%s/previous.exr", rt_tmpdir());
+    snprintf(js0, sizeof js0, "%s/previous.json", rt_tmpdir());
+    char *first[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", exr, "--spp", "1", "-q", NULL};
+    cr_assert(rt_run(first, out, sizeof out, err, sizeof err, 0) == 0, "%s", err);
+    copy_file(exr, exr0);
+    copy_file(js, js0);
+    char *argv[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", exr, "--spp", "10000000", "--threads", "2",
+                    "--set", "camera.resolution=[64,64]", NULL};
+    child c = spawn_until(argv, " spp ", err, sizeof err);
+    int status;
+    kill(c.pid, SIGSTOP);
+    cr_assert(waitpid(c.pid, &status, WUNTRACED) == c.pid && WIFSTOPPED(status));
+    kill(c.pid, SIGTERM);
+    kill(c.pid, SIGINT);
+    kill(c.pid, SIGCONT);
+    int code = child_wait(&c, err, sizeof err);
+    cr_expect(code == 1000 + SIGTERM || code == 1000 + SIGINT, "exit %d: expected death by the second signal: %s", code, err);
+    /* (The first signal's message is not checked: when two threads take the signals at once,
+     * the second can end the process before the first handler has written it.) */
+    cr_expect(same_bytes(exr, exr0) && same_bytes(js, js0), "the previous output was changed");
+    cr_expect(count_entries(dir, ".tmp") == 0, "a temporary was left although nothing was being written");
+}
+
+/* SIGKILL while the outputs are being written (the event: a temporary file appears beside
+ * them). The output is never damaged: each file is the previous one or a complete new one; what
+ * is left is only hidden temporaries (".t.tmp<pid>.exr"), and the next run removes them. */
+Test(cli, sigkill_mid_write_leaves_only_hidden_temporaries, .timeout = 180)
+{
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char dir[200], exr[256], exr0[300], out[4096], err[4096];
+    snprintf(dir, sizeof dir, "%s/kill", rt_tmpdir());
+    snprintf(exr, sizeof exr, "%s/k.exr", dir);
+    snprintf(exr0, sizeof exr0, "%s/k-previous.exr", rt_tmpdir());
+    /* A large image, so that writing it takes a while (the medium covers few pixels: the render
+     * itself is quick). */
+    char *argv[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", exr, "--spp", "1", "-q",
+                    "--set", "camera.resolution=[1500,1500]", "--set", "camera.position=[0,0,40]", NULL};
+    cr_assert(rt_run(argv, out, sizeof out, err, sizeof err, 0) == 0, "%s", err);
+    copy_file(exr, exr0);
+    int ofd = open("/dev/null", O_RDWR);
+    pid_t pid = fork();
+    cr_assert(pid >= 0);
+    if (pid == 0) {
+        dup2(ofd, 1);
+        dup2(ofd, 2);
+        execv(argv[0], argv);
+        _exit(127);
+    }
+    struct timespec t0, now, nap = {0, 1000 * 1000};
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    int status = 0, ended = 0;
+    while (count_entries(dir, ".tmp") == 0) {
+        if (waitpid(pid, &status, WNOHANG) == pid) { ended = 1; break; }
+        clock_gettime(CLOCK_MONOTONIC, &now);
+        cr_assert(now.tv_sec - t0.tv_sec <= 120, "no temporary file appeared");
+        nanosleep(&nap, NULL);
+    }
+    cr_assert(!ended, "the run ended before a temporary file was seen (exit %d)", WEXITSTATUS(status));
+    kill(pid, SIGKILL);
+    cr_assert(waitpid(pid, &status, 0) == pid && WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL);
+    close(ofd);
+    /* The image: the previous one, or a complete new one (if the kill came after its rename). */
+    rd_image img;
+    char msg[RD_ERRLEN];
+    cr_expect(same_bytes(exr, exr0) || rd_image_read(exr, &img, msg, sizeof msg) == RD_OK, "a damaged image: %s", msg);
+    /* Every temporary left is hidden. */
+    DIR *d = opendir(dir);
+    cr_assert(d != NULL);
+    int left = 0;
+    for (struct dirent *e; (e = readdir(d)) != NULL;) {
+        if (!strstr(e->d_name, ".tmp")) continue;
+        left++;
+        cr_expect(e->d_name[0] == '.', "a temporary that is not hidden: %s", e->d_name);
+    }
+    closedir(d);
+    cr_log_info("SIGKILL mid-write left %d hidden temporaries", left);
+    /* The next run writing the same output clears them. */
+    cr_assert(rt_run(argv, out, sizeof out, err, sizeof err, 0) == 0, "%s", err);
+    cr_expect(count_entries(dir, ".tmp") == 0, "the next run left the temporaries of the killed one");
+}
+
+/* The pid of a process that has ended (forked, exited, reaped). */
+static pid_t dead_pid(void)
+{
+    pid_t pid = fork();
+    cr_assert(pid >= 0);
+    if (pid == 0) _exit(0);
+    cr_assert(waitpid(pid, NULL, 0) == pid);
+    return pid;
+}
+
+/* The clean-up is precise: temporaries of this output whose process has ended go; those of a
+ * running process (a concurrent run writing the same output) and of other outputs stay. */
+Test(cli, stale_temporaries_of_the_output_are_removed, .timeout = 120)
+{
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char dir[200], path[400], out[4096], err[4096];
+    snprintf(dir, sizeof dir, "%s/stale", rt_tmpdir());
+    cr_assert(mkdir(dir, 0777) == 0);
+    long dead = (long)dead_pid(), live = (long)getpid();
+    const char *gone[] = {".c.tmp%ld.exr", ".c-stderr.tmp%ld.exr", ".c.tmp%ld.png", ".c.tmp%ld.json"};
+    const char *kept[] = {".d.tmp%ld.exr", ".c.tmp%ld.exr.x"};
+    for (int i = 0; i < 4; i++) {
+        int n = snprintf(path, sizeof path, "%s/", dir);
+        snprintf(path + n, sizeof path - n, gone[i], dead);
+        rt_write_file(path, "x", 1);
+    }
+    for (int i = 0; i < 2; i++) {
+        int n = snprintf(path, sizeof path, "%s/", dir);
+        snprintf(path + n, sizeof path - n, kept[i], dead);
+        rt_write_file(path, "x", 1);
+    }
+    snprintf(path, sizeof path, "%s/.c.tmp%ld.exr", dir, live);
+    rt_write_file(path, "x", 1);
+    char exr[300];
+    snprintf(exr, sizeof exr, "%s/c.exr", dir);
+    char *argv[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", exr, "--spp", "1", "-q", NULL};
+    cr_assert(rt_run(argv, out, sizeof out, err, sizeof err, 0) == 0, "%s", err);
+    for (int i = 0; i < 4; i++) {
+        int n = snprintf(path, sizeof path, "%s/", dir);
+        snprintf(path + n, sizeof path - n, gone[i], dead);
+        cr_expect(access(path, F_OK) != 0, "%s: a stale temporary was not removed", path);
+    }
+    for (int i = 0; i < 2; i++) {
+        int n = snprintf(path, sizeof path, "%s/", dir);
+        snprintf(path + n, sizeof path - n, kept[i], dead);
+        cr_expect(access(path, F_OK) == 0, "%s: not a temporary of this output, but removed", path);
+    }
+    snprintf(path, sizeof path, "%s/.c.tmp%ld.exr", dir, live);
+    cr_expect(access(path, F_OK) == 0, "the temporary of a running process was removed");
+}
+
+/* Wait until process `pid` catches SIGTERM (bit 15 of SigCgt in /proc/PID/status): the event
+ * that its handler is installed. Fails after 60 s (a safety net). */
+static void wait_until_catching_sigterm(pid_t pid)
+{
+    char path[64], line[256];
+    snprintf(path, sizeof path, "/proc/%ld/status", (long)pid);
+    struct timespec t0, now, nap = {0, 1000 * 1000};
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    for (;;) {
+        FILE *f = fopen(path, "r");
+        cr_assert(f != NULL, "%s", path);
+        unsigned long long mask = 0;
+        while (fgets(line, sizeof line, f))
+            if (sscanf(line, "SigCgt: %llx", &mask) == 1) break;
+        fclose(f);
+        if (mask & (1ULL << (SIGTERM - 1))) return;
+        clock_gettime(CLOCK_MONOTONIC, &now);
+        cr_assert(now.tv_sec - t0.tv_sec <= 60, "the process never installed its SIGTERM handler");
+        nanosleep(&nap, NULL);
+    }
+}
+
+/* SIGTERM during a bake (tracing and baking cannot stop part-way, and there is nothing yet to
+ * save): exit 143 at once, a message, nothing written. */
+Test(cli, sigterm_during_bake_ends_it_with_nothing_written, .timeout = 120)
+{
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char prefix[256], pmap[300], fe[256], err[4096];
+    snprintf(prefix, sizeof prefix, "%s/bt/b", rt_tmpdir());
+    snprintf(pmap, sizeof pmap, "%s.pmap", prefix);
+    snprintf(fe, sizeof fe, "%s/bake-stderr.XXXXXX", rt_tmpdir());
+    int efd = mkstemp(fe);
+    cr_assert(efd >= 0);
+    char *argv[] = {(char *)bin, "bake", (char *)tiny_scene(), "-o", prefix, "--photons", "1000000000", NULL};
+    pid_t pid = fork();
+    cr_assert(pid >= 0);
+    if (pid == 0) {
+        dup2(efd, 2);
+        execv(argv[0], argv);
+        _exit(127);
+    }
+    wait_until_catching_sigterm(pid);
+    kill(pid, SIGTERM);
+    int status;
+    cr_assert(waitpid(pid, &status, 0) == pid);
+    ssize_t n = pread(efd, err, sizeof err - 1, 0);
+    err[n > 0 ? n : 0] = 0;
+    close(efd);
+    cr_expect(WIFEXITED(status) && WEXITSTATUS(status) == 143, "status %#x (expected exit 143): %s", status, err);
+    cr_expect(strstr(err, "nothing written") != NULL, "%s", err);
+    cr_expect(access(pmap, F_OK) != 0, "a photon map was written");
+}
+
+/* The output named as a symbolic link: the link is replaced by the new file (the rename of the
+ * temporary), and the file it pointed to is left as it was (docs/cli.md, "Output paths"). */
+Test(cli, symlink_output_is_replaced_not_written_through, .timeout = 120)
+{
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char target[256], link[256], out[4096], err[4096];
+    snprintf(target, sizeof target, "%s/target.exr", rt_tmpdir());
+    snprintf(link, sizeof link, "%s/link.exr", rt_tmpdir());
+    rt_write_file(target, "keep", 4);
+    cr_assert(symlink(target, link) == 0);
+    char *argv[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", link, "--spp", "1", "-q", NULL};
+    cr_assert(rt_run(argv, out, sizeof out, err, sizeof err, 0) == 0, "%s", err);
+    struct stat st;
+    cr_assert(lstat(link, &st) == 0);
+    cr_expect(S_ISREG(st.st_mode), "the output is still a link");
+    char buf[16] = {0};
+    FILE *f = fopen(target, "rb");
+    cr_assert(f != NULL);
+    size_t got = fread(buf, 1, sizeof buf, f);
+    fclose(f);
+    cr_expect(got == 4 && !memcmp(buf, "keep", 4), "the link's target was written through");
+}
+
+/* The input scene named as an output (render's report OUT.json, or any of bake's files) is
+ * refused with exit 1 and a message, and the scene is untouched. */
+Test(cli, scene_as_output_is_refused, .timeout = 120)
+{
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char exr[256], copy[256], guide[256], prefix[256], out[4096], err[4096];
+    const char *scene = tiny_scene();
+    snprintf(exr, sizeof exr, "%s/tiny.exr", rt_tmpdir()); /* its report would be tiny.json */
+    snprintf(copy, sizeof copy, "%s/tiny-copy.json", rt_tmpdir());
+    copy_file(scene, copy);
+    char *a1[] = {(char *)bin, "render", (char *)scene, "-o", exr, "--spp", "1", NULL};
+    cr_expect(rt_run(a1, out, sizeof out, err, sizeof err, 0) == 1, "%s", err);
+    cr_expect(strstr(err, "is the input scene") != NULL, "%s", err);
+    cr_expect(same_bytes(scene, copy), "the scene was overwritten");
+    cr_expect(access(exr, F_OK) != 0, "an image was written");
+    /* bake: a scene file named like one of its outputs */
+    snprintf(guide, sizeof guide, "%s/s.guide", rt_tmpdir());
+    snprintf(prefix, sizeof prefix, "%s/s", rt_tmpdir());
+    copy_file(scene, guide);
+    char *a2[] = {(char *)bin, "bake", guide, "-o", prefix, "--photons", "1000", NULL};
+    cr_expect(rt_run(a2, out, sizeof out, err, sizeof err, 0) == 1, "%s", err);
+    cr_expect(strstr(err, "is the input scene") != NULL, "%s", err);
+    cr_expect(same_bytes(guide, copy), "the scene was overwritten by bake");
 }
 
 Test(cli, usage_errors_exit_1)
@@ -339,7 +647,7 @@ Test(cli, bake_writes_map_guide_and_pictures_and_reuses_the_map, .timeout = 120)
     cr_assert(code == 0, "exit %d: %s", code, err);
     cr_expect(strstr(out, "photons    emitted 20000") != NULL, "%s", out);
     cr_expect(strstr(out, "photons/s emitted") && strstr(out, "kd-tree built in") && strstr(out, "bytes per photon"), "%s", out);
-    cr_expect(strstr(out, "uniform grid, k-NN bake, 4 bands") != NULL, "%s", out);
+    cr_expect(strstr(out, "uniform grid, k-NN bake, 8 bands") != NULL, "%s", out);
     const char *files[] = {".pmap", ".guide", "-photons.exr", "-photons.png", "-slice-y.png", "-slice-z.exr", "-cells-z.png"};
     for (int i = 0; i < 7; i++) {
         snprintf(path, sizeof path, "%s%s", prefix, files[i]);

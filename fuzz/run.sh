@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# fuzz/run.sh BUILD SECONDS TARGET...: run each libFuzzer target BUILD/fuzz/fuzz_TARGET for
+# SECONDS, from its seed corpus (fuzz/seeds/TARGET, the regression inputs tests/data/fuzz/TARGET
+# and, for scenes and volumes, the files in scenes/ and tests/data/bad/) plus what earlier runs
+# found (BUILD/fuzz/corpus/TARGET). The targets write their temporary files under a fresh
+# TMPDIR, removed at the end. Prints one line per target; exits 1 if any target found a crash
+# (the input is kept in BUILD/fuzz/crashes/, the log in BUILD/fuzz/TARGET.log).
+#
+# FUZZ_FRESH=1 (make test's short run): start from the seeds alone (without the slow example
+# scenes), with a fixed libFuzzer seed, so every run tries the same inputs in the same order
+# (only how far it gets depends on time).
+# UBSan and LSan suppressions, each with its reason: fuzz/ubsan.supp, fuzz/lsan.supp.
+# libFuzzer runs in fork mode with -ignore_ooms: an input that makes a loader take more than
+# 2 GiB (rss_limit_mb) is kept in BUILD/fuzz/crashes/ as oom-* and counted in the summary
+# ("oom/timeout/crash"), not a failure: the loaders accept sizes up to documented caps (a .vdb's
+# dense copy up to 2^31 voxels), and an allocation the machine cannot give is reported by them.
+set -uo pipefail
+build=$1 secs=$2
+shift 2
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+mkdir -p "$build/fuzz/crashes"
+status=0
+for t in "$@"; do
+  corpus=$build/fuzz/corpus/$t
+  fixed=()
+  if [ "${FUZZ_FRESH:-0}" = 1 ]; then corpus=$work/corpus-$t; fixed=(-seed=1); fi
+  seeds=$work/seeds-$t
+  mkdir -p "$corpus" "$seeds" "$work/tmp-$t"
+  cp fuzz/seeds/$t/* "$seeds"/ 2>/dev/null
+  cp tests/data/fuzz/$t/* "$seeds"/ 2>/dev/null
+  case $t in
+    scene) # the example scenes take up to seconds each to load (their majorant grids):
+           # left out of the short run
+           cp tests/data/bad/*.json "$seeds"/
+           [ "${FUZZ_FRESH:-0}" = 1 ] || cp scenes/*.json "$seeds"/ ;;
+    vdb) cp tests/data/bad/*.vdb "$seeds"/ ;;
+  esac
+  log=$build/fuzz/$t.log
+  TMPDIR=$work/tmp-$t ASAN_OPTIONS=allocator_may_return_null=1:detect_leaks=1 \
+    UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1:suppressions=$PWD/fuzz/ubsan.supp \
+    LSAN_OPTIONS=suppressions=$PWD/fuzz/lsan.supp:print_suppressions=0 \
+    "$build/fuzz/fuzz_$t" "${fixed[@]}" -fork=1 -ignore_ooms=1 -max_total_time="$secs" -timeout=60 \
+    -rss_limit_mb=2048 -max_len=65536 -artifact_prefix="$build/fuzz/crashes/$t-" "$corpus" "$seeds" >"$log" 2>&1
+  code=$?
+  last=$(grep -E '^#[0-9]+: cov' "$log" | tail -1)
+  runs=$(sed -n 's/^#\([0-9]*\): cov.*/\1/p' <<<"$last")
+  cov=$(grep -o 'cov: [0-9]*' <<<"$last")
+  ooms=$(grep -o 'oom/timeout/crash: [0-9/]*' <<<"$last")
+  if [ $code -eq 0 ]; then
+    echo "fuzz $t: ${runs:-?} runs in $secs s, $cov, corpus $(ls "$corpus" | wc -l) files, ${ooms:-no crash}"
+  else
+    echo "fuzz $t: FAILED (exit $code) after ${runs:-?} runs: $(grep -m1 -E 'ERROR|runtime error|SUMMARY' "$log")"
+    echo "  log $log; input $(ls -t "$build"/fuzz/crashes/$t-* 2>/dev/null | head -1)"
+    status=1
+  fi
+done
+exit $status
