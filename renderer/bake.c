@@ -422,7 +422,7 @@ rd_status rd_baked_write(const rd_baked *b, const rd_scene *s, const char *prefi
             return RD_ERR_OUTPUT;
         }
     }
-    rd_image img = {0, 0, NULL};
+    rd_image img = {0, 0, NULL, 0};
     if ((st = rd_photon_image(s, b->map, &img, err, errlen)) == RD_OK)
         st = write_pair(prefix, "-photons", &img, 0, err, errlen);
     rd_image_free_pixels(&img);

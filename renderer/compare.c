@@ -204,6 +204,12 @@ static rd_status read_matching(const char *path, const char *what, int w, int h,
         return st == RD_ERR_INTERNAL ? RD_ERR_FORMAT : st;
     }
     if (st) { snprintf(err, errlen, "%s", msg); return st; }
+    if (img->channels != 3 && img->channels != 4) {
+        snprintf(err, errlen, "%s: %s has %d channel%s, expected RGB or RGBA (a render of the scene)", what, path,
+                 img->channels, img->channels == 1 ? "" : "s");
+        rd_image_free_pixels(img);
+        return RD_ERR_FORMAT;
+    }
     if (img->w != w || img->h != h) {
         snprintf(err, errlen, "%s: %s is %dx%d, the scene renders %dx%d", what, path, img->w, img->h, w, h);
         rd_image_free_pixels(img);
@@ -793,7 +799,7 @@ static rd_status write_error_map(const rd_comparison *c, const rd_image *x, cons
                                  const char *name, double scale, char *err, size_t errlen)
 {
     size_t np = (size_t)c->w * c->h;
-    rd_image m = {c->w, c->h, malloc(np * 3 * sizeof(float))};
+    rd_image m = {c->w, c->h, malloc(np * 3 * sizeof(float)), 0};
     if (!m.rgb) return fail(err, errlen, RD_ERR_NOMEM, "%s: out of memory", name);
     for (size_t p = 0; p < np; p++) viridis(pixel_rel_error(x, &c->ref, p) / scale, m.rgb + 3 * p);
     rd_status st = write_png_at(dir, name, &m, 0.0, err, errlen);
@@ -803,7 +809,7 @@ static rd_status write_error_map(const rd_comparison *c, const rd_image *x, cons
 
 static rd_status write_colour_bar(const char *dir, char *err, size_t errlen)
 {
-    rd_image m = {256, 16, malloc(256 * 16 * 3 * sizeof(float))};
+    rd_image m = {256, 16, malloc(256 * 16 * 3 * sizeof(float)), 0};
     if (!m.rgb) return fail(err, errlen, RD_ERR_NOMEM, "%s: out of memory", "colorbar.png");
     for (int y = 0; y < 16; y++)
         for (int x = 0; x < 256; x++) viridis(x / 255.0, m.rgb + 3 * (y * 256 + x));
@@ -817,7 +823,7 @@ static rd_status write_crop(const rd_comparison *c, const rd_image *x, crop_box 
                             const char *name, char *err, size_t errlen)
 {
     int z = b.s >= 256 ? 1 : 256 / b.s, n = b.s * z;
-    rd_image m = {n, n, malloc((size_t)n * n * 3 * sizeof(float))};
+    rd_image m = {n, n, malloc((size_t)n * n * 3 * sizeof(float)), 0};
     if (!m.rgb) return fail(err, errlen, RD_ERR_NOMEM, "%s: out of memory", name);
     for (int y = 0; y < n; y++)
         for (int xx = 0; xx < n; xx++) {

@@ -122,6 +122,7 @@ extern "C" rd_status rd_image_read(const char *path, rd_image *out, char *err, s
         out->w = w;
         out->h = h;
         out->rgb = rgb;
+        out->channels = nc;
         return RD_OK;
     } catch (const std::exception &e) {
         std::snprintf(err, errlen, "%s: %s", path, e.what());

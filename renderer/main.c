@@ -493,7 +493,7 @@ static int cmd_render(int argc, char **argv)
     rd_scene *scene;
     rd_status st = rd_scene_load(&scene, a.scene, a.ov, a.nov, err, sizeof err);
     if (st) return report_error(st, err);
-    rd_image ref = {0, 0, NULL};
+    rd_image ref = {0, 0, NULL, 0};
     if (refpath && (st = rd_image_read(refpath, &ref, err, sizeof err)) != RD_OK) {
         rd_scene_free(scene);
         return report_error(st, err);

@@ -84,6 +84,7 @@ unsigned rd_method_needs_for(const char *method, const rd_scene *scene);
 typedef struct {
     int w, h;
     float *rgb;
+    int channels; /* rd_image_read: the channels the file had (rgb holds RGB regardless); else 0 */
 } rd_image;
 
 void rd_image_free_pixels(rd_image *img);

@@ -19,14 +19,14 @@ Test(compare, errors_equal_hand_computed_values)
      *   relMSE = (1 / (1 + 0.01) + 0.25 / (0.25 + 0.01)) / 6       = 0.3252729...
      *   MARE   = (1 / (1 + 0.01) + 0.5 / (0.5 + 0.01)) / 6         = 0.3284152... */
     float xr[6] = {2, 1, 1, 0.5f, 0.5f, 0}, rr[6] = {1, 1, 1, 0.5f, 0.5f, 0.5f};
-    rd_image x = {2, 1, xr}, r = {2, 1, rr};
+    rd_image x = {2, 1, xr, 0}, r = {2, 1, rr, 0};
     rd_cmp_errors e;
     cr_assert(rd_cmp_errors_of(&x, &r, &e, NULL, 0) == RD_OK);
     cr_expect_float_eq(e.mse, 1.25 / 6, 1e-12);
     cr_expect_float_eq(e.rmse, sqrt(1.25 / 6), 1e-12);
     cr_expect_float_eq(e.relmse, (1 / 1.01 + 0.25 / 0.26) / 6, 1e-12);
     cr_expect_float_eq(e.mare, (1 / 1.01 + 0.5 / 0.51) / 6, 1e-12);
-    rd_image small = {1, 1, rr};
+    rd_image small = {1, 1, rr, 0};
     char err[RD_ERRLEN];
     cr_expect(rd_cmp_errors_of(&x, &small, &e, err, sizeof err) == RD_ERR_ARG);
 }
@@ -40,7 +40,7 @@ Test(compare, homogeneity_is_one_for_an_even_error_and_large_for_a_concentrated_
         even[i] = 1.1f;                     /* every pixel 10% off: p90 / p50 = 1 */
         spiky[i] = i / 3 < 80 ? 1.01f : 2.0f; /* 80 pixels 1% off, 20 pixels 100% off */
     }
-    rd_image ri = {N, 1, r}, ei = {N, 1, even}, si = {N, 1, spiky};
+    rd_image ri = {N, 1, r, 0}, ei = {N, 1, even, 0}, si = {N, 1, spiky, 0};
     cr_expect_float_eq(rd_cmp_homogeneity(&ei, &ri), 1.0, 1e-6);
     /* p50 = 0.01 / 1.01, p90 = 1 / 1.01: the ratio is 100 (to float rounding of 1.01f). */
     cr_expect_float_eq(rd_cmp_homogeneity(&si, &ri), 100.0, 1e-3);
@@ -52,7 +52,7 @@ static void synthetic_runs(rd_image *runs, int k, const rd_image *r, double b, d
     rng g = rng_new(seed);
     size_t n = (size_t)r->w * r->h * 3;
     for (int j = 0; j < k; j++) {
-        runs[j] = (rd_image){r->w, r->h, malloc(n * sizeof(float))};
+        runs[j] = (rd_image){r->w, r->h, malloc(n * sizeof(float)), 0};
         for (size_t i = 0; i < n; i++) runs[j].rgb[i] = (float)(r->rgb[i] + b + sigma * rng_normal(&g));
     }
 }
@@ -61,7 +61,7 @@ Test(compare, split_recovers_a_known_bias_and_variance)
 {
     enum { W = 64, H = 64, K = 8 };
     const double b = 0.05, sigma = 0.2, n = W * H * 3;
-    rd_image r = {W, H, malloc(sizeof(float) * W * H * 3)};
+    rd_image r = {W, H, malloc(sizeof(float) * W * H * 3), 0};
     for (int i = 0; i < W * H * 3; i++) r.rgb[i] = (float)(0.5 + 0.4 * sin(0.01 * i));
     rd_image runs[K];
     synthetic_runs(runs, K, &r, b, sigma, 20261123);
@@ -309,17 +309,23 @@ Test(compare, bad_reference_and_bad_add_give_one_line_errors_naming_the_file, .t
     snprintf(dir, sizeof dir, "%s/cli-report", t);
     /* A 4x4 EXR (the scene renders 24x16), a text file named .exr, a good 24x16 EXR. */
     float px[24 * 16 * 3] = {0};
-    rd_image im = {4, 4, px};
+    rd_image im = {4, 4, px, 0};
     char err[RD_ERRLEN];
     snprintf(small, sizeof small, "%s/small.exr", t);
     cr_assert(rd_image_write_exr(small, &im, err, sizeof err) == RD_OK, "%s", err);
     snprintf(text, sizeof text, "%s/text.exr", t);
     rt_write_file(text, "not an image\n", 13);
     snprintf(good, sizeof good, "%s/good.exr", t);
-    im = (rd_image){24, 16, px};
+    im = (rd_image){24, 16, px, 0};
     cr_assert(rd_image_write_exr(good, &im, err, sizeof err) == RD_OK, "%s", err);
     char missing[256];
     snprintf(missing, sizeof missing, "%s/no-such.exr", t);
+    /* A grey (one-channel) image of the right size: a PGM, which OpenImageIO reads. */
+    char grey[256], pgm[24 * 16 * 2 + 32];
+    snprintf(grey, sizeof grey, "%s/grey.pgm", t);
+    int len = snprintf(pgm, sizeof pgm, "P2 24 16 255\n");
+    for (int i = 0; i < 24 * 16; i++) pgm[len++] = '0', pgm[len++] = i % 24 == 23 ? '\n' : ' ';
+    rt_write_file(grey, pgm, (size_t)len);
 
     char *a1[] = {(char *)bin, "compare", scene, "--methods", "delta", "-o", dir, "--reference", missing, NULL};
     expect_input_error(a1, missing);
@@ -327,6 +333,8 @@ Test(compare, bad_reference_and_bad_add_give_one_line_errors_naming_the_file, .t
     expect_input_error(a2, "is 4x4, the scene renders 24x16");
     char *a3[] = {(char *)bin, "compare", scene, "--methods", "delta", "-o", dir, "--reference", text, NULL};
     expect_input_error(a3, text);
+    char *a8[] = {(char *)bin, "compare", scene, "--methods", "delta", "-o", dir, "--reference", grey, NULL};
+    expect_input_error(a8, "has 1 channel, expected RGB or RGBA");
     snprintf(add, sizeof add, "other=%s@3", small);
     char *a4[] = {(char *)bin, "compare", scene, "--methods", "delta", "-o", dir, "--reference", good, "--add", add, NULL};
     expect_input_error(a4, "--add other:");
@@ -399,7 +407,7 @@ Test(compare, ctrl_c_writes_the_report_of_the_runs_that_finished, .timeout = 120
     snprintf(ref, sizeof ref, "%s/int-ref.exr", t);
     float px[24 * 16 * 3];
     for (int i = 0; i < 24 * 16 * 3; i++) px[i] = 0.05f;
-    rd_image im = {24, 16, px};
+    rd_image im = {24, 16, px, 0};
     cr_assert(rd_image_write_exr(ref, &im, err, sizeof err) == RD_OK, "%s", err);
     /* Two runs of delta at 2000 spp each (seconds per run): SIGINT when run 2 starts (its
      * progress line on a non-terminal stderr), so run 1 has finished and run 2 is cut. */

@@ -199,7 +199,7 @@ Test(render, convergence_curve_against_a_reference, .timeout = 120)
     double rmse = sqrt(se / n), last = r.curve[r.n_curve - 1].rmse;
     cr_expect(fabs(last - rmse) <= 1e-5 * rmse, "curve %.9g vs image %.9g", last, rmse);
     /* A reference of another size is refused before rendering. */
-    rd_image small = {4, 4, ref.image.rgb};
+    rd_image small = {4, 4, ref.image.rgb, 0};
     o.reference = &small;
     cr_expect(rd_render(s, &o, &r, err, sizeof err) == RD_ERR_ARG);
     cr_expect(strstr(err, "4x4") != NULL, "%s", err);
