@@ -252,71 +252,6 @@ Test(cli, failed_write_leaves_no_partial_file, .timeout = 120)
     cr_expect(n == 0, "temporary files left behind");
 }
 
-/* A child started by spawn_until: its pid and the file its stderr goes to. */
-typedef struct {
-    pid_t pid;
-    int efd;
-    char path[256];
-} child;
-
-/* The child's stderr so far, into errbuf. */
-static void child_stderr(const child *c, char *errbuf, size_t errlen)
-{
-    ssize_t n = pread(c->efd, errbuf, errlen - 1, 0);
-    errbuf[n > 0 ? n : 0] = 0;
-}
-
-/* Start argv with stderr in a file and wait until that file contains `marker` (the event the
- * caller waits for). Fails the test if the child ends or 60 s pass without the marker (a safety
- * net, not the synchronisation). */
-static child spawn_until(char *const argv[], const char *marker, char *errbuf, size_t errlen)
-{
-    child c;
-    snprintf(c.path, sizeof c.path, "%s/sig.XXXXXX", rt_tmpdir());
-    c.efd = mkstemp(c.path);
-    cr_assert(c.efd >= 0);
-    c.pid = fork();
-    cr_assert(c.pid >= 0);
-    if (c.pid == 0) {
-        dup2(c.efd, 2);
-        int nul = open("/dev/null", O_RDWR);
-        dup2(nul, 0);
-        dup2(nul, 1);
-        execv(argv[0], argv);
-        _exit(127);
-    }
-    struct timespec t0, now, nap = {0, 5 * 1000 * 1000};
-    clock_gettime(CLOCK_MONOTONIC, &t0);
-    for (;;) {
-        child_stderr(&c, errbuf, errlen);
-        if (strstr(errbuf, marker)) return c;
-        int status;
-        cr_assert(waitpid(c.pid, &status, WNOHANG) == 0, "the child ended before printing \"%s\": %s", marker, errbuf);
-        clock_gettime(CLOCK_MONOTONIC, &now);
-        cr_assert(now.tv_sec - t0.tv_sec <= 60, "the child never printed \"%s\": %s", marker, errbuf);
-        nanosleep(&nap, NULL);
-    }
-}
-
-/* Wait for the child to end; its exit status, or 1000 + signal when it died of one. */
-static int child_wait(child *c, char *errbuf, size_t errlen)
-{
-    int status = 0;
-    cr_assert(waitpid(c->pid, &status, 0) == c->pid);
-    child_stderr(c, errbuf, errlen);
-    close(c->efd);
-    unlink(c->path);
-    return WIFSIGNALED(status) ? 1000 + WTERMSIG(status) : WEXITSTATUS(status);
-}
-
-/* Start argv, wait until its stderr contains `marker`, send `sig`; the exit status as child_wait. */
-static int run_signal_on(char *const argv[], const char *marker, int sig, char *errbuf, size_t errlen)
-{
-    child c = spawn_until(argv, marker, errbuf, errlen);
-    kill(c.pid, sig);
-    return child_wait(&c, errbuf, errlen);
-}
-
 /* A render far longer than the test waits for, stopped by `sig` once it has reported its first
  * pass (the progress line written to a non-terminal stderr): exit 128 + sig, the image so far and
  * a report marked interrupted. */
@@ -329,7 +264,7 @@ static void signal_writes_what_it_has(int sig, const char *name)
     snprintf(js, sizeof js, "%s/%s.json", rt_tmpdir(), name);
     char *argv[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", exr, "--spp", "10000000",
                     "--set", "camera.resolution=[64,64]", NULL};
-    int code = run_signal_on(argv, " spp ", sig, err, sizeof err);
+    int code = run_signal_on(argv, " spp ", sig, err, sizeof err, NULL, 0);
     cr_expect(code == 128 + sig, "%s: exit %d (expected %d): %s", name, code, 128 + sig, err);
     cr_expect(access(exr, F_OK) == 0, "%s: the partial image was not written", name);
     cJSON *rep = read_report(js);
@@ -389,7 +324,7 @@ Test(cli, second_signal_ends_at_once_keeping_the_previous_output, .timeout = 120
     kill(c.pid, SIGTERM);
     kill(c.pid, SIGINT);
     kill(c.pid, SIGCONT);
-    int code = child_wait(&c, err, sizeof err);
+    int code = child_wait(&c, err, sizeof err, NULL, 0);
     cr_expect(code == 1000 + SIGTERM || code == 1000 + SIGINT, "exit %d: expected death by the second signal: %s", code, err);
     /* (The first signal's message is not checked: when two threads take the signals at once,
      * the second can end the process before the first handler has written it.) */

@@ -354,47 +354,6 @@ Test(compare, bad_reference_and_bad_add_give_one_line_errors_naming_the_file, .t
     cr_expect(stat(dir, &st) != 0, "a failed comparison wrote a report folder");
 }
 
-/* Start argv with stderr in a file, wait until it contains `marker` (the event), then send
- * SIGINT; returns the exit status. 60 s without the marker fails the test (a safety net, not
- * the synchronisation). */
-static int interrupt_on(char *const argv[], const char *marker, char *out, size_t outlen, char *errbuf, size_t errlen)
-{
-    char fe[256], fo[256];
-    snprintf(fe, sizeof fe, "%s/sig.XXXXXX", rt_tmpdir());
-    snprintf(fo, sizeof fo, "%s/sigo.XXXXXX", rt_tmpdir());
-    int efd = mkstemp(fe), ofd = mkstemp(fo);
-    cr_assert(efd >= 0 && ofd >= 0);
-    pid_t pid = fork();
-    cr_assert(pid >= 0);
-    if (pid == 0) {
-        dup2(efd, 2);
-        dup2(ofd, 1);
-        execv(argv[0], argv);
-        _exit(127);
-    }
-    struct timespec t0, now, nap = {0, 5 * 1000 * 1000};
-    clock_gettime(CLOCK_MONOTONIC, &t0);
-    int seen = 0, status = 0, ended = 0;
-    while (!seen) {
-        if (waitpid(pid, &status, WNOHANG) == pid) { ended = 1; break; }
-        ssize_t n = pread(efd, errbuf, errlen - 1, 0);
-        errbuf[n > 0 ? n : 0] = 0;
-        seen = strstr(errbuf, marker) != NULL;
-        clock_gettime(CLOCK_MONOTONIC, &now);
-        if (now.tv_sec - t0.tv_sec > 60) break;
-        if (!seen) nanosleep(&nap, NULL);
-    }
-    if (seen) kill(pid, SIGINT);
-    if (!ended) waitpid(pid, &status, 0);
-    ssize_t n = pread(efd, errbuf, errlen - 1, 0);
-    errbuf[n > 0 ? n : 0] = 0;
-    n = pread(ofd, out, outlen - 1, 0);
-    out[n > 0 ? n : 0] = 0;
-    close(efd), close(ofd), unlink(fe), unlink(fo);
-    cr_assert(seen, "the child never printed \"%s\": %s", marker, errbuf);
-    return WIFSIGNALED(status) ? 1000 + WTERMSIG(status) : WEXITSTATUS(status);
-}
-
 Test(compare, ctrl_c_writes_the_report_of_the_runs_that_finished, .timeout = 120)
 {
     const char *bin = bin_or_fail();
@@ -414,7 +373,7 @@ Test(compare, ctrl_c_writes_the_report_of_the_runs_that_finished, .timeout = 120
     char *argv[] = {(char *)bin, "compare", scene, "--methods", "delta", "--runs", "2", "--budget", "2000",
                     "--equal", "spp", "--reference", ref, "-o", dir, "--threads", "1", NULL};
     static char out[1 << 14], errb[1 << 14];
-    int code = interrupt_on(argv, "delta run 2/2", out, sizeof out, errb, sizeof errb);
+    int code = run_signal_on(argv, "delta run 2/2", SIGINT, errb, sizeof errb, out, sizeof out);
     cr_expect(code == 130, "exit %d (expected 130): %s", code, errb);
     cr_expect(exists(dir, "index.html") && exists(dir, "metrics.json") && exists(dir, "delta.png"), "no report: %s", errb);
     char path[512];

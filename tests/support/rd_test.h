@@ -8,6 +8,8 @@
 
 #include <criterion/criterion.h>
 #include <fcntl.h>
+#include <signal.h>
+#include <time.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -161,6 +163,81 @@ static inline double rt_chi2_quantile(int dof, double z)
     double k = dof, a = 2.0 / (9.0 * k);
     double c = 1.0 - a + z * sqrt(a);
     return k * c * c * c;
+}
+
+/* ---- Child processes that the tests signal (test_cli.c, test_compare.c) ---------------- */
+
+/* A child started by spawn_until: its pid and the files its stderr and stdout go to. */
+typedef struct {
+    pid_t pid;
+    int efd, ofd;
+    char path[256], opath[256];
+} child;
+
+/* The child's stderr so far, into errbuf. */
+static inline void child_stderr(const child *c, char *errbuf, size_t errlen)
+{
+    ssize_t n = pread(c->efd, errbuf, errlen - 1, 0);
+    errbuf[n > 0 ? n : 0] = 0;
+}
+
+/* Start argv with stderr in a file and wait until that file contains `marker` (the event the
+ * caller waits for). Fails the test if the child ends or 60 s pass without the marker (a safety
+ * net, not the synchronisation). */
+static inline child spawn_until(char *const argv[], const char *marker, char *errbuf, size_t errlen)
+{
+    child c;
+    snprintf(c.path, sizeof c.path, "%s/sig.XXXXXX", rt_tmpdir());
+    snprintf(c.opath, sizeof c.opath, "%s/sigo.XXXXXX", rt_tmpdir());
+    c.efd = mkstemp(c.path);
+    c.ofd = mkstemp(c.opath);
+    cr_assert(c.efd >= 0 && c.ofd >= 0);
+    c.pid = fork();
+    cr_assert(c.pid >= 0);
+    if (c.pid == 0) {
+        dup2(c.efd, 2);
+        dup2(c.ofd, 1);
+        int nul = open("/dev/null", O_RDWR);
+        dup2(nul, 0);
+        execv(argv[0], argv);
+        _exit(127);
+    }
+    struct timespec t0, now, nap = {0, 5 * 1000 * 1000};
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    for (;;) {
+        child_stderr(&c, errbuf, errlen);
+        if (strstr(errbuf, marker)) return c;
+        int status;
+        cr_assert(waitpid(c.pid, &status, WNOHANG) == 0, "the child ended before printing \"%s\": %s", marker, errbuf);
+        clock_gettime(CLOCK_MONOTONIC, &now);
+        cr_assert(now.tv_sec - t0.tv_sec <= 60, "the child never printed \"%s\": %s", marker, errbuf);
+        nanosleep(&nap, NULL);
+    }
+}
+
+/* Wait for the child to end; its exit status, or 1000 + signal when it died of one. Its stdout
+ * goes to out when out != NULL. */
+static inline int child_wait(child *c, char *errbuf, size_t errlen, char *out, size_t outlen)
+{
+    int status = 0;
+    cr_assert(waitpid(c->pid, &status, 0) == c->pid);
+    child_stderr(c, errbuf, errlen);
+    if (out) {
+        ssize_t n = pread(c->ofd, out, outlen - 1, 0);
+        out[n > 0 ? n : 0] = 0;
+    }
+    close(c->efd), close(c->ofd);
+    unlink(c->path), unlink(c->opath);
+    return WIFSIGNALED(status) ? 1000 + WTERMSIG(status) : WEXITSTATUS(status);
+}
+
+/* Start argv, wait until its stderr contains `marker`, send `sig`; the exit status as child_wait. */
+static inline int run_signal_on(char *const argv[], const char *marker, int sig, char *errbuf, size_t errlen,
+                                char *out, size_t outlen)
+{
+    child c = spawn_until(argv, marker, errbuf, errlen);
+    kill(c.pid, sig);
+    return child_wait(&c, errbuf, errlen, out, outlen);
 }
 
 #endif
