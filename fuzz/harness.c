@@ -168,7 +168,7 @@ int fz_vdb(const uint8_t *data, size_t n)
         char err[RD_ERRLEN];
         rd_grid g = {0};
         vec3 lo, hi;
-        if (rd_vdb_load(path, "density", &g, &lo, &hi, err, sizeof err) == RD_OK) free(g.data);
+        if (rd_vdb_load(path, "density", &g, &lo, &hi, err, sizeof err) == RD_OK) rd_grid_free(&g); /* dense or sparse */
         unlink(path);
     }
     return 0;
