@@ -448,6 +448,23 @@ static int report_error(rd_status st, const char *err)
     return exit_for(st);
 }
 
+/* Bake what `bo` asks for through the cache folder beside `out` (OUT's folder, then
+ * .photonmarch-cache), or afresh with `fresh`; a cache that cannot be saved is a warning. */
+static rd_status bake_beside(const rd_scene *scene, const rd_bake_opts *bo, const char *out, int fresh,
+                             int quiet, rd_baked **baked, char *err, size_t errlen)
+{
+    if (fresh) return rd_bake(scene, bo, baked, err, errlen);
+    char dir[1100];
+    const char *slash = strrchr(out, '/');
+    snprintf(dir, sizeof dir, "%.*s.photonmarch-cache", slash ? (int)(slash - out + 1) : 0, out);
+    int hit = 0;
+    rd_status st = rd_bake_cached(scene, bo, dir, baked, &hit, err, errlen);
+    if (st == RD_OK && hit < 0 && !quiet) fprintf(stderr, "warning: %s\n", err);
+    if (st == RD_OK && !quiet)
+        fprintf(stderr, "%s photon map and guide (%s)\n", hit > 0 ? "reused the cached" : "baked the", dir);
+    return st;
+}
+
 static int cmd_render(int argc, char **argv)
 {
     scene_args a = {0};
@@ -530,17 +547,7 @@ static int cmd_render(int argc, char **argv)
         bo.load_photons = photons_path;
         bo.load_guide = guide_path;
         double t0 = wall_seconds();
-        int hit = 0;
-        if (photons_path || guide_path || no_cache) {
-            st = rd_bake(scene, &bo, &baked, err, sizeof err);
-        } else {
-            char dir[1100];
-            const char *slash = strrchr(outpath, '/');
-            snprintf(dir, sizeof dir, "%.*s.photonmarch-cache", slash ? (int)(slash - outpath + 1) : 0, outpath);
-            st = rd_bake_cached(scene, &bo, dir, &baked, &hit, err, sizeof err);
-            if (st == RD_OK && hit < 0 && !quiet) fprintf(stderr, "warning: %s\n", err);
-            if (st == RD_OK && !quiet) fprintf(stderr, "%s photon map and guide (%s)\n", hit > 0 ? "reused the cached" : "baked the", dir);
-        }
+        st = bake_beside(scene, &bo, outpath, photons_path || guide_path || no_cache, quiet, &baked, err, sizeof err);
         if (st) {
             code = report_error(st, err);
             goto out;
@@ -858,6 +865,16 @@ static int cmd_explain(int argc, char **argv)
         fprintf(stderr, "photonmarch explain: -o: path too long\n");
         return EXIT_USAGE;
     }
+    /* PREFIX.json (and .csv, .gp, .png, per pixel with several) must not be the scene. */
+    for (int q = 0; q < npx; q++) {
+        static const char *const ext[] = {".json", ".csv", ".gp", ".png"};
+        for (int k = 0; k < 4; k++) {
+            char one[1100];
+            if (npx == 1) snprintf(one, sizeof one, "%s%s", prefix, ext[k]);
+            else snprintf(one, sizeof one, "%s-%ld-%ld%s", prefix, pxs[q][0], pxs[q][1], ext[k]);
+            if (refuse_input_as_output("explain", one, a.scene)) return EXIT_USAGE;
+        }
+    }
     char err[RD_ERRLEN];
     rd_scene *scene;
     rd_status st = rd_scene_load(&scene, a.scene, a.ov, a.nov, err, sizeof err);
@@ -874,16 +891,7 @@ static int cmd_explain(int argc, char **argv)
     bo.seed = -1;
     bo.threads = (int)threads;
     rd_bake_opts_for(&bo, rd_method_needs_for("guided", scene));
-    if (no_cache) {
-        st = rd_bake(scene, &bo, &baked, err, sizeof err);
-    } else {
-        char dir[1100];
-        const char *slash = strrchr(prefix, '/');
-        snprintf(dir, sizeof dir, "%.*s.photonmarch-cache", slash ? (int)(slash - prefix + 1) : 0, prefix);
-        int hit = 0;
-        st = rd_bake_cached(scene, &bo, dir, &baked, &hit, err, sizeof err);
-        if (st == RD_OK && hit < 0 && !quiet) fprintf(stderr, "warning: %s\n", err);
-    }
+    st = bake_beside(scene, &bo, prefix, no_cache, quiet, &baked, err, sizeof err);
     if (st) {
         code = report_error(st, err);
         goto out;

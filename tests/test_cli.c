@@ -521,7 +521,8 @@ Test(cli, symlink_output_is_replaced_not_written_through, .timeout = 120)
     cr_expect(got == 4 && !memcmp(buf, "keep", 4), "the link's target was written through");
 }
 
-/* The input scene named as an output (render's report OUT.json, or any of bake's files) is
+/* The input scene named as an output (render's report OUT.json, any of bake's files, explain's
+ * PREFIX.json) is
  * refused with exit 1 and a message, and the scene is untouched. */
 Test(cli, scene_as_output_is_refused, .timeout = 120)
 {
@@ -545,6 +546,15 @@ Test(cli, scene_as_output_is_refused, .timeout = 120)
     cr_expect(rt_run(a2, out, sizeof out, err, sizeof err, 0) == 1, "%s", err);
     cr_expect(strstr(err, "is the input scene") != NULL, "%s", err);
     cr_expect(same_bytes(guide, copy), "the scene was overwritten by bake");
+    /* explain: -o PREFIX whose PREFIX.json is the scene */
+    char ex[256], exp_prefix[256];
+    snprintf(ex, sizeof ex, "%s/ex.json", rt_tmpdir());
+    snprintf(exp_prefix, sizeof exp_prefix, "%s/ex", rt_tmpdir());
+    copy_file(scene, ex);
+    char *a3[] = {(char *)bin, "explain", ex, "--pixel", "1,1", "-o", exp_prefix, NULL};
+    cr_expect(rt_run(a3, out, sizeof out, err, sizeof err, 0) == 1, "%s", err);
+    cr_expect(strstr(err, "is the input scene") != NULL, "%s", err);
+    cr_expect(same_bytes(ex, copy), "the scene was overwritten by explain");
 }
 
 Test(cli, usage_errors_exit_1)
