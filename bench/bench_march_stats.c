@@ -1,11 +1,11 @@
 /* bench_march_stats: the statistics of bench/bench_march.sh (issue 9), from renders on disk.
  *
- *   bench_march_stats --ref REF.exr [--lit F] --group NAME A1.exr ... AK.exr [--group NAME ...]
+ *   bench_march_stats --ref REF.exr [--lit F] [--time-key KEY] --group NAME A1.exr ... AK.exr [--group NAME ...]
  *   bench_march_stats --rmse REF.exr X1.exr ... XN.exr
  *
  * Each group holds K >= 4 independent renders (different --seed) of one scene by one method;
  * beside each OUTk.exr the tool reads OUTk.json (the render report) for its wall time
- * ("seconds", bake included). Per group, over all pixels and the three channels
+ * ("seconds", bake included; --time-key render_seconds leaves the bake out). Per group, over all pixels and the three channels
  * (THEORY.md §7):
  *
  *   var    = mean over pixels of s^2, the unbiased sample variance of the K runs at the pixel
@@ -45,6 +45,8 @@ typedef struct {
     const char *name;
     const char *path[MAX_RUNS];
     int k;
+    const char *time_key; /* report field of the run time: "seconds" (bake included) or
+                           * "render_seconds" (--time-key; for settings that share one bake) */
 } group;
 
 /* ---- Files ---------------------------------------------------------------------------------- */
@@ -173,7 +175,7 @@ static void group_times(const group *g, int a, int b, stats *st)
     st->tmin = INFINITY;
     st->tmax = 0.0;
     for (int k = a; k < b; k++) {
-        double t = report_number(g->path[k], "seconds");
+        double t = report_number(g->path[k], g->time_key);
         st->time += t / (b - a);
         if (t < st->tmin) st->tmin = t;
         if (t > st->tmax) st->tmax = t;
@@ -350,7 +352,7 @@ static void print_groups(group *gs, int ng, const rd_image *ref, const rd_image 
 
 static void usage(void)
 {
-    fprintf(stderr, "usage: bench_march_stats --ref REF.exr [--lit F] --group NAME A1.exr ... AK.exr [--group ...]\n"
+    fprintf(stderr, "usage: bench_march_stats --ref REF.exr [--lit F] [--time-key KEY] --group NAME A1.exr ... AK.exr [--group ...]\n"
                     "       bench_march_stats --rmse REF.exr X1.exr ...\n");
     exit(1);
 }
@@ -358,7 +360,7 @@ static void usage(void)
 int main(int argc, char **argv)
 {
     if (argc >= 3 && !strcmp(argv[1], "--rmse")) return cmd_rmse(argc - 2, argv + 2);
-    const char *ref_path = NULL;
+    const char *ref_path = NULL, *time_key = "seconds";
     double lit_fraction = 0.1;
     group gs[MAX_GROUPS];
     int ng = 0;
@@ -367,6 +369,8 @@ int main(int argc, char **argv)
             ref_path = argv[++i];
         } else if (!strcmp(argv[i], "--lit") && i + 1 < argc) {
             lit_fraction = atof(argv[++i]);
+        } else if (!strcmp(argv[i], "--time-key") && i + 1 < argc) {
+            time_key = argv[++i];
         } else if (!strcmp(argv[i], "--group") && i + 1 < argc) {
             if (ng == MAX_GROUPS) usage();
             gs[ng].name = argv[++i];
@@ -384,8 +388,10 @@ int main(int argc, char **argv)
         return 0;
     }
     if (!ref_path) usage();
-    for (int i = 0; i < ng; i++)
+    for (int i = 0; i < ng; i++) {
         if (gs[i].k < 4) usage();
+        gs[i].time_key = time_key;
+    }
     rd_image ref = read_exr(ref_path);
     char *se_path = sibling(ref_path, "-stderr.exr");
     rd_image ref_se = read_exr(se_path);

@@ -873,6 +873,15 @@ static rd_status write_text_at(const char *dir, const char *name, const char *te
     return rd_write_atomic(path, text, strlen(text), err, errlen);
 }
 
+/* DIR/NAME from a text buffer (rd_text_write: atomic, frees the buffer). */
+static rd_status write_buffer_at(const char *dir, const char *name, rd_text *b, char *err,
+                                 size_t errlen)
+{
+    char path[1200];
+    snprintf(path, sizeof path, "%.1000s/%s", dir, name);
+    return rd_text_write(b, path, err, errlen);
+}
+
 /* curve-LABEL.dat: "seconds rmse" after every pass, one block per run (a blank line between
  * runs breaks the line in gnuplot); an added image with a time is one point. */
 static rd_status write_curves(const rd_comparison *c, const char *dir, char *err, size_t errlen)
@@ -895,9 +904,7 @@ static rd_status write_curves(const rd_comparison *c, const char *dir, char *err
         }
         char name[128];
         snprintf(name, sizeof name, "curve-%s.dat", r->label);
-        rd_status st = b.oom ? fail(err, errlen, RD_ERR_NOMEM, "%s: out of memory", name)
-                             : write_text_at(dir, name, b.s ? b.s : "", err, errlen);
-        free(b.s);
+        rd_status st = write_buffer_at(dir, name, &b, err, errlen);
         if (st) return st;
     }
     return RD_OK;
@@ -943,9 +950,7 @@ static rd_status write_plot(const rd_comparison *c, const char *dir, char *err, 
     }
     if (!plotted) rd_text_printf(&b, "NaN notitle");
     rd_text_printf(&b, "\n");
-    st = b.oom ? fail(err, errlen, RD_ERR_NOMEM, "%s: out of memory", "convergence.gp")
-               : write_text_at(dir, "convergence.gp", b.s, err, errlen);
-    free(b.s);
+    st = write_buffer_at(dir, "convergence.gp", &b, err, errlen);
     return st ? st : run_gnuplot(dir, err, errlen);
 }
 
@@ -1240,10 +1245,7 @@ static rd_status write_page(const rd_comparison *c, const rd_scene *s, const cha
     rd_text_printf(&b, "<h2>Convergence</h2>\n<p>RMSE against time during each run (log-log; drawn by gnuplot from "
                   "curve-*.dat).</p>\n<img src=convergence.svg alt=\"RMSE against time\" style=\"max-width:100%%\">\n");
     rd_text_printf(&b, "<pre id=selftest hidden></pre>\n<script>\n%s</script>\n</body></html>\n", page_js);
-    rd_status st = b.oom ? fail(err, errlen, RD_ERR_NOMEM, "%s: out of memory", "index.html")
-                         : write_text_at(dir, "index.html", b.s, err, errlen);
-    free(b.s);
-    return st;
+    return write_buffer_at(dir, "index.html", &b, err, errlen);
 }
 
 rd_status rd_compare_write_report(const rd_comparison *c, const rd_scene *scene, const char *dir,

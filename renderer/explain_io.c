@@ -19,10 +19,7 @@ static rd_status write_csv(const rd_explain_result *e, const char *path, char *e
     for (int i = 0; i < e->n; i++)
         rd_text_printf(&b, "%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g\n", e->t[i], e->T[i], e->f[i],
             e->I > 0.0 ? e->f[i] / e->I : 0.0, e->p[0][i], e->p[1][i], e->p[2][i]);
-    rd_status st = b.oom ? RD_ERR_NOMEM : rd_write_atomic(path, b.s, b.n, err, errlen);
-    if (b.oom) snprintf(err, errlen, "%s: out of memory", path);
-    free(b.s);
-    return st;
+    return rd_text_write(&b, path, err, errlen);
 }
 
 static rd_status write_json(const rd_scene *s, const rd_explain_result *e, const char *path,
@@ -108,10 +105,7 @@ static rd_status write_gnuplot(const rd_explain_result *e, const char *prefix, c
         rd_text_printf(&b, "e\n");
     }
     rd_text_printf(&b, "unset multiplot\n");
-    rd_status st = b.oom ? RD_ERR_NOMEM : rd_write_atomic(gp, b.s, b.n, err, errlen);
-    if (b.oom) snprintf(err, errlen, "%s: out of memory", gp);
-    free(b.s);
-    return st;
+    return rd_text_write(&b, gp, err, errlen);
 }
 
 rd_status rd_explain_write(const rd_scene *s, const rd_explain_result *e, const char *prefix,

@@ -359,6 +359,9 @@ vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters 
  * and ignores later calls, so a writer checks oom once at the end. Start with {0}; free(s). */
 typedef struct { char *s; size_t n, cap; int oom; } rd_text;
 void rd_text_printf(rd_text *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+/* Write the buffer to path atomically (rd_write_atomic) and free it; a buffer that ran out of
+ * memory writes nothing and fails with RD_ERR_NOMEM, "PATH: out of memory". */
+rd_status rd_text_write(rd_text *b, const char *path, char *err, size_t errlen);
 
 /* Write n bytes to path through a temporary name in its folder and a rename (output.c), so a
  * failed write never leaves a partial file; RD_ERR_OUTPUT naming the path. */

@@ -1,5 +1,5 @@
 /* text.c: a growing text buffer for the files the renderer writes as text (the compare report,
- * explain's table and gnuplot script). Contract in rd_internal.h. */
+ * explain's table and gnuplot script) and writes them. Contract in rd_internal.h. */
 #include "rd_internal.h"
 
 #include <stdarg.h>
@@ -21,4 +21,18 @@ void rd_text_printf(rd_text *b, const char *fmt, ...)
         if (!p) { b->oom = 1; return; }
         b->s = p, b->cap = cap;
     }
+}
+
+rd_status rd_text_write(rd_text *b, const char *path, char *err, size_t errlen)
+{
+    rd_status st;
+    if (b->oom) {
+        st = RD_ERR_NOMEM;
+        if (err && errlen) snprintf(err, errlen, "%s: out of memory", path);
+    } else {
+        st = rd_write_atomic(path, b->s ? b->s : "", b->n, err, errlen);
+    }
+    free(b->s);
+    *b = (rd_text){0};
+    return st;
 }
