@@ -2,7 +2,8 @@
 # bench_march.sh: issue 9's benchmark of guided marching against its baselines (run by hand;
 # docs/guided-marching.md has the method and the figures). For each scene:
 #   1. a long `delta` reference (its own seed; its noise is in REF-stderr.exr);
-#   2. K independent runs (seeds 101..100+K) of guided, transmittance and uniform, for
+#   2. K independent runs (seeds 101..100+K) of guided, transmittance and uniform (SPP samples
+#      per pixel each, or with TIME set, TIME seconds each, bake included: equal time), for
 #      march.ls = nee+photons (the default) and photons, interleaved (run k of every
 #      configuration before run k+1 of any), so load from other users of the machine falls on
 #      all methods alike;
@@ -16,7 +17,9 @@
 #
 #   bench/bench_march.sh [BUILD]      environment: K (4), RES (160,120), SPP (4), REF_TIME (120),
 #                                     BUDGETS ("10 30"), SCENES ("default beam"), THREADS (2),
-#                                     SWEEP (0), RUNS (1: 0 skips steps 2-3)
+#                                     SWEEP (0), RUNS (1: 0 skips steps 2-3), TIME (unset),
+#                                     LS ("nee+photons photons")
+# A reference already at $OUT/SCENE/ref.exr (with ref-stderr.exr) is used as it is.
 set -euo pipefail
 BUILD=${1:-build}
 K=${K:-4}
@@ -28,6 +31,10 @@ SCENES=${SCENES:-default beam}
 THREADS=${THREADS:-2}
 SWEEP=${SWEEP:-0}
 RUNS=${RUNS:-1}
+TIME=${TIME:-}
+LS=${LS:-nee+photons photons}
+if [ -n "$TIME" ]; then BUDGET=(--time "$TIME" --spp 16777216); TAG="${TIME} s each"
+else BUDGET=(--spp "$SPP"); TAG="$SPP spp"; fi
 OUT=bench/results/march
 BIN="$BUILD/photonmarch"
 STATS="$BUILD/bench/bench_march_stats"
@@ -48,20 +55,20 @@ for scene in $SCENES; do
   [ -f "$d/ref.exr" ] || render "$scene" delta "$d/ref.exr" --seed 7777 --time "$REF_TIME" --spp 16777216
   for k in $(seq 1 "$K"); do
     [ "$RUNS" = 1 ] || break
-    for ls in nee+photons photons; do
+    for ls in $LS; do
       for m in guided transmittance uniform; do
         echo "== $scene run $k: $m, ls $ls" >&2
-        render "$scene" "$m" "$d/$m-$ls-$k.exr" --seed $((100 + k)) --spp "$SPP" --set "march.ls=$ls"
+        render "$scene" "$m" "$d/$m-$ls-$k.exr" --seed $((100 + k)) "${BUDGET[@]}" --set "march.ls=$ls"
       done
     done
   done
-  for ls in nee+photons photons; do
+  for ls in $LS; do
     [ "$RUNS" = 1 ] || break
     args=()
     for m in guided transmittance uniform; do
       args+=(--group "$m" $(for k in $(seq 1 "$K"); do echo "$d/$m-$ls-$k.exr"; done))
     done
-    { echo "### $scene, march.ls = $ls, $RES px, $SPP spp, K = $K"; echo
+    { echo "### $scene, march.ls = $ls, $RES px, $TAG, K = $K, $THREADS thread(s)"; echo
       "$STATS" --ref "$d/ref.exr" "${args[@]}"; echo; } | tee "$d/stats-$ls.md"
   done
   imgs=()

@@ -36,14 +36,27 @@
 #include <stdlib.h>
 #include <string.h>
 
-typedef enum { PLACE_GUIDED, PLACE_UNIFORM, PLACE_TRANSMITTANCE } placement;
+typedef enum { PLACE_GUIDED, PLACE_UNIFORM, PLACE_TRANSMITTANCE, PLACE_COUNT } placement;
+
+/* Samples per ray when the scene does not set march.samples: each placement's best on the
+ * calibration scenes cloud.json and smoke-vdb.json (bench/bench_samples.sh, 4 spp, efficiency
+ * 1/(variance x render time); docs/guided-marching.md), not on the benchmark scenes. A placement
+ * that puts its samples where the light is needs fewer of them: most of a pixel's variance is
+ * the film's and the shadow rays' (docs/guided-marching.md), which only more camera rays reduce. */
+static int march_default_samples(placement p)
+{
+    static const int n[PLACE_COUNT] = {[PLACE_GUIDED] = 2, [PLACE_TRANSMITTANCE] = 4, [PLACE_UNIFORM] = 8};
+    return n[p];
+}
 
 /* What every thread reads: the pilot's mean I_ray (eq. 17) and the scratch layout. */
 typedef struct {
     double mean_I;   /* mean over the pilot's rays of I_ray, 0 when unknown */
+    int n_mean[PLACE_COUNT]; /* N_mean of each placement: march.samples, or its default */
     int seg_cap;     /* PDF segments per ray */
     int n_max;       /* samples per ray at most */
-    int k_steps;     /* extinction lookups per ray (transmittance; guided detail lattice) */
+    int k_steps;     /* extinction lookups per ray at most: 4 N_mean (transmittance; guided
+                      * detail lattice), over the placements */
     int piece_cap;   /* entries of the tb/f/sig tables: k_steps, or cells + k_steps (detail) */
 } march_state;
 
@@ -109,7 +122,7 @@ static void refine_by_lookups(const rd_render_ctx *ctx, const march_scratch *ms,
 {
     const rd_scene *s = ctx->scene;
     const march_state *st = ctx->state;
-    double t0 = pdf->tmin, t1 = pdf->tmax, h = (t1 - t0) / st->k_steps;
+    double t0 = pdf->tmin, t1 = pdf->tmax, h = (t1 - t0) / (4 * st->n_mean[PLACE_GUIDED]);
     int n = 0;
     for (int j = 0; j < pdf->n && n < st->piece_cap; j++) {
         const rd_gpdf_seg sg = pdf->seg[j];
@@ -161,17 +174,17 @@ static int build_pdf(const rd_render_ctx *ctx, placement place, const march_scra
     const rd_march_settings *ms_set = &s->march;
     const march_state *st = ctx->state;
     rd_guide_pdf_init(pdf, ms->seg, st->seg_cap);
-    int N = ms_set->samples;
+    int N = st->n_mean[place];
     if (place == PLACE_GUIDED) {
         build_guided(ctx, ms, r, t0, t1, pdf, c);
-        N = rd_guide_samples_per_ray(pdf->I, st->mean_I, ms_set->samples, ms_set->min_samples, ms_set->max_samples);
+        N = rd_guide_samples_per_ray(pdf->I, st->mean_I, N, ms_set->min_samples, ms_set->max_samples);
     } else if (place == PLACE_UNIFORM) {
         rd_guide_pdf_build(pdf, 0, NULL, NULL, NULL, t0, t1, 1.0, NULL, 0);
     } else {
         /* Piecewise-constant extinction from K midpoint lookups: p ~ sigma~ T~ (eq. 11) is the
          * histogram PDF with f_j = sigma_j, sampled exactly; the defensive mixture covers where
          * the midpoints saw no medium. */
-        int K = st->k_steps;
+        int K = 4 * st->n_mean[PLACE_TRANSMITTANCE];
         double h = (t1 - t0) / K;
         for (int j = 0; j < K; j++) {
             ms->tb[j] = t0 + j * h;
@@ -301,8 +314,13 @@ static rd_status march_prepare_common(rd_render_ctx *ctx, char *err, size_t errl
         snprintf(err, errlen, "out of memory for the marcher");
         return RD_ERR_NOMEM;
     }
-    ms->n_max = m->max_samples > m->samples ? m->max_samples : m->samples;
-    ms->k_steps = 4 * m->samples;
+    ms->n_max = m->max_samples;
+    ms->k_steps = 0;
+    for (int p = 0; p < PLACE_COUNT; p++) {
+        ms->n_mean[p] = m->samples > 0 ? m->samples : march_default_samples((placement)p);
+        if (ms->n_mean[p] > ms->n_max) ms->n_max = ms->n_mean[p];
+        if (4 * ms->n_mean[p] > ms->k_steps) ms->k_steps = 4 * ms->n_mean[p];
+    }
     ms->seg_cap = ms->k_steps + 2;
     if (ctx->guide) {
         /* A uniform grid is crossed in at most nx + ny + nz - 2 cells; an adaptive one in at

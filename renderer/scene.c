@@ -757,7 +757,7 @@ static rd_status parse_guide(vctx *c, const cJSON *j, rd_guide_settings *g)
 /* Ray marching of the guided methods (docs/scene-format.md "march"). */
 static rd_status parse_march(vctx *c, const cJSON *j, rd_march_settings *m)
 {
-    m->samples = 8; /* calibrated on cloud and smoke-vdb (docs/guided-marching.md) */
+    m->samples = 0; /* per placement, calibrated on cloud and smoke-vdb (integrator_march.c) */
     m->min_samples = 1;
     m->max_samples = 64;
     m->alpha = 0.2;
@@ -769,7 +769,7 @@ static rd_status parse_march(vctx *c, const cJSON *j, rd_march_settings *m)
     static const char *const keys[] = {"samples", "min_samples", "max_samples", "alpha", "ls", "detail", NULL};
     TRY(check_keys(c, j, path, keys));
     long long v;
-    TRY(get_int(c, j, path, "samples", 0, 8, 1, 4096, &v));
+    TRY(get_int(c, j, path, "samples", 0, 0, 1, 4096, &v));
     m->samples = (int)v;
     TRY(get_int(c, j, path, "min_samples", 0, 1, 1, 4096, &v));
     m->min_samples = (int)v;

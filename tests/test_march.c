@@ -222,3 +222,39 @@ Test(march, explain_agrees_with_the_renderer_on_one_ray, .timeout = 300)
     rd_baked_free(b);
     rd_scene_free(s);
 }
+
+Test(march, each_placement_takes_its_own_default_samples_per_ray, .timeout = 120)
+{
+    /* Without march.samples each placement takes its calibrated N_mean (integrator_march.c,
+     * march_default_samples: guided 2, transmittance 4, uniform 8). The render with the key
+     * absent must equal, sample for sample, the render with that N given explicitly (same
+     * seed, same image, same samples per ray); uniform and transmittance take exactly N per
+     * ray. An explicit march.samples applies to every placement. */
+    static const struct { const char *method; int n; } want[] = {{"guided", 2}, {"transmittance", 4}, {"uniform", 8}};
+    char extra[128];
+    rd_scene *dflt = rt_scene("dflt_n.json", scene_json("\"settings\":{\"max_depth\":1},\"march\":{\"ls\":\"nee\"}", -2.5));
+    for (int i = 0; i < 3; i++) {
+        snprintf(extra, sizeof extra, "\"settings\":{\"max_depth\":1},\"march\":{\"ls\":\"nee\",\"samples\":%d}", want[i].n);
+        rd_scene *expl = rt_scene("expl_n.json", scene_json(extra, -2.5));
+        rd_render_result a = render(dflt, want[i].method, 1, 5, NULL);
+        rd_render_result b = render(expl, want[i].method, 1, 5, NULL);
+        cr_assert(a.stats.rays_marched > 0, "%s: no ray marched", want[i].method);
+        cr_expect(a.stats.samples_per_ray == b.stats.samples_per_ray, "%s: %g samples per ray by default, %g with samples = %d",
+                  want[i].method, a.stats.samples_per_ray, b.stats.samples_per_ray, want[i].n);
+        if (strcmp(want[i].method, "guided") != 0)
+            cr_expect(a.stats.samples_per_ray == want[i].n, "%s: %g samples per ray, expected %d", want[i].method,
+                      a.stats.samples_per_ray, want[i].n);
+        size_t n = (size_t)a.image.w * a.image.h * 3;
+        cr_expect(memcmp(a.image.rgb, b.image.rgb, n * sizeof(float)) == 0, "%s: the images differ", want[i].method);
+        rd_render_result_free(&a);
+        rd_render_result_free(&b);
+        rd_scene_free(expl);
+    }
+    /* An explicit value is every placement's: uniform with samples = 3 takes 3 per ray. */
+    rd_scene *three = rt_scene("three_n.json", scene_json("\"settings\":{\"max_depth\":1},\"march\":{\"ls\":\"nee\",\"samples\":3}", -2.5));
+    rd_render_result u = render(three, "uniform", 1, 5, NULL);
+    cr_expect(u.stats.samples_per_ray == 3.0, "uniform: %g samples per ray with samples = 3", u.stats.samples_per_ray);
+    rd_render_result_free(&u);
+    rd_scene_free(three);
+    rd_scene_free(dflt);
+}
