@@ -5,7 +5,10 @@
  *  - with multiple scattering from the photon map, guided and transmittance agree (they share
  *    the estimator of sigma_s L_s; only the placement of the samples differs);
  *  - alpha = 1 (the defensive sampler alone) and a guide that is wrong on purpose (baked with
- *    the light elsewhere) leave the expected image unchanged.
+ *    the light elsewhere) leave the expected image unchanged;
+ *  - with the photon estimate alone, the gap to delta shrinks as the photon count grows (its
+ *    k-NN blur is the marchers' only bias);
+ *  - without march.samples each placement takes its own calibrated samples per ray.
  * Comparisons are z-scores of the image mean and of 8x8-pixel region means, with standard
  * errors from the films' per-pixel standard errors (pixels are independent). Under equal
  * expectations each z is standard normal; with at most 12 regions per comparison the region
@@ -79,7 +82,7 @@ static void expect_same(const rd_render_result *a, const rd_render_result *b, co
     "\"density\":{\"type\":\"noise\",\"octaves\":3,\"frequency\":2,\"amplitude\":2,\"seed\":3,"       \
     "\"shape\":\"ellipsoid\",\"edge\":0.5},\"sigma_t\":2.5,\"albedo\":0.85,\"g\":0.6}],"
 
-static const char *scene_json(const char *extra, double spot_x)
+static const char *scene_json_photons(const char *extra, double spot_x, int photons)
 {
     static char buf[2048];
     snprintf(buf, sizeof buf,
@@ -88,9 +91,14 @@ static const char *scene_json(const char *extra, double spot_x)
              "\"falloff\":8,\"intensity\":[20,16,12]},"
              "{\"type\":\"directional\",\"direction\":[1,-0.2,-0.3],\"irradiance\":[2,3,4],\"radius\":0.25,"
              "\"center\":[0.3,0.1,0]}],"
-             "\"photons\":{\"count\":40000},\"guide\":{\"bands\":4},%s}",
-             spot_x, extra);
+             "\"photons\":{\"count\":%d},\"guide\":{\"bands\":4},%s}",
+             spot_x, photons, extra);
     return buf;
+}
+
+static const char *scene_json(const char *extra, double spot_x)
+{
+    return scene_json_photons(extra, spot_x, 40000);
 }
 
 Test(march, single_scattering_agrees_with_delta, .timeout = 300)
@@ -257,4 +265,62 @@ Test(march, each_placement_takes_its_own_default_samples_per_ray, .timeout = 120
     rd_render_result_free(&u);
     rd_scene_free(three);
     rd_scene_free(dflt);
+}
+
+/* Squared gap between two renders over 4x4-pixel regions of luminance: the sum over regions of
+ * (m_a - m_b)^2 minus its noise (v_a + v_b), an unbiased estimate of the sum of squared
+ * differences of the expectations; *sd is its standard deviation (per region, for
+ * x ~ N(b, s^2), var(x^2) = 2 s^4 + 4 b^2 s^2, with b^2 estimated by max(0, x^2 - s^2)). */
+static double gap2(const rd_render_result *a, const rd_render_result *b, double *sd)
+{
+    int w = a->image.w, h = a->image.h;
+    double sum = 0.0, var = 0.0;
+    for (int ry = 0; ry < h; ry += 4)
+        for (int rx = 0; rx < w; rx += 4) {
+            double d = 0.0, v = 0.0;
+            int n = 0;
+            for (int y = ry; y < ry + 4 && y < h; y++)
+                for (int x = rx; x < rx + 4 && x < w; x++, n++)
+                    for (int k = 0; k < 2; k++) {
+                        const rd_render_result *r = k ? b : a;
+                        const float *p = &r->image.rgb[3 * ((size_t)y * w + x)];
+                        const float *e = &r->stderr_img.rgb[3 * ((size_t)y * w + x)];
+                        double se = v3_lum(v3(e[0], e[1], e[2]));
+                        d += (k ? -1.0 : 1.0) * v3_lum(v3(p[0], p[1], p[2]));
+                        v += se * se;
+                    }
+            d /= n, v /= (double)n * n;
+            double b2 = fmax(0.0, d * d - v);
+            sum += d * d - v;
+            var += 2.0 * v * v + 4.0 * b2 * v;
+        }
+    *sd = sqrt(var);
+    return sum;
+}
+
+Test(march, gap_to_delta_shrinks_as_photons_grow, .timeout = 300)
+{
+    /* Multiple scattering with the photon estimate alone (march.ls = photons, the seed's
+     * original): its k-NN blur is the only bias, and it falls as the photon count grows. The
+     * squared gap to a delta render (gap2) at 1e3, 1e4 and 1e5 photons must fall: the last is
+     * below the first by more than 4.5 standard deviations of their difference, and the middle
+     * is no more than 3 standard deviations above the first. */
+    rd_scene *s = rt_scene("gap_delta.json", scene_json("\"march\":{\"ls\":\"photons\"}", -2.5));
+    rd_render_result d = render(s, "delta", 384, 71, NULL);
+    static const int counts[] = {1000, 10000, 100000};
+    double g[3], sd[3];
+    for (int i = 0; i < 3; i++) {
+        rd_scene *si = rt_scene("gap_photons.json", scene_json_photons("\"march\":{\"ls\":\"photons\"}", -2.5, counts[i]));
+        rd_render_result r = render(si, "guided", 48, 72 + i, NULL);
+        g[i] = gap2(&r, &d, &sd[i]);
+        cr_log_info("photons %d: squared gap to delta %.4g +- %.2g", counts[i], g[i], sd[i]);
+        rd_render_result_free(&r);
+        rd_scene_free(si);
+    }
+    cr_expect(g[0] - g[2] > 4.5 * sqrt(sd[0] * sd[0] + sd[2] * sd[2]),
+              "the gap did not shrink from 1e3 to 1e5 photons: %.4g +- %.2g to %.4g +- %.2g", g[0], sd[0], g[2], sd[2]);
+    cr_expect(g[1] < g[0] + 3.0 * sqrt(sd[0] * sd[0] + sd[1] * sd[1]),
+              "the gap grew from 1e3 to 1e4 photons: %.4g +- %.2g to %.4g +- %.2g", g[0], sd[0], g[1], sd[1]);
+    rd_render_result_free(&d);
+    rd_scene_free(s);
 }
