@@ -61,6 +61,20 @@ NPH=$($TOOL info "$PMAP" | sed -n 's/^photons //p')
 say "$TOOL slice $GUIDE --axis z --at 0 --res 280,200 --dc | --eye $EYE > $OUT/slice-*.csv"
 nice -n 19 $TOOL slice "$GUIDE" --axis z --at 0 --res 280,200 --dc > "$OUT/slice-dc.csv"
 nice -n 19 $TOOL slice "$GUIDE" --axis z --at 0 --res 280,200 --eye $EYE > "$OUT/slice-eye.csv"
+# A check of what the DC term means: summed over every cell (one raster pixel per cell, one
+# slice per cell layer) times the cell volume it should give about the stored photon power
+# (mean over R, G, B), up to the k-NN estimate's blur at the edges of the lit region.
+read -r nx ny nz < <($TOOL info "$GUIDE" | sed -n 's/^res //p')
+read -r lx ly lz < <($TOOL info "$GUIDE" | sed -n 's/^lo //p')
+read -r hx hy hz < <($TOOL info "$GUIDE" | sed -n 's/^hi //p')
+dc_sum=$(for k in $(seq 0 $((nz - 1))); do
+    z=$(awk -v k="$k" -v lo="$lz" -v hi="$hz" -v n="$nz" 'BEGIN { print lo + (k + 0.5) * (hi - lo) / n }')
+    $TOOL slice "$GUIDE" --axis z --at "$z" --res "$nx,$ny" --dc
+done | awk -F, 'NF == 3 && $1 + 0 == $1 { s += $3 } END { printf "%.6g", s }')
+awk -v s="$dc_sum" -v v="$(awk -v a="$lx" -v b="$hx" -v c="$ly" -v d="$hy" -v e="$lz" -v f="$hz" \
+        -v nx="$nx" -v ny="$ny" -v nz="$nz" 'BEGIN { print (b-a)*(d-c)*(f-e)/(nx*ny*nz) }')" \
+    -v p="$($TOOL photons "$PMAP" | awk -F, 'NR > 2 { s += ($7 + $8 + $9) / 3 } END { printf "%.6g", s }')" \
+    'BEGIN { printf "make-how-it-works: check: DC term x cell volume over the grid %.4g W; the power of the stored photons %.4g W\n", s * v, p }' >&2
 # (d) the top view at the bright ray's height, toward the camera
 say "$TOOL slice $GUIDE --axis y --at $SLICE_Y --res 280,200 --eye $EYE > $OUT/slice-top.csv"
 nice -n 19 $TOOL slice "$GUIDE" --axis y --at $SLICE_Y --res 280,200 --eye $EYE > "$OUT/slice-top.csv"
