@@ -227,9 +227,10 @@ int main(int argc, char **argv)
     if (argc < 3) return usage();
     if (strcmp(argv[1], "photons") == 0) {
         long every = 1;
-        if (argc == 5 && strcmp(argv[3], "--every") == 0) every = strtol(argv[4], NULL, 10);
+        char *end = NULL;
+        if (argc == 5 && strcmp(argv[3], "--every") == 0) every = strtol(argv[4], &end, 10);
         else if (argc != 3) return usage();
-        if (every < 1) return usage();
+        if (every < 1 || (end && *end)) return usage();
         return dump_photons(argv[2], every);
     }
     if (strcmp(argv[1], "slice") == 0) {
