@@ -45,6 +45,8 @@ declare -A SKIP=(
 # buy guided its bake and one full pass over the image (compare refuses less).
 declare -A LONGER=(
     [clouds-low]="120:at 40 s guided could not finish one pass over the 128x96 image (its bake took 4.0 s; load average 11): compare refused the run"
+    [hetero-forward]="150:at 40 s guided's bake alone took 64.7 s (142 s in a first attempt with another comparison running beside it; hetero-isotropic's, the same scene with g = 0, took 15.3 s): compare refused the run"
+    [plume-env-dense]="120:at 40 s guided's bake alone took 36.6 s, leaving too little for one pass over the image: compare refused the run"
 )
 
 NAMES=()
