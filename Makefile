@@ -119,6 +119,17 @@ $(BUILD)/bench/%: $(BUILD)/bench/%.o $(LIB_RD) $(LIB_SH) $(LIB_WK) $(LIB_PM)
 	@mkdir -p $(dir $@)
 	$(CXX) $(LDFLAGS) $^ $(LIBS) -o $@
 
+# Tools (tools/*.c): small programs on the public headers, for the documentation's pictures
+# (scripts/make-how-it-works.sh); `make tools` builds them into $(BUILD)/tools/.
+TOOLS_SRC := $(wildcard tools/*.c)
+TOOLS_BIN := $(patsubst tools/%.c,$(BUILD)/tools/%,$(TOOLS_SRC))
+.SECONDARY: $(patsubst tools/%.c,$(BUILD)/tools/%.o,$(TOOLS_SRC))
+.PHONY: tools
+tools: $(TOOLS_BIN)
+$(BUILD)/tools/%: $(BUILD)/tools/%.o $(LIB_SH) $(LIB_WK) $(LIB_PM)
+	@mkdir -p $(dir $@)
+	$(CXX) $(LDFLAGS) $^ $(LIBS_PM) -lm -o $@
+
 asan: deps
 	$(MAKE) BUILD=build-asan SAN=1 build-asan/photonmarch
 
