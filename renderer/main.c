@@ -883,6 +883,14 @@ static int cmd_explain(int argc, char **argv)
     rd_baked *baked = NULL;
     rd_explain_result e;
     memset(&e, 0, sizeof e);
+    /* A pixel outside the image is a usage error, found before the bake (minutes on a big scene). */
+    for (int q = 0; q < npx; q++)
+        if (pxs[q][0] >= rd_scene_width(scene) || pxs[q][1] >= rd_scene_height(scene)) {
+            fprintf(stderr, "photonmarch explain: --pixel %ld,%ld: outside the %dx%d image\n", pxs[q][0], pxs[q][1],
+                    rd_scene_width(scene), rd_scene_height(scene));
+            code = EXIT_USAGE;
+            goto out;
+        }
     if ((st = rd_make_parent_dirs(prefix, err, sizeof err)) != RD_OK) {
         code = report_error(st, err);
         goto out;

@@ -578,6 +578,14 @@ Test(cli, usage_errors_exit_1)
     char *a6[] = {(char *)bin, "render", "/nonexistent/scene.json", NULL};
     cr_expect(rt_run(a6, out, sizeof out, err, sizeof err, 0) == 2);
     cr_expect(strstr(err, "/nonexistent/scene.json: No such file") != NULL, "%s", err);
+    /* explain's pixel outside the image: refused before the bake (no folder, no cache made) */
+    char prefix[320], dir[300];
+    snprintf(dir, sizeof dir, "%.250s/explain-outside", rt_tmpdir());
+    snprintf(prefix, sizeof prefix, "%s/x", dir);
+    char *a7[] = {(char *)bin, "explain", (char *)tiny_scene(), "--pixel", "100000,0", "-o", prefix, NULL};
+    cr_expect(rt_run(a7, out, sizeof out, err, sizeof err, 0) == 1, "%s", err);
+    cr_expect(strstr(err, "--pixel 100000,0: outside the") != NULL, "%s", err);
+    cr_expect(access(dir, F_OK) != 0, "explain made %s before refusing the pixel", dir);
 }
 
 Test(cli, bake_writes_map_guide_and_pictures_and_reuses_the_map, .timeout = 120)
