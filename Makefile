@@ -192,7 +192,7 @@ SAN_ENV := ASAN_OPTIONS=halt_on_error=1:detect_leaks=1:allocator_may_return_null
            UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
            LSAN_OPTIONS=suppressions=$(LSAN_SUPP):print_suppressions=0
 test: deps
-	$(MAKE) $(BIN) $(TEST_BIN)
+	$(MAKE) $(BIN) $(TEST_BIN) $(TOOLS_BIN)
 	$(MAKE) BUILD=build-asan SAN=1 build-asan/photonmarch build-asan/tests/run_tests
 	$(MAKE) BUILD=build-fuzz SAN=fuzz CC=clang-14 CXX=clang++-14 $(FUZZ_BIN)
 	@printf 'leak:libcriterion.so\n' > $(LSAN_SUPP)
