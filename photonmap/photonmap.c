@@ -951,6 +951,20 @@ static void errno_text(int e, char *buf, size_t len)
         snprintf(buf, len, "error %d", e);
 }
 
+/* The temporary name of `path` for this process: "dir/name.ext" -> "dir/.name.tmp<pid>.ext",
+ * the scheme of the renderer's outputs (renderer/output.c): in the same folder, so the rename
+ * is atomic, and hidden, so a bake killed mid-write leaves no visible file. `out` holds
+ * strlen(path) + 32 bytes (a dot, ".tmp" and at most 20 digits are added). */
+static void temp_name(const char *path, char *out, size_t n)
+{
+    const char *slash = strrchr(path, '/');
+    const char *base = slash ? slash + 1 : path;
+    const char *dot = strrchr(base, '.');
+    if (!dot || dot == base) dot = base + strlen(base);
+    snprintf(out, n, "%.*s.%.*s.tmp%ld%s", (int)(base - path), path, (int)(dot - base), base,
+             (long)getpid(), dot);
+}
+
 pm_status pm_map_save(const pm_map *map, const char *path, char *err, size_t errlen)
 {
     if (map == NULL || path == NULL) {
@@ -963,7 +977,7 @@ pm_status pm_map_save(const pm_map *map, const char *path, char *err, size_t err
         set_err(err, errlen, "%s: out of memory", path);
         return PM_ERR_NOMEM;
     }
-    snprintf(tmp, tlen, "%s.tmp.%ld", path, (long)getpid());
+    temp_name(path, tmp, tlen);
     char why[128];
     FILE *f = fopen(tmp, "wb");
     if (f == NULL) {
