@@ -335,3 +335,111 @@ Test(stress_big, one_pixel_at_1e6_spp, .timeout = 600)
                   mean, want, se);
     }
 }
+
+/* ---- Memory limits (suite memory) ---------------------------------------------------------- *
+ * A render or bake that cannot get memory says so in one line naming what it was allocating
+ * and exits with a status (never a signal). The CLI runs under `ulimit -v` (1 GiB of address
+ * space: enough to start, which takes about 0.6 GiB with its libraries and threads, far too
+ * little for what the scene asks for). */
+
+/* Run `args` (a shell word list after the binary) under `ulimit -v kib`; the exit status (or
+ * 1000 + signal) and the last line of stderr. */
+static int run_limited(long kib, const char *args, char *err, size_t errlen)
+{
+    char cmd[2048], o[4096];
+    snprintf(cmd, sizeof cmd, "ulimit -v %ld; exec '%s' %s", kib, bin(), args);
+    char *argv[] = {"/bin/bash", "-c", cmd, NULL};
+    return rt_run(argv, o, sizeof o, err, errlen, 0);
+}
+
+/* One line (a single newline, at the end). */
+static void expect_one_line(const char *err)
+{
+    const char *nl = strchr(err, '\n');
+    cr_expect(nl != NULL && nl[1] == 0, "not one line: %s", err);
+}
+
+/* A 8192x8192 film (4.8 GB: 76 bytes per pixel) under 1 GiB: exit 4 (internal error: out of
+ * memory) with the film named. Found a double free: film_alloc freed the partial film and
+ * rd_render freed it again (SIGSEGV). */
+Test(memory, render_without_memory_for_its_film_says_so, .timeout = 120)
+{
+    char scene[256], args[1024], err[4096];
+    snprintf(scene, sizeof scene, "%s/nomem-scene.json", rt_tmpdir());
+    write_scene(scene, "{\"camera\":{\"position\":[0,0.5,4],\"look_at\":[0,0,0],\"resolution\":[8192,8192]},"
+                       "\"media\":[{\"bounds\":{\"min\":[-0.6,-0.6,-0.6],\"max\":[0.6,0.6,0.6]},"
+                       "\"density\":1,\"sigma_t\":2,\"albedo\":0.9}],"
+                       "\"lights\":[{\"type\":\"point\",\"position\":[1.5,1,1],\"intensity\":5}]}");
+    snprintf(args, sizeof args, "render '%s' --spp 1 --threads 2 -q -o '%s/nomem.exr'", scene, rt_tmpdir());
+    int code = run_limited(1L << 20, args, err, sizeof err);
+    cr_expect(code > 0 && code < 128, "exit %d (expected a failure status, not a signal): %s", code, err);
+    cr_expect(strstr(err, "out of memory") && strstr(err, "8192x8192 film"), "%s", err);
+    expect_one_line(err);
+}
+
+/* A bake whose photons do not fit (a point light inside a dense, white medium: every photon is
+ * stored at up to 64 collisions, 1e6 photons would store about 6e7 = 2 GB) under 1 GiB. */
+Test(memory, bake_without_memory_for_its_photons_says_so, .timeout = 180)
+{
+    char scene[256], args[1024], err[4096];
+    snprintf(scene, sizeof scene, "%s/nomem-bake.json", rt_tmpdir());
+    write_scene(scene, "{\"camera\":{\"position\":[0,0.5,4],\"look_at\":[0,0,0],\"resolution\":[16,16]},"
+                       "\"media\":[{\"bounds\":{\"min\":[-0.6,-0.6,-0.6],\"max\":[0.6,0.6,0.6]},"
+                       "\"density\":1,\"sigma_t\":100,\"albedo\":1}],"
+                       "\"lights\":[{\"type\":\"point\",\"position\":[0,0,0],\"intensity\":5}],"
+                       "\"photons\":{\"max_depth\":64}}");
+    snprintf(args, sizeof args, "bake '%s' --photons 1000000 --threads 2 -q -o '%s/nomem/b'", scene, rt_tmpdir());
+    int code = run_limited(1L << 20, args, err, sizeof err);
+    cr_expect(code > 0 && code < 128, "exit %d (expected a failure status, not a signal): %s", code, err);
+    cr_expect(strstr(err, "out of memory") && strstr(err, "photons"), "%s", err);
+    expect_one_line(err);
+}
+
+/* FLANN's C API lets std::bad_alloc through (it catches only std::runtime_error), which ended
+ * the process in std::terminate (SIGABRT). pm_map_build under an address-space limit that
+ * leaves room for our copy of the positions but not for FLANN's: PM_ERR_NOMEM and a message;
+ * with the limit lifted the same map builds. */
+#include "photonmap.h"
+
+static long vm_size_kib(void)
+{
+    FILE *f = fopen("/proc/self/status", "r");
+    cr_assert(f != NULL);
+    char line[256];
+    long kib = -1;
+    while (fgets(line, sizeof line, f))
+        if (sscanf(line, "VmSize: %ld", &kib) == 1) break;
+    fclose(f);
+    return kib;
+}
+
+Test(memory, flann_index_without_memory_is_an_error)
+{
+    enum { N = 2000000 };
+    pm_photon *ph = calloc(N, sizeof *ph);
+    cr_assert(ph != NULL);
+    pcg32 rng = pcg32_seed(5, 6, 7);
+    for (int i = 0; i < N; i++)
+        for (int a = 0; a < 3; a++) {
+            ph[i].pos[a] = (float)pcg32_uniform(&rng);
+            ph[i].dir[a] = a == 2 ? 1.0f : 0.0f;
+            ph[i].power[a] = 1e-6f;
+        }
+    pm_map *map = pm_map_new();
+    char err[256];
+    cr_assert(pm_map_add_photons(map, ph, N, err, sizeof err) == PM_OK, "%s", err);
+    free(ph);
+    /* Room for pm_map_build's own copy of the positions (12 bytes each) and 8 MiB more; FLANN's
+     * reordered copy of the points alone needs another 12 bytes each (24 MB). */
+    struct rlimit old, lim;
+    cr_assert(getrlimit(RLIMIT_AS, &old) == 0);
+    lim = old;
+    lim.rlim_cur = (rlim_t)(vm_size_kib() + (12L * N) / 1024 + 8 * 1024) * 1024;
+    cr_assert(setrlimit(RLIMIT_AS, &lim) == 0);
+    pm_status st = pm_map_build(map, err, sizeof err);
+    cr_assert(setrlimit(RLIMIT_AS, &old) == 0);
+    cr_expect(st == PM_ERR_NOMEM, "status %d: %s", st, err);
+    cr_expect(strstr(err, "out of memory") && strstr(err, "kd-tree"), "%s", err);
+    cr_expect(pm_map_build(map, err, sizeof err) == PM_OK, "without the limit: %s", err);
+    pm_map_free(map);
+}
