@@ -38,13 +38,14 @@ LIBS     := $(LIBS_RD) $(LIBS_PM) -lm -lpthread
 
 WK_SRC   := $(wildcard walk/*.c)
 PM_SRC   := $(wildcard photonmap/*.c)
+PM_CXX   := $(wildcard photonmap/*.cpp)
 SH_SRC   := $(wildcard sh/*.c)
 RD_SRC   := $(filter-out renderer/main.c,$(wildcard renderer/*.c))
 RD_CXX   := $(wildcard renderer/*.cpp)
 
 obj = $(patsubst %.c,$(BUILD)/%.o,$(filter %.c,$(1))) $(patsubst %.cpp,$(BUILD)/%.o,$(filter %.cpp,$(1)))
 WK_OBJ   := $(call obj,$(WK_SRC))
-PM_OBJ   := $(call obj,$(PM_SRC))
+PM_OBJ   := $(call obj,$(PM_SRC) $(PM_CXX))
 SH_OBJ   := $(call obj,$(SH_SRC))
 RD_OBJ   := $(call obj,$(RD_SRC) $(RD_CXX))
 

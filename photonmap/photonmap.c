@@ -47,7 +47,7 @@
 #include <time.h>
 #include <unistd.h>
 
-#include <flann/flann.h>
+#include "pm_flann_guard.h" /* FLANN's C API with its exceptions caught */
 #include <omp.h>
 
 #define PM_PI 3.14159265358979323846
@@ -394,12 +394,18 @@ pm_status pm_map_build(pm_map *map, char *err, size_t errlen)
 
     struct FLANNParameters p = flann_params(1);
     float speedup = 0.0f;
-    map->index = flann_build_index_float(map->xyz, (int)map->nph, 3, &speedup, &p);
+    pm_flann_fault fault;
+    map->index = pm_flann_build(map->xyz, (int)map->nph, 3, &speedup, &p, &fault);
     if (map->index == NULL) {
         free(map->xyz);
         map->xyz = NULL;
-        set_err(err, errlen, "pm_map_build: FLANN failed to build a kd-tree on %zu photons",
-                map->nph);
+        if (fault.nomem) {
+            set_err(err, errlen, "pm_map_build: out of memory for the FLANN kd-tree of %zu photons",
+                    map->nph);
+            return PM_ERR_NOMEM;
+        }
+        set_err(err, errlen, "pm_map_build: FLANN failed to build a kd-tree on %zu photons%s%s",
+                map->nph, fault.what[0] ? ": " : "", fault.what);
         return PM_ERR_INDEX;
     }
     /* flann_used_memory counts tree nodes and the permutation; add FLANN's reordered copy
@@ -476,7 +482,7 @@ static int collect_within(const pm_map *map, const float x[3], float t, pm_hit *
     int dummy_i;
     float dummy_d;
     /* max_nn = 0 makes FLANN only count the photons inside the radius. */
-    int c = flann_radius_search_float(map->index, q, &dummy_i, &dummy_d, 0, rs, &p);
+    int c = pm_flann_radius(map->index, q, &dummy_i, &dummy_d, 0, rs, &p, NULL);
     if (c < 0)
         return -1;
     size_t cn = c > 0 ? (size_t)c : 1;
@@ -485,7 +491,7 @@ static int collect_within(const pm_map *map, const float x[3], float t, pm_hit *
     pm_hit *h = malloc(cn * sizeof(pm_hit));
     int n = -1;
     if (fi != NULL && fd != NULL && h != NULL) {
-        int got = c > 0 ? flann_radius_search_float(map->index, q, fi, fd, c, rs, &p) : 0;
+        int got = c > 0 ? pm_flann_radius(map->index, q, fi, fd, c, rs, &p, NULL) : 0;
         if (got >= 0) {
             if (got > c)
                 got = c;
@@ -616,7 +622,7 @@ static int knn_local(const pm_map *map, const float x[3], int k, int *idx, float
     struct FLANNParameters p = flann_params(0);
     float q[3] = {x[0], x[1], x[2]};
     int r = -1;
-    if (flann_find_nearest_neighbors_index_float(map->index, q, 1, s.fi, s.fd, kq, &p) == 0)
+    if (pm_flann_knn(map->index, q, 1, s.fi, s.fd, kq, &p, NULL) == 0)
         r = finish_knn(map, x, want, s.fi, s.fd, kq, idx, dist2);
     scratch_put(&s);
     return r;
@@ -656,7 +662,7 @@ int pm_map_radius(const pm_map *map, const double world[3], float r, int max, in
     float q[3] = {x[0], x[1], x[2]};
     int out = -1;
     /* FLANN keeps the cap nearest photons strictly inside the slack radius. */
-    int c = flann_radius_search_float(map->index, q, s.fi, s.fd, cap, tie_slack(r2), &p);
+    int c = pm_flann_radius(map->index, q, s.fi, s.fd, cap, tie_slack(r2), &p, NULL);
     if (c >= 0) {
         int n = c < cap ? c : cap;
         sort_pairs(s.fi, s.fd, n);
@@ -745,10 +751,11 @@ pm_status pm_map_knn_batch(const pm_map *map, const double *queries, size_t nq, 
             fill_empty(fi, fd, nb * (size_t)kq);
             for (size_t j = 0; j < nb; j++)
                 to_local(map, queries + 3 * (q0 + j), ql + 3 * j);
-            if (flann_find_nearest_neighbors_index_float(map->index, ql, (int)nb, fi, fd, kq,
-                                                         &p) != 0) {
+            pm_flann_fault fault;
+            if (pm_flann_knn(map->index, ql, (int)nb, fi, fd, kq, &p, &fault) != 0) {
+                /* FLANN's bad_alloc is out of memory (1), like our scratch */
 #pragma omp atomic write
-                failed = 2;
+                failed = fault.nomem ? 1 : 2;
                 continue;
             }
             for (size_t j = 0; j < nb; j++) {
@@ -768,7 +775,7 @@ pm_status pm_map_knn_batch(const pm_map *map, const double *queries, size_t nq, 
         free(fd);
     }
     if (failed == 1) {
-        set_err(err, errlen, "pm_map_knn_batch: out of memory for k = %d scratch", k);
+        set_err(err, errlen, "pm_map_knn_batch: out of memory for k = %d scratch or FLANN's search", k);
         return PM_ERR_NOMEM;
     }
     if (failed == 2) {
@@ -951,6 +958,20 @@ static void errno_text(int e, char *buf, size_t len)
         snprintf(buf, len, "error %d", e);
 }
 
+/* The temporary name of `path` for this process: "dir/name.ext" -> "dir/.name.tmp<pid>.ext",
+ * the scheme of the renderer's outputs (renderer/output.c): in the same folder, so the rename
+ * is atomic, and hidden, so a bake killed mid-write leaves no visible file. `out` holds
+ * strlen(path) + 32 bytes (a dot, ".tmp" and at most 20 digits are added). */
+static void temp_name(const char *path, char *out, size_t n)
+{
+    const char *slash = strrchr(path, '/');
+    const char *base = slash ? slash + 1 : path;
+    const char *dot = strrchr(base, '.');
+    if (!dot || dot == base) dot = base + strlen(base);
+    snprintf(out, n, "%.*s.%.*s.tmp%ld%s", (int)(base - path), path, (int)(dot - base), base,
+             (long)getpid(), dot);
+}
+
 pm_status pm_map_save(const pm_map *map, const char *path, char *err, size_t errlen)
 {
     if (map == NULL || path == NULL) {
@@ -963,7 +984,7 @@ pm_status pm_map_save(const pm_map *map, const char *path, char *err, size_t err
         set_err(err, errlen, "%s: out of memory", path);
         return PM_ERR_NOMEM;
     }
-    snprintf(tmp, tlen, "%s.tmp.%ld", path, (long)getpid());
+    temp_name(path, tmp, tlen);
     char why[128];
     FILE *f = fopen(tmp, "wb");
     if (f == NULL) {

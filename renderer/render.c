@@ -91,11 +91,15 @@ typedef struct {
     uint32_t *n;        /* samples per pixel */
 } film;
 
+/* Frees the arrays and leaves the film empty, so a second call (film_alloc failed and freed,
+ * then rd_render's clean-up) is harmless. */
 static void film_free(film *f)
 {
     free(f->sum);
     free(f->sum2);
     free(f->n);
+    f->sum = f->sum2 = NULL;
+    f->n = NULL;
 }
 
 static int film_alloc(film *f, int w, int h)

@@ -319,11 +319,25 @@ static void fill_dense(openvdb::FloatGrid &grid, const float *data, int nx, int 
                 if (data[q] != 0.0f) acc.setValue(openvdb::Coord(i, j, k), data[q]);
 }
 
+// "dir/name.vdb" -> "dir/.name.tmp<pid>.vdb", the scheme of every output (renderer/output.c,
+// image_io.cpp): in the same folder (so the rename is atomic) and hidden (a leading dot), so a
+// process killed mid-write leaves no visible file.
+static std::string temp_name(const std::string &path)
+{
+    size_t slash = path.find_last_of('/');
+    std::string dir = slash == std::string::npos ? "" : path.substr(0, slash + 1);
+    std::string base = slash == std::string::npos ? path : path.substr(slash + 1);
+    size_t dot = base.find_last_of('.');
+    std::string ext = dot == std::string::npos || dot == 0 ? "" : base.substr(dot);
+    std::string stem = base.substr(0, base.size() - ext.size());
+    return dir + "." + stem + ".tmp" + std::to_string((long)getpid()) + ext;
+}
+
 // Write one grid to a temporary name beside `path`, then rename it into place. Throws on an
 // OpenVDB error (the callers catch); returns RD_ERR_IO with a message when the rename fails.
 static rd_status write_grid(const char *path, openvdb::FloatGrid::Ptr grid, char *err, size_t errlen)
 {
-    std::string tmp = std::string(path) + ".tmp" + std::to_string((long)getpid());
+    std::string tmp = temp_name(path);
     openvdb::GridPtrVec grids{grid};
     try {
         openvdb::io::File file(tmp);

@@ -166,6 +166,20 @@ static void w_floats(wstream *w, const float *x, size_t n)
     }
 }
 
+/* The temporary name of `path` for this process: "dir/name.ext" -> "dir/.name.tmp<pid>.ext",
+ * the scheme of the renderer's outputs (renderer/output.c): in the same folder, so the rename
+ * is atomic, and hidden, so a bake killed mid-write leaves no visible file. `out` holds
+ * strlen(path) + 32 bytes (a dot, ".tmp" and at most 20 digits are added). */
+static void temp_name(const char *path, char *out, size_t n)
+{
+    const char *slash = strrchr(path, '/');
+    const char *base = slash ? slash + 1 : path;
+    const char *dot = strrchr(base, '.');
+    if (!dot || dot == base) dot = base + strlen(base);
+    snprintf(out, n, "%.*s.%.*s.tmp%ld%s", (int)(base - path), path, (int)(dot - base), base,
+             (long)getpid(), dot);
+}
+
 sh_status sh_guide_save(const sh_guide *g, const char *path, char *err, size_t errlen)
 {
     if (!g || !path) {
@@ -178,7 +192,7 @@ sh_status sh_guide_save(const sh_guide *g, const char *path, char *err, size_t e
         shi_set_err(err, errlen, "%s: out of memory", path);
         return SH_ERR_NOMEM;
     }
-    snprintf(tmp, plen + 32, "%s.tmp.%ld", path, (long)getpid());
+    temp_name(path, tmp, plen + 32);
     wstream w = {fopen(tmp, "wb"), FNV_OFFSET, 0};
     if (!w.f) {
         shi_set_err(err, errlen, "%s: cannot create temporary file %s", path, tmp);

@@ -701,3 +701,65 @@ Test(cli, bake_cache_is_reused_and_checked, .timeout = 120)
     cr_assert(rt_run(argv_c, out, sizeof out, err, sizeof err, 0) == 0, "%s", err);
     cr_expect(strstr(err, "baked the photon map") != NULL, "a changed photon count reused the cache: %s", err);
 }
+
+/* `bake` killed (SIGKILL) while it writes its photon map or its guide (the event: a temporary
+ * whose name holds `kind` appears in the output folder): every temporary left is hidden
+ * (".b.tmp<pid>.pmap", as render's), and no visible file was created. A large map (1e6
+ * photons, written with fsync) and a large guide (96^3 cells, 4 bands) keep the write going
+ * long enough to be seen. */
+static void bake_killed_while_writing(const char *kind)
+{
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char dir[200], prefix[256];
+    snprintf(dir, sizeof dir, "%s/bk-%s", rt_tmpdir(), kind);
+    snprintf(prefix, sizeof prefix, "%s/b", dir);
+    cr_assert(mkdir(dir, 0777) == 0);
+    char *argv[] = {(char *)bin, "bake", (char *)tiny_scene(), "-o", prefix, "--photons", "1000000", "-q",
+                    "--set", "guide={\"resolution\":[96,96,96],\"bands\":4,\"k\":4}", NULL};
+    int nul = open("/dev/null", O_RDWR);
+    pid_t pid = fork();
+    cr_assert(pid >= 0);
+    if (pid == 0) {
+        dup2(nul, 1);
+        dup2(nul, 2);
+        execv(argv[0], argv);
+        _exit(127);
+    }
+    close(nul);
+    struct timespec t0, now, nap = {0, 200 * 1000};
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    int status = 0, seen = 0;
+    while (!seen) {
+        DIR *d = opendir(dir);
+        cr_assert(d != NULL);
+        for (struct dirent *e; (e = readdir(d)) != NULL;)
+            seen |= strstr(e->d_name, ".tmp") && strstr(e->d_name, kind);
+        closedir(d);
+        if (seen) break;
+        cr_assert(waitpid(pid, &status, WNOHANG) == 0, "the bake ended before a %s temporary was seen", kind);
+        clock_gettime(CLOCK_MONOTONIC, &now);
+        cr_assert(now.tv_sec - t0.tv_sec <= 150, "no %s temporary appeared", kind);
+        nanosleep(&nap, NULL);
+    }
+    kill(pid, SIGKILL);
+    cr_assert(waitpid(pid, &status, 0) == pid && WIFSIGNALED(status));
+    DIR *d = opendir(dir);
+    cr_assert(d != NULL);
+    for (struct dirent *e; (e = readdir(d)) != NULL;) {
+        if (!strstr(e->d_name, ".tmp")) continue;
+        cr_expect(e->d_name[0] == '.', "a temporary that is not hidden: %s", e->d_name);
+        cr_expect(strstr(e->d_name, ".tmp.") == NULL, "not the .NAME.tmp<pid>.ext scheme: %s", e->d_name);
+    }
+    closedir(d);
+}
+
+Test(cli, bake_killed_writing_the_photon_map_leaves_only_hidden_temporaries, .timeout = 180)
+{
+    bake_killed_while_writing("pmap");
+}
+
+Test(cli, bake_killed_writing_the_guide_leaves_only_hidden_temporaries, .timeout = 180)
+{
+    bake_killed_while_writing("guide");
+}

@@ -1,0 +1,73 @@
+// flann_guard.cpp: FLANN's C API with every exception caught (pm_flann_guard.h says why).
+// Each wrapper is the FLANN call inside try/catch: std::bad_alloc becomes fault->nomem = 1,
+// any other exception its what(); the caller reports it as a status and a message.
+#include "pm_flann_guard.h"
+
+#include <cstdio>
+#include <exception>
+#include <new>
+
+namespace {
+
+void note(pm_flann_fault *fault, int nomem, const char *what)
+{
+    if (!fault) return;
+    fault->nomem = nomem;
+    std::snprintf(fault->what, sizeof fault->what, "%s", what);
+}
+
+void clear(pm_flann_fault *fault)
+{
+    if (fault) note(fault, 0, "");
+}
+
+} // namespace
+
+extern "C" flann_index_t pm_flann_build(float *xyz, int rows, int cols, float *speedup,
+                                        struct FLANNParameters *p, pm_flann_fault *fault)
+{
+    clear(fault);
+    try {
+        return flann_build_index_float(xyz, rows, cols, speedup, p);
+    } catch (const std::bad_alloc &) {
+        note(fault, 1, "out of memory");
+    } catch (const std::exception &e) {
+        note(fault, 0, e.what());
+    } catch (...) {
+        note(fault, 0, "unknown exception");
+    }
+    return nullptr;
+}
+
+extern "C" int pm_flann_knn(flann_index_t index, float *queries, int nq, int *idx, float *dist2,
+                            int k, struct FLANNParameters *p, pm_flann_fault *fault)
+{
+    clear(fault);
+    try {
+        return flann_find_nearest_neighbors_index_float(index, queries, nq, idx, dist2, k, p);
+    } catch (const std::bad_alloc &) {
+        note(fault, 1, "out of memory");
+    } catch (const std::exception &e) {
+        note(fault, 0, e.what());
+    } catch (...) {
+        note(fault, 0, "unknown exception");
+    }
+    return -1;
+}
+
+extern "C" int pm_flann_radius(flann_index_t index, float *query, int *idx, float *dist2,
+                               int max_nn, float radius2, struct FLANNParameters *p,
+                               pm_flann_fault *fault)
+{
+    clear(fault);
+    try {
+        return flann_radius_search_float(index, query, idx, dist2, max_nn, radius2, p);
+    } catch (const std::bad_alloc &) {
+        note(fault, 1, "out of memory");
+    } catch (const std::exception &e) {
+        note(fault, 0, e.what());
+    } catch (...) {
+        note(fault, 0, "unknown exception");
+    }
+    return -1;
+}
