@@ -71,11 +71,19 @@ const struct sh_guide *rd_baked_indirect_guide(const rd_baked *b);
 /* The table (methods.c). NULL for an unknown name. */
 const rd_method *rd_method_find(const char *name);
 
+/* guided-unbiased (integrator_gu.c): one free flight exactly as its path tracer draws it, on a
+ * context prepared for the method (scratch: method->scratch_bytes(ctx) bytes). *P_s (may be
+ * NULL) gets the scatter probability the flight used (0 when it fell back to delta tracking).
+ * For the sampler's tests. */
+rd_flight rd_gu_flight(const rd_render_ctx *ctx, void *scratch, const rd_flight_in *in,
+                       pcg32 *rng, rd_track_counters *c, double *P_s);
+
 /* explain (integrator_march.c): fill res for ray r on a context prepared for `guided`. */
 rd_status rd_march_explain(const rd_render_ctx *ctx, ray3 r, int n, uint64_t seed,
                            rd_explain_result *res, char *err, size_t errlen);
 
 extern const rd_method rd_method_delta;
+extern const rd_method rd_method_guided_unbiased;
 extern const rd_method rd_method_guided, rd_method_uniform, rd_method_transmittance;
 
 #ifdef __cplusplus
