@@ -263,7 +263,8 @@ typedef struct {
     int distances;       /* 1 (default): free-flight distances and the scatter-or-pass decision
                           * from the guide; 0: delta tracking's */
     double distance_alpha; /* defensive weight of the distance pdf's uniform part, in (0, 1] */
-    double pass_floor;   /* least probability of each of scatter and pass-through, (0, 0.5] */
+    double pass_floor;   /* the guide strategy's least probability of scatter and of pass, (0, 0.5] */
+    double majorant_weight; /* weight of the majorant (delta-tracking) strategy, in [0, 1) */
 } rd_guide_settings;
 
 /* Ray-marching settings of the guided methods (scene key "march", docs/scene-format.md). */
@@ -373,7 +374,7 @@ vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters 
 typedef enum { RD_FLIGHT_PASS, RD_FLIGHT_SCATTER, RD_FLIGHT_END } rd_flight_kind;
 typedef struct {
     rd_flight_kind kind;      /* END: the sampled vertex has a zero integrand; the path ends */
-    double t;                 /* SCATTER: distance of the vertex along the ray */
+    double t;                 /* SCATTER (and END): distance of the vertex along the ray */
     const rd_medium *medium;  /* SCATTER: the medium there */
     vec3 weight;              /* multiplies the path throughput (see above) */
 } rd_flight;
