@@ -224,9 +224,11 @@ static rd_flight guided_flight(const rd_flight_sampler *fs, const rd_scene *s,
     ray3 r = in->r;
     double t0, t1;
     u->P_pass = -1.0;
-    /* No guide or no medium on the way: delta tracking's flight (it passes with weight 1
-     * when the ray misses every medium). */
-    if (!ctx->guide || !flight_interval(s, in, &t0, &t1)) return rd_flight_delta(s, in, rng, c);
+    /* No guide, a secondary flight with guide.secondary off, or no medium on the way: delta
+     * tracking's flight (it passes with weight 1 when the ray misses every medium). Which
+     * sampler a flight uses depends on the flight alone: each stays unbiased. */
+    if (!ctx->guide || (in->depth > 0 && !s->guide.secondary) || !flight_interval(s, in, &t0, &t1))
+        return rd_flight_delta(s, in, rng, c);
     gu_scratch sc;
     scratch_layout(ctx->state, &sc, u->scratch);
     gu_dist D;
@@ -287,7 +289,9 @@ double rd_gu_flight_cdf(const rd_render_ctx *ctx, void *scratch, const rd_flight
 {
     double t0, t1;
     if (P_pass) *P_pass = -1.0;
-    if (!ctx->guide || !flight_interval(ctx->scene, in, &t0, &t1)) return 0.0;
+    if (!ctx->guide || (in->depth > 0 && !ctx->scene->guide.secondary) ||
+        !flight_interval(ctx->scene, in, &t0, &t1))
+        return 0.0;
     gu_scratch sc;
     scratch_layout(ctx->state, &sc, scratch);
     gu_dist D;

@@ -265,6 +265,7 @@ typedef struct {
     double distance_alpha; /* defensive weight of the distance pdf's uniform part, in (0, 1] */
     double pass_floor;   /* the guide strategy's least probability of scatter and of pass, (0, 0.5] */
     double majorant_weight; /* weight of the majorant (delta-tracking) strategy, in [0, 1) */
+    int secondary;       /* 1 (default): guide secondary flights too; 0: the camera ray's only */
 } rd_guide_settings;
 
 /* Ray-marching settings of the guided methods (scene key "march", docs/scene-format.md). */

@@ -74,7 +74,8 @@ const rd_method *rd_method_find(const char *name);
 /* guided-unbiased (integrator_gu.c), for the sampler's tests, on a context prepared for the
  * method (scratch: method->scratch_bytes(ctx) bytes). rd_gu_flight draws one free flight
  * exactly as its path tracer does; *P_pass (may be NULL) gets the flight's pass probability
- * (-1 when it fell back to delta tracking: no guide, no medium on the way, or I_ray = 0).
+ * (-1 when it fell back to delta tracking: no guide, guide.secondary off at depth > 0, no
+ * medium on the way, or I_ray = 0).
  * rd_gu_flight_cdf gives the probability that that flight scatters before distance t, and
  * *P_pass; cdf(t1) + P_pass = 1 at the end t1 of the media interval. */
 rd_flight rd_gu_flight(const rd_render_ctx *ctx, void *scratch, const rd_flight_in *in,

@@ -117,6 +117,12 @@ Test(guided_unbiased, equals_delta_forward_scattering_spot_and_environment, .tim
     rd_render_result d = render(s, "delta", 256, 11, NULL);
     rd_render_result g = render(s, "guided-unbiased", 128, 12, NULL);
     expect_same(&d, &g, "g = 0.9, spot + environment");
+    /* The camera ray's flights guided, the secondary ones by delta tracking. */
+    rd_scene *s1 = rt_scene("gu_fwd1.json", scene_json(0.9, -2.5, ENV, ",\"secondary\":false"));
+    rd_render_result g1 = render(s1, "guided-unbiased", 128, 13, NULL);
+    expect_same(&d, &g1, "g = 0.9, spot + environment, camera flights only");
+    rd_render_result_free(&g1);
+    rd_scene_free(s1);
     rd_render_result_free(&g);
     rd_render_result_free(&d);
     rd_scene_free(s);
@@ -208,7 +214,7 @@ static void chi_square_flights(const char *extra, uint64_t seed)
     const ray3 rays[2] = {{v3(0.1, 0.05, 4), v3_norm(v3(-0.05, 0.02, -1))},
                           {v3(-0.2, 0.1, 1.6), v3_norm(v3(0.3, -0.1, -1))}};
     const double phase_pdf[2] = {0.0, 0.3};
-    enum { K = 64, N = 400000 };
+    enum { K = 64, N = 200000 };
     for (int k = 0; k < 2; k++) {
         rd_flight_in in = {.r = rays[k], .t_light = INFINITY, .hit_light = -1,
                            .phase_pdf = phase_pdf[k], .depth = k};
@@ -261,7 +267,7 @@ static void chi_square_flights(const char *extra, uint64_t seed)
     rd_scene_free(s);
 }
 
-Test(guided_unbiased, flight_sampler_chi_square_against_its_pdf, .timeout = 300)
+Test(guided_unbiased, flight_sampler_chi_square_against_its_pdf, .timeout = 900)
 {
     /* A heterogeneous medium (noise: a grid majorant, and sigma_t = 0 in places, where a drawn
      * vertex ends the path but still reports its t) lit from the side by a spot, with an
@@ -314,6 +320,7 @@ Test(guided_unbiased, scene_keys_are_validated)
         {"\"pass_floor\":0.6", "guide.pass_floor"},
         {"\"majorant_weight\":1", "guide.majorant_weight"},
         {"\"majorant_weight\":-0.1", "guide.majorant_weight"},
+        {"\"secondary\":0", "guide.secondary"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         char path[256], extra[64], err[RD_ERRLEN] = "";
