@@ -349,6 +349,13 @@ double rd_guide_pdf_sample(const rd_guide_pdf *pdf, double u, double *p)
     return invert_in_segment(pdf, lo, u, p);
 }
 
+double rd_guide_pdf_tau(const rd_guide_pdf *pdf)
+{
+    if (pdf->n == 0) return 0.0;
+    const rd_gpdf_seg *s = &pdf->seg[pdf->n - 1];
+    return s->tau0 + s->sigma * (s->t1 - s->t0); /* tau_j of eq. 16 past the last segment */
+}
+
 void rd_guide_pdf_sample_stratified(const rd_guide_pdf *pdf, int N, double u, double *t,
                                     double *p)
 {

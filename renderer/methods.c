@@ -7,6 +7,7 @@
 static const rd_method *const table[] = {
     &rd_method_delta,
     &rd_method_guided,
+    &rd_method_guided_unbiased,
     &rd_method_transmittance,
     &rd_method_uniform,
 };

@@ -91,6 +91,10 @@ double rd_guide_pdf_cdf(const rd_guide_pdf *pdf, double t);
  * ~1e-15 relative. Empty pdf: returns tmin, *p = 0. */
 double rd_guide_pdf_sample(const rd_guide_pdf *pdf, double u, double *p);
 
+/* Optical depth of the guide's cheap extinction over the whole interval: T~(tmin, tmax) =
+ * exp(-rd_guide_pdf_tau(pdf)) (THEORY.md §6). 0 for an empty pdf. */
+double rd_guide_pdf_tau(const rd_guide_pdf *pdf);
+
 /* Stratified samples (THEORY.md §6 estimator): t[n] = P^-1((n + u) / N), n = 0..N-1, u in
  * [0, 1), increasing in n, and p[n] = p(t[n]) (p may be NULL). One forward sweep over the
  * segments, O(N + segments). */

@@ -259,6 +259,13 @@ typedef struct {
     double min_cell;     /* adaptive: smallest cell edge [m], 0 = default */
     int max_depth;       /* adaptive: deepest level */
     int window;          /* 1 (default): Hann window on the phase's b_l (sh_window_hann), 0: none */
+    /* guided-unbiased (docs/guided-unbiased.md): */
+    int distances;       /* 1 (default): free-flight distances and the scatter-or-pass decision
+                          * from the guide; 0: delta tracking's */
+    double distance_alpha; /* defensive weight of the distance pdf's uniform part, in (0, 1] */
+    double pass_floor;   /* the guide strategy's least probability of scatter and of pass, (0, 0.5] */
+    double majorant_weight; /* weight of the majorant (delta-tracking) strategy, in [0, 1) */
+    int secondary;       /* 1 (default): guide secondary flights too; 0: the camera ray's only */
 } rd_guide_settings;
 
 /* Ray-marching settings of the guided methods (scene key "march", docs/scene-format.md). */
@@ -356,6 +363,46 @@ vec3 rd_nee_all(const rd_scene *s, vec3 x, vec3 d, double g, pcg32 *rng, rd_trac
  * tracing (delta tracking, next-event estimation with ratio tracking, HG sampling, Russian
  * roulette, multiple importance sampling for area and environment lights). */
 vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c);
+
+/* ---- The unbiased path loop and its free-flight samplers (integrator_delta.c) ------------- *
+ * One path tracer serves `delta` and `guided-unbiased`; they differ only in how a free flight
+ * is sampled. A flight from the path vertex r.o along r.d over [0, t_light] either scatters at
+ * some t inside a medium or passes through to what lies beyond (the sphere light it hits, the
+ * environment, the background). By the RTE (THEORY.md §1)
+ *     L(o, -d) = integral_0^t_end T(0,t) sigma_s(t) L_s(x(t), -d) dt + T(0,t_end) L_behind,
+ * so a sampler that scatters with probability P_s at t with density p(t), and passes with
+ * probability 1 - P_s, reports the weight T(0,t) sigma_s(t) / (P_s p(t)) for the vertex (the
+ * loop then estimates L_s there) and T(0,t_end) / (1 - P_s) for a pass-through, each T an
+ * unbiased estimate. Delta tracking's weights are the albedo and 1. */
+typedef enum { RD_FLIGHT_PASS, RD_FLIGHT_SCATTER, RD_FLIGHT_END } rd_flight_kind;
+typedef struct {
+    rd_flight_kind kind;      /* END: the sampled vertex has a zero integrand; the path ends */
+    double t;                 /* SCATTER (and END): distance of the vertex along the ray */
+    const rd_medium *medium;  /* SCATTER: the medium there */
+    vec3 weight;              /* multiplies the path throughput (see above) */
+} rd_flight;
+typedef struct {
+    ray3 r;                   /* the flight's ray (r.d unit) */
+    double t_light;           /* distance to the nearest sphere light, or INFINITY */
+    int hit_light;            /* that light, or -1 */
+    double phase_pdf;         /* pdf of r.d from phase sampling; 0 for the camera ray */
+    int depth;                /* scattering events before this flight (0: the camera ray) */
+} rd_flight_in;
+typedef struct rd_flight_sampler {
+    rd_flight (*sample)(const struct rd_flight_sampler *fs, const rd_scene *s,
+                        const rd_flight_in *in, pcg32 *rng, rd_track_counters *c);
+    void *user;               /* the sampler's own (per call of the path loop) */
+} rd_flight_sampler;
+/* The path loop: NEE at every scattering vertex, HG sampling with MIS, Russian roulette. */
+vec3 rd_path_radiance(const rd_scene *s, ray3 r, const rd_flight_sampler *fs, pcg32 *rng,
+                      rd_track_counters *c);
+/* Delta tracking's flight (rd_sample_free_path with the scene's tracker). */
+rd_flight rd_flight_delta(const rd_scene *s, const rd_flight_in *in, pcg32 *rng,
+                          rd_track_counters *c);
+/* Radiance a pass-through receives: the hit sphere light or the environment, MIS-weighted
+ * against the light sampling of rd_nee when in->phase_pdf > 0, plus the background for a
+ * camera ray that hits no light. Deterministic (no random numbers). */
+vec3 rd_flight_behind(const rd_scene *s, const rd_flight_in *in);
 
 /* A growing text buffer (text.c): rd_text_printf appends; on a failed allocation it sets oom
  * and ignores later calls, so a writer checks oom once at the end. Start with {0}; free(s). */

@@ -71,11 +71,24 @@ const struct sh_guide *rd_baked_indirect_guide(const rd_baked *b);
 /* The table (methods.c). NULL for an unknown name. */
 const rd_method *rd_method_find(const char *name);
 
+/* guided-unbiased (integrator_gu.c), for the sampler's tests, on a context prepared for the
+ * method (scratch: method->scratch_bytes(ctx) bytes). rd_gu_flight draws one free flight
+ * exactly as its path tracer does; *P_pass (may be NULL) gets the flight's pass probability
+ * (-1 when it fell back to delta tracking: no guide, guide.secondary off at depth > 0, no
+ * medium on the way, or I_ray = 0).
+ * rd_gu_flight_cdf gives the probability that that flight scatters before distance t, and
+ * *P_pass; cdf(t1) + P_pass = 1 at the end t1 of the media interval. */
+rd_flight rd_gu_flight(const rd_render_ctx *ctx, void *scratch, const rd_flight_in *in,
+                       pcg32 *rng, rd_track_counters *c, double *P_pass);
+double rd_gu_flight_cdf(const rd_render_ctx *ctx, void *scratch, const rd_flight_in *in,
+                        double t, double *P_pass);
+
 /* explain (integrator_march.c): fill res for ray r on a context prepared for `guided`. */
 rd_status rd_march_explain(const rd_render_ctx *ctx, ray3 r, int n, uint64_t seed,
                            rd_explain_result *res, char *err, size_t errlen);
 
 extern const rd_method rd_method_delta;
+extern const rd_method rd_method_guided_unbiased;
 extern const rd_method rd_method_guided, rd_method_uniform, rd_method_transmittance;
 
 #ifdef __cplusplus

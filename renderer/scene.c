@@ -718,10 +718,16 @@ static rd_status parse_guide(vctx *c, const cJSON *j, rd_guide_settings *g)
     g->lambda = 1.0;
     g->max_depth = 8;
     g->window = 1;
+    g->distances = 1;        /* guided-unbiased (docs/guided-unbiased.md) */
+    g->distance_alpha = 0.2;
+    g->pass_floor = 0.1;
+    g->majorant_weight = 0.2;
+    g->secondary = 1;
     if (!j) return RD_OK;
     const char *path = "guide";
     TRY(need_object(c, j, path));
-    static const char *const keys[] = {"grid", "bake", "bands", "k", "lambda", "resolution", "min_cell", "max_depth", "window", NULL};
+    static const char *const keys[] = {"grid", "bake", "bands", "k", "lambda", "resolution", "min_cell", "max_depth", "window",
+                                       "distances", "distance_alpha", "pass_floor", "majorant_weight", "secondary", NULL};
     TRY(check_keys(c, j, path, keys));
     static const char *const grids[] = {"uniform", "adaptive", NULL};
     static const char *const bakes[] = {"knn", "track", NULL};
@@ -738,6 +744,14 @@ static rd_status parse_guide(vctx *c, const cJSON *j, rd_guide_settings *g)
     TRY(get_num(c, j, path, "min_cell", 0, 0.0, 0, 0, 1e9, 0, &g->min_cell));
     TRY(get_int(c, j, path, "max_depth", 0, 8, 1, 20, &v));
     g->max_depth = (int)v;
+    /* guided-unbiased: p > 0 wherever the integrand can be needs alpha > 0; both outcomes of
+     * the scatter-or-pass decision need a floor > 0 (and <= 0.5 so the two floors fit); the
+     * majorant strategy's weight is in [0, 1) so the guide keeps a share. */
+    TRY(get_bool(c, j, path, "distances", 1, &g->distances));
+    TRY(get_num(c, j, path, "distance_alpha", 0, 0.2, 0, 1, 1, 0, &g->distance_alpha));
+    TRY(get_num(c, j, path, "pass_floor", 0, 0.1, 0, 1, 0.5, 0, &g->pass_floor));
+    TRY(get_num(c, j, path, "majorant_weight", 0, 0.2, 0, 0, 1, 1, &g->majorant_weight));
+    TRY(get_bool(c, j, path, "secondary", 1, &g->secondary));
     const cJSON *res = cJSON_GetObjectItemCaseSensitive(j, "resolution");
     if (res) {
         if (!cJSON_IsArray(res) || cJSON_GetArraySize(res) != 3)
@@ -999,6 +1013,11 @@ static uint64_t bake_key(const cJSON *root, const rd_scene *s)
     cJSON_DeleteItemFromObjectCaseSensitive(copy, "description");
     cJSON_DeleteItemFromObjectCaseSensitive(copy, "camera");
     cJSON_DeleteItemFromObjectCaseSensitive(copy, "march");
+    /* guided-unbiased's sampling switches change no bake: */
+    cJSON *gd = cJSON_GetObjectItemCaseSensitive(copy, "guide");
+    static const char *const guide_render_only[] = {"distances", "distance_alpha", "pass_floor", "majorant_weight", "secondary", NULL};
+    for (int i = 0; cJSON_IsObject(gd) && guide_render_only[i]; i++)
+        cJSON_DeleteItemFromObjectCaseSensitive(gd, guide_render_only[i]);
     cJSON *set = cJSON_GetObjectItemCaseSensitive(copy, "settings");
     static const char *const render_only[] = {"spp", "time", "seed", "method", "max_depth", "rr_depth", NULL};
     for (int i = 0; set && render_only[i]; i++) cJSON_DeleteItemFromObjectCaseSensitive(set, render_only[i]);

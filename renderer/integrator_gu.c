@@ -1,0 +1,382 @@
+/* integrator_gu.c: `guided-unbiased`, the unbiased path tracer of integrator_delta.c with its
+ * free flights guided by the photon-map SH guide (issue 10; docs/guided-unbiased.md).
+ *
+ * A flight from the path vertex o along d over [0, t_light] meets the media in [t0, t1] (the
+ * media bounds, clipped before the nearest sphere light). The RTE along it (THEORY.md §1;
+ * no emission in the media, T(0,t0) = 1 since nothing lies before t0):
+ *
+ *     L(o, -d) = integral_t0^t1 T(t0,t) sigma_s(t) L_s(x(t), -d) dt  +  T(t0,t1) L_behind      (1)
+ *                \___________ scattered part S ______________/        \__ passed part B __/
+ *
+ * A flight is sampled by a one-sample mixture of two strategies, each of which either scatters
+ * (at a distance t from its pdf) or passes through:
+ *   guide     (weight 1 - w): scatters with probability P_g = S~ / (S~ + B~), the guide's own
+ *             estimate of the scattered part S~ = I_ray (the integral of the histogram
+ *             h(t) = T~(t0,t) f_j, f_j = sigma_s L_s toward -d of the cell: seed 001 eq. 16,
+ *             renderer/guide_pdf.c) against the passed part B~ = T~(t0,t1) L_behind, held in
+ *             [floor, 1 - floor] (guide.pass_floor); t from the defensive mixture
+ *                 p_g(t) = (1 - alpha) h(t) / I_ray + alpha / (t1 - t0)    (guide.distance_alpha);
+ *   majorant  (weight w = guide.majorant_weight): delta tracking's first tentative collision,
+ *             P_m = 1 - T_maj(t0,t1), p_m(t) = sigma_maj(t) T_maj(t0,t) / P_m (the majorant
+ *             walk of the free-path engine, renderer/freepath.c). sigma_maj >= sigma_t, so
+ *             however wrong the guide, the joint density below stays >= w sigma_maj T_maj.
+ * L_behind is known exactly (the light or environment beyond, MIS-weighted as the path loop
+ * will weight it: rd_flight_behind); when it is 0 both strategies always scatter (passing can
+ * only add 0). The flight therefore passes with probability, and scatters at t with density,
+ *     P_pass = (1 - w)(1 - P_g) + w (1 - P_m)                                                (2)
+ *     q(t)   = (1 - w) P_g p_g(t) + w P_m p_m(t)                                             (3)
+ * and weights each outcome by the integrand of (1) over its probability (density):
+ *     scatter at t:  T(t0,t) sigma_s(t) / q(t)     pass through:  T(t0,t1) / P_pass          (4)
+ * The vertex weight is followed by the path loop's estimate of L_s(x(t), -d) (NEE plus the
+ * phase-sampled continuation), the pass weight by L_behind. The expectation is
+ *     integral q(t) T sigma_s E[L_s] / q(t) dt + P_pass T L_b / P_pass = (1)
+ * for any guide: q > 0 wherever sigma_s can be (alpha > 0; and P_g >= floor), and P_pass > 0
+ * wherever L_behind > 0 (floor), given unbiased T (the free-path engine's ratio / residual
+ * ratio tracking or exact optical depth, settings.transmittance: rd_transmittance) and an
+ * unbiased L_s estimate independent of t's choice. Delta tracking is q = sigma_t T, P_pass = T:
+ * its weights reduce to the albedo and 1.
+ *
+ * A ray along which the guide sees no light at all (I_ray = 0) takes delta tracking's flight.
+ *
+ * Unlike delta tracking the vertex carries sigma_s(t) and T(t0,t) explicitly (delta's pdf
+ * cancels both, leaving the albedo). NEE at the vertex estimates L_s = integral p L_direct,
+ * which holds no sigma_s, so the vertex weight multiplies it as it is (rd_path_radiance). */
+#include "rd_guide_pdf.h"
+#include "rd_method.h"
+#include "sh.h"
+
+#include <stdlib.h>
+
+typedef struct {
+    int cap_g;   /* guide pdf segments a flight can need (guide cells crossed + 2 fillers) */
+    int cap_m;   /* majorant pdf segments (majorant cells crossed in every medium + gaps) */
+} gu_state;
+
+/* One thread's storage (scratch), laid out by scratch_layout. */
+typedef struct {
+    rd_gpdf_seg *seg_g, *seg_m;
+    double *tb, *f, *sig;   /* cap_m + 1 entries each: the majorant histogram's arrays */
+} gu_scratch;
+
+static size_t scratch_layout(const gu_state *st, gu_scratch *sc, void *base)
+{
+    size_t off = 0;
+    char *b = base;
+#define TAKE(field, type, n)                                                                   \
+    do {                                                                                       \
+        if (b) sc->field = (type *)(b + off);                                                   \
+        off += ((size_t)(n) * sizeof(type) + 15) / 16 * 16;                                     \
+    } while (0)
+    TAKE(seg_g, rd_gpdf_seg, st->cap_g);
+    TAKE(seg_m, rd_gpdf_seg, st->cap_m + 2);
+    TAKE(tb, double, st->cap_m + 1);
+    TAKE(f, double, st->cap_m + 1);
+    TAKE(sig, double, st->cap_m + 1);
+#undef TAKE
+    return off;
+}
+
+/* The distribution of one flight over the media interval [t0, t1] (header, eq. 2-3). */
+typedef struct {
+    double t0, t1;
+    double w;          /* weight of the majorant strategy */
+    double P_g, P_m;   /* scatter probability of each strategy */
+    rd_guide_pdf g, m; /* distance pdf of each strategy */
+} gu_dist;
+
+static double mean3(vec3 v) { return (v.x + v.y + v.z) / 3.0; }
+
+typedef struct { double t0, t1; const rd_medium *m; } interval;
+
+/* The media r crosses within [t0, t1], sorted by entry (media do not overlap). */
+static int media_intervals(const rd_scene *s, ray3 r, double t0, double t1, interval *out, int cap)
+{
+    int n = 0;
+    for (int i = 0; i < s->n_media && n < cap; i++) {
+        double a, b;
+        const rd_medium *m = &s->media[i];
+        if (m->sigma_maj <= 0.0 || !rd_box_intersect(m->bmin, m->bmax, r, t0, t1, &a, &b) || !(b > a))
+            continue;
+        int k = n++;
+        while (k > 0 && out[k - 1].t0 > a) { out[k] = out[k - 1]; k--; }
+        out[k] = (interval){a, b, m};
+    }
+    return n;
+}
+
+/* Append piece [a, b) of height f and extinction sig to the arrays, closing a gap before it
+ * (between two media) with an empty piece. Returns 0 when the storage (cap pieces) is full. */
+static int push_piece(const gu_scratch *sc, int cap, int *n, double a, double b, double f, double sig)
+{
+    if (*n == 0) {
+        sc->tb[0] = a;
+    } else if (a > sc->tb[*n]) {
+        if (*n >= cap) return 0;
+        sc->f[*n] = sc->sig[*n] = 0.0;
+        sc->tb[++*n] = a;
+    }
+    if (!(b > sc->tb[*n])) return 1; /* empty, or swallowed by rounding */
+    if (*n >= cap) return 0;
+    sc->f[*n] = f;
+    sc->sig[*n] = sig;
+    sc->tb[++*n] = b;
+    return 1;
+}
+
+/* The majorant strategy's pdf: the histogram of the majorant along r over [t0, t1], h(t) =
+ * sigma_maj(t) T_maj(t0,t), piece by piece of the majorant walk (a constant bound per piece;
+ * a tri-linear one by its mean over the piece). sigma_maj >= sigma_t, so p > 0 wherever the
+ * medium can be. The storage running out gives the uniform pdf (still p > 0 everywhere). */
+static void build_majorant_pdf(const gu_scratch *sc, int cap, const rd_scene *s, ray3 r,
+                               double t0, double t1, rd_guide_pdf *pdf)
+{
+    interval iv[64];
+    int n_iv = media_intervals(s, r, t0, t1, iv, 64), n = 0, ok = 1;
+    for (int i = 0; i < n_iv && ok; i++) {
+        const rd_medium *m = iv[i].m;
+        double smin = fmin(m->density_min * m->sigma_t_scale, m->sigma_maj);
+        rd_maj_iter it = rd_majorant_iter(m->majorant, r, iv[i].t0, iv[i].t1, m->sigma_maj, smin);
+        rd_maj_seg g;
+        while (ok && rd_majorant_next(&it, &g)) {
+            if (!(g.t1 > g.t0)) continue;
+            double sig = g.cubic ? rd_seg_tau(&g, 0.0, 1.0) / (g.t1 - g.t0) : g.c[0];
+            ok = push_piece(sc, cap, &n, g.t0, g.t1, fmax(0.0, sig), fmax(0.0, sig));
+        }
+    }
+    rd_guide_pdf_init(pdf, sc->seg_m, cap + 2);
+    if (!ok || n == 0 || sc->tb[0] < t0 || sc->tb[n] > t1 ||
+        rd_guide_pdf_build(pdf, n, sc->tb, sc->f, sc->sig, t0, t1, 0.0, NULL, 0) != RD_OK)
+        rd_guide_pdf_build(pdf, 0, NULL, NULL, NULL, t0, t1, 1.0, NULL, 0);
+}
+
+/* The guide strategy's pdf: the guide's histogram toward -d with the defensive uniform part
+ * (guide.distance_alpha); the uniform part alone if the ray needs more segments than the
+ * storage holds. */
+static void build_guide_pdf(const rd_render_ctx *ctx, const gu_scratch *sc, ray3 r, double t0,
+                            double t1, rd_guide_pdf *pdf)
+{
+    const gu_state *st = ctx->state;
+    const double o[3] = {r.o.x, r.o.y, r.o.z}, d[3] = {r.d.x, r.d.y, r.d.z};
+    rd_guide_pdf_init(pdf, sc->seg_g, st->cap_g);
+    if (rd_guide_pdf_build_guide(pdf, ctx->guide, o, d, t0, t1, ctx->scene->guide.distance_alpha,
+                                 NULL, 0) != RD_OK)
+        rd_guide_pdf_build(pdf, 0, NULL, NULL, NULL, t0, t1, 1.0, NULL, 0);
+}
+
+/* Both strategies of a flight over [t0, t1] whose light behind has channel mean L_behind.
+ *   guide:    P_g = S~ / (S~ + B~), S~ = I_ray, B~ = T~(t0,t1) L_behind, held in
+ *             [floor, 1 - floor] (guide.pass_floor);
+ *   majorant: P_m = 1 - T_maj(t0,t1), the chance that delta tracking's first tentative
+ *             collision falls inside [t0, t1] (exact: the histogram's T~ is T_maj).
+ * Both are 1 when L_behind = 0 exactly: passing can only add 0 then. */
+static void flight_dist(const rd_render_ctx *ctx, const gu_scratch *sc, ray3 r, double t0,
+                        double t1, double L_behind, gu_dist *D)
+{
+    const rd_scene *s = ctx->scene;
+    const gu_state *st = ctx->state;
+    D->t0 = t0;
+    D->t1 = t1;
+    D->w = s->guide.majorant_weight;
+    build_guide_pdf(ctx, sc, r, t0, t1, &D->g);
+    build_majorant_pdf(sc, st->cap_m, s, r, t0, t1, &D->m);
+    if (!(L_behind > 0.0)) {
+        D->P_g = D->P_m = 1.0;
+        return;
+    }
+    double S = D->g.I, B = exp(-rd_guide_pdf_tau(&D->g)) * L_behind, fl = s->guide.pass_floor;
+    double P = (S + B > 0.0 && isfinite(S + B)) ? S / (S + B) : 0.5;
+    D->P_g = fmin(1.0 - fl, fmax(fl, P));
+    D->P_m = -expm1(-rd_guide_pdf_tau(&D->m));
+}
+
+/* Density of scattering at t (eq. 3) and probability of passing (eq. 2) of the mixture. */
+static double dist_scatter_pdf(const gu_dist *D, double t)
+{
+    return (1.0 - D->w) * D->P_g * rd_guide_pdf_eval(&D->g, t) +
+           D->w * D->P_m * rd_guide_pdf_eval(&D->m, t);
+}
+static double dist_pass(const gu_dist *D)
+{
+    return (1.0 - D->w) * (1.0 - D->P_g) + D->w * (1.0 - D->P_m);
+}
+
+/* The media interval of a flight, before the nearest light; 0 when it meets no medium. */
+static int flight_interval(const rd_scene *s, const rd_flight_in *in, double *t0, double *t1)
+{
+    return s->n_media > 0 && rd_box_intersect(s->bmin, s->bmax, in->r, 0.0, in->t_light, t0, t1) &&
+           *t1 > *t0;
+}
+
+/* What the flight sampler carries per path: the render context and this thread's scratch;
+ * P_pass of the last flight for rd_gu_flight (-1 after a delta-tracking fallback: no guide,
+ * no medium on the way, or no guide light along the ray). */
+typedef struct {
+    const rd_render_ctx *ctx;
+    void *scratch;
+    double P_pass;
+} gu_user;
+
+static rd_flight guided_flight(const rd_flight_sampler *fs, const rd_scene *s,
+                               const rd_flight_in *in, pcg32 *rng, rd_track_counters *c)
+{
+    gu_user *u = fs->user;
+    const rd_render_ctx *ctx = u->ctx;
+    ray3 r = in->r;
+    double t0, t1;
+    u->P_pass = -1.0;
+    /* No guide, a secondary flight with guide.secondary off, or no medium on the way: delta
+     * tracking's flight (it passes with weight 1 when the ray misses every medium). Which
+     * sampler a flight uses depends on the flight alone: each stays unbiased. */
+    if (!ctx->guide || (in->depth > 0 && !s->guide.secondary) || !flight_interval(s, in, &t0, &t1))
+        return rd_flight_delta(s, in, rng, c);
+    gu_scratch sc;
+    scratch_layout(ctx->state, &sc, u->scratch);
+    gu_dist D;
+    flight_dist(ctx, &sc, r, t0, t1, mean3(rd_flight_behind(s, in)), &D);
+    /* A guide with no light along this ray (an empty or wrong guide, or a dark region) knows
+     * nothing to guide by: delta tracking's flight. The choice depends on the ray alone, so
+     * each flight's estimate stays unbiased. Without this the guide strategy would pass at
+     * once, and its scattered paths carry weights up to 1/w per vertex, compounding with
+     * depth (heavy tails: docs/guided-unbiased.md). */
+    if (!(D.g.I > 0.0)) return rd_flight_delta(s, in, rng, c);
+    double P_pass = dist_pass(&D);
+    u->P_pass = P_pass;
+    rd_flight f = {.kind = RD_FLIGHT_END, .t = t1, .medium = NULL, .weight = v3(0, 0, 0)};
+    /* One-sample mixture: pick a strategy, then scatter or pass with its probability. */
+    int maj = pcg32_uniform(rng) < D.w;
+    if (pcg32_uniform(rng) >= (maj ? D.P_m : D.P_g)) {
+        if (!(P_pass > 0.0)) return f; /* rounding only: P_pass = 0 never gets here */
+        double T = rd_transmittance(s, r, t0, t1, rng, c);
+        f.kind = RD_FLIGHT_PASS;
+        f.weight = v3_scale(v3(1, 1, 1), T / P_pass); /* eq. 4, pass */
+        return f;
+    }
+    double t = rd_guide_pdf_sample(maj ? &D.m : &D.g, pcg32_uniform(rng), NULL);
+    double q = dist_scatter_pdf(&D, t);
+    vec3 x = ray_at(r, t);
+    const rd_medium *m = rd_scene_medium_at(s, x);
+    double sigma_t = m ? rd_medium_sigma_t(m, x) : 0.0;
+    c->lookups += m != NULL;
+    f.t = t;
+    if (!(sigma_t > 0.0) || !(q > 0.0)) return f; /* zero integrand: the path adds no more */
+    double T = rd_transmittance(s, r, t0, t, rng, c);
+    f.kind = RD_FLIGHT_SCATTER;
+    f.medium = m;
+    f.weight = v3_scale(m->albedo, sigma_t * T / q); /* eq. 4, scatter: sigma_s = albedo sigma_t */
+    return f;
+}
+
+static vec3 gu_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
+{
+    gu_user u = {.ctx = ctx, .scratch = th->scratch};
+    const rd_flight_sampler fs = {.sample = guided_flight, .user = &u};
+    pcg32 rng = rd_sampler_stream(smp);
+    return rd_path_radiance(ctx->scene, r, &fs, &rng, &th->counters);
+}
+
+rd_flight rd_gu_flight(const rd_render_ctx *ctx, void *scratch, const rd_flight_in *in,
+                       pcg32 *rng, rd_track_counters *c, double *P_pass)
+{
+    gu_user u = {.ctx = ctx, .scratch = scratch};
+    const rd_flight_sampler fs = {.sample = guided_flight, .user = &u};
+    rd_flight f = guided_flight(&fs, ctx->scene, in, rng, c);
+    if (P_pass) *P_pass = u.P_pass;
+    return f;
+}
+
+double rd_gu_flight_cdf(const rd_render_ctx *ctx, void *scratch, const rd_flight_in *in,
+                        double t, double *P_pass)
+{
+    double t0, t1;
+    if (P_pass) *P_pass = -1.0;
+    if (!ctx->guide || (in->depth > 0 && !ctx->scene->guide.secondary) ||
+        !flight_interval(ctx->scene, in, &t0, &t1))
+        return 0.0;
+    gu_scratch sc;
+    scratch_layout(ctx->state, &sc, scratch);
+    gu_dist D;
+    flight_dist(ctx, &sc, in->r, t0, t1, mean3(rd_flight_behind(ctx->scene, in)), &D);
+    if (!(D.g.I > 0.0)) return 0.0; /* delta tracking's flight (guided_flight) */
+    if (P_pass) *P_pass = dist_pass(&D);
+    return (1.0 - D.w) * D.P_g * rd_guide_pdf_cdf(&D.g, t) + D.w * D.P_m * rd_guide_pdf_cdf(&D.m, t);
+}
+
+/* ---- Set-up --------------------------------------------------------------------------------- */
+
+/* Majorant cells a ray can cross in medium m: a grid's nx + ny + nz, an octree's 3 x 2^depth
+ * leaves, one global segment. */
+static int majorant_crossings(const rd_medium *m)
+{
+    const rd_majorant *mj = m->majorant;
+    if (!mj || mj->kind == RD_MAJ_NONE) return 1;
+    if (mj->kind == RD_MAJ_GRID) return mj->n[0] + mj->n[1] + mj->n[2];
+    return 3 * (1 << (mj->depth < 12 ? mj->depth : 12));
+}
+
+static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
+{
+    const rd_scene *s = ctx->scene;
+    const rd_guide_settings *g = &s->guide;
+    /* Unbiasedness needs p > 0 wherever the integrand can be and both outcomes possible. */
+    if (!(g->distance_alpha > 0.0 && g->distance_alpha <= 1.0)) {
+        snprintf(err, errlen, "guide.distance_alpha: must be in (0, 1], found %g", g->distance_alpha);
+        return RD_ERR_ARG;
+    }
+    if (!(g->pass_floor > 0.0 && g->pass_floor <= 0.5)) {
+        snprintf(err, errlen, "guide.pass_floor: must be in (0, 0.5], found %g", g->pass_floor);
+        return RD_ERR_ARG;
+    }
+    if (!(g->majorant_weight >= 0.0 && g->majorant_weight < 1.0)) {
+        snprintf(err, errlen, "guide.majorant_weight: must be in [0, 1), found %g", g->majorant_weight);
+        return RD_ERR_ARG;
+    }
+    gu_state *st = calloc(1, sizeof *st);
+    if (!st) {
+        snprintf(err, errlen, "out of memory for guided-unbiased");
+        return RD_ERR_NOMEM;
+    }
+    st->cap_g = 2;
+    if (ctx->guide) {
+        /* As the marcher: a uniform grid is crossed in at most nx + ny + nz - 2 cells, an
+         * adaptive one in at most 3 x 2^depth leaves; plus two fillers (rd_guide_pdf.h). */
+        sh_guide_stats gs;
+        sh_guide_stats_get(ctx->guide, &gs);
+        st->cap_g = gs.kind == SH_GRID_UNIFORM
+                        ? gs.res[0] + gs.res[1] + gs.res[2] + 2
+                        : 3 * (1 << (gs.depth_max < 12 ? gs.depth_max : 12)) + 2;
+    }
+    st->cap_m = 1;
+    for (int i = 0; i < s->n_media; i++) st->cap_m += majorant_crossings(&s->media[i]) + 1;
+    ctx->state = st;
+    return RD_OK;
+}
+
+static void gu_release(rd_render_ctx *ctx)
+{
+    free(ctx->state);
+    ctx->state = NULL;
+}
+
+static size_t gu_scratch_bytes(const rd_render_ctx *ctx)
+{
+    gu_scratch sc;
+    return scratch_layout(ctx->state, &sc, NULL);
+}
+
+/* The guide (and the photon map it is baked from) only when distances are guided; with
+ * guide.distances false the method is delta tracking and needs no bake. */
+static unsigned gu_needs(const rd_scene *s)
+{
+    return s->guide.distances ? RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE : 0u;
+}
+
+const rd_method rd_method_guided_unbiased = {
+    .name = "guided-unbiased",
+    .summary = "unbiased path tracing with free-flight distances and scatter/pass guided by the SH guide",
+    .needs = RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE,
+    .needs_for = gu_needs,
+    .scratch_bytes = gu_scratch_bytes,
+    .prepare = gu_prepare,
+    .release = gu_release,
+    .radiance = gu_radiance,
+};

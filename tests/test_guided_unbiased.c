@@ -1,0 +1,338 @@
+/* guided-unbiased (renderer/integrator_gu.c): the path tracer of `delta` with guided free
+ * flights, against answers it did not compute:
+ *  - its images equal delta's in expectation on heterogeneous, anisotropic, multiple-scattering
+ *    scenes (g = 0.9 and g = -0.5; spot, environment, sphere and directional lights), with the
+ *    scene's own guide, with a guide baked with the light elsewhere, and with an empty guide
+ *    (no photon reached the medium);
+ *  - guide.distances false makes it delta tracking, bit for bit;
+ *  - the free flight as the tracer draws it (scatter or pass, then the distance) passes a
+ *    chi-square test against P_s and the guide pdf;
+ *  - a white furnace (albedo 1, environment of radiance 1) gives 1.
+ * Image comparisons are z-scores of the image mean and of 8x8-pixel region means, with standard
+ * errors from the films' per-pixel standard errors (pixels are independent, fixed seeds). Under
+ * equal expectations each z is standard normal; with at most 12 regions per comparison the
+ * region bound 4.5 keeps the chance of a false alarm per comparison below 1e-4, the image bound
+ * is 5 (5.7e-7). */
+#include "support/rd_test.h"
+
+#include "rd_guide_pdf.h"
+#include "rd_method.h"
+
+typedef struct {
+    double z_image, z_max;
+    int regions;
+} cmp_result;
+
+/* z-scores between two renders of the same scene (luminance of 8x8 regions and the image). */
+static cmp_result compare(const rd_render_result *a, const rd_render_result *b)
+{
+    cmp_result c = {0, 0, 0};
+    int w = a->image.w, h = a->image.h;
+    double img[2] = {0, 0}, img_v[2] = {0, 0};
+    for (int ry = 0; ry < h; ry += 8)
+        for (int rx = 0; rx < w; rx += 8) {
+            double m[2] = {0, 0}, v[2] = {0, 0};
+            for (int y = ry; y < ry + 8 && y < h; y++)
+                for (int x = rx; x < rx + 8 && x < w; x++)
+                    for (int k = 0; k < 2; k++) {
+                        const rd_render_result *r = k ? b : a;
+                        const float *p = &r->image.rgb[3 * ((size_t)y * w + x)];
+                        const float *e = &r->stderr_img.rgb[3 * ((size_t)y * w + x)];
+                        m[k] += v3_lum(v3(p[0], p[1], p[2]));
+                        /* channels taken as fully correlated (same paths): an upper bound */
+                        double se = v3_lum(v3(e[0], e[1], e[2]));
+                        v[k] += se * se;
+                    }
+            for (int k = 0; k < 2; k++) {
+                img[k] += m[k];
+                img_v[k] += v[k];
+            }
+            if (v[0] + v[1] <= 0.0) continue;
+            double z = (m[0] - m[1]) / sqrt(v[0] + v[1]);
+            if (fabs(z) > fabs(c.z_max)) c.z_max = z;
+            c.regions++;
+        }
+    c.z_image = (img[0] - img[1]) / sqrt(img_v[0] + img_v[1]);
+    return c;
+}
+
+static rd_render_result render(const rd_scene *s, const char *method, int spp, uint64_t seed,
+                               const rd_baked *baked)
+{
+    rd_render_opts o = {.method = method, .spp = spp, .seed = seed, .threads = 2, .baked = baked};
+    rd_render_result r;
+    char err[RD_ERRLEN];
+    cr_assert(rd_render(s, &o, &r, err, sizeof err) == RD_OK, "%s: %s", method, err);
+    for (size_t i = 0; i < (size_t)r.image.w * r.image.h * 3; i++)
+        cr_assert(isfinite(r.image.rgb[i]), "%s: non-finite pixel", method);
+    return r;
+}
+
+static void expect_same(const rd_render_result *a, const rd_render_result *b, const char *what)
+{
+    cmp_result c = compare(a, b);
+    cr_assert(c.regions >= 4, "%s: too few lit regions (%d)", what, c.regions);
+    cr_expect(fabs(c.z_image) < 5.0, "%s: image means differ, z = %.2f", what, c.z_image);
+    cr_expect(fabs(c.z_max) < 4.5, "%s: a region differs, z = %.2f (of %d)", what, c.z_max, c.regions);
+    cr_log_info("%s: z image %.2f, worst region %.2f of %d", what, c.z_image, c.z_max, c.regions);
+}
+
+static rd_baked *bake(const rd_scene *s)
+{
+    char err[RD_ERRLEN];
+    rd_baked *b = NULL;
+    rd_bake_opts bo = {.seed = -1};
+    rd_bake_opts_for(&bo, rd_method_needs_for("guided-unbiased", s));
+    cr_assert(rd_bake(s, &bo, &b, err, sizeof err) == RD_OK, "%s", err);
+    return b;
+}
+
+/* A heterogeneous medium (noise in an ellipsoid) of asymmetry g, lit by a spot at x = spot_x
+ * aimed at it, and `lights` more. */
+static const char *scene_json(double g, double spot_x, const char *lights, const char *extra)
+{
+    static char buf[4096];
+    snprintf(buf, sizeof buf,
+             "{\"camera\":{\"position\":[0,0.3,4.2],\"look_at\":[0,0,0],\"fov\":34,\"resolution\":[32,24]},"
+             "\"media\":[{\"bounds\":{\"min\":[-1.3,-1,-1],\"max\":[1.3,1,1]},"
+             "\"density\":{\"type\":\"noise\",\"octaves\":3,\"frequency\":2,\"amplitude\":2,\"seed\":3,"
+             "\"shape\":\"ellipsoid\",\"edge\":0.5},\"sigma_t\":2.5,\"albedo\":0.9,\"g\":%g}],"
+             "\"lights\":[{\"type\":\"spot\",\"position\":[%g,2,1.5],\"look_at\":[-0.2,0,0],\"angle\":30,"
+             "\"falloff\":8,\"intensity\":[20,16,12]}%s],"
+             "\"photons\":{\"count\":40000},\"guide\":{\"bands\":4%s},"
+             "\"settings\":{\"max_depth\":64,\"rr_depth\":3}}",
+             g, spot_x, lights, extra);
+    return buf;
+}
+
+static const char ENV[] = ",{\"type\":\"environment\",\"radiance\":[0.2,0.25,0.3]}";
+static const char ALL[] = ",{\"type\":\"environment\",\"radiance\":[0.1,0.12,0.15]},"
+                          "{\"type\":\"sphere\",\"center\":[0.6,0.5,0.2],\"radius\":0.25,\"radiance\":[4,3,2]},"
+                          "{\"type\":\"directional\",\"direction\":[1,-0.2,-0.3],\"irradiance\":[2,3,4],"
+                          "\"radius\":0.25,\"center\":[0.3,0.1,0]}";
+
+Test(guided_unbiased, equals_delta_forward_scattering_spot_and_environment, .timeout = 600)
+{
+    rd_scene *s = rt_scene("gu_fwd.json", scene_json(0.9, -2.5, ENV, ""));
+    rd_render_result d = render(s, "delta", 256, 11, NULL);
+    rd_render_result g = render(s, "guided-unbiased", 128, 12, NULL);
+    expect_same(&d, &g, "g = 0.9, spot + environment");
+    /* The camera ray's flights guided, the secondary ones by delta tracking. */
+    rd_scene *s1 = rt_scene("gu_fwd1.json", scene_json(0.9, -2.5, ENV, ",\"secondary\":false"));
+    rd_render_result g1 = render(s1, "guided-unbiased", 128, 13, NULL);
+    expect_same(&d, &g1, "g = 0.9, spot + environment, camera flights only");
+    rd_render_result_free(&g1);
+    rd_scene_free(s1);
+    rd_render_result_free(&g);
+    rd_render_result_free(&d);
+    rd_scene_free(s);
+}
+
+Test(guided_unbiased, equals_delta_backward_scattering_every_light_type, .timeout = 600)
+{
+    rd_scene *s = rt_scene("gu_back.json", scene_json(-0.5, -2.5, ALL, ""));
+    rd_render_result d = render(s, "delta", 256, 21, NULL);
+    rd_render_result g = render(s, "guided-unbiased", 128, 22, NULL);
+    expect_same(&d, &g, "g = -0.5, spot + environment + sphere + directional");
+    rd_render_result_free(&g);
+    rd_render_result_free(&d);
+    rd_scene_free(s);
+}
+
+Test(guided_unbiased, wrong_and_empty_guides_keep_the_expectation, .timeout = 600)
+{
+    rd_scene *s = rt_scene("gu_w.json", scene_json(0.9, -2.5, ENV, ""));
+    rd_render_result d = render(s, "delta", 256, 31, NULL);
+    /* Wrong on purpose: the guide baked with the spot on the other side of the medium. */
+    rd_scene *sw = rt_scene("gu_w2.json", scene_json(0.9, 2.5, ENV, ""));
+    rd_baked *wrong = bake(sw);
+    rd_render_result gw = render(s, "guided-unbiased", 128, 32, wrong);
+    expect_same(&d, &gw, "guide baked with the spot elsewhere");
+    /* Empty: baked from a spot aimed away from the medium, no other light: no photon is
+     * stored, every f_j is 0, so every flight falls back to delta tracking's (I_ray = 0). */
+    rd_scene *se = rt_scene("gu_e.json",
+        "{\"camera\":{\"position\":[0,0.3,4.2],\"look_at\":[0,0,0],\"fov\":34,\"resolution\":[32,24]},"
+        "\"media\":[{\"bounds\":{\"min\":[-1.3,-1,-1],\"max\":[1.3,1,1]},"
+        "\"density\":{\"type\":\"noise\",\"octaves\":3,\"frequency\":2,\"amplitude\":2,\"seed\":3,"
+        "\"shape\":\"ellipsoid\",\"edge\":0.5},\"sigma_t\":2.5,\"albedo\":0.9,\"g\":0.9}],"
+        "\"lights\":[{\"type\":\"spot\",\"position\":[-2.5,2,1.5],\"look_at\":[-5,4,3],\"angle\":10,"
+        "\"intensity\":[20,16,12]}],\"photons\":{\"count\":1000},\"guide\":{\"bands\":4}}");
+    rd_baked *empty = bake(se);
+    rd_render_result ge = render(s, "guided-unbiased", 128, 33, empty);
+    expect_same(&d, &ge, "empty guide");
+    rd_render_result_free(&d);
+    rd_render_result_free(&gw);
+    rd_render_result_free(&ge);
+    rd_baked_free(wrong);
+    rd_baked_free(empty);
+    rd_scene_free(s);
+    rd_scene_free(sw);
+    rd_scene_free(se);
+}
+
+Test(guided_unbiased, distances_off_is_delta_bit_for_bit, .timeout = 120)
+{
+    rd_scene *s = rt_scene("gu_off.json", scene_json(0.9, -2.5, ENV, ",\"distances\":false"));
+    cr_assert_eq(rd_method_needs_for("guided-unbiased", s), 0u, "nothing to bake without guided distances");
+    rd_render_result d = render(s, "delta", 4, 41, NULL);
+    rd_render_result g = render(s, "guided-unbiased", 4, 41, NULL);
+    size_t n = (size_t)d.image.w * d.image.h * 3;
+    cr_expect(memcmp(d.image.rgb, g.image.rgb, n * sizeof(float)) == 0, "images differ");
+    rd_render_result_free(&g);
+    rd_render_result_free(&d);
+    rd_scene_free(s);
+}
+
+/* Upper 1e-5 quantile of chi-square with df degrees of freedom (Wilson-Hilferty: accurate to
+ * a few percent for df >= 10; z = 4.265 is the normal 1e-5 quantile). */
+static double chi2_crit(int df)
+{
+    double a = 2.0 / (9.0 * df), z = 4.265;
+    return df * pow(1.0 - a + z * sqrt(a), 3.0);
+}
+
+/* One scene, two rays: see the test below. */
+static void chi_square_flights(const char *extra, uint64_t seed)
+{
+    char json[2048];
+    snprintf(json, sizeof json,
+        "{\"camera\":{\"position\":[0,0,4],\"look_at\":[0,0,0],\"resolution\":[8,8]},"
+        "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
+        "\"density\":{\"type\":\"noise\",\"octaves\":2,\"frequency\":1.5,\"amplitude\":2,\"seed\":5},"
+        "\"sigma_t\":1.5,\"albedo\":0.8,\"g\":0.5}],"
+        "\"lights\":[{\"type\":\"spot\",\"position\":[-3,0.2,0.3],\"look_at\":[0,0,0.3],\"angle\":12,\"intensity\":[40,40,40]},"
+        "{\"type\":\"environment\",\"radiance\":[0.05,0.05,0.05]}],"
+        "\"photons\":{\"count\":30000},\"guide\":{\"bands\":4%s}}", extra);
+    rd_scene *s = rt_scene("gu_chi.json", json);
+    rd_baked *b = bake(s);
+    const rd_method *m = rd_method_find("guided-unbiased");
+    rd_render_ctx ctx = {.scene = s, .method = m, .guide = rd_baked_guide(b), .threads = 1};
+    char err[RD_ERRLEN];
+    cr_assert(m->prepare(&ctx, err, sizeof err) == RD_OK, "%s", err);
+    void *scratch = aligned_alloc(16, (m->scratch_bytes(&ctx) + 15) / 16 * 16);
+    cr_assert(scratch != NULL);
+    const ray3 rays[2] = {{v3(0.1, 0.05, 4), v3_norm(v3(-0.05, 0.02, -1))},
+                          {v3(-0.2, 0.1, 1.6), v3_norm(v3(0.3, -0.1, -1))}};
+    const double phase_pdf[2] = {0.0, 0.3};
+    enum { K = 64, N = 200000 };
+    for (int k = 0; k < 2; k++) {
+        rd_flight_in in = {.r = rays[k], .t_light = INFINITY, .hit_light = -1,
+                           .phase_pdf = phase_pdf[k], .depth = k};
+        double t0, t1, P_pass;
+        cr_assert(rd_box_intersect(s->bmin, s->bmax, in.r, 0.0, INFINITY, &t0, &t1));
+        double expect[K + 1], prev = rd_gu_flight_cdf(&ctx, scratch, &in, t0, &P_pass);
+        cr_assert(P_pass > 0.0 && P_pass < 1.0, "ray %d: P_pass %g", k, P_pass);
+        cr_assert(fabs(prev) < 1e-15);
+        for (int j = 0; j < K; j++) {
+            double next = rd_gu_flight_cdf(&ctx, scratch, &in, t0 + (j + 1) * (t1 - t0) / K, NULL);
+            expect[j] = N * (next - prev);
+            prev = next;
+        }
+        expect[K] = N * P_pass;
+        cr_assert(fabs(prev + P_pass - 1.0) < 1e-12, "ray %d: scatter %.15g + pass %.15g != 1", k, prev, P_pass);
+        long count[K + 1] = {0};
+        pcg32 rng = pcg32_seed(77, seed + (uint64_t)k, 3);
+        rd_track_counters c = {0};
+        for (int i = 0; i < N; i++) {
+            double pp;
+            rd_flight f = rd_gu_flight(&ctx, scratch, &in, &rng, &c, &pp);
+            cr_assert(pp == P_pass, "P_pass must be a function of the ray");
+            if (f.kind == RD_FLIGHT_PASS) { count[K]++; continue; }
+            int bin = (int)floor((f.t - t0) / (t1 - t0) * K);
+            cr_assert(bin >= 0 && bin <= K, "t %g outside [%g, %g]", f.t, t0, t1);
+            count[bin < K ? bin : K - 1]++;
+        }
+        /* Pool neighbouring distance bins until each expects >= 5 (the pass cell alone). */
+        double chi2 = 0.0, e_acc = 0.0;
+        long o_acc = 0;
+        int cells = 0;
+        for (int j = 0; j <= K; j++) {
+            e_acc += expect[j];
+            o_acc += count[j];
+            if (e_acc < 5.0 && j < K - 1) continue;
+            chi2 += (o_acc - e_acc) * (o_acc - e_acc) / e_acc;
+            cells++;
+            e_acc = 0.0;
+            o_acc = 0;
+        }
+        cr_assert(cells >= 20, "too few cells (%d)", cells);
+        cr_expect(chi2 < chi2_crit(cells - 1), "%s ray %d: chi2 %.1f over %d cells (bound %.1f), P_pass %.3f",
+                  extra, k, chi2, cells, chi2_crit(cells - 1), P_pass);
+        cr_log_info("%s ray %d: chi2 %.1f, %d cells, bound %.1f, P_pass %.3f", extra, k, chi2, cells,
+                    chi2_crit(cells - 1), P_pass);
+    }
+    free(scratch);
+    m->release(&ctx);
+    rd_baked_free(b);
+    rd_scene_free(s);
+}
+
+Test(guided_unbiased, flight_sampler_chi_square_against_its_pdf, .timeout = 900)
+{
+    /* A heterogeneous medium (noise: a grid majorant, and sigma_t = 0 in places, where a drawn
+     * vertex ends the path but still reports its t) lit from the side by a spot, with an
+     * environment behind (so the flight can pass): the outcome of rd_gu_flight (pass, or the
+     * distance bin of t) against the probabilities P_pass and the mass of q over each bin
+     * (rd_gu_flight_cdf, integrator_gu.c eq. 2-3). Bins with an expected count below 5 are
+     * pooled (DESIGN.md convention 9); the bound is the 1e-5 quantile. Two rays: a camera ray,
+     * and a secondary one whose light behind is MIS-weighted; with the default majorant weight
+     * and with the guide strategy alone. */
+    chi_square_flights("", 77);
+    chi_square_flights(",\"majorant_weight\":0", 78);
+}
+
+Test(guided_unbiased, white_furnace, .timeout = 300)
+{
+    /* Albedo 1, heterogeneous and anisotropic, in a uniform environment of radiance 1: every
+     * pixel sees exactly 1. Guide baked from the environment's photons. 5 standard errors of
+     * the image mean, and of each pixel (16 pixels: false alarm < 1e-5). */
+    rd_scene *s = rt_scene("gu_furnace.json",
+        "{\"camera\":{\"position\":[0,0,5],\"look_at\":[0,0,0],\"fov\":20,\"resolution\":[4,4]},"
+        "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
+        "\"density\":{\"type\":\"noise\",\"octaves\":3,\"frequency\":2,\"seed\":4},"
+        "\"sigma_t\":3,\"albedo\":1,\"g\":0.6}],"
+        "\"lights\":[{\"type\":\"environment\",\"radiance\":1}],"
+        "\"photons\":{\"count\":20000},\"guide\":{\"bands\":4},"
+        "\"settings\":{\"max_depth\":100000,\"rr_depth\":3}}");
+    rd_render_result r = render(s, "guided-unbiased", 8192, 51, NULL);
+    double sum = 0.0, var = 0.0;
+    for (int i = 0; i < 16; i++) {
+        double v = r.image.rgb[3 * i + 1], se = r.stderr_img.rgb[3 * i + 1];
+        cr_expect(fabs(v - 1.0) < 5.0 * se + 1e-9, "pixel %d: %.5f (se %.5f)", i, v, se);
+        sum += v;
+        var += se * se;
+    }
+    double mean = sum / 16, se = sqrt(var) / 16;
+    cr_expect(fabs(mean - 1.0) < 5.0 * se, "image mean %.5f (se %.5f)", mean, se);
+    cr_expect(se < 0.01, "the estimate must be precise enough to mean something (se %.5f)", se);
+    cr_log_info("furnace: mean %.5f se %.5f", mean, se);
+    rd_render_result_free(&r);
+    rd_scene_free(s);
+}
+
+Test(guided_unbiased, scene_keys_are_validated)
+{
+    const char *bad[][2] = {
+        {"\"distances\":1", "guide.distances"},
+        {"\"distance_alpha\":0", "guide.distance_alpha"},
+        {"\"distance_alpha\":1.5", "guide.distance_alpha"},
+        {"\"pass_floor\":0", "guide.pass_floor"},
+        {"\"pass_floor\":0.6", "guide.pass_floor"},
+        {"\"majorant_weight\":1", "guide.majorant_weight"},
+        {"\"majorant_weight\":-0.1", "guide.majorant_weight"},
+        {"\"secondary\":0", "guide.secondary"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        char path[256], extra[64], err[RD_ERRLEN] = "";
+        snprintf(extra, sizeof extra, ",%s", bad[i][0]);
+        snprintf(path, sizeof path, "%s/gu_bad.json", rt_tmpdir());
+        const char *json = scene_json(0.9, -2.5, "", extra);
+        rt_write_file(path, json, strlen(json));
+        rd_scene *s = NULL;
+        cr_expect(rd_scene_load(&s, path, NULL, 0, err, sizeof err) != RD_OK, "%s accepted", bad[i][0]);
+        cr_expect(strstr(err, bad[i][1]) != NULL, "%s: message \"%s\" does not name %s", bad[i][0], err, bad[i][1]);
+        cr_expect(strchr(err, '\n') == NULL, "one line: \"%s\"", err);
+        rd_scene_free(s);
+    }
+}
+
