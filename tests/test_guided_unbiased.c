@@ -18,65 +18,6 @@
 #include "rd_guide_pdf.h"
 #include "rd_method.h"
 
-typedef struct {
-    double z_image, z_max;
-    int regions;
-} cmp_result;
-
-/* z-scores between two renders of the same scene (luminance of 8x8 regions and the image). */
-static cmp_result compare(const rd_render_result *a, const rd_render_result *b)
-{
-    cmp_result c = {0, 0, 0};
-    int w = a->image.w, h = a->image.h;
-    double img[2] = {0, 0}, img_v[2] = {0, 0};
-    for (int ry = 0; ry < h; ry += 8)
-        for (int rx = 0; rx < w; rx += 8) {
-            double m[2] = {0, 0}, v[2] = {0, 0};
-            for (int y = ry; y < ry + 8 && y < h; y++)
-                for (int x = rx; x < rx + 8 && x < w; x++)
-                    for (int k = 0; k < 2; k++) {
-                        const rd_render_result *r = k ? b : a;
-                        const float *p = &r->image.rgb[3 * ((size_t)y * w + x)];
-                        const float *e = &r->stderr_img.rgb[3 * ((size_t)y * w + x)];
-                        m[k] += v3_lum(v3(p[0], p[1], p[2]));
-                        /* channels taken as fully correlated (same paths): an upper bound */
-                        double se = v3_lum(v3(e[0], e[1], e[2]));
-                        v[k] += se * se;
-                    }
-            for (int k = 0; k < 2; k++) {
-                img[k] += m[k];
-                img_v[k] += v[k];
-            }
-            if (v[0] + v[1] <= 0.0) continue;
-            double z = (m[0] - m[1]) / sqrt(v[0] + v[1]);
-            if (fabs(z) > fabs(c.z_max)) c.z_max = z;
-            c.regions++;
-        }
-    c.z_image = (img[0] - img[1]) / sqrt(img_v[0] + img_v[1]);
-    return c;
-}
-
-static rd_render_result render(const rd_scene *s, const char *method, int spp, uint64_t seed,
-                               const rd_baked *baked)
-{
-    rd_render_opts o = {.method = method, .spp = spp, .seed = seed, .threads = 2, .baked = baked};
-    rd_render_result r;
-    char err[RD_ERRLEN];
-    cr_assert(rd_render(s, &o, &r, err, sizeof err) == RD_OK, "%s: %s", method, err);
-    for (size_t i = 0; i < (size_t)r.image.w * r.image.h * 3; i++)
-        cr_assert(isfinite(r.image.rgb[i]), "%s: non-finite pixel", method);
-    return r;
-}
-
-static void expect_same(const rd_render_result *a, const rd_render_result *b, const char *what)
-{
-    cmp_result c = compare(a, b);
-    cr_assert(c.regions >= 4, "%s: too few lit regions (%d)", what, c.regions);
-    cr_expect(fabs(c.z_image) < 5.0, "%s: image means differ, z = %.2f", what, c.z_image);
-    cr_expect(fabs(c.z_max) < 4.5, "%s: a region differs, z = %.2f (of %d)", what, c.z_max, c.regions);
-    cr_log_info("%s: z image %.2f, worst region %.2f of %d", what, c.z_image, c.z_max, c.regions);
-}
-
 static rd_baked *bake(const rd_scene *s)
 {
     char err[RD_ERRLEN];
@@ -114,13 +55,13 @@ static const char ALL[] = ",{\"type\":\"environment\",\"radiance\":[0.1,0.12,0.1
 Test(guided_unbiased, equals_delta_forward_scattering_spot_and_environment, .timeout = 600)
 {
     rd_scene *s = rt_scene("gu_fwd.json", scene_json(0.9, -2.5, ENV, ""));
-    rd_render_result d = render(s, "delta", 256, 11, NULL);
-    rd_render_result g = render(s, "guided-unbiased", 128, 12, NULL);
-    expect_same(&d, &g, "g = 0.9, spot + environment");
+    rd_render_result d = rt_render(s, "delta", 256, 11, NULL);
+    rd_render_result g = rt_render(s, "guided-unbiased", 128, 12, NULL);
+    rt_expect_same(&d, &g, "g = 0.9, spot + environment");
     /* The camera ray's flights guided, the secondary ones by delta tracking. */
     rd_scene *s1 = rt_scene("gu_fwd1.json", scene_json(0.9, -2.5, ENV, ",\"secondary\":false"));
-    rd_render_result g1 = render(s1, "guided-unbiased", 128, 13, NULL);
-    expect_same(&d, &g1, "g = 0.9, spot + environment, camera flights only");
+    rd_render_result g1 = rt_render(s1, "guided-unbiased", 128, 13, NULL);
+    rt_expect_same(&d, &g1, "g = 0.9, spot + environment, camera flights only");
     rd_render_result_free(&g1);
     rd_scene_free(s1);
     rd_render_result_free(&g);
@@ -131,9 +72,9 @@ Test(guided_unbiased, equals_delta_forward_scattering_spot_and_environment, .tim
 Test(guided_unbiased, equals_delta_backward_scattering_every_light_type, .timeout = 600)
 {
     rd_scene *s = rt_scene("gu_back.json", scene_json(-0.5, -2.5, ALL, ""));
-    rd_render_result d = render(s, "delta", 256, 21, NULL);
-    rd_render_result g = render(s, "guided-unbiased", 128, 22, NULL);
-    expect_same(&d, &g, "g = -0.5, spot + environment + sphere + directional");
+    rd_render_result d = rt_render(s, "delta", 256, 21, NULL);
+    rd_render_result g = rt_render(s, "guided-unbiased", 128, 22, NULL);
+    rt_expect_same(&d, &g, "g = -0.5, spot + environment + sphere + directional");
     rd_render_result_free(&g);
     rd_render_result_free(&d);
     rd_scene_free(s);
@@ -142,12 +83,12 @@ Test(guided_unbiased, equals_delta_backward_scattering_every_light_type, .timeou
 Test(guided_unbiased, wrong_and_empty_guides_keep_the_expectation, .timeout = 600)
 {
     rd_scene *s = rt_scene("gu_w.json", scene_json(0.9, -2.5, ENV, ""));
-    rd_render_result d = render(s, "delta", 256, 31, NULL);
+    rd_render_result d = rt_render(s, "delta", 256, 31, NULL);
     /* Wrong on purpose: the guide baked with the spot on the other side of the medium. */
     rd_scene *sw = rt_scene("gu_w2.json", scene_json(0.9, 2.5, ENV, ""));
     rd_baked *wrong = bake(sw);
-    rd_render_result gw = render(s, "guided-unbiased", 128, 32, wrong);
-    expect_same(&d, &gw, "guide baked with the spot elsewhere");
+    rd_render_result gw = rt_render(s, "guided-unbiased", 128, 32, wrong);
+    rt_expect_same(&d, &gw, "guide baked with the spot elsewhere");
     /* Empty: baked from a spot aimed away from the medium, no other light: no photon is
      * stored, every f_j is 0, so every flight falls back to delta tracking's (I_ray = 0). */
     rd_scene *se = rt_scene("gu_e.json",
@@ -158,8 +99,8 @@ Test(guided_unbiased, wrong_and_empty_guides_keep_the_expectation, .timeout = 60
         "\"lights\":[{\"type\":\"spot\",\"position\":[-2.5,2,1.5],\"look_at\":[-5,4,3],\"angle\":10,"
         "\"intensity\":[20,16,12]}],\"photons\":{\"count\":1000},\"guide\":{\"bands\":4}}");
     rd_baked *empty = bake(se);
-    rd_render_result ge = render(s, "guided-unbiased", 128, 33, empty);
-    expect_same(&d, &ge, "empty guide");
+    rd_render_result ge = rt_render(s, "guided-unbiased", 128, 33, empty);
+    rt_expect_same(&d, &ge, "empty guide");
     rd_render_result_free(&d);
     rd_render_result_free(&gw);
     rd_render_result_free(&ge);
@@ -174,8 +115,8 @@ Test(guided_unbiased, distances_off_is_delta_bit_for_bit, .timeout = 120)
 {
     rd_scene *s = rt_scene("gu_off.json", scene_json(0.9, -2.5, ENV, ",\"distances\":false"));
     cr_assert_eq(rd_method_needs_for("guided-unbiased", s), 0u, "nothing to bake without guided distances");
-    rd_render_result d = render(s, "delta", 4, 41, NULL);
-    rd_render_result g = render(s, "guided-unbiased", 4, 41, NULL);
+    rd_render_result d = rt_render(s, "delta", 4, 41, NULL);
+    rd_render_result g = rt_render(s, "guided-unbiased", 4, 41, NULL);
     size_t n = (size_t)d.image.w * d.image.h * 3;
     cr_expect(memcmp(d.image.rgb, g.image.rgb, n * sizeof(float)) == 0, "images differ");
     rd_render_result_free(&g);
@@ -294,7 +235,7 @@ Test(guided_unbiased, white_furnace, .timeout = 300)
         "\"lights\":[{\"type\":\"environment\",\"radiance\":1}],"
         "\"photons\":{\"count\":20000},\"guide\":{\"bands\":4},"
         "\"settings\":{\"max_depth\":100000,\"rr_depth\":3}}");
-    rd_render_result r = render(s, "guided-unbiased", 8192, 51, NULL);
+    rd_render_result r = rt_render(s, "guided-unbiased", 8192, 51, NULL);
     double sum = 0.0, var = 0.0;
     for (int i = 0; i < 16; i++) {
         double v = r.image.rgb[3 * i + 1], se = r.stderr_img.rgb[3 * i + 1];

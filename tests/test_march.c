@@ -15,66 +15,6 @@
  * bound 4.5 keeps the chance of a false alarm per test below 1e-4, the image bound is 5. */
 #include "support/rd_test.h"
 
-typedef struct {
-    double z_image, z_max;
-    int regions;
-} cmp_result;
-
-/* z-scores between two renders of the same scene (luminance of 8x8 regions and the image). */
-static cmp_result compare(const rd_render_result *a, const rd_render_result *b)
-{
-    cmp_result c = {0, 0, 0};
-    int w = a->image.w, h = a->image.h;
-    double img[2] = {0, 0}, img_v[2] = {0, 0};
-    for (int ry = 0; ry < h; ry += 8)
-        for (int rx = 0; rx < w; rx += 8) {
-            double m[2] = {0, 0}, v[2] = {0, 0};
-            int n = 0;
-            for (int y = ry; y < ry + 8 && y < h; y++)
-                for (int x = rx; x < rx + 8 && x < w; x++, n++)
-                    for (int k = 0; k < 2; k++) {
-                        const rd_render_result *r = k ? b : a;
-                        const float *p = &r->image.rgb[3 * ((size_t)y * w + x)];
-                        const float *e = &r->stderr_img.rgb[3 * ((size_t)y * w + x)];
-                        m[k] += v3_lum(v3(p[0], p[1], p[2]));
-                        /* the luminance's standard error, channels taken as fully correlated
-                         * (they come from the same paths): an upper bound */
-                        double se = v3_lum(v3(e[0], e[1], e[2]));
-                        v[k] += se * se;
-                    }
-            for (int k = 0; k < 2; k++) {
-                img[k] += m[k];
-                img_v[k] += v[k];
-            }
-            if (v[0] + v[1] <= 0.0) continue;
-            double z = (m[0] - m[1]) / sqrt(v[0] + v[1]);
-            if (fabs(z) > fabs(c.z_max)) c.z_max = z;
-            c.regions++;
-        }
-    c.z_image = (img[0] - img[1]) / sqrt(img_v[0] + img_v[1]);
-    return c;
-}
-
-static rd_render_result render(const rd_scene *s, const char *method, int spp, uint64_t seed,
-                               const rd_baked *baked)
-{
-    rd_render_opts o = {.method = method, .spp = spp, .seed = seed, .threads = 2, .baked = baked};
-    rd_render_result r;
-    char err[RD_ERRLEN];
-    cr_assert(rd_render(s, &o, &r, err, sizeof err) == RD_OK, "%s: %s", method, err);
-    for (size_t i = 0; i < (size_t)r.image.w * r.image.h * 3; i++)
-        cr_assert(isfinite(r.image.rgb[i]), "%s: non-finite pixel", method);
-    return r;
-}
-
-static void expect_same(const rd_render_result *a, const rd_render_result *b, const char *what)
-{
-    cmp_result c = compare(a, b);
-    cr_assert(c.regions >= 4, "%s: too few lit regions (%d)", what, c.regions);
-    cr_expect(fabs(c.z_image) < 5.0, "%s: image means differ, z = %.2f", what, c.z_image);
-    cr_expect(fabs(c.z_max) < 4.5, "%s: a region differs, z = %.2f (of %d)", what, c.z_max, c.regions);
-}
-
 /* A heterogeneous, anisotropic medium lit by a spot (with falloff) and a directional beam. */
 #define SCENE_BODY                                                                                  \
     "\"camera\":{\"position\":[0,0.3,4.2],\"look_at\":[0,0,0],\"fov\":34,\"resolution\":[32,24]},"  \
@@ -104,11 +44,11 @@ static const char *scene_json(const char *extra, double spot_x)
 Test(march, single_scattering_agrees_with_delta, .timeout = 300)
 {
     rd_scene *s = rt_scene("ss_march.json", scene_json("\"settings\":{\"max_depth\":1},\"march\":{\"ls\":\"nee\",\"samples\":8}", -2.5));
-    rd_render_result d = render(s, "delta", 512, 11, NULL);
+    rd_render_result d = rt_render(s, "delta", 512, 11, NULL);
     const char *methods[] = {"guided", "uniform", "transmittance"};
     for (int i = 0; i < 3; i++) {
-        rd_render_result m = render(s, methods[i], 64, 20 + i, NULL);
-        expect_same(&d, &m, methods[i]);
+        rd_render_result m = rt_render(s, methods[i], 64, 20 + i, NULL);
+        rt_expect_same(&d, &m, methods[i]);
         rd_render_result_free(&m);
     }
     rd_render_result_free(&d);
@@ -125,9 +65,9 @@ Test(march, sphere_and_environment_light_keep_their_full_direct_light, .timeout 
         "\"lights\":[{\"type\":\"sphere\",\"center\":[0.6,0.5,0.2],\"radius\":0.3,\"radiance\":[6,5,4]},"
         "{\"type\":\"environment\",\"radiance\":[0.3,0.4,0.5]}],"
         "\"photons\":{\"count\":20000},\"settings\":{\"max_depth\":1},\"march\":{\"ls\":\"nee\",\"samples\":8}}");
-    rd_render_result d = render(s, "delta", 512, 41, NULL);
-    rd_render_result g = render(s, "guided", 64, 42, NULL);
-    expect_same(&d, &g, "guided, sphere + environment light");
+    rd_render_result d = rt_render(s, "delta", 512, 41, NULL);
+    rd_render_result g = rt_render(s, "guided", 64, 42, NULL);
+    rt_expect_same(&d, &g, "guided, sphere + environment light");
     rd_render_result_free(&g);
     rd_render_result_free(&d);
     rd_scene_free(s);
@@ -148,11 +88,11 @@ Test(march, guided_and_transmittance_share_the_multiple_scattering_estimate, .ti
         rd_bake_opts bo = {.seed = -1};
         rd_bake_opts_for(&bo, rd_method_needs_for("guided", s));
         cr_assert(rd_bake(s, &bo, &b, err, sizeof err) == RD_OK, "%s", err);
-        rd_render_result g = render(s, "guided", 64, 5, b);
-        rd_render_result t = render(s, "transmittance", 64, 6, b);
+        rd_render_result g = rt_render(s, "guided", 64, 5, b);
+        rd_render_result t = rt_render(s, "transmittance", 64, 6, b);
         char what[64];
         snprintf(what, sizeof what, "guided vs transmittance, %s", sources[k]);
-        expect_same(&g, &t, what);
+        rt_expect_same(&g, &t, what);
         rd_render_result_free(&g);
         rd_render_result_free(&t);
         rd_baked_free(b);
@@ -163,19 +103,19 @@ Test(march, guided_and_transmittance_share_the_multiple_scattering_estimate, .ti
 Test(march, defensive_only_and_wrong_guides_keep_the_expectation, .timeout = 300)
 {
     rd_scene *s = rt_scene("w_march.json", scene_json("\"settings\":{\"max_depth\":1},\"march\":{\"ls\":\"nee\",\"samples\":8}", -2.5));
-    rd_render_result u = render(s, "uniform", 96, 31, NULL);
+    rd_render_result u = rt_render(s, "uniform", 96, 31, NULL);
     /* alpha = 1: the guided method samples the defensive (uniform) component only. */
     rd_scene *s1 = rt_scene("w1_march.json", scene_json("\"settings\":{\"max_depth\":1},\"march\":{\"ls\":\"nee\",\"samples\":8,\"alpha\":1}", -2.5));
-    rd_render_result a1 = render(s1, "guided", 96, 32, NULL);
-    expect_same(&u, &a1, "alpha = 1");
+    rd_render_result a1 = rt_render(s1, "guided", 96, 32, NULL);
+    rt_expect_same(&u, &a1, "alpha = 1");
     /* A guide baked with the spot on the other side of the medium: wrong on purpose. */
     rd_scene *sw = rt_scene("ww_march.json", scene_json("\"settings\":{\"max_depth\":1},\"march\":{\"ls\":\"nee\",\"samples\":8}", 2.5));
     char err[RD_ERRLEN];
     rd_baked *wrong = NULL;
     rd_bake_opts bo = {.seed = -1};
     cr_assert(rd_bake(sw, &bo, &wrong, err, sizeof err) == RD_OK, "%s", err);
-    rd_render_result gw = render(s, "guided", 96, 33, wrong);
-    expect_same(&u, &gw, "guide baked with the light elsewhere");
+    rd_render_result gw = rt_render(s, "guided", 96, 33, wrong);
+    rt_expect_same(&u, &gw, "guide baked with the light elsewhere");
     rd_render_result_free(&u);
     rd_render_result_free(&a1);
     rd_render_result_free(&gw);
@@ -213,7 +153,7 @@ Test(march, explain_agrees_with_the_renderer_on_one_ray, .timeout = 300)
     const char *methods[] = {"guided", "uniform"};
     const int which[] = {RD_EXPLAIN_GUIDED, RD_EXPLAIN_UNIFORM};
     for (int k = 0; k < 2; k++) {
-        rd_render_result r = render(s, methods[k], spp, 70 + k, b);
+        rd_render_result r = rt_render(s, methods[k], spp, 70 + k, b);
         size_t i = 3 * ((size_t)py * r.image.w + px);
         double mean = r.image.rgb[i], se = r.stderr_img.rgb[i];
         double var = se * se * spp; /* per-sample variance the film measured */
@@ -244,8 +184,8 @@ Test(march, each_placement_takes_its_own_default_samples_per_ray, .timeout = 120
     for (int i = 0; i < 3; i++) {
         snprintf(extra, sizeof extra, "\"settings\":{\"max_depth\":1},\"march\":{\"ls\":\"nee\",\"samples\":%d}", want[i].n);
         rd_scene *expl = rt_scene("expl_n.json", scene_json(extra, -2.5));
-        rd_render_result a = render(dflt, want[i].method, 1, 5, NULL);
-        rd_render_result b = render(expl, want[i].method, 1, 5, NULL);
+        rd_render_result a = rt_render(dflt, want[i].method, 1, 5, NULL);
+        rd_render_result b = rt_render(expl, want[i].method, 1, 5, NULL);
         cr_assert(a.stats.rays_marched > 0, "%s: no ray marched", want[i].method);
         cr_expect(a.stats.samples_per_ray == b.stats.samples_per_ray, "%s: %g samples per ray by default, %g with samples = %d",
                   want[i].method, a.stats.samples_per_ray, b.stats.samples_per_ray, want[i].n);
@@ -260,7 +200,7 @@ Test(march, each_placement_takes_its_own_default_samples_per_ray, .timeout = 120
     }
     /* An explicit value is every placement's: uniform with samples = 3 takes 3 per ray. */
     rd_scene *three = rt_scene("three_n.json", scene_json("\"settings\":{\"max_depth\":1},\"march\":{\"ls\":\"nee\",\"samples\":3}", -2.5));
-    rd_render_result u = render(three, "uniform", 1, 5, NULL);
+    rd_render_result u = rt_render(three, "uniform", 1, 5, NULL);
     cr_expect(u.stats.samples_per_ray == 3.0, "uniform: %g samples per ray with samples = 3", u.stats.samples_per_ray);
     rd_render_result_free(&u);
     rd_scene_free(three);
@@ -306,12 +246,12 @@ Test(march, gap_to_delta_shrinks_as_photons_grow, .timeout = 300)
      * below the first by more than 4.5 standard deviations of their difference, and the middle
      * is no more than 3 standard deviations above the first. */
     rd_scene *s = rt_scene("gap_delta.json", scene_json("\"march\":{\"ls\":\"photons\"}", -2.5));
-    rd_render_result d = render(s, "delta", 384, 71, NULL);
+    rd_render_result d = rt_render(s, "delta", 384, 71, NULL);
     static const int counts[] = {1000, 10000, 100000};
     double g[3], sd[3];
     for (int i = 0; i < 3; i++) {
         rd_scene *si = rt_scene("gap_photons.json", scene_json_photons("\"march\":{\"ls\":\"photons\"}", -2.5, counts[i]));
-        rd_render_result r = render(si, "guided", 48, 72 + i, NULL);
+        rd_render_result r = rt_render(si, "guided", 48, 72 + i, NULL);
         g[i] = gap2(&r, &d, &sd[i]);
         cr_log_info("photons %d: squared gap to delta %.4g +- %.2g", counts[i], g[i], sd[i]);
         rd_render_result_free(&r);

@@ -240,4 +240,68 @@ static inline int run_signal_on(char *const argv[], const char *marker, int sig,
     return child_wait(&c, errbuf, errlen, out, outlen);
 }
 
+/* ---- Comparing two renders of one scene (tests of estimators against each other) ----------
+ * z-scores of the image mean and of 8x8-pixel region means of luminance, with standard errors
+ * from the films' per-pixel standard errors (pixels are independent). Under equal expectations
+ * each z is standard normal; rt_expect_same bounds the image z by 5 and every region's by 4.5
+ * (with at most a few dozen regions, a false alarm per comparison below 1e-4). */
+typedef struct {
+    double z_image, z_max;
+    int regions;
+} rt_cmp;
+
+/* z-scores between two renders of the same scene (luminance of 8x8 regions and the image). */
+static inline rt_cmp rt_compare_images(const rd_render_result *a, const rd_render_result *b)
+{
+    rt_cmp c = {0, 0, 0};
+    int w = a->image.w, h = a->image.h;
+    double img[2] = {0, 0}, img_v[2] = {0, 0};
+    for (int ry = 0; ry < h; ry += 8)
+        for (int rx = 0; rx < w; rx += 8) {
+            double m[2] = {0, 0}, v[2] = {0, 0};
+            for (int y = ry; y < ry + 8 && y < h; y++)
+                for (int x = rx; x < rx + 8 && x < w; x++)
+                    for (int k = 0; k < 2; k++) {
+                        const rd_render_result *r = k ? b : a;
+                        const float *p = &r->image.rgb[3 * ((size_t)y * w + x)];
+                        const float *e = &r->stderr_img.rgb[3 * ((size_t)y * w + x)];
+                        m[k] += v3_lum(v3(p[0], p[1], p[2]));
+                        /* channels taken as fully correlated (same paths): an upper bound */
+                        double se = v3_lum(v3(e[0], e[1], e[2]));
+                        v[k] += se * se;
+                    }
+            for (int k = 0; k < 2; k++) {
+                img[k] += m[k];
+                img_v[k] += v[k];
+            }
+            if (v[0] + v[1] <= 0.0) continue;
+            double z = (m[0] - m[1]) / sqrt(v[0] + v[1]);
+            if (fabs(z) > fabs(c.z_max)) c.z_max = z;
+            c.regions++;
+        }
+    c.z_image = (img[0] - img[1]) / sqrt(img_v[0] + img_v[1]);
+    return c;
+}
+
+static inline rd_render_result rt_render(const rd_scene *s, const char *method, int spp, uint64_t seed,
+                               const rd_baked *baked)
+{
+    rd_render_opts o = {.method = method, .spp = spp, .seed = seed, .threads = 2, .baked = baked};
+    rd_render_result r;
+    char err[RD_ERRLEN];
+    cr_assert(rd_render(s, &o, &r, err, sizeof err) == RD_OK, "%s: %s", method, err);
+    for (size_t i = 0; i < (size_t)r.image.w * r.image.h * 3; i++)
+        cr_assert(isfinite(r.image.rgb[i]), "%s: non-finite pixel", method);
+    return r;
+}
+
+static inline void rt_expect_same(const rd_render_result *a, const rd_render_result *b, const char *what)
+{
+    rt_cmp c = rt_compare_images(a, b);
+    cr_assert(c.regions >= 4, "%s: too few lit regions (%d)", what, c.regions);
+    cr_expect(fabs(c.z_image) < 5.0, "%s: image means differ, z = %.2f", what, c.z_image);
+    cr_expect(fabs(c.z_max) < 4.5, "%s: a region differs, z = %.2f (of %d)", what, c.z_max, c.regions);
+    cr_log_info("%s: z image %.2f, worst region %.2f of %d", what, c.z_image, c.z_max, c.regions);
+}
+
 #endif
