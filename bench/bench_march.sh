@@ -21,6 +21,8 @@
 #                                     LS ("nee+photons photons")
 # A reference already at $OUT/SCENE/ref.exr (with ref-stderr.exr) is used as it is.
 set -euo pipefail
+. "$(dirname "$0")/machine.sh"
+bench_machine_note
 BUILD=${1:-build}
 K=${K:-4}
 RES=${RES:-160,120}

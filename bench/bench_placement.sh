@@ -14,6 +14,8 @@
 #                                      STEP (16: every 16th pixel each way), SET (extra --set,
 #                                      space-separated KEY=VALUE), LABEL (results subfolder)
 set -euo pipefail
+. "$(dirname "$0")/machine.sh"
+bench_machine_note
 BUILD=${1:-build}
 SCENES=${SCENES:-default beam}
 RES=${RES:-160,120}

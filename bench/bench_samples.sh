@@ -14,6 +14,8 @@
 #   bench/bench_samples.sh [BUILD]   environment: SCENES ("cloud smoke-vdb"), NS ("1 2 4 8"),
 #                                    K (4), RES (120,90), SPP (4), THREADS (1)
 set -euo pipefail
+. "$(dirname "$0")/machine.sh"
+bench_machine_note
 BUILD=${1:-build}
 SCENES=${SCENES:-cloud smoke-vdb}
 NS=${NS:-1 2 4 8}

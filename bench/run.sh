@@ -6,6 +6,8 @@
 # The load average before each benchmark is written at the top of its markdown: on a shared
 # machine absolute times move, ratios much less (docs/benchmarks.md).
 set -euo pipefail
+. "$(dirname "$0")/machine.sh"
+bench_machine_note
 BUILD=${1:-build}
 OUT=bench/results
 mkdir -p "$OUT"

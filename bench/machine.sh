@@ -1,0 +1,14 @@
+# bench/machine.sh: sourced by the benchmark scripts. bench_machine_note prints, to stderr, the
+# load average and a warning when the kernel's autogroup scheduling is on: with it, `nice` acts
+# only inside a terminal session's group, so other sessions' niced builds take as much CPU as a
+# benchmark at normal priority, and wall times move by several times (found in session 4,
+# docs/guided-marching.md). Turn it off for a benchmark (as root):
+#     echo 0 > /proc/sys/kernel/sched_autogroup_enabled
+bench_machine_note() {
+  echo "bench: load average $(cut -d' ' -f1-3 /proc/loadavg), $(nproc) cores" >&2
+  local ag=/proc/sys/kernel/sched_autogroup_enabled
+  if [ -r "$ag" ] && [ "$(cat "$ag")" = 1 ]; then
+    echo "bench: warning: kernel.sched_autogroup_enabled = 1: other sessions' niced work competes" \
+         "with this benchmark as equals; times may move several-fold (bench/machine.sh says how to turn it off)" >&2
+  fi
+}
