@@ -23,5 +23,8 @@ int fz_guide(const uint8_t *data, size_t n);
 int fz_raw(const uint8_t *data, size_t n);
 /* A .vdb through the OpenVDB shim rd_vdb_load (grid "density"). */
 int fz_vdb(const uint8_t *data, size_t n);
+/* An image through rd_image_read (OpenImageIO; what `compare --reference` and `--add` read):
+ * the first byte picks the file's extension (even: .exr, odd: .png), the rest is the file. */
+int fz_image(const uint8_t *data, size_t n);
 
 #endif

@@ -48,3 +48,4 @@ Test(fuzz_regress, pmap, .timeout = 120) { replay("pmap", fz_pmap); }
 Test(fuzz_regress, guide, .timeout = 120) { replay("guide", fz_guide); }
 Test(fuzz_regress, raw, .timeout = 120) { replay("raw", fz_raw); }
 Test(fuzz_regress, vdb, .timeout = 120) { replay("vdb", fz_vdb); }
+Test(fuzz_regress, image, .timeout = 120) { replay("image", fz_image); }
