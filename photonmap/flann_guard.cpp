@@ -21,53 +21,39 @@ void clear(pm_flann_fault *fault)
     if (fault) note(fault, 0, "");
 }
 
+// Run call() with every exception caught: its result, or on_fault after noting the fault.
+template <class R, class F> R guarded(pm_flann_fault *fault, R on_fault, F &&call)
+{
+    clear(fault);
+    try {
+        return call();
+    } catch (const std::bad_alloc &) {
+        note(fault, 1, "out of memory");
+    } catch (const std::exception &e) {
+        note(fault, 0, e.what());
+    } catch (...) {
+        note(fault, 0, "unknown exception");
+    }
+    return on_fault;
+}
+
 } // namespace
 
 extern "C" flann_index_t pm_flann_build(float *xyz, int rows, int cols, float *speedup,
                                         struct FLANNParameters *p, pm_flann_fault *fault)
 {
-    clear(fault);
-    try {
-        return flann_build_index_float(xyz, rows, cols, speedup, p);
-    } catch (const std::bad_alloc &) {
-        note(fault, 1, "out of memory");
-    } catch (const std::exception &e) {
-        note(fault, 0, e.what());
-    } catch (...) {
-        note(fault, 0, "unknown exception");
-    }
-    return nullptr;
+    return guarded<flann_index_t>(fault, nullptr, [&] { return flann_build_index_float(xyz, rows, cols, speedup, p); });
 }
 
 extern "C" int pm_flann_knn(flann_index_t index, float *queries, int nq, int *idx, float *dist2,
                             int k, struct FLANNParameters *p, pm_flann_fault *fault)
 {
-    clear(fault);
-    try {
-        return flann_find_nearest_neighbors_index_float(index, queries, nq, idx, dist2, k, p);
-    } catch (const std::bad_alloc &) {
-        note(fault, 1, "out of memory");
-    } catch (const std::exception &e) {
-        note(fault, 0, e.what());
-    } catch (...) {
-        note(fault, 0, "unknown exception");
-    }
-    return -1;
+    return guarded(fault, -1, [&] { return flann_find_nearest_neighbors_index_float(index, queries, nq, idx, dist2, k, p); });
 }
 
 extern "C" int pm_flann_radius(flann_index_t index, float *query, int *idx, float *dist2,
                                int max_nn, float radius2, struct FLANNParameters *p,
                                pm_flann_fault *fault)
 {
-    clear(fault);
-    try {
-        return flann_radius_search_float(index, query, idx, dist2, max_nn, radius2, p);
-    } catch (const std::bad_alloc &) {
-        note(fault, 1, "out of memory");
-    } catch (const std::exception &e) {
-        note(fault, 0, e.what());
-    } catch (...) {
-        note(fault, 0, "unknown exception");
-    }
-    return -1;
+    return guarded(fault, -1, [&] { return flann_radius_search_float(index, query, idx, dist2, max_nn, radius2, p); });
 }
