@@ -353,13 +353,21 @@ void sh_project_add(int bands, const double *b, const double *y, const double po
 
 void sh_eval_rgb(int bands, const float *coeffs, const float *y, float out[3])
 {
+    /* Eight independent partial sums per channel: the serial sum is one dependency chain of
+     * L^2 additions (IEEE order forbids the compiler to split it), the eight lanes are what
+     * the vectoriser turns into two SIMD accumulators. The guided methods call this for every
+     * guide cell a ray crosses (renderer/guide_pdf.c). */
     const int n = bands * bands;
     for (int c = 0; c < SH_CHANNELS; c++) {
         const float *cc = coeffs + (size_t)c * n;
-        float s = 0.0f;
-        for (int i = 0; i < n; i++)
-            s += cc[i] * y[i];
-        out[c] = s;
+        float s[8] = {0, 0, 0, 0, 0, 0, 0, 0}, t = 0.0f;
+        int i = 0;
+        for (; i + 8 <= n; i += 8)
+            for (int k = 0; k < 8; k++)
+                s[k] += cc[i + k] * y[i + k];
+        for (; i < n; i++)
+            t += cc[i] * y[i];
+        out[c] = ((s[0] + s[4]) + (s[1] + s[5])) + ((s[2] + s[6]) + (s[3] + s[7])) + t;
     }
 }
 
