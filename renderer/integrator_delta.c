@@ -58,12 +58,53 @@ static rd_flight delta_flight(const rd_flight_sampler *fs, const rd_scene *s,
     return rd_flight_delta(s, in, rng, c);
 }
 
-vec3 rd_path_radiance(const rd_scene *s, ray3 r, const rd_flight_sampler *fs, pcg32 *rng,
-                      rd_track_counters *c)
+double rd_dir_mix_pdf(const rd_dir_mix *mx, double g, vec3 d, vec3 wo)
+{
+    double p = rd_hg_eval(g, v3_dot(d, wo));
+    if (!(mx->a > 0.0)) return p;
+    return mx->a * rd_vmf_eval(mx->mu, mx->kappa, wo) + (1.0 - mx->a) * p;
+}
+
+vec3 rd_dir_mix_sample(const rd_dir_mix *mx, double g, vec3 d, pcg32 *rng, double *pdf)
+{
+    /* One-sample MIS (Veach 1997 §9.2.4): pick a strategy, draw from it, and weight by the
+     * mixture's pdf, which any draw from either strategy shares. */
+    int lobe = mx->a > 0.0 && pcg32_uniform(rng) < mx->a;
+    double u1 = pcg32_uniform(rng), u2 = pcg32_uniform(rng);
+    vec3 wo = lobe ? rd_vmf_sample(mx->mu, mx->kappa, u1, u2) : rd_hg_sample(g, d, u1, u2);
+    *pdf = rd_dir_mix_pdf(mx, g, d, wo);
+    return wo;
+}
+
+/* The loop from a free flight along r on, with unit throughput: returns the radiance estimate
+ * of L(r.o, -r.d). `phase_pdf` is the pdf with which r.d was drawn (0 for the camera ray),
+ * `depth` the scattering events before this flight, *budget the extra copies splitting may
+ * still add to this camera sample. */
+static vec3 trace(const rd_scene *s, ray3 r, double phase_pdf, int depth0,
+                  const rd_flight_sampler *fs, pcg32 *rng, rd_track_counters *c, int *budget);
+
+/* One copy of a continuation from vertex x (arrived along d) with the vertex policy's
+ * direction mixture: next-event estimation plus the continued path, with unit throughput
+ * (an estimate of L_s(x, -d)). */
+static vec3 continue_from(const rd_scene *s, vec3 x, vec3 d, const rd_medium *m,
+                          const rd_dir_mix *mx, int depth, const rd_flight_sampler *fs,
+                          pcg32 *rng, rd_track_counters *c, int *budget)
+{
+    vec3 L = rd_nee_mix(s, x, d, m->g, mx, rng, c);
+    double pdf;
+    vec3 wo = rd_dir_mix_sample(mx, m->g, d, rng, &pdf);
+    if (!(pdf > 0.0)) return L;
+    /* Weight p / pdf: 1 for phase sampling alone, the mixture's ratio otherwise. */
+    double w = rd_hg_eval(m->g, v3_dot(d, wo)) / pdf;
+    ray3 next = {x, wo};
+    return v3_add(L, v3_scale(trace(s, next, pdf, depth, fs, rng, c, budget), w));
+}
+
+static vec3 trace(const rd_scene *s, ray3 r, double phase_pdf, int depth0,
+                  const rd_flight_sampler *fs, pcg32 *rng, rd_track_counters *c, int *budget)
 {
     vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
-    double phase_pdf = 0.0; /* pdf of the current direction; 0 for the camera ray */
-    for (int depth = 0;; depth++) {
+    for (int depth = depth0;; depth++) {
         /* The nearest sphere light ends the free flight like a surface would. */
         rd_flight_in in = {.r = r, .depth = depth, .phase_pdf = phase_pdf};
         in.hit_light = rd_scene_hit_light(s, r, INFINITY, -1, &in.t_light);
@@ -79,7 +120,31 @@ vec3 rd_path_radiance(const rd_scene *s, ray3 r, const rd_flight_sampler *fs, pc
         vec3 x = ray_at(r, f.t);
         /* Scattering vertex: beta now carries T sigma_s / pdf (rd_flight), so what follows
          * estimates L_s(x, -d) = integral of p L (THEORY.md §1): next-event estimation for the
-         * direct part, the phase-sampled continuation for the rest. */
+         * direct part, the sampled continuation for the rest. */
+        if (fs->vertex) {
+            /* The sampler's vertex policy: roulette or splitting, and the direction mixture.
+             * Every copy but the last recurses; the last continues this loop. */
+            rd_vertex_in vi = {.x = x, .d = r.d, .medium = m, .depth = depth + 1, .beta = beta};
+            rd_vertex_out vo;
+            fs->vertex(fs, s, &vi, rng, &vo);
+            int n = vo.n;
+            if (n <= 0) break;
+            if (n - 1 > *budget) n = 1 + *budget;
+            *budget -= n - 1;
+            beta = v3_scale(beta, vo.rr_scale / n);
+            for (int k = 1; k < n; k++)
+                L = v3_add(L, v3_mul(beta, continue_from(s, x, r.d, m, &vo.mix, depth + 1, fs,
+                                                         rng, c, budget)));
+            L = v3_add(L, v3_mul(beta, rd_nee_mix(s, x, r.d, m->g, &vo.mix, rng, c)));
+            double pdf;
+            vec3 wo = rd_dir_mix_sample(&vo.mix, m->g, r.d, rng, &pdf);
+            if (!(pdf > 0.0)) break;
+            beta = v3_scale(beta, rd_hg_eval(m->g, v3_dot(r.d, wo)) / pdf);
+            phase_pdf = pdf;
+            r.o = x;
+            r.d = wo;
+            continue;
+        }
         L = v3_add(L, v3_mul(beta, rd_nee(s, x, r.d, m->g, rng, c)));
 
         /* Russian roulette on the throughput. Weighted trackers with non-bounding majorants
@@ -99,9 +164,16 @@ vec3 rd_path_radiance(const rd_scene *s, ray3 r, const rd_flight_sampler *fs, pc
     return L;
 }
 
+vec3 rd_path_radiance(const rd_scene *s, ray3 r, const rd_flight_sampler *fs, pcg32 *rng,
+                      rd_track_counters *c)
+{
+    int budget = RD_SPLIT_BUDGET;
+    return trace(s, r, 0.0, 0, fs, rng, c, &budget);
+}
+
 vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c)
 {
-    const rd_flight_sampler fs = {.sample = delta_flight, .user = NULL};
+    const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL};
     return rd_path_radiance(s, r, &fs, rng, c);
 }
 

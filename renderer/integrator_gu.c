@@ -81,6 +81,7 @@ typedef struct {
     double t0, t1;
     double w;          /* weight of the majorant strategy */
     double P_g, P_m;   /* scatter probability of each strategy */
+    double B;          /* the guide's passed part B~ = T~(t0,t1) L_behind */
     rd_guide_pdf g, m; /* distance pdf of each strategy */
 } gu_dist;
 
@@ -179,11 +180,13 @@ static void flight_dist(const rd_render_ctx *ctx, const gu_scratch *sc, ray3 r, 
     D->w = s->guide.majorant_weight;
     build_guide_pdf(ctx, sc, r, t0, t1, &D->g);
     build_majorant_pdf(sc, st->cap_m, s, r, t0, t1, &D->m);
+    D->B = 0.0;
     if (!(L_behind > 0.0)) {
         D->P_g = D->P_m = 1.0;
         return;
     }
     double S = D->g.I, B = exp(-rd_guide_pdf_tau(&D->g)) * L_behind, fl = s->guide.pass_floor;
+    D->B = B;
     double P = (S + B > 0.0 && isfinite(S + B)) ? S / (S + B) : 0.5;
     D->P_g = fmin(1.0 - fl, fmax(fl, P));
     D->P_m = -expm1(-rd_guide_pdf_tau(&D->m));
@@ -214,7 +217,16 @@ typedef struct {
     const rd_render_ctx *ctx;
     void *scratch;
     double P_pass;
+    double I_cam;   /* the guide's estimate of the camera sample's radiance, S~ + B~ of its
+                     * first flight (0 when that flight was delta tracking's): the pixel
+                     * estimate of the roulette's weight window */
 } gu_user;
+
+/* Whether this flight's distance is the guide's (else delta tracking's). */
+static int flight_guided(const rd_scene *s, const rd_render_ctx *ctx, const rd_flight_in *in)
+{
+    return ctx->guide && s->guide.distances && (in->depth == 0 || s->guide.secondary);
+}
 
 static rd_flight guided_flight(const rd_flight_sampler *fs, const rd_scene *s,
                                const rd_flight_in *in, pcg32 *rng, rd_track_counters *c)
@@ -224,21 +236,25 @@ static rd_flight guided_flight(const rd_flight_sampler *fs, const rd_scene *s,
     ray3 r = in->r;
     double t0, t1;
     u->P_pass = -1.0;
-    /* No guide, a secondary flight with guide.secondary off, or no medium on the way: delta
-     * tracking's flight (it passes with weight 1 when the ray misses every medium). Which
-     * sampler a flight uses depends on the flight alone: each stays unbiased. */
-    if (!ctx->guide || (in->depth > 0 && !s->guide.secondary) || !flight_interval(s, in, &t0, &t1))
+    /* No guide, distances off, a secondary flight with guide.secondary off, or no medium on
+     * the way: delta tracking's flight (it passes with weight 1 when the ray misses every
+     * medium). Which sampler a flight uses depends on the flight alone: each stays unbiased.
+     * The camera flight still walks the guide when the roulette needs its estimate I~_cam. */
+    int guided = flight_guided(s, ctx, in);
+    int want_I = ctx->guide && s->guide.roulette && in->depth == 0;
+    if (!(guided || want_I) || !flight_interval(s, in, &t0, &t1))
         return rd_flight_delta(s, in, rng, c);
     gu_scratch sc;
     scratch_layout(ctx->state, &sc, u->scratch);
     gu_dist D;
     flight_dist(ctx, &sc, r, t0, t1, mean3(rd_flight_behind(s, in)), &D);
+    if (in->depth == 0) u->I_cam = D.g.I + D.B;
     /* A guide with no light along this ray (an empty or wrong guide, or a dark region) knows
      * nothing to guide by: delta tracking's flight. The choice depends on the ray alone, so
      * each flight's estimate stays unbiased. Without this the guide strategy would pass at
      * once, and its scattered paths carry weights up to 1/w per vertex, compounding with
      * depth (heavy tails: docs/guided-unbiased.md). */
-    if (!(D.g.I > 0.0)) return rd_flight_delta(s, in, rng, c);
+    if (!guided || !(D.g.I > 0.0)) return rd_flight_delta(s, in, rng, c);
     double P_pass = dist_pass(&D);
     u->P_pass = P_pass;
     rd_flight f = {.kind = RD_FLIGHT_END, .t = t1, .medium = NULL, .weight = v3(0, 0, 0)};
@@ -266,10 +282,124 @@ static rd_flight guided_flight(const rd_flight_sampler *fs, const rd_scene *s,
     return f;
 }
 
+/* ---- The vertex policy: guided directions, roulette and splitting --------------------------- */
+
+/* The weight window of the roulette (Vorba and Krivanek 2016, §4: s = 5): a path whose
+ * expected contribution rho (in units of the pixel's) lies in [2/(1+s), 2s/(1+s)] goes on as
+ * it is; below, Russian roulette lifts it to the window's lower edge; above, it splits. */
+#define GU_WINDOW_S 5.0
+/* Least survival probability the guide's roulette gives; below it (a guide calling a region
+ * dark, rightly or not) the throughput roulette of `delta` decides (gu_vertex). */
+#define GU_RR_FLOOR 0.05
+/* The guide lobe needs the first-order coefficients divided by the phase's b_1; below this
+ * |b_1| (near-isotropic media: the in-scattered radiance forgets the incident direction) the
+ * cache holds no usable direction and the continuation is phase sampling alone. */
+#define GU_B1_MIN 0.1
+
+/* The guide's incident-light lobe at a vertex in cell `coeffs` (3 channel-major L^2 blocks) of
+ * a medium with HG g, as a von Mises-Fisher lobe for the continuation direction.
+ *   The bake stores c_lm = (1/V) sum_k dPhi_k b_l Y_lm(w'_k) (sh.h; w'_k the photons' travel
+ *   directions, b_l = g^l times the Hann window w_l when guide.window is on), so with
+ *   (Y_1-1, Y_10, Y_11) = sqrt(3/(4 pi)) (y, z, x) and Y_00 = 1/(2 sqrt(pi)):
+ *       m = sum_k dPhi_k w'_k / sum_k dPhi_k = (c_11, c_1-1, c_10) / (sqrt(3) b_1 c_00),
+ *   the mean travel direction of the light arriving in the cell, |m| <= 1 its mean cosine.
+ *   A path continuing along wo gathers light that travels along -wo: the lobe's mean is -m/|m|,
+ *   its concentration the vMF's whose mean cosine is |m| (rd_vmf_kappa). */
+static int guide_lobe(const rd_scene *s, const float *coeffs, int bands, double g, rd_dir_mix *mx)
+{
+    if (bands < 2) return 0;
+    double b1 = g * (s->guide.window ? 0.5 * (1.0 + cos(M_PI / bands)) : 1.0);
+    if (!(fabs(b1) >= GU_B1_MIN)) return 0;
+    int L2 = bands * bands;
+    double c00 = 0.0, c[3] = {0, 0, 0}; /* channel means of c_00 and of (c_11, c_1-1, c_10) */
+    for (int ch = 0; ch < 3; ch++) {
+        const float *k = coeffs + (size_t)ch * L2;
+        c00 += k[SH_INDEX(0, 0)] / 3.0;
+        c[0] += k[SH_INDEX(1, 1)] / 3.0;
+        c[1] += k[SH_INDEX(1, -1)] / 3.0;
+        c[2] += k[SH_INDEX(1, 0)] / 3.0;
+    }
+    if (!(c00 > 0.0)) return 0;
+    vec3 m = v3_scale(v3(c[0], c[1], c[2]), 1.0 / (sqrt(3.0) * b1 * c00));
+    double rbar = v3_len(m);
+    if (!(rbar > 0.05) || !isfinite(rbar)) return 0; /* no preferred direction to speak of */
+    mx->mu = v3_scale(m, -1.0 / rbar);
+    mx->kappa = rd_vmf_kappa(fmin(rbar, 0.95));
+    mx->a = s->guide.direction_weight;
+    return 1;
+}
+
+static void gu_vertex(const rd_flight_sampler *fs, const rd_scene *s, const rd_vertex_in *v,
+                      pcg32 *rng, rd_vertex_out *out)
+{
+    const gu_user *u = fs->user;
+    const sh_guide *guide = u->ctx->guide;
+    const rd_guide_settings *gs = &s->guide;
+    out->n = 1;
+    out->rr_scale = 1.0;
+    out->mix = (rd_dir_mix){.a = 0.0};
+    double beta = fmax(fabs(v->beta.x), fmax(fabs(v->beta.y), fabs(v->beta.z)));
+    const double xv[3] = {v->x.x, v->x.y, v->x.z};
+    long cell = guide ? sh_guide_locate(guide, xv) : -1;
+    const float *coeffs = cell >= 0 ? sh_guide_cell_coeffs(guide, (size_t)cell) : NULL;
+    int bands = guide ? sh_guide_bands(guide) : 0;
+    /* The lobe comes from the guide of the indirect photons when there is one: the direct
+     * light is next-event estimation's, and a continuation aimed at a light source would
+     * estimate again what NEE already has (THEORY.md §1: L_s = direct + indirect). */
+    const sh_guide *lg = u->ctx->guide_indirect ? u->ctx->guide_indirect : guide;
+    long lcell = lg == guide ? cell : sh_guide_locate(lg, xv);
+    if (lcell >= 0 && gs->directions && gs->direction_weight > 0.0)
+        guide_lobe(s, sh_guide_cell_coeffs(lg, (size_t)lcell), sh_guide_bands(lg), v->medium->g, &out->mix);
+
+    /* Roulette and splitting by the path's expected contribution against the pixel's
+     * (adjoint-driven, Vorba and Krivanek 2016 eq. 7-8, with the guide as the adjoint):
+     *   rho = |beta| L~_s(x, -d) / I~_cam,  L~_s = f(-d) / sigma_s of the cell,
+     * f(-d) the guide's sigma_s L_s toward the way the path came (sh.h). */
+    if (coeffs && gs->roulette && u->I_cam > 0.0) {
+        float y[SH_MAX_COEFFS], f[3];
+        const double w[3] = {-v->d.x, -v->d.y, -v->d.z};
+        sh_basis_evalf(sh_guide_basis(guide), w, y);
+        sh_eval_rgb_clamped(bands, coeffs, y, f);
+        double sig_s = sh_guide_cell_sigma_t(guide, (size_t)cell) * mean3(v->medium->albedo);
+        double Ls = sig_s > 0.0 ? (f[0] + f[1] + f[2]) / (3.0 * sig_s) : 0.0;
+        double rho = beta * Ls / u->I_cam;
+        double lo = 2.0 / (1.0 + GU_WINDOW_S), hi = GU_WINDOW_S * lo;
+        if (rho > hi && isfinite(rho)) {
+            double n = ceil(rho / hi);
+            out->n = n < gs->split_max ? (int)n : gs->split_max;
+            return;
+        }
+        if (rho >= lo) return;
+        double q = rho / lo;
+        /* Survival lifts the weight to the window's edge, so a consistent estimate kills a
+         * path once, not again at every vertex. Where the guide sees (next to) nothing the
+         * lift would be huge and would repeat (rho stays below the window, weights of
+         * 1/q^k after k vertices: the heavy tail of an empty or wrong guide), so below
+         * GU_RR_FLOOR the guide's estimate is not trusted and the throughput roulette of
+         * `delta` decides instead. */
+        if (q >= GU_RR_FLOOR) {
+            if (pcg32_uniform(rng) >= q) { out->n = 0; return; }
+            out->rr_scale = 1.0 / q;
+            return;
+        }
+    }
+    /* No estimate: `delta`'s roulette on the throughput. */
+    if (v->depth >= s->settings.rr_depth) {
+        double q = fmin(1.0, beta);
+        if (q <= 0.0 || pcg32_uniform(rng) >= q) { out->n = 0; return; }
+        out->rr_scale = 1.0 / q;
+    }
+}
+
 static vec3 gu_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
 {
     gu_user u = {.ctx = ctx, .scratch = th->scratch};
-    const rd_flight_sampler fs = {.sample = guided_flight, .user = &u};
+    /* With directions and roulette off the vertex is `delta`'s (the loop's own roulette and
+     * phase sampling); with every part off the method is `delta`, bit for bit. */
+    const rd_guide_settings *gs = &ctx->scene->guide;
+    const rd_flight_sampler fs = {.sample = guided_flight,
+                                  .vertex = ctx->guide && (gs->directions || gs->roulette) ? gu_vertex : NULL,
+                                  .user = &u};
     pcg32 rng = rd_sampler_stream(smp);
     return rd_path_radiance(ctx->scene, r, &fs, &rng, &th->counters);
 }
@@ -284,13 +414,20 @@ rd_flight rd_gu_flight(const rd_render_ctx *ctx, void *scratch, const rd_flight_
     return f;
 }
 
+void rd_gu_vertex(const rd_render_ctx *ctx, const rd_vertex_in *v, double I_cam, pcg32 *rng,
+                  rd_vertex_out *out)
+{
+    gu_user u = {.ctx = ctx, .I_cam = I_cam};
+    const rd_flight_sampler fs = {.sample = guided_flight, .vertex = gu_vertex, .user = &u};
+    gu_vertex(&fs, ctx->scene, v, rng, out);
+}
+
 double rd_gu_flight_cdf(const rd_render_ctx *ctx, void *scratch, const rd_flight_in *in,
                         double t, double *P_pass)
 {
     double t0, t1;
     if (P_pass) *P_pass = -1.0;
-    if (!ctx->guide || (in->depth > 0 && !ctx->scene->guide.secondary) ||
-        !flight_interval(ctx->scene, in, &t0, &t1))
+    if (!flight_guided(ctx->scene, ctx, in) || !flight_interval(ctx->scene, in, &t0, &t1))
         return 0.0;
     gu_scratch sc;
     scratch_layout(ctx->state, &sc, scratch);
@@ -367,13 +504,16 @@ static size_t gu_scratch_bytes(const rd_render_ctx *ctx)
  * guide.distances false the method is delta tracking and needs no bake. */
 static unsigned gu_needs(const rd_scene *s)
 {
-    return s->guide.distances ? RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE : 0u;
+    if (!s->guide.distances && !s->guide.directions && !s->guide.roulette) return 0u;
+    unsigned n = RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE;
+    if (s->guide.directions) n |= RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE;
+    return n;
 }
 
 const rd_method rd_method_guided_unbiased = {
     .name = "guided-unbiased",
     .summary = "unbiased path tracing with free-flight distances and scatter/pass guided by the SH guide",
-    .needs = RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE,
+    .needs = RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE,
     .needs_for = gu_needs,
     .scratch_bytes = gu_scratch_bytes,
     .prepare = gu_prepare,

@@ -245,14 +245,17 @@ double rd_power_heuristic(double a, double b)
  * the MIS weight against phase sampling when `pick_pmf` > 0 (the probability that light i was
  * the one chosen), none when it is 0 (no phase-sampled path will find the light). */
 static vec3 nee_light(const rd_scene *s, int i, double pick_pmf, vec3 x, vec3 d, double g,
-                      pcg32 *rng, rd_track_counters *c)
+                      const rd_dir_mix *mx, pcg32 *rng, rd_track_counters *c)
 {
     double u1 = pcg32_uniform(rng), u2 = pcg32_uniform(rng);
     const rd_light *l = &s->lights[i];
     rd_light_sample ls;
     if (!rd_light_sample_li(l, x, u1, u2, &ls)) return v3(0, 0, 0);
     double p = rd_hg_eval(g, v3_dot(d, ls.wi));
-    double w = pick_pmf > 0.0 && ls.pdf > 0.0 ? rd_power_heuristic(pick_pmf * ls.pdf, p) : 1.0;
+    /* The competing strategy is how the path continues: the phase function, or the direction
+     * mixture of guided-unbiased (its pdf at wi, rd_dir_mix_pdf). */
+    double p_dir = mx && mx->a > 0.0 ? rd_dir_mix_pdf(mx, g, d, ls.wi) : p;
+    double w = pick_pmf > 0.0 && ls.pdf > 0.0 ? rd_power_heuristic(pick_pmf * ls.pdf, p_dir) : 1.0;
     ray3 sr = {x, ls.wi};
     /* Another sphere light in front of this one blocks the shadow ray. */
     if (rd_scene_hit_light(s, sr, ls.dist, i, NULL) >= 0) return v3(0, 0, 0);
@@ -264,19 +267,25 @@ static vec3 nee_light(const rd_scene *s, int i, double pick_pmf, vec3 x, vec3 d,
 
 vec3 rd_nee(const rd_scene *s, vec3 x, vec3 d, double g, pcg32 *rng, rd_track_counters *c)
 {
+    return rd_nee_mix(s, x, d, g, NULL, rng, c);
+}
+
+vec3 rd_nee_mix(const rd_scene *s, vec3 x, vec3 d, double g, const rd_dir_mix *mx, pcg32 *rng,
+                rd_track_counters *c)
+{
     double pmf;
     int i = rd_light_sampler_pick(&s->light_sampler, pcg32_uniform(rng), &pmf);
     if (i < 0 || !(pmf > 0.0)) {
         pcg32_uniform(rng), pcg32_uniform(rng); /* keep the stream's use fixed */
         return v3(0, 0, 0);
     }
-    return nee_light(s, i, pmf, x, d, g, rng, c);
+    return nee_light(s, i, pmf, x, d, g, mx, rng, c);
 }
 
 vec3 rd_nee_all(const rd_scene *s, vec3 x, vec3 d, double g, pcg32 *rng, rd_track_counters *c)
 {
     vec3 L = v3(0, 0, 0);
     for (int i = 0; i < s->n_lights; i++)
-        L = v3_add(L, nee_light(s, i, 0.0, x, d, g, rng, c));
+        L = v3_add(L, nee_light(s, i, 0.0, x, d, g, NULL, rng, c));
     return L;
 }

@@ -266,6 +266,13 @@ typedef struct {
     double pass_floor;   /* the guide strategy's least probability of scatter and of pass, (0, 0.5] */
     double majorant_weight; /* weight of the majorant (delta-tracking) strategy, in [0, 1) */
     int secondary;       /* 1 (default): guide secondary flights too; 0: the camera ray's only */
+    int directions;      /* 1 (default): continue from a vertex by a mixture of the guide's
+                          * incident-light lobe and the phase function (MIS); 0: phase alone */
+    double direction_weight; /* probability of the guide's lobe in that mixture, in [0, 1) */
+    int roulette;        /* 1 (default): Russian roulette and splitting by the guide's estimate
+                          * of the path's contribution (weight window, Vorba and Krivanek 2016);
+                          * 0: the throughput roulette of `delta` */
+    int split_max;       /* most copies one vertex splits into, in [1, 64] (1: roulette only) */
 } rd_guide_settings;
 
 /* Ray-marching settings of the guided methods (scene key "march", docs/scene-format.md). */
@@ -353,6 +360,25 @@ double rd_scene_radius(const rd_scene *s);
  * unbiased shadow transmittance, MIS against phase sampling. Multiply by the path weight. */
 vec3 rd_nee(const rd_scene *s, vec3 x, vec3 d, double g, pcg32 *rng, rd_track_counters *c);
 
+/* How a path continues from a scattering vertex reached along d: with probability a a von
+ * Mises-Fisher lobe (mean mu, concentration kappa: the guide's incident light), else the HG
+ * phase function around d. a = 0 is phase sampling alone. The pdf of wo is
+ *     pdf(wo) = a vmf(mu, kappa; wo) + (1 - a) hg(g; d.wo)                        (one-sample MIS,
+ * the balance heuristic over the two strategies: Veach 1997 §9.2.4), the weight hg / pdf. */
+typedef struct {
+    double a;
+    vec3 mu;
+    double kappa;
+} rd_dir_mix;
+double rd_dir_mix_pdf(const rd_dir_mix *mx, double g, vec3 d, vec3 wo);
+/* Draw wo from the mixture (three uniforms when a > 0, two when a = 0, so phase sampling alone
+ * draws exactly what `delta` draws); *pdf gets rd_dir_mix_pdf. */
+vec3 rd_dir_mix_sample(const rd_dir_mix *mx, double g, vec3 d, pcg32 *rng, double *pdf);
+/* rd_nee with the MIS weight taken against the direction mixture mx (NULL: phase sampling,
+ * which is rd_nee). */
+vec3 rd_nee_mix(const rd_scene *s, vec3 x, vec3 d, double g, const rd_dir_mix *mx, pcg32 *rng,
+                rd_track_counters *c);
+
 /* Direct light at x with no path to share it with (the ray marchers): one sample of every
  * light, summed, no MIS weight (nothing else estimates the direct part, so a weight < 1 would
  * lose light from sphere and environment lights). A light that gives nothing at x (outside a
@@ -388,12 +414,37 @@ typedef struct {
     double phase_pdf;         /* pdf of r.d from phase sampling; 0 for the camera ray */
     int depth;                /* scattering events before this flight (0: the camera ray) */
 } rd_flight_in;
+/* A scattering vertex, as the path loop offers it to a vertex policy. */
+typedef struct {
+    vec3 x, d;                /* the vertex and the direction the path arrived along */
+    const rd_medium *medium;
+    int depth;                /* scattering events up to and including this one (>= 1) */
+    vec3 beta;                /* path throughput up to here, flight weight included */
+} rd_vertex_in;
+/* What a vertex policy decides. The path continues as n copies (0: the path ends here), each
+ * with throughput beta * rr_scale / n, each estimating L_s(x, -d) by next-event estimation and
+ * a continuation drawn from `mix`. Unbiased for any choice made from what is known at the
+ * vertex: Russian roulette survives with probability q and sets rr_scale = 1/q; splitting into
+ * n copies averages n independent estimates. The loop may lower n (its split budget) and
+ * divides by the n it keeps. */
+typedef struct {
+    int n;
+    double rr_scale;
+    rd_dir_mix mix;
+} rd_vertex_out;
 typedef struct rd_flight_sampler {
     rd_flight (*sample)(const struct rd_flight_sampler *fs, const rd_scene *s,
                         const rd_flight_in *in, pcg32 *rng, rd_track_counters *c);
+    /* Optional (NULL for `delta`): the vertex policy, replacing the loop's throughput roulette
+     * and plain phase sampling. */
+    void (*vertex)(const struct rd_flight_sampler *fs, const rd_scene *s, const rd_vertex_in *v,
+                   pcg32 *rng, rd_vertex_out *out);
     void *user;               /* the sampler's own (per call of the path loop) */
 } rd_flight_sampler;
-/* The path loop: NEE at every scattering vertex, HG sampling with MIS, Russian roulette. */
+/* Extra copies splitting may add to one camera sample's path tree (a bound on its cost). */
+#define RD_SPLIT_BUDGET 32
+/* The path loop: NEE at every scattering vertex, HG sampling with MIS, Russian roulette (or
+ * the sampler's vertex policy, with splitting). */
 vec3 rd_path_radiance(const rd_scene *s, ray3 r, const rd_flight_sampler *fs, pcg32 *rng,
                       rd_track_counters *c);
 /* Delta tracking's flight (rd_sample_free_path with the scene's tracker). */

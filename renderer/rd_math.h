@@ -155,4 +155,35 @@ static inline vec3 rd_sample_sphere(double u1, double u2)
     return v3(r * cos(phi), r * sin(phi), z);
 }
 
+/* ---- von Mises-Fisher lobe (guided directions, integrator_gu.c) ---------------------------- *
+ * p(w) = kappa / (2 pi (1 - e^{-2 kappa})) e^{kappa (mu.w - 1)} on the unit sphere, mean
+ * direction mu (unit), concentration kappa >= 0 (0: uniform). Both forms are the numerically
+ * stable ones of W. Jakob, "Numerically stable sampling of the von Mises Fisher distribution
+ * on S^2" (2012): no e^{kappa} overflow at large kappa, no cancellation at small. */
+static inline double rd_vmf_eval(vec3 mu, double kappa, vec3 w)
+{
+    if (kappa < 1e-6) return RD_INV_4PI;
+    return kappa / (2.0 * M_PI * -expm1(-2.0 * kappa)) * exp(kappa * (v3_dot(mu, w) - 1.0));
+}
+/* Sample w with pdf rd_vmf_eval: the cosine to mu by inverting its CDF,
+ *   W = 1 + log(u1 + (1 - u1) e^{-2 kappa}) / kappa,
+ * the azimuth uniform. */
+static inline vec3 rd_vmf_sample(vec3 mu, double kappa, double u1, double u2)
+{
+    double c = kappa < 1e-6 ? 1.0 - 2.0 * u1
+                            : 1.0 + log(u1 + (1.0 - u1) * exp(-2.0 * kappa)) / kappa;
+    c = fmin(1.0, fmax(-1.0, c));
+    double s = sqrt(fmax(0.0, 1.0 - c * c)), phi = 2.0 * M_PI * u2;
+    vec3 a, b;
+    v3_basis(mu, &a, &b);
+    return v3_norm(v3_add(v3_scale(mu, c), v3_add(v3_scale(a, s * cos(phi)), v3_scale(b, s * sin(phi)))));
+}
+/* The concentration whose mean cosine (coth kappa - 1/kappa) is rbar, in [0, 1): Banerjee et
+ * al. 2005's approximation kappa = rbar (3 - rbar^2) / (1 - rbar^2), within a few per cent. */
+static inline double rd_vmf_kappa(double rbar)
+{
+    rbar = fmin(fmax(rbar, 0.0), 0.999);
+    return rbar * (3.0 - rbar * rbar) / (1.0 - rbar * rbar);
+}
+
 #endif /* RD_MATH_H */

@@ -82,6 +82,10 @@ rd_flight rd_gu_flight(const rd_render_ctx *ctx, void *scratch, const rd_flight_
                        pcg32 *rng, rd_track_counters *c, double *P_pass);
 double rd_gu_flight_cdf(const rd_render_ctx *ctx, void *scratch, const rd_flight_in *in,
                         double t, double *P_pass);
+/* guided-unbiased's vertex policy (roulette/splitting and the direction mixture) at vertex v,
+ * for a camera sample whose guide estimate is I_cam (0: none, the throughput roulette). */
+void rd_gu_vertex(const rd_render_ctx *ctx, const rd_vertex_in *v, double I_cam, pcg32 *rng,
+                  rd_vertex_out *out);
 
 /* explain (integrator_march.c): fill res for ray r on a context prepared for `guided`. */
 rd_status rd_march_explain(const rd_render_ctx *ctx, ray3 r, int n, uint64_t seed,

@@ -172,3 +172,131 @@ Test(phase, sphere_light_cone_sampling_chi_square)
     double crit = rt_chi2_quantile(NC * NPHI - 1, 3.719);
     cr_expect(chi2 < crit, "chi2 %.1f >= %.1f", chi2, crit);
 }
+
+/* ---- Guided directions (integrator_gu.c): the von Mises-Fisher lobe and the mixture ---------- */
+
+/* P(mu.w <= c) for the vMF: (e^{kappa (c - 1)} - e^{-2 kappa}) / (1 - e^{-2 kappa}). */
+static double vmf_cdf(double kappa, double c)
+{
+    return (exp(kappa * (c - 1.0)) - exp(-2.0 * kappa)) / -expm1(-2.0 * kappa);
+}
+
+Test(phase, vmf_sampling_chi_square)
+{
+    /* rd_vmf_sample binned in (cos to the mean, phi about it), expected counts from the CDF
+     * above (uniform in phi); kappa from nearly uniform to sharp. Pooling as the HG test;
+     * reject at p = 1e-4. Also: rd_vmf_eval integrates to 1 (Simpson in cos, 1e-6). */
+    const double K[] = {1e-7, 0.3, 3.0, 40.0, 2000.0};
+    enum { NC = 40, NP = 12 };
+    for (size_t ki = 0; ki < sizeof K / sizeof K[0]; ki++) {
+        double kappa = K[ki];
+        vec3 mu = v3_norm(v3(0.3, -0.5, 0.8));
+        int m = 200000;
+        double h = 2.0 / m, integral = 0.0;
+        for (int i = 0; i <= m; i++) { /* the pdf depends on mu.w only: 2 pi int p dcos */
+            double c = -1.0 + i * h;
+            double p = kappa < 1e-6 ? 1.0 / (4 * M_PI) : kappa / (2 * M_PI * -expm1(-2 * kappa)) * exp(kappa * (c - 1));
+            integral += 2 * M_PI * p * (i == 0 || i == m ? 1 : (i % 2 ? 4 : 2));
+        }
+        integral *= h / 3.0;
+        cr_expect(fabs(integral - 1.0) < 1e-6, "kappa %g: integral %.9f", kappa, integral);
+        static double obs[NC][NP];
+        memset(obs, 0, sizeof obs);
+        int n = 300000;
+        pcg32 rng = pcg32_seed(11, ki, 5);
+        vec3 a, b;
+        v3_basis(mu, &a, &b);
+        for (int k = 0; k < n; k++) {
+            vec3 w = rd_vmf_sample(mu, kappa, pcg32_uniform(&rng), pcg32_uniform(&rng));
+            if (k < 1000) {
+                double c = v3_dot(mu, w);
+                double p = kappa < 1e-6 ? 1.0 / (4 * M_PI) : kappa / (2 * M_PI * -expm1(-2 * kappa)) * exp(kappa * (c - 1));
+                cr_expect(fabs(rd_vmf_eval(mu, kappa, w) - p) <= 1e-9 * p, "kappa %g: eval", kappa);
+                cr_expect(fabs(v3_len(w) - 1.0) < 1e-12);
+            }
+            double c = fmin(1.0, fmax(-1.0, v3_dot(mu, w)));
+            double phi = atan2(v3_dot(w, b), v3_dot(w, a));
+            if (phi < 0) phi += 2 * M_PI;
+            int ci = (int)((c + 1.0) * 0.5 * NC), pi = (int)(phi / (2 * M_PI) * NP);
+            obs[ci >= NC ? NC - 1 : ci][pi >= NP ? NP - 1 : pi] += 1;
+        }
+        double chi2 = 0, pool_o = 0, pool_e = 0;
+        int dof = -1;
+        for (int ci = 0; ci < NC; ci++) {
+            double lo = -1.0 + 2.0 * ci / NC, hi = -1.0 + 2.0 * (ci + 1) / NC;
+            double e = kappa < 1e-6 ? (double)n / (NC * NP) : n * (vmf_cdf(kappa, hi) - vmf_cdf(kappa, lo)) / NP;
+            for (int pi = 0; pi < NP; pi++) {
+                if (e < 5) { pool_o += obs[ci][pi]; pool_e += e; continue; }
+                chi2 += (obs[ci][pi] - e) * (obs[ci][pi] - e) / e;
+                dof++;
+            }
+        }
+        if (pool_e >= 5) { chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e; dof++; }
+        if (dof < 1) { /* everything in the last band: the lobe is that sharp */
+            cr_expect(kappa > 100, "kappa %g: no degrees of freedom", kappa);
+            continue;
+        }
+        double crit = rt_chi2_quantile(dof, 3.719);
+        cr_expect(chi2 < crit, "kappa %g: chi2 %.1f >= %.1f (dof %d)", kappa, chi2, crit, dof);
+    }
+}
+
+/* The continuation's mixture (rd_dir_mix_sample) against its own pdf (rd_dir_mix_pdf): bins
+ * in (z, phi) of the world frame, expected counts by integrating the pdf over each bin (a
+ * 12 x 12 midpoint rule inside every bin: the pdf is smooth at these kappa and g, and the rule
+ * errs by far less than the test's resolution, sqrt(e) per bin). Cells expecting < 5 are pooled;
+ * reject at p = 1e-4. A mixture whose pdf forgot the phase's share fails (the teeth check). */
+static double mix_chi2(const rd_dir_mix *mx, const rd_dir_mix *judge, double g, vec3 d, uint64_t seed, int *dof_out)
+{
+    enum { NZ = 24, NP = 24, SUB = 12 };
+    static double obs[NZ][NP];
+    memset(obs, 0, sizeof obs);
+    int n = 400000;
+    pcg32 rng = pcg32_seed(seed, 1, 2);
+    for (int k = 0; k < n; k++) {
+        double pdf;
+        vec3 w = rd_dir_mix_sample(mx, g, d, &rng, &pdf);
+        if (k < 1000) cr_expect(fabs(pdf - rd_dir_mix_pdf(mx, g, d, w)) <= 1e-12 * pdf);
+        double phi = atan2(w.y, w.x);
+        if (phi < 0) phi += 2 * M_PI;
+        int zi = (int)((w.z + 1.0) * 0.5 * NZ), pi = (int)(phi / (2 * M_PI) * NP);
+        obs[zi >= NZ ? NZ - 1 : zi][pi >= NP ? NP - 1 : pi] += 1;
+    }
+    double chi2 = 0, pool_o = 0, pool_e = 0;
+    int dof = -1;
+    for (int zi = 0; zi < NZ; zi++)
+        for (int pi = 0; pi < NP; pi++) {
+            double e = 0.0, dz = 2.0 / NZ / SUB, dp = 2 * M_PI / NP / SUB;
+            for (int a = 0; a < SUB; a++)
+                for (int b = 0; b < SUB; b++) {
+                    double z = -1.0 + zi * 2.0 / NZ + (a + 0.5) * dz, phi = pi * 2 * M_PI / NP + (b + 0.5) * dp;
+                    double r = sqrt(fmax(0.0, 1 - z * z));
+                    e += rd_dir_mix_pdf(judge, g, d, v3(r * cos(phi), r * sin(phi), z)) * dz * dp;
+                }
+            e *= n;
+            if (e < 5) { pool_o += obs[zi][pi]; pool_e += e; continue; }
+            chi2 += (obs[zi][pi] - e) * (obs[zi][pi] - e) / e;
+            dof++;
+        }
+    if (pool_e >= 5) { chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e; dof++; }
+    *dof_out = dof;
+    return chi2;
+}
+
+Test(phase, direction_mixture_chi_square)
+{
+    const struct { double a, kappa, g; } c[] = {{0.5, 4.0, 0.7}, {0.3, 20.0, -0.4}, {0.8, 1.0, 0.0}, {0.0, 5.0, 0.5}};
+    vec3 d = v3_norm(v3(0.2, 0.9, -0.3)), mu = v3_norm(v3(-0.6, 0.1, 0.7));
+    for (size_t i = 0; i < sizeof c / sizeof c[0]; i++) {
+        rd_dir_mix mx = {.a = c[i].a, .mu = mu, .kappa = c[i].kappa};
+        int dof;
+        double chi2 = mix_chi2(&mx, &mx, c[i].g, d, 40 + i, &dof);
+        double crit = rt_chi2_quantile(dof, 3.719);
+        cr_expect(dof > 50 && chi2 < crit, "case %zu: chi2 %.1f >= %.1f (dof %d)", i, chi2, crit, dof);
+    }
+    /* Teeth: samples of a = 0.5 judged as a = 0.4 must fail. */
+    rd_dir_mix mx = {.a = 0.5, .mu = mu, .kappa = 4.0}, wrong = {.a = 0.4, .mu = mu, .kappa = 4.0};
+    int dof;
+    double chi2 = mix_chi2(&mx, &wrong, 0.7, d, 99, &dof);
+    cr_expect(chi2 > rt_chi2_quantile(dof, 3.719), "a 0.5 judged as 0.4 passed: chi2 %.1f (dof %d)", chi2, dof);
+}
