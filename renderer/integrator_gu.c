@@ -82,6 +82,7 @@ typedef struct {
     double w;          /* weight of the majorant strategy */
     double P_g, P_m;   /* scatter probability of each strategy */
     double B;          /* the guide's passed part B~ = T~(t0,t1) L_behind */
+    double tau_m;      /* majorant optical depth over [t0, t1] */
     rd_guide_pdf g, m; /* distance pdf of each strategy */
 } gu_dist;
 
@@ -170,16 +171,25 @@ static void build_guide_pdf(const rd_render_ctx *ctx, const gu_scratch *sc, ray3
  *   majorant: P_m = 1 - T_maj(t0,t1), the chance that delta tracking's first tentative
  *             collision falls inside [t0, t1] (exact: the histogram's T~ is T_maj).
  * Both are 1 when L_behind = 0 exactly: passing can only add 0 then. */
+/* The majorant strategy's pdf, first: its optical depth decides whether the flight is guided
+ * at all (guide.distance_tau_max), before the costlier guide walk. */
+static void flight_majorant(const rd_render_ctx *ctx, const gu_scratch *sc, ray3 r, double t0,
+                            double t1, gu_dist *D)
+{
+    const gu_state *st = ctx->state;
+    D->t0 = t0;
+    D->t1 = t1;
+    D->w = ctx->scene->guide.majorant_weight;
+    build_majorant_pdf(sc, st->cap_m, ctx->scene, r, t0, t1, &D->m);
+    D->tau_m = rd_guide_pdf_tau(&D->m);
+}
+
+/* The rest, after flight_majorant. */
 static void flight_dist(const rd_render_ctx *ctx, const gu_scratch *sc, ray3 r, double t0,
                         double t1, double L_behind, gu_dist *D)
 {
     const rd_scene *s = ctx->scene;
-    const gu_state *st = ctx->state;
-    D->t0 = t0;
-    D->t1 = t1;
-    D->w = s->guide.majorant_weight;
     build_guide_pdf(ctx, sc, r, t0, t1, &D->g);
-    build_majorant_pdf(sc, st->cap_m, s, r, t0, t1, &D->m);
     D->B = 0.0;
     if (!(L_behind > 0.0)) {
         D->P_g = D->P_m = 1.0;
@@ -247,6 +257,13 @@ static rd_flight guided_flight(const rd_flight_sampler *fs, const rd_scene *s,
     gu_scratch sc;
     scratch_layout(ctx->state, &sc, u->scratch);
     gu_dist D;
+    flight_majorant(ctx, &sc, r, t0, t1, &D);
+    /* An optically thick flight (majorant depth above guide.distance_tau_max) is delta
+     * tracking's: there T sigma_t, which delta tracking samples exactly, is most of the
+     * integrand's shape, and the guide's cell-mean T~ and sigma can only add weight noise
+     * (docs/guided-unbiased.md). Decided by the flight alone: unbiased either way. */
+    if (D.tau_m > s->guide.distance_tau_max) guided = 0;
+    if (!(guided || want_I)) return rd_flight_delta(s, in, rng, c);
     flight_dist(ctx, &sc, r, t0, t1, mean3(rd_flight_behind(s, in)), &D);
     if (in->depth == 0) u->I_cam = D.g.I + D.B;
     /* A guide with no light along this ray (an empty or wrong guide, or a dark region) knows
@@ -432,6 +449,8 @@ double rd_gu_flight_cdf(const rd_render_ctx *ctx, void *scratch, const rd_flight
     gu_scratch sc;
     scratch_layout(ctx->state, &sc, scratch);
     gu_dist D;
+    flight_majorant(ctx, &sc, in->r, t0, t1, &D);
+    if (D.tau_m > ctx->scene->guide.distance_tau_max) return 0.0; /* delta's (guided_flight) */
     flight_dist(ctx, &sc, in->r, t0, t1, mean3(rd_flight_behind(ctx->scene, in)), &D);
     if (!(D.g.I > 0.0)) return 0.0; /* delta tracking's flight (guided_flight) */
     if (P_pass) *P_pass = dist_pass(&D);

@@ -266,6 +266,8 @@ typedef struct {
     double pass_floor;   /* the guide strategy's least probability of scatter and of pass, (0, 0.5] */
     double majorant_weight; /* weight of the majorant (delta-tracking) strategy, in [0, 1) */
     int secondary;       /* 1 (default): guide secondary flights too; 0: the camera ray's only */
+    double distance_tau_max; /* guide a flight's distance only where its majorant optical depth
+                              * is at most this (thicker flights: delta tracking's), > 0 */
     int directions;      /* 1 (default): continue from a vertex by a mixture of the guide's
                           * incident-light lobe and the phase function (MIS); 0: phase alone */
     double direction_weight; /* probability of the guide's lobe in that mixture, in [0, 1) */

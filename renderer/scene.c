@@ -723,16 +723,17 @@ static rd_status parse_guide(vctx *c, const cJSON *j, rd_guide_settings *g)
     g->pass_floor = 0.1;
     g->majorant_weight = 0.2;
     g->secondary = 1;
+    g->distance_tau_max = 0.5; /* these three calibrated on hetero-forward and smoke-vdb */
     g->directions = 1;
-    g->direction_weight = 0.5;
+    g->direction_weight = 0.25;
     g->roulette = 1;
-    g->split_max = 8;
+    g->split_max = 2;
     if (!j) return RD_OK;
     const char *path = "guide";
     TRY(need_object(c, j, path));
     static const char *const keys[] = {"grid", "bake", "bands", "k", "lambda", "resolution", "min_cell", "max_depth", "window",
                                        "distances", "distance_alpha", "pass_floor", "majorant_weight", "secondary",
-                                       "directions", "direction_weight", "roulette", "split_max", NULL};
+                                       "directions", "direction_weight", "roulette", "split_max", "distance_tau_max", NULL};
     TRY(check_keys(c, j, path, keys));
     static const char *const grids[] = {"uniform", "adaptive", NULL};
     static const char *const bakes[] = {"knn", "track", NULL};
@@ -759,10 +760,11 @@ static rd_status parse_guide(vctx *c, const cJSON *j, rd_guide_settings *g)
     TRY(get_bool(c, j, path, "secondary", 1, &g->secondary));
     /* The phase function keeps a share 1 - direction_weight > 0 of the continuations, so a
      * direction the guide's lobe misses is still drawn (p > 0 wherever the phase is). */
+    TRY(get_num(c, j, path, "distance_tau_max", 0, 0.5, 0, 1, 1e300, 0, &g->distance_tau_max));
     TRY(get_bool(c, j, path, "directions", 1, &g->directions));
-    TRY(get_num(c, j, path, "direction_weight", 0, 0.5, 0, 0, 1, 1, &g->direction_weight));
+    TRY(get_num(c, j, path, "direction_weight", 0, 0.25, 0, 0, 1, 1, &g->direction_weight));
     TRY(get_bool(c, j, path, "roulette", 1, &g->roulette));
-    TRY(get_int(c, j, path, "split_max", 0, 8, 1, 64, &v));
+    TRY(get_int(c, j, path, "split_max", 0, 2, 1, 64, &v));
     g->split_max = (int)v;
     const cJSON *res = cJSON_GetObjectItemCaseSensitive(j, "resolution");
     if (res) {
@@ -1028,7 +1030,7 @@ static uint64_t bake_key(const cJSON *root, const rd_scene *s)
     /* guided-unbiased's sampling switches change no bake: */
     cJSON *gd = cJSON_GetObjectItemCaseSensitive(copy, "guide");
     static const char *const guide_render_only[] = {"distances", "distance_alpha", "pass_floor", "majorant_weight", "secondary",
-                                                         "directions", "direction_weight", "roulette", "split_max", NULL};
+                                                         "directions", "direction_weight", "roulette", "split_max", "distance_tau_max", NULL};
     for (int i = 0; cJSON_IsObject(gd) && guide_render_only[i]; i++)
         cJSON_DeleteItemFromObjectCaseSensitive(gd, guide_render_only[i]);
     cJSON *set = cJSON_GetObjectItemCaseSensitive(copy, "settings");

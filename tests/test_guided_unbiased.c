@@ -28,8 +28,14 @@ static rd_baked *bake(const rd_scene *s)
     return b;
 }
 
+/* The tests guide every flight's distance, however thick (the default distance_tau_max
+ * leaves the thick ones to delta tracking, which would hide the guided sampler from them);
+ * the rule itself has its own test. */
+#define ALL_FLIGHTS ",\"distance_tau_max\":1e9"
+
 /* A heterogeneous medium (noise in an ellipsoid) of asymmetry g, lit by a spot at x = spot_x
- * aimed at it, and `lights` more. */
+ * aimed at it, and `lights` more. The guide keys in `extra` follow ALL_FLIGHTS unless they set
+ * distance_tau_max themselves. */
 static const char *scene_json(double g, double spot_x, const char *lights, const char *extra)
 {
     static char buf[4096];
@@ -40,9 +46,9 @@ static const char *scene_json(double g, double spot_x, const char *lights, const
              "\"shape\":\"ellipsoid\",\"edge\":0.5},\"sigma_t\":2.5,\"albedo\":0.9,\"g\":%g}],"
              "\"lights\":[{\"type\":\"spot\",\"position\":[%g,2,1.5],\"look_at\":[-0.2,0,0],\"angle\":30,"
              "\"falloff\":8,\"intensity\":[20,16,12]}%s],"
-             "\"photons\":{\"count\":40000},\"guide\":{\"bands\":4%s},"
+             "\"photons\":{\"count\":40000},\"guide\":{\"bands\":4%s%s},"
              "\"settings\":{\"max_depth\":64,\"rr_depth\":3}}",
-             g, spot_x, lights, extra);
+             g, spot_x, lights, strstr(extra, "distance_tau_max") ? "" : ALL_FLIGHTS, extra);
     return buf;
 }
 
@@ -86,10 +92,11 @@ Test(guided_unbiased, equals_delta_backward_scattering_every_light_type, .timeou
  * are where next-event estimation's MIS weight must use the direction mixture's pdf). */
 Test(guided_unbiased, each_part_alone_equals_delta, .timeout = 900)
 {
-    static const char *const parts[3][2] = {
+    static const char *const parts[4][2] = {
         {",\"directions\":false,\"roulette\":false", "distances alone"},
         {",\"distances\":false,\"roulette\":false", "directions alone"},
         {",\"distances\":false,\"directions\":false", "roulette and splitting alone"},
+        {",\"distance_tau_max\":0.5", "every part, distances on thin flights only"},
     };
     const struct { double g; const char *lights, *what; } sc[2] = {
         {0.9, ENV, "g = 0.9, spot + environment"},
@@ -98,7 +105,7 @@ Test(guided_unbiased, each_part_alone_equals_delta, .timeout = 900)
     for (int k = 0; k < 2; k++) {
         rd_scene *s = rt_scene("gu_part_d.json", scene_json(sc[k].g, -2.5, sc[k].lights, ""));
         rd_render_result d = rt_render(s, "delta", 256, 61 + k, NULL);
-        for (int i = 0; i < 3; i++) {
+        for (int i = 0; i < 4; i++) {
             rd_scene *sp = rt_scene("gu_part.json", scene_json(sc[k].g, -2.5, sc[k].lights, parts[i][0]));
             rd_render_result g = rt_render(sp, "guided-unbiased", 128, 70 + 3 * k + i, NULL);
             char what[160];
@@ -120,7 +127,7 @@ Test(guided_unbiased, each_part_alone_equals_delta, .timeout = 900)
         "\"density\":{\"type\":\"noise\",\"octaves\":3,\"frequency\":2,\"amplitude\":2,\"seed\":3,"
         "\"shape\":\"ellipsoid\",\"edge\":0.5},\"sigma_t\":2.5,\"albedo\":0.9,\"g\":0.8}],"
         "\"lights\":[{\"type\":\"sphere\",\"center\":[-2.8,0.4,0],\"radius\":1.4,\"radiance\":[1,1,1]}],"
-        "\"photons\":{\"count\":40000},\"guide\":{\"bands\":4%s},"
+        "\"photons\":{\"count\":40000},\"guide\":{\"bands\":4" ALL_FLIGHTS "%s},"
         "\"settings\":{\"max_depth\":64,\"rr_depth\":3}}";
     char js[2048];
     snprintf(js, sizeof js, sph, "");
@@ -200,7 +207,7 @@ static void chi_square_flights(const char *extra, uint64_t seed)
         "\"sigma_t\":1.5,\"albedo\":0.8,\"g\":0.5}],"
         "\"lights\":[{\"type\":\"spot\",\"position\":[-3,0.2,0.3],\"look_at\":[0,0,0.3],\"angle\":12,\"intensity\":[40,40,40]},"
         "{\"type\":\"environment\",\"radiance\":[0.05,0.05,0.05]}],"
-        "\"photons\":{\"count\":30000},\"guide\":{\"bands\":4%s}}", extra);
+        "\"photons\":{\"count\":30000},\"guide\":{\"bands\":4" ALL_FLIGHTS "%s}}", extra);
     rd_scene *s = rt_scene("gu_chi.json", json);
     rd_baked *b = bake(s);
     const rd_method *m = rd_method_find("guided-unbiased");
@@ -290,7 +297,7 @@ Test(guided_unbiased, white_furnace, .timeout = 300)
         "\"density\":{\"type\":\"noise\",\"octaves\":3,\"frequency\":2,\"seed\":4},"
         "\"sigma_t\":3,\"albedo\":1,\"g\":0.6}],"
         "\"lights\":[{\"type\":\"environment\",\"radiance\":1}],"
-        "\"photons\":{\"count\":20000},\"guide\":{\"bands\":4},"
+        "\"photons\":{\"count\":20000},\"guide\":{\"bands\":4" ALL_FLIGHTS "},"
         "\"settings\":{\"max_depth\":100000,\"rr_depth\":3}}");
     rd_render_result r = rt_render(s, "guided-unbiased", 8192, 51, NULL);
     double sum = 0.0, var = 0.0;
@@ -326,6 +333,8 @@ Test(guided_unbiased, scene_keys_are_validated)
         {"\"split_max\":0", "guide.split_max"},
         {"\"split_max\":65", "guide.split_max"},
         {"\"split_max\":2.5", "guide.split_max"},
+        {"\"distance_tau_max\":0", "guide.distance_tau_max"},
+        {"\"distance_tau_max\":-1", "guide.distance_tau_max"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         char path[256], extra[64], err[RD_ERRLEN] = "";
@@ -432,4 +441,37 @@ Test(guided_unbiased, nee_and_mixture_directions_share_a_sphere_light_by_mis)
         cr_expect(se < 0.01 * exact);
     }
     rd_scene_free(s);
+}
+
+/* guide.distance_tau_max: a flight whose majorant optical depth exceeds it is delta tracking's
+ * (rd_gu_flight reports P_pass = -1), one below it is guided (P_pass >= 0). Unbiasedness with
+ * the rule on is in each_part_alone_equals_delta. */
+Test(guided_unbiased, thick_flights_are_delta_tracking, .timeout = 300)
+{
+    const double taus[2] = {1e-9, 1e9};
+    for (int k = 0; k < 2; k++) {
+        char extra[64];
+        snprintf(extra, sizeof extra, ",\"distance_tau_max\":%g", taus[k]);
+        rd_scene *s = rt_scene("gu_tau.json", scene_json(0.9, -2.5, ENV, extra));
+        cr_assert_eq(s->guide.distance_tau_max, taus[k]);
+        rd_baked *b = bake(s);
+        const rd_method *m = rd_method_find("guided-unbiased");
+        rd_render_ctx ctx = {.scene = s, .method = m, .guide = rd_baked_guide(b), .threads = 1};
+        char err[RD_ERRLEN];
+        cr_assert(m->prepare(&ctx, err, sizeof err) == RD_OK, "%s", err);
+        void *scratch = aligned_alloc(16, (m->scratch_bytes(&ctx) + 15) / 16 * 16);
+        cr_assert(scratch != NULL);
+        rd_flight_in in = {.r = {v3(0, 0.1, 4.2), v3_norm(v3(0, -0.03, -1))}, .t_light = INFINITY,
+                           .hit_light = -1, .depth = 0};
+        pcg32 rng = pcg32_seed(1, 2, 3);
+        rd_track_counters c = {0};
+        double P_pass;
+        rd_gu_flight(&ctx, scratch, &in, &rng, &c, &P_pass);
+        if (k == 0) cr_expect(P_pass == -1.0, "tau_max 1e-9: the flight must be delta's (P_pass %g)", P_pass);
+        else cr_expect(P_pass >= 0.0 && P_pass < 1.0, "tau_max 1e9: the flight must be guided (P_pass %g)", P_pass);
+        free(scratch);
+        m->release(&ctx);
+        rd_baked_free(b);
+        rd_scene_free(s);
+    }
 }
