@@ -322,7 +322,8 @@ static rd_flight guided_flight(const rd_flight_sampler *fs, const rd_scene *s,
  *   the mean travel direction of the light arriving in the cell, |m| <= 1 its mean cosine.
  *   A path continuing along wo gathers light that travels along -wo: the lobe's mean is -m/|m|,
  *   its concentration the vMF's whose mean cosine is |m| (rd_vmf_kappa). */
-static int guide_lobe(const rd_scene *s, const float *coeffs, int bands, double g, rd_dir_mix *mx)
+static int guide_lobe(const rd_scene *s, const float *coeffs, int bands, double g, vec3 d,
+                      rd_dir_mix *mx)
 {
     if (bands < 2) return 0;
     double b1 = g * (s->guide.window ? 0.5 * (1.0 + cos(M_PI / bands)) : 1.0);
@@ -340,8 +341,18 @@ static int guide_lobe(const rd_scene *s, const float *coeffs, int bands, double 
     vec3 m = v3_scale(v3(c[0], c[1], c[2]), 1.0 / (sqrt(3.0) * b1 * c00));
     double rbar = v3_len(m);
     if (!(rbar > 0.05) || !isfinite(rbar)) return 0; /* no preferred direction to speak of */
-    mx->mu = v3_scale(m, -1.0 / rbar);
-    mx->kappa = rd_vmf_kappa(fmin(rbar, 0.95));
+    /* The continuation wants p_HG(d.wo) L_i(wo), the product. With the phase function
+     * approximated by the vMF of the same mean cosine about its axis (sign(g) d, kappa_g), the
+     * product of two vMF lobes is a vMF lobe (up to a constant factor):
+     *     kappa_g a_g . w + kappa_L mu_L . w = |v| (v/|v|) . w,  v = kappa_g a_g + kappa_L mu_L
+     * (the product trick of Herholz et al. 2019, §5, for their vMF mixtures). */
+    vec3 mu_L = v3_scale(m, -1.0 / rbar);
+    double kappa_L = rd_vmf_kappa(fmin(rbar, 0.95)), kappa_g = rd_vmf_kappa(fabs(g));
+    vec3 v = v3_add(v3_scale(d, g < 0.0 ? -kappa_g : kappa_g), v3_scale(mu_L, kappa_L));
+    double kv = v3_len(v);
+    if (!(kv > 1e-9)) return 0; /* the two cancel: no preferred direction */
+    mx->mu = v3_scale(v, 1.0 / kv);
+    mx->kappa = kv;
     mx->a = s->guide.direction_weight;
     return 1;
 }
@@ -366,7 +377,8 @@ static void gu_vertex(const rd_flight_sampler *fs, const rd_scene *s, const rd_v
     const sh_guide *lg = u->ctx->guide_indirect ? u->ctx->guide_indirect : guide;
     long lcell = lg == guide ? cell : sh_guide_locate(lg, xv);
     if (lcell >= 0 && gs->directions && gs->direction_weight > 0.0)
-        guide_lobe(s, sh_guide_cell_coeffs(lg, (size_t)lcell), sh_guide_bands(lg), v->medium->g, &out->mix);
+        guide_lobe(s, sh_guide_cell_coeffs(lg, (size_t)lcell), sh_guide_bands(lg), v->medium->g, v->d,
+                   &out->mix);
 
     /* Roulette and splitting by the path's expected contribution against the pixel's
      * (adjoint-driven, Vorba and Krivanek 2016 eq. 7-8, with the guide as the adjoint):

@@ -353,10 +353,13 @@ Test(guided_unbiased, scene_keys_are_validated)
 
 /* The guide's incident-light lobe (integrator_gu.c guide_lobe) points where the light comes
  * from: a point light in a homogeneous forward-scattering medium sends the photons radially, so
- * the lobe's mean at points around it must point back at the light. The bound: the mean
- * direction of single-scattered photons is exactly radial, and multiple scattering at albedo
- * 0.5 and optical radius 1 keeps it within a few degrees; 0.9 (26 degrees) would catch a sign
- * or axis mistake (those give cosines near -1 or near 0). */
+ * the lobe's mean at points around it must point back at the light. The lobe is the product
+ * with the phase function's lobe about the arrival direction d, so d is taken toward the light
+ * too (both factors then agree; a sign mistake in the light's factor, kappa_L about 20 against
+ * the phase's 5, would turn the product away). The bound: the mean direction of
+ * single-scattered photons is exactly radial, and multiple scattering at albedo 0.5 and optical
+ * radius 1 keeps it within a few degrees; 0.9 (26 degrees) catches a sign or axis mistake
+ * (those give cosines near -1 or near 0). */
 Test(guided_unbiased, guide_lobe_points_at_the_light, .timeout = 300)
 {
     rd_scene *s = rt_scene("gu_lobe.json",
@@ -375,8 +378,8 @@ Test(guided_unbiased, guide_lobe_points_at_the_light, .timeout = 300)
                          v3(0.1, -0.8, -0.3), v3(0.2, 0.1, 0.8), v3(-0.5, -0.5, -0.7)};
     pcg32 rng = pcg32_seed(5, 6, 7);
     for (int i = 0; i < 6; i++) {
-        rd_vertex_in v = {.x = pts[i], .d = v3(0, 0, -1), .medium = &s->media[0], .depth = 1,
-                          .beta = v3(1, 1, 1)};
+        rd_vertex_in v = {.x = pts[i], .d = v3_norm(v3_sub(light, pts[i])), .medium = &s->media[0],
+                          .depth = 1, .beta = v3(1, 1, 1)};
         rd_vertex_out o;
         rd_gu_vertex(&ctx, &v, 0.0, &rng, &o);
         cr_assert(o.mix.a == s->guide.direction_weight, "point %d: no lobe (a = %g)", i, o.mix.a);
