@@ -152,6 +152,12 @@ rd_geom *rd_geom_build(const rd_scene *s, char *err, size_t errlen)
         return NULL;
     }
     rtcSetDeviceErrorFunction(g->device, device_error, &sink);
+    /* The skip of the triangle a ray leaves is an intersection filter (Debian builds Embree
+     * with them; refuse a build without rather than risk self-hits). */
+    if (!rtcGetDeviceProperty(g->device, RTC_DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED)) {
+        snprintf(err, errlen, "this Embree was built without filter functions (EMBREE_FILTER_FUNCTION)");
+        goto fail;
+    }
     g->scene = rtcNewScene(g->device);
     if (!g->scene) goto fail;
     rtcSetSceneFlags(g->scene, RTC_SCENE_FLAG_ROBUST);
