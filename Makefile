@@ -33,7 +33,7 @@ CFLAGS   := -std=c11 $(WARN) $(OPT) $(DEFS) $(INCS) -fopenmp -MMD -MP -I/usr/inc
 CXXFLAGS := -std=c++17 $(WARN) $(OPT) $(INCS) -fopenmp -MMD -MP -Wno-deprecated-declarations
 LDFLAGS  := $(OPT) -fopenmp
 LIBS_PM  := -lflann -llz4
-LIBS_RD  := -lOpenImageIO -lOpenImageIO_Util -lopenvdb -ltbb -lImath -lcjson
+LIBS_RD  := -lOpenImageIO -lOpenImageIO_Util -lopenvdb -ltbb -lImath -lcjson -lembree3 -lassimp
 LIBS     := $(LIBS_RD) $(LIBS_PM) -lm -lpthread
 
 WK_SRC   := $(wildcard walk/*.c)

@@ -509,6 +509,7 @@ static int cmd_render(int argc, char **argv)
     char err[RD_ERRLEN];
     rd_scene *scene;
     rd_status st = rd_scene_load(&scene, a.scene, a.ov, a.nov, err, sizeof err);
+    if (st == RD_OK && (st = rd_scene_check_renderable(scene, err, sizeof err)) != RD_OK) rd_scene_free(scene);
     if (st) return report_error(st, err);
     rd_image ref = {0, 0, NULL, 0};
     if (refpath && (st = rd_image_read(refpath, &ref, err, sizeof err)) != RD_OK) {
@@ -764,6 +765,7 @@ static int cmd_bake(int argc, char **argv)
     char err[RD_ERRLEN];
     rd_scene *s;
     rd_status st = rd_scene_load(&s, a.scene, a.ov, a.nov, err, sizeof err);
+    if (st == RD_OK && (st = rd_scene_check_renderable(s, err, sizeof err)) != RD_OK) rd_scene_free(s);
     if (st) return report_error(st, err);
     rd_baked *b = NULL;
     int code = 0;
@@ -878,6 +880,7 @@ static int cmd_explain(int argc, char **argv)
     char err[RD_ERRLEN];
     rd_scene *scene;
     rd_status st = rd_scene_load(&scene, a.scene, a.ov, a.nov, err, sizeof err);
+    if (st == RD_OK && (st = rd_scene_check_renderable(scene, err, sizeof err)) != RD_OK) rd_scene_free(scene);
     if (st) return report_error(st, err);
     int code = 0;
     rd_baked *baked = NULL;
@@ -1063,6 +1066,7 @@ static int cmd_compare(int argc, char **argv)
     char err[RD_ERRLEN];
     rd_scene *scene;
     rd_status st = rd_scene_load(&scene, ca.a.scene, ca.a.ov, ca.a.nov, err, sizeof err);
+    if (st == RD_OK && (st = rd_scene_check_renderable(scene, err, sizeof err)) != RD_OK) rd_scene_free(scene);
     if (st) return report_error(st, err);
     ca.o.seed = ca.seed >= 0 ? (uint64_t)ca.seed : rd_scene_seed(scene);
     ca.o.cancel = &interrupted;

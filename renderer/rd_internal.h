@@ -309,6 +309,12 @@ struct rd_scene {
     uint64_t bake_key;    /* hash of what a bake depends on (scene.c bake_key), for the cache */
     int *sphere_lights;   /* indices of the sphere lights (the lights a path can hit) */
     int n_sphere_lights;
+    /* Surfaces (issue 14; rd_geom.h, docs/scene-format.md "Shapes"): triangle meshes with a
+     * material and the media on their two sides, and the scene-wide medium. */
+    struct rd_shape *shapes;  /* n_shapes, owned (each owns its mesh) */
+    int n_shapes;
+    int fill_medium;      /* scene key "medium": index of the medium that fills everything
+                           * outside every shape and box medium, or -1 (vacuum) */
 };
 
 /* The nearest sphere light that r hits before tmax (skipping light `skip`, -1 for none), or -1;

@@ -4,6 +4,7 @@
  *   fog.json: media[0].albedo: expected a number or 3 numbers in [0, 1]
  * Unknown keys are errors, so a typo is never silently ignored. The format is documented in
  * docs/scene-format.md. */
+#include "rd_geom.h"
 #include "rd_internal.h"
 #include "rd_method.h"
 
@@ -20,6 +21,7 @@
 #define MAX_RESOLUTION 16384
 #define MAX_MEDIA 64
 #define MAX_LIGHTS 256
+#define MAX_SHAPES 1024
 
 /* Validation context: where we are and where errors go. */
 typedef struct {
@@ -815,6 +817,205 @@ static rd_status parse_march(vctx *c, const cJSON *j, rd_march_settings *m)
     return RD_OK;
 }
 
+/* ---- shapes and the scene-wide medium (issue 14; rd_geom.h) ------------------------------- */
+
+/* The index of the medium named by key `key` of obj (a string or null), or -1 for null or a
+ * missing key. The name must match exactly one medium's name. */
+static rd_status medium_ref(vctx *c, const cJSON *obj, const char *path, const char *key, const rd_scene *s, int *out)
+{
+    char p[300];
+    join(p, sizeof p, path, key);
+    const cJSON *j = cJSON_GetObjectItemCaseSensitive(obj, key);
+    *out = -1;
+    if (!j || cJSON_IsNull(j)) return RD_OK;
+    if (!cJSON_IsString(j) || !j->valuestring[0])
+        return fail(c, p, "expected a medium's name or null, found %s", type_name(j));
+    int found = -1, count = 0;
+    for (int i = 0; i < s->n_media; i++)
+        if (strcmp(s->media[i].name, j->valuestring) == 0) found = i, count++;
+    if (count == 0) {
+        char list[256] = "";
+        for (int i = 0; i < s->n_media; i++) {
+            strncat(list, s->media[i].name, sizeof list - strlen(list) - 1);
+            if (i + 1 < s->n_media) strncat(list, ", ", sizeof list - strlen(list) - 1);
+        }
+        return fail(c, p, "no medium named \"%s\" (media: %s)", j->valuestring, s->n_media ? list : "none");
+    }
+    if (count > 1) return fail(c, p, "%d media are named \"%s\": give them distinct names", count, j->valuestring);
+    *out = found;
+    return RD_OK;
+}
+
+/* shapes[i].transform: {"scale": s or [sx, sy, sz] (> 0), "rotate": {"axis": [x, y, z],
+ * "angle": degrees}, "translate": [x, y, z]}, applied in that order (rd_geom.h). */
+static rd_status parse_transform(vctx *c, const cJSON *sh, const char *spath, rd_transform *xf)
+{
+    *xf = rd_transform_identity();
+    char path[300];
+    join(path, sizeof path, spath, "transform");
+    const cJSON *j = cJSON_GetObjectItemCaseSensitive(sh, "transform");
+    if (!j) return RD_OK;
+    TRY(need_object(c, j, path));
+    static const char *const keys[] = {"scale", "rotate", "translate", NULL};
+    TRY(check_keys(c, j, path, keys));
+    TRY(get_vec3(c, j, path, "scale", 0, v3(1, 1, 1), 1, -1e9, 1e9, &xf->scale));
+    if (!(xf->scale.x > 0 && xf->scale.y > 0 && xf->scale.z > 0)) {
+        char p[300];
+        join(p, sizeof p, path, "scale");
+        return fail(c, p, "must be > 0 on every axis (a mirroring or flattening scale would turn the mesh inside out)");
+    }
+    TRY(get_vec3(c, j, path, "translate", 0, v3(0, 0, 0), 0, -1e9, 1e9, &xf->translate));
+    const cJSON *rot = cJSON_GetObjectItemCaseSensitive(j, "rotate");
+    if (rot) {
+        char p[300];
+        join(p, sizeof p, path, "rotate");
+        TRY(need_object(c, rot, p));
+        static const char *const rkeys[] = {"axis", "angle", NULL};
+        TRY(check_keys(c, rot, p, rkeys));
+        vec3 axis;
+        TRY(get_vec3(c, rot, p, "axis", 1, v3(0, 0, 1), 0, -1e9, 1e9, &axis));
+        if (!(v3_len(axis) > 1e-12)) {
+            char q[300];
+            join(q, sizeof q, p, "axis");
+            return fail(c, q, "must not be the zero vector");
+        }
+        xf->axis = v3_norm(axis);
+        TRY(get_num(c, rot, p, "angle", 1, 0, -360, 0, 360, 0, &xf->angle_deg));
+    }
+    return RD_OK;
+}
+
+static rd_status parse_material(vctx *c, const cJSON *sh, const char *spath, rd_material *m)
+{
+    char path[300];
+    join(path, sizeof path, spath, "material");
+    const cJSON *j = cJSON_GetObjectItemCaseSensitive(sh, "material");
+    if (!j) return fail(c, path, "missing (required: {\"type\": \"dielectric\" | \"interface\" | \"diffuse\", ...})");
+    TRY(need_object(c, j, path));
+    static const char *const kinds[] = {"interface", "dielectric", "diffuse", NULL};
+    int kind;
+    TRY(get_enum(c, j, path, "type", 1, kinds, 0, &kind));
+    memset(m, 0, sizeof *m);
+    m->ior = 1.0;
+    m->albedo = v3(0, 0, 0);
+    if (kind == 0) {
+        static const char *const keys[] = {"type", NULL};
+        TRY(check_keys(c, j, path, keys));
+        m->kind = RD_MAT_INTERFACE;
+    } else if (kind == 1) {
+        static const char *const keys[] = {"type", "ior", NULL};
+        TRY(check_keys(c, j, path, keys));
+        m->kind = RD_MAT_DIELECTRIC;
+        TRY(get_num(c, j, path, "ior", 0, 1.5, 1, 0, 4, 0, &m->ior));
+    } else {
+        static const char *const keys[] = {"type", "albedo", NULL};
+        TRY(check_keys(c, j, path, keys));
+        m->kind = RD_MAT_DIFFUSE;
+        TRY(get_vec3(c, j, path, "albedo", 0, v3(0.5, 0.5, 0.5), 1, 0, 1, &m->albedo));
+    }
+    return RD_OK;
+}
+
+static rd_status parse_shape(vctx *c, const cJSON *j, int idx, rd_scene *s, rd_shape *sh)
+{
+    char path[64];
+    snprintf(path, sizeof path, "shapes[%d]", idx);
+    TRY(need_object(c, j, path));
+    static const char *const keys[] = {"name", "file", "made_by", "transform", "material", "inside", "outside", NULL};
+    TRY(check_keys(c, j, path, keys));
+    const char *name, *file, *made_by;
+    char defname[32];
+    snprintf(defname, sizeof defname, "shape%d", idx);
+    TRY(get_str(c, j, path, "name", 0, defname, &name));
+    snprintf(sh->name, sizeof sh->name, "%s", name);
+    TRY(get_str(c, j, path, "file", 1, NULL, &file));
+    TRY(get_str(c, j, path, "made_by", 0, NULL, &made_by));
+    rd_transform xf;
+    TRY(parse_transform(c, j, path, &xf));
+    TRY(parse_material(c, j, path, &sh->material));
+    TRY(medium_ref(c, j, path, "inside", s, &sh->inside));
+    TRY(medium_ref(c, j, path, "outside", s, &sh->outside));
+    char p[300];
+    if (sh->material.kind == RD_MAT_INTERFACE && sh->inside == sh->outside) {
+        join(p, sizeof p, path, "material.type");
+        return fail(c, p, "an interface between a medium and itself does nothing: give \"inside\" and \"outside\" different media");
+    }
+    resolve_path(c, file, sh->file, sizeof sh->file);
+    join(p, sizeof p, path, "file");
+    char msg[RD_ERRLEN];
+    rd_status st = rd_mesh_load(sh->file, &xf, &sh->mesh, msg, sizeof msg);
+    if (st) {
+        char hint[300];
+        fail(c, p, "%s%s", msg, missing_hint(sh->file, made_by, hint, sizeof hint));
+        return st; /* RD_ERR_IO, RD_ERR_FORMAT or RD_ERR_NOMEM, as for volume files */
+    }
+    /* A boundary between two different media needs an inside: a closed, consistently
+     * oriented mesh (rd_mesh.closed), or the path's medium would be wrong past a hole. */
+    if (sh->inside != sh->outside && !sh->mesh.closed)
+        return fail(c, p, "%s: not a closed mesh (%zu edges are not shared by exactly two consistently wound triangles): "
+                          "a shape with different inside and outside media must be closed", sh->file, sh->mesh.open_edges);
+    return RD_OK;
+}
+
+/* "shapes" and the scene-wide "medium"; after the media (they name them). */
+static rd_status parse_surfaces(vctx *c, const cJSON *root, rd_scene *s)
+{
+    s->fill_medium = -1;
+    TRY(medium_ref(c, root, "", "medium", s, &s->fill_medium));
+    const cJSON *shapes = cJSON_GetObjectItemCaseSensitive(root, "shapes");
+    if (!shapes) return RD_OK;
+    if (!cJSON_IsArray(shapes)) return fail(c, "shapes", "expected an array, found %s", type_name(shapes));
+    int n = cJSON_GetArraySize(shapes);
+    if (n > MAX_SHAPES) return fail(c, "shapes", "at most %d shapes", MAX_SHAPES);
+    s->shapes = calloc(n > 0 ? n : 1, sizeof *s->shapes);
+    if (!s->shapes) return RD_ERR_NOMEM;
+    for (int i = 0; i < n; i++) {
+        rd_status st = parse_shape(c, cJSON_GetArrayItem(shapes, i), i, s, &s->shapes[i]);
+        s->n_shapes = i + 1; /* so rd_scene_free releases a partly loaded shape */
+        if (st) return st;
+    }
+    return RD_OK;
+}
+
+int rd_scene_medium_bound(const rd_scene *s, int i)
+{
+    if (i == s->fill_medium) return 1;
+    for (int k = 0; k < s->n_shapes; k++)
+        if (s->shapes[k].inside == i || s->shapes[k].outside == i) return 1;
+    return 0;
+}
+
+/* A box medium (not bound to surfaces) fills its bounds whatever the shapes say, so no shape
+ * may reach into it: its bounds must not overlap any shape's bounding box. */
+static rd_status check_boxes_clear_of_shapes(vctx *c, const rd_scene *s)
+{
+    for (int i = 0; i < s->n_media; i++) {
+        if (rd_scene_medium_bound(s, i)) continue;
+        const rd_medium *a = &s->media[i];
+        for (int k = 0; k < s->n_shapes; k++) {
+            const rd_mesh *m = &s->shapes[k].mesh;
+            if (a->bmin.x < m->bmax.x && m->bmin.x < a->bmax.x && a->bmin.y < m->bmax.y &&
+                m->bmin.y < a->bmax.y && a->bmin.z < m->bmax.z && m->bmin.z < a->bmax.z) {
+                char p[64];
+                snprintf(p, sizeof p, "media[%d].bounds", i);
+                return fail(c, p, "overlaps the bounding box of shapes[%d] (\"%s\"): a box medium must lie clear of every shape; "
+                                  "make it a shape's inside (an \"interface\" shape around it) instead", k, s->shapes[k].name);
+            }
+        }
+    }
+    return RD_OK;
+}
+
+rd_status rd_scene_check_renderable(const rd_scene *s, char *err, size_t errlen)
+{
+    if (s->n_shapes == 0 && s->fill_medium < 0) return RD_OK;
+    if (err && errlen)
+        snprintf(err, errlen, "%s: %s: the render methods do not use shapes or a scene-wide medium yet (issue 14; "
+                              "docs/scene-format.md \"Shapes\"): refusing rather than rendering a wrong image",
+                 s->path, s->n_shapes ? "shapes" : "medium");
+    return RD_ERR_SCENE;
+}
+
 /* ---- --set overrides ----------------------------------------------------------------------- */
 /* Walk a dotted path with [i] indices, creating missing object members, and replace the leaf. */
 static rd_status apply_override(vctx *c, cJSON *root, const rd_override *ov)
@@ -929,13 +1130,16 @@ void rd_scene_free(rd_scene *s)
     rd_light_sampler_free(&s->light_sampler);
     free(s->sphere_lights);
     free(s->description);
+    for (int i = 0; i < s->n_shapes; i++) rd_mesh_free(&s->shapes[i].mesh);
+    free(s->shapes);
     free(s);
 }
 
 static rd_status validate(vctx *c, const cJSON *root, rd_scene *s)
 {
     if (!cJSON_IsObject(root)) return fail(c, "(top level)", "expected an object, found %s", type_name(root));
-    static const char *const keys[] = {"description", "camera", "media", "lights", "background", "settings", "photons", "guide", "march", NULL};
+    static const char *const keys[] = {"description", "camera", "media", "lights", "background", "settings", "photons", "guide", "march",
+                                       "shapes", "medium", NULL};
     TRY(check_keys(c, root, "", keys));
     const char *desc;
     TRY(get_str(c, root, "", "description", 0, NULL, &desc));
@@ -956,9 +1160,13 @@ static rd_status validate(vctx *c, const cJSON *root, rd_scene *s)
         s->n_media = i + 1; /* so rd_scene_free releases a partly loaded medium */
         if (st) return st;
     }
-    /* Media must not overlap: the trackers visit them one interval at a time. */
+    TRY(parse_surfaces(c, root, s));
+    /* Media must not overlap: the trackers visit them one interval at a time. (Media bound to
+     * shapes are exempt: the surfaces say where they are; box media stay clear of shapes.) */
+    TRY(check_boxes_clear_of_shapes(c, s));
     for (int i = 0; i < nm; i++)
         for (int k = i + 1; k < nm; k++) {
+            if (rd_scene_medium_bound(s, i) || rd_scene_medium_bound(s, k)) continue;
             const rd_medium *a = &s->media[i], *b = &s->media[k];
             if (a->bmin.x < b->bmax.x && b->bmin.x < a->bmax.x && a->bmin.y < b->bmax.y &&
                 b->bmin.y < a->bmax.y && a->bmin.z < b->bmax.z && b->bmin.z < a->bmax.z) {
@@ -1091,6 +1299,7 @@ rd_status rd_scene_load(rd_scene **out, const char *path, const rd_override *ov,
     rd_scene *s = calloc(1, sizeof *s);
     if (!s) { cJSON_Delete(root); snprintf(err, errlen, "%s: out of memory", path); return RD_ERR_NOMEM; }
     snprintf(s->path, sizeof s->path, "%s", path);
+    s->fill_medium = -1;
     st = validate(&c, root, s);
     if (st == RD_OK) s->bake_key = bake_key(root, s);
     cJSON_Delete(root);
@@ -1229,6 +1438,21 @@ void rd_scene_info(const rd_scene *s, FILE *out)
             break;
         }
         fprintf(out, ", power %.4g W\n", rd_light_power(l, rd_scene_radius(s)));
+    }
+    if (s->n_shapes || s->fill_medium >= 0) {
+        static const char *const mkind[] = {"interface", "dielectric", "diffuse"};
+        fprintf(out, "shapes     %d (not rendered yet: issue 14)", s->n_shapes);
+        if (s->fill_medium >= 0) fprintf(out, ", scene-wide medium %s", s->media[s->fill_medium].name);
+        fprintf(out, "\n");
+        for (int i = 0; i < s->n_shapes; i++) {
+            const rd_shape *sh = &s->shapes[i];
+            fprintf(out, "  [%d] %-12s %s, %zu triangles, %s", i, sh->name, sh->file, sh->mesh.n_triangles,
+                    sh->mesh.closed ? "closed" : "open");
+            fprintf(out, ", %s", mkind[sh->material.kind]);
+            if (sh->material.kind == RD_MAT_DIELECTRIC) fprintf(out, " ior %g", sh->material.ior);
+            fprintf(out, ", inside %s, outside %s\n", sh->inside >= 0 ? s->media[sh->inside].name : "(none)",
+                    sh->outside >= 0 ? s->media[sh->outside].name : "(none)");
+        }
     }
     fprintf(out, "background (%g, %g, %g)\n", s->background.x, s->background.y, s->background.z);
     fprintf(out, "settings   method %s, spp %d, time %g s, seed %llu, max_depth %d, rr_depth %d\n",

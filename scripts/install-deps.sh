@@ -8,6 +8,8 @@ PACKAGES=(
   libflann-dev liblz4-dev      # FLANN kd-tree (C API) for photon queries
   libopenimageio-dev           # EXR/PNG in and out
   libcjson-dev                 # scene files
+  libembree-dev                # ray-triangle intersection for meshes (Embree 3 C API; issue 14)
+  libassimp-dev                # OBJ/PLY mesh loading (assimp's C API, cimport.h; issue 14)
   libopenvdb-dev libtbb-dev    # .vdb volumes
   libcriterion-dev             # test framework
   gnuplot-nox                  # charts in reports and benchmarks
