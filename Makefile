@@ -23,8 +23,12 @@ else ifeq ($(SAN),tsan)
   # with its Archer tool tells TSan about OpenMP's barriers and reductions; GCC's libgomp does not).
   OPT    := -O1 -g -fno-omit-frame-pointer -fsanitize=thread
 else ifeq ($(SAN),fuzz)
-  # libFuzzer build (make fuzz, with CC=clang-14 CXX=clang++-14): everything instrumented for coverage
-  # and checked by ASan + UBSan; the fuzz binaries link -fsanitize=fuzzer.
+  # The sanitizer build of make test and make fuzz (build-fuzz/, with CC=clang-14 CXX=clang++-14):
+  # everything checked by ASan + UBSan and instrumented for libFuzzer's coverage. Only the fuzz
+  # binaries link -fsanitize=fuzzer; the suite (tests/run_tests) and the command line link without
+  # it: the comparison hooks fall back to the sanitizer runtime's no-op ones and the inline edge
+  # counters are bumped but never read, so they run as an ASan + UBSan build with a little more
+  # work per branch. One build serves both (a third full build cost make test 2.5 min).
   OPT    := -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined,fuzzer-no-link
 else
   OPT    := -O2 -g -march=x86-64-v2
@@ -144,7 +148,7 @@ FUZZ_BIN     := $(patsubst %,build-fuzz/fuzz/fuzz_%,$(FUZZ_TARGETS))
 $(BUILD)/fuzz/fuzz_%: $(BUILD)/fuzz/fuzz_%.o $(FUZZ_HARNESS) $(LIB_RD) $(LIB_SH) $(LIB_WK) $(LIB_PM)
 	$(CXX) $(LDFLAGS) -fsanitize=fuzzer $^ $(LIBS) -o $@
 fuzz-build: deps
-	$(MAKE) BUILD=build-fuzz SAN=fuzz CC=clang-14 CXX=clang++-14 $(FUZZ_BIN)
+	+$(SAN_MAKE) $(FUZZ_BIN)
 fuzz: fuzz-build
 	@bash fuzz/run.sh build-fuzz $(FUZZ_SECONDS) $(FUZZ_TARGETS)
 
@@ -168,19 +172,26 @@ test-tsan: deps
 	$(TSAN_RUN) bake $(TSAN_SCENE) -q -o $(TSAN_OUT)/track --set 'guide={"grid":"adaptive","bake":"track"}'
 	@echo "test-tsan: no data race reported"
 
-# The suite: the release binary and the sanitizer binary (the malformed-scene catalogue runs
-# against both), then every test in one Criterion run, then the whole suite again built with
-# ASan + UBSan (build-asan/tests/run_tests, less the long checks in ASAN_FILTER), then a short
-# run of every fuzz target (about 90 s in all); all three always run, and the target fails if
-# any does. SAN_ENV makes the first sanitizer finding end the test process with a non-zero
-# status, which Criterion reports as a failed (crashed) test.
+# The suite: the release build (gcc: the command line, the suite, the tools) and the sanitizer
+# build (clang 14, build-fuzz/: the command line, the suite and the fuzz targets, one build for
+# all three, SAN=fuzz above), built by one make so that -j2 keeps both cores busy across the two;
+# then every test in one Criterion run (the malformed-scene catalogue runs against both command
+# lines), then the whole suite again in the ASan + UBSan build (build-fuzz/tests/run_tests, less
+# the long checks in ASAN_FILTER), then a short run of every fuzz target (two at a time, each
+# FUZZ_TEST_SECONDS); all three always run, and the target fails if any does. SAN_ENV makes the
+# first sanitizer finding end the test process with a non-zero status, which Criterion reports
+# as a failed (crashed) test.
+# `make asan` (gcc, build-asan/) is not part of make test; it stays the quick sanitizer build for
+# development (make BUILD=build-asan SAN=1 build-asan/tests/run_tests).
 # Criterion's runner process leaks 96 bytes at exit (a calloc in libcriterion.so, not our code),
 # which LeakSanitizer turns into a failed run: LSAN_SUPP suppresses stacks through that library.
 # Note that a leak inside a test never failed the run anyway (Criterion reports the test before
 # the worker's leak check; checked with a leaking test); the CLI's leaks are caught by the
-# malformed-scene catalogue, run against build-asan/photonmarch with detect_leaks=1.
+# malformed-scene catalogue, run against build-fuzz/photonmarch with detect_leaks=1.
 # allocator_may_return_null=1: an impossible allocation returns NULL as malloc does without
 # ASan, so the out-of-memory paths (and their tests) run as in a release build.
+# UBSan reads fuzz/ubsan.supp (clang's alignment check in oneTBB's header, reached when OpenVDB
+# reads a grid: the reason is in the file).
 # The sanitizer run skips (ASAN_FILTER):
 #  - the long statistical checks of estimators (each a convergence test whose value is its
 #    answer, checked in the release run); the code they run is exercised under ASan by the
@@ -190,23 +201,40 @@ test-tsan: deps
 #    (PHOTONMARCH_BIN), so under ASan they only repeat the release run; the command line itself
 #    runs under ASan + UBSan in the release run's cli/malformed_scene_catalogue_under_sanitizers.
 # Together they would take the suite past 15 minutes.
+SAN_BUILD := build-fuzz
+SAN_MAKE  := $(MAKE) BUILD=$(SAN_BUILD) SAN=fuzz CC=clang-14 CXX=clang++-14
 ASAN_FILTER := '!(march/guided_and_transmittance_share_*|march/defensive_only_and_wrong_guides_*|photons/knn_radiance_converges_*|integrator/white_furnace_every_tracker|stress_big/*|cli/*|memory/*|compare/page_loads_*|compare/bad_reference_*|compare/ctrl_c_*)'
-LSAN_SUPP := build-asan/lsan.supp
+LSAN_SUPP := $(SAN_BUILD)/lsan.supp
 SAN_ENV := ASAN_OPTIONS=halt_on_error=1:detect_leaks=1:allocator_may_return_null=1 \
-           UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
+           UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1:suppressions=$(CURDIR)/fuzz/ubsan.supp \
            LSAN_OPTIONS=suppressions=$(LSAN_SUPP):print_suppressions=0
+# Scheduling within -j2 (make test's MAKEFLAGS): a recursive make can only take a second job slot
+# when its parent frees one, so the two builds are not simply two sub-makes side by side (the
+# one that ends first would leave its core idle). renderer/vdb_io.cpp (OpenVDB's templates) is the
+# longest compile by far (about 110 s of CPU under clang's sanitizers, 60 s at -O2): the
+# sanitizer build's C++ shims start at once on one core while the release build runs on the
+# other (taking both once the shims are done: it is listed first, so it runs in this make's own
+# slot and the shims' slot goes back to the shared pool); then the rest of the sanitizer build
+# has both.
+CXX_OBJ := $(call obj,$(filter renderer/vdb_io.cpp,$(RD_CXX)) $(filter-out renderer/vdb_io.cpp,$(RD_CXX)) $(PM_CXX))
+.PHONY: test-build test-build-release test-build-san test-build-san-shims
+test-build: test-build-san
+test-build-san-shims:
+	+$(SAN_MAKE) $(patsubst $(BUILD)/%,$(SAN_BUILD)/%,$(CXX_OBJ))
+test-build-release:
+	$(MAKE) $(CXX_OBJ) $(BIN) $(TEST_BIN) $(TOOLS_BIN)
+test-build-san: test-build-release test-build-san-shims
+	+$(SAN_MAKE) $(SAN_BUILD)/photonmarch $(SAN_BUILD)/tests/run_tests $(FUZZ_BIN)
 test: deps
-	$(MAKE) $(BIN) $(TEST_BIN) $(TOOLS_BIN)
-	$(MAKE) BUILD=build-asan SAN=1 build-asan/photonmarch build-asan/tests/run_tests
-	$(MAKE) BUILD=build-fuzz SAN=fuzz CC=clang-14 CXX=clang++-14 $(FUZZ_BIN)
+	$(MAKE) test-build
 	@printf 'leak:libcriterion.so\n' > $(LSAN_SUPP)
 	@status=0; \
 	echo "== release suite ($$(date +%T))"; \
-	PHOTONMARCH_BIN=$(BIN) PHOTONMARCH_ASAN_BIN=build-asan/photonmarch $(TEST_BIN) $(CRITERION_FLAGS) || status=1; \
-	echo "== sanitizer suite (ASan + UBSan) ($$(date +%T))"; \
-	$(SAN_ENV) PHOTONMARCH_BIN=$(BIN) build-asan/tests/run_tests $(CRITERION_FLAGS) --filter $(ASAN_FILTER) || status=1; \
+	PHOTONMARCH_BIN=$(BIN) PHOTONMARCH_ASAN_BIN=$(SAN_BUILD)/photonmarch $(TEST_BIN) $(CRITERION_FLAGS) || status=1; \
+	echo "== sanitizer suite (ASan + UBSan, clang) ($$(date +%T))"; \
+	$(SAN_ENV) PHOTONMARCH_BIN=$(BIN) $(SAN_BUILD)/tests/run_tests $(CRITERION_FLAGS) --filter $(ASAN_FILTER) || status=1; \
 	echo "== fuzz, short ($(FUZZ_TEST_SECONDS) s per target, fixed seed; make fuzz for longer) ($$(date +%T))"; \
-	FUZZ_FRESH=1 bash fuzz/run.sh build-fuzz $(FUZZ_TEST_SECONDS) $(FUZZ_TARGETS) || status=1; \
+	FUZZ_FRESH=1 bash fuzz/run.sh $(SAN_BUILD) $(FUZZ_TEST_SECONDS) $(FUZZ_TARGETS) || status=1; \
 	echo "== done ($$(date +%T))"; exit $$status
 
 test-walk: deps $(BUILD)/tests/run_wk

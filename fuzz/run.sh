@@ -9,6 +9,10 @@
 # FUZZ_FRESH=1 (make test's short run): start from the seeds alone (without the slow example
 # scenes), with a fixed libFuzzer seed, so every run tries the same inputs in the same order
 # (only how far it gets depends on time).
+# FUZZ_JOBS (default 2): how many targets run at once, each its own libFuzzer process for the full
+# SECONDS (the summary lines still come in the order given). With -fork=1 a target keeps one core
+# busy (its parent only waits), so on the 2-core CI machine two at a time give each target the
+# same core-seconds as one after the other, in half the wall time.
 # UBSan and LSan suppressions, each with its reason: fuzz/ubsan.supp, fuzz/lsan.supp.
 # libFuzzer runs in fork mode with -ignore_ooms: an input that makes a loader take more than
 # 2 GiB (rss_limit_mb) is kept in BUILD/fuzz/crashes/ as oom-* and counted in the summary
@@ -20,12 +24,14 @@ shift 2
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 mkdir -p "$build/fuzz/crashes"
-status=0
-for t in "$@"; do
-  corpus=$build/fuzz/corpus/$t
-  fixed=()
+jobs=${FUZZ_JOBS:-2}
+# run_one TARGET: fuzz it, write its summary line(s) to $work/summary-TARGET; exit 1 on a crash.
+run_one() {
+  local t=$1
+  local corpus=$build/fuzz/corpus/$t
+  local fixed=()
   if [ "${FUZZ_FRESH:-0}" = 1 ]; then corpus=$work/corpus-$t; fixed=(-seed=1); fi
-  seeds=$work/seeds-$t
+  local seeds=$work/seeds-$t
   mkdir -p "$corpus" "$seeds" "$work/tmp-$t"
   cp fuzz/seeds/$t/* "$seeds"/ 2>/dev/null
   cp tests/data/fuzz/$t/* "$seeds"/ 2>/dev/null
@@ -38,25 +44,41 @@ for t in "$@"; do
   esac
   # image: the suppression of OpenImageIO's PNG leak (fuzz/lsan.supp) names a frame inside the
   # library, which only the slow unwinder sees (system libraries have no frame pointers)
-  unwind=
+  local unwind=
   [ "$t" = image ] && unwind=:fast_unwind_on_malloc=0
-  log=$build/fuzz/$t.log
+  local log=$build/fuzz/$t.log
   TMPDIR=$work/tmp-$t ASAN_OPTIONS=allocator_may_return_null=1:detect_leaks=1$unwind \
     UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1:suppressions=$PWD/fuzz/ubsan.supp \
     LSAN_OPTIONS=suppressions=$PWD/fuzz/lsan.supp:print_suppressions=0 \
     "$build/fuzz/fuzz_$t" "${fixed[@]}" -fork=1 -ignore_ooms=1 -max_total_time="$secs" -timeout=60 \
     -rss_limit_mb=2048 -max_len=65536 -artifact_prefix="$build/fuzz/crashes/$t-" "$corpus" "$seeds" >"$log" 2>&1
-  code=$?
+  local code=$?
+  local last runs cov ooms
   last=$(grep -E '^#[0-9]+: cov' "$log" | tail -1)
   runs=$(sed -n 's/^#\([0-9]*\): cov.*/\1/p' <<<"$last")
   cov=$(grep -o 'cov: [0-9]*' <<<"$last")
   ooms=$(grep -o 'oom/timeout/crash: [0-9/]*' <<<"$last")
   if [ $code -eq 0 ]; then
-    echo "fuzz $t: ${runs:-?} runs in $secs s, $cov, corpus $(ls "$corpus" | wc -l) files, ${ooms:-no crash}"
-  else
-    echo "fuzz $t: FAILED (exit $code) after ${runs:-?} runs: $(grep -m1 -E 'ERROR|runtime error|SUMMARY' "$log")"
-    echo "  log $log; input $(ls -t "$build"/fuzz/crashes/$t-* 2>/dev/null | head -1)"
-    status=1
+    echo "fuzz $t: ${runs:-?} runs in $secs s, $cov, corpus $(ls "$corpus" | wc -l) files, ${ooms:-no crash}" >"$work/summary-$t"
+    return 0
   fi
+  { echo "fuzz $t: FAILED (exit $code) after ${runs:-?} runs: $(grep -m1 -E 'ERROR|runtime error|SUMMARY' "$log")"
+    echo "  log $log; input $(ls -t "$build"/fuzz/crashes/$t-* 2>/dev/null | head -1)"; } >"$work/summary-$t"
+  return 1
+}
+
+# At most $jobs targets at a time; a target's exit status is collected from its own wait.
+pids=()
+for t in "$@"; do
+  while [ "$(jobs -rp | wc -l)" -ge "$jobs" ]; do wait -n; done
+  run_one "$t" &
+  pids+=($!)
+done
+status=0
+i=0
+for t in "$@"; do
+  wait "${pids[$i]}" || status=1
+  cat "$work/summary-$t"
+  i=$((i + 1))
 done
 exit $status
