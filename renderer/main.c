@@ -533,12 +533,12 @@ static int cmd_render(int argc, char **argv)
         ro.progress_user = &ps;
     }
     int code = 0;
+    rd_baked *baked = NULL; /* before the first goto out, which frees it */
     if ((st = rd_make_parent_dirs(outpath, err, sizeof err)) != RD_OK) {
         code = report_error(st, err);
         goto out;
     }
     /* What the method needs baked: from --photons/--guide, the cache, or a fresh bake. */
-    rd_baked *baked = NULL;
     unsigned needs = rd_method_needs_for(ro.method, scene);
     if (needs) {
         rd_bake_opts bo = {0};

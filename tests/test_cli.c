@@ -524,6 +524,28 @@ Test(cli, symlink_output_is_replaced_not_written_through, .timeout = 120)
 /* The input scene named as an output (render's report OUT.json, any of bake's files, explain's
  * PREFIX.json) is
  * refused with exit 1 and a message, and the scene is untouched. */
+/* An output folder that cannot be made is one line naming it and exit 3 (an output error), also under the
+ * sanitizers: `render` once jumped to its clean-up before its bake pointer was set and freed
+ * an uninitialised pointer (found by clang's -Wsometimes-uninitialized; UBSan reported a
+ * misaligned load in rd_baked_free). */
+Test(cli, unmakeable_output_folder_is_one_line, .timeout = 300)
+{
+    const char *bins[2] = {getenv("PHOTONMARCH_BIN"), getenv("PHOTONMARCH_ASAN_BIN")};
+    cr_assert(bins[0] != NULL, "PHOTONMARCH_BIN is not set (run through make test)");
+    const char *scene = tiny_scene();
+    char out[4096], err[4096];
+    for (int i = 0; i < 2; i++) {
+        if (!bins[i]) continue;
+        char *argv[] = {(char *)bins[i], "render", (char *)scene, "-o", "/proc/photonmarch-none/x.exr",
+                        "--spp", "1", "-q", NULL};
+        int code = rt_run(argv, out, sizeof out, err, sizeof err, 0);
+        size_t len = strlen(err);
+        cr_expect(code == 3, "%s: exit %d (expected 3): %s", bins[i], code, err);
+        cr_expect(len > 0 && strchr(err, '\n') == err + len - 1, "%s: not one line: [%s]", bins[i], err);
+        cr_expect(strstr(err, "/proc/photonmarch-none") != NULL, "%s: does not name the folder: %s", bins[i], err);
+    }
+}
+
 Test(cli, scene_as_output_is_refused, .timeout = 120)
 {
     const char *bin = getenv("PHOTONMARCH_BIN");
