@@ -188,6 +188,19 @@ Test(guided_unbiased, every_part_off_is_delta_bit_for_bit, .timeout = 120)
     rd_scene_free(s);
 }
 
+/* A render context for guided-unbiased on scene s with bake b, prepared as a render would
+ * prepare it, and one thread's scratch for it (free() it; m->release the context). */
+static void *prepare_ctx(rd_scene *s, rd_baked *b, rd_render_ctx *ctx)
+{
+    const rd_method *m = rd_method_find("guided-unbiased");
+    *ctx = (rd_render_ctx){.scene = s, .method = m, .guide = rd_baked_guide(b), .threads = 1};
+    char err[RD_ERRLEN];
+    cr_assert(m->prepare(ctx, err, sizeof err) == RD_OK, "%s", err);
+    void *scratch = aligned_alloc(16, (m->scratch_bytes(ctx) + 15) / 16 * 16);
+    cr_assert(scratch != NULL);
+    return scratch;
+}
+
 /* Upper 1e-5 quantile of chi-square with df degrees of freedom (Wilson-Hilferty: accurate to
  * a few percent for df >= 10; z = 4.265 is the normal 1e-5 quantile). */
 static double chi2_crit(int df)
@@ -211,11 +224,8 @@ static void chi_square_flights(const char *extra, uint64_t seed)
     rd_scene *s = rt_scene("gu_chi.json", json);
     rd_baked *b = bake(s);
     const rd_method *m = rd_method_find("guided-unbiased");
-    rd_render_ctx ctx = {.scene = s, .method = m, .guide = rd_baked_guide(b), .threads = 1};
-    char err[RD_ERRLEN];
-    cr_assert(m->prepare(&ctx, err, sizeof err) == RD_OK, "%s", err);
-    void *scratch = aligned_alloc(16, (m->scratch_bytes(&ctx) + 15) / 16 * 16);
-    cr_assert(scratch != NULL);
+    rd_render_ctx ctx;
+    void *scratch = prepare_ctx(s, b, &ctx);
     const ray3 rays[2] = {{v3(0.1, 0.05, 4), v3_norm(v3(-0.05, 0.02, -1))},
                           {v3(-0.2, 0.1, 1.6), v3_norm(v3(0.3, -0.1, -1))}};
     const double phase_pdf[2] = {0.0, 0.3};
@@ -459,11 +469,8 @@ Test(guided_unbiased, thick_flights_are_delta_tracking, .timeout = 300)
         cr_assert_eq(s->guide.distance_tau_max, taus[k]);
         rd_baked *b = bake(s);
         const rd_method *m = rd_method_find("guided-unbiased");
-        rd_render_ctx ctx = {.scene = s, .method = m, .guide = rd_baked_guide(b), .threads = 1};
-        char err[RD_ERRLEN];
-        cr_assert(m->prepare(&ctx, err, sizeof err) == RD_OK, "%s", err);
-        void *scratch = aligned_alloc(16, (m->scratch_bytes(&ctx) + 15) / 16 * 16);
-        cr_assert(scratch != NULL);
+        rd_render_ctx ctx;
+        void *scratch = prepare_ctx(s, b, &ctx);
         rd_flight_in in = {.r = {v3(0, 0.1, 4.2), v3_norm(v3(0, -0.03, -1))}, .t_light = INFINITY,
                            .hit_light = -1, .depth = 0};
         pcg32 rng = pcg32_seed(1, 2, 3);
