@@ -13,13 +13,13 @@
 
 static double cb_sigma_t(const double x[3], void *user)
 {
-    const rd_medium *m = rd_scene_medium_at(user, v3(x[0], x[1], x[2]));
+    const rd_medium *m = rd_scene_medium_at_point(user, v3(x[0], x[1], x[2]));
     return m ? rd_medium_sigma_t(m, v3(x[0], x[1], x[2])) : 0.0;
 }
 
 static void cb_sigma_s(const double x[3], void *user, double out[3])
 {
-    const rd_medium *m = rd_scene_medium_at(user, v3(x[0], x[1], x[2]));
+    const rd_medium *m = rd_scene_medium_at_point(user, v3(x[0], x[1], x[2]));
     double st = m ? rd_medium_sigma_t(m, v3(x[0], x[1], x[2])) : 0.0;
     out[0] = m ? st * m->albedo.x : 0.0;
     out[1] = m ? st * m->albedo.y : 0.0;
@@ -42,7 +42,7 @@ typedef struct { const rd_scene *s; } phase_ctx;
 static void cb_phase_at(const double x[3], void *user, double *b)
 {
     const phase_ctx *pc = user;
-    const rd_medium *m = rd_scene_medium_at(pc->s, v3(x[0], x[1], x[2]));
+    const rd_medium *m = rd_scene_medium_at_point(pc->s, v3(x[0], x[1], x[2]));
     guide_phase_coeffs(&pc->s->guide, m ? m->g : 0.0, b);
 }
 
@@ -240,6 +240,7 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
         bs->power_absorbed = lum3(ps.power_absorbed);
         bs->power_escaped = lum3(ps.power_escaped);
         bs->power_cut = lum3(ps.power_carried);
+        bs->power_absorbed_surfaces = lum3(ps.power_absorbed_surfaces);
     }
     /* 2. The FLANN kd-tree over the photons. */
     if (pm_map_build(b->map, pmerr, sizeof pmerr) != PM_OK) {

@@ -88,24 +88,6 @@ typedef struct {
 
 static double mean3(vec3 v) { return (v.x + v.y + v.z) / 3.0; }
 
-typedef struct { double t0, t1; const rd_medium *m; } interval;
-
-/* The media r crosses within [t0, t1], sorted by entry (media do not overlap). */
-static int media_intervals(const rd_scene *s, ray3 r, double t0, double t1, interval *out, int cap)
-{
-    int n = 0;
-    for (int i = 0; i < s->n_media && n < cap; i++) {
-        double a, b;
-        const rd_medium *m = &s->media[i];
-        if (m->sigma_maj <= 0.0 || !rd_box_intersect(m->bmin, m->bmax, r, t0, t1, &a, &b) || !(b > a))
-            continue;
-        int k = n++;
-        while (k > 0 && out[k - 1].t0 > a) { out[k] = out[k - 1]; k--; }
-        out[k] = (interval){a, b, m};
-    }
-    return n;
-}
-
 /* Append piece [a, b) of height f and extinction sig to the arrays, closing a gap before it
  * (between two media) with an empty piece. Returns 0 when the storage (cap pieces) is full. */
 static int push_piece(const gu_scratch *sc, int cap, int *n, double a, double b, double f, double sig)
@@ -129,11 +111,11 @@ static int push_piece(const gu_scratch *sc, int cap, int *n, double a, double b,
  * sigma_maj(t) T_maj(t0,t), piece by piece of the majorant walk (a constant bound per piece;
  * a tri-linear one by its mean over the piece). sigma_maj >= sigma_t, so p > 0 wherever the
  * medium can be. The storage running out gives the uniform pdf (still p > 0 everywhere). */
-static void build_majorant_pdf(const gu_scratch *sc, int cap, const rd_scene *s, ray3 r,
-                               double t0, double t1, rd_guide_pdf *pdf)
+static void build_majorant_pdf(const gu_scratch *sc, int cap, const rd_scene *s, int region,
+                               ray3 r, double t0, double t1, rd_guide_pdf *pdf)
 {
-    interval iv[64];
-    int n_iv = media_intervals(s, r, t0, t1, iv, 64), n = 0, ok = 1;
+    rd_interval iv[RD_MAX_INTERVALS];
+    int n_iv = rd_media_intervals(s, region, r, t0, t1, iv), n = 0, ok = 1;
     for (int i = 0; i < n_iv && ok; i++) {
         const rd_medium *m = iv[i].m;
         double smin = fmin(m->density_min * m->sigma_t_scale, m->sigma_maj);
@@ -170,17 +152,18 @@ static void build_guide_pdf(const rd_render_ctx *ctx, const gu_scratch *sc, ray3
  *             [floor, 1 - floor] (guide.pass_floor);
  *   majorant: P_m = 1 - T_maj(t0,t1), the chance that delta tracking's first tentative
  *             collision falls inside [t0, t1] (exact: the histogram's T~ is T_maj).
- * Both are 1 when L_behind = 0 exactly: passing can only add 0 then. */
+ * Both are 1 when L_behind = 0 exactly: passing can only add 0 then. L_behind < 0 means a
+ * surface ends the flight (behind_mean): the guide strategy then passes half the time. */
 /* The majorant strategy's pdf, first: its optical depth decides whether the flight is guided
  * at all (guide.distance_tau_max), before the costlier guide walk. */
-static void flight_majorant(const rd_render_ctx *ctx, const gu_scratch *sc, ray3 r, double t0,
-                            double t1, gu_dist *D)
+static void flight_majorant(const rd_render_ctx *ctx, const gu_scratch *sc, int region, ray3 r,
+                            double t0, double t1, gu_dist *D)
 {
     const gu_state *st = ctx->state;
     D->t0 = t0;
     D->t1 = t1;
     D->w = ctx->scene->guide.majorant_weight;
-    build_majorant_pdf(sc, st->cap_m, ctx->scene, r, t0, t1, &D->m);
+    build_majorant_pdf(sc, st->cap_m, ctx->scene, region, r, t0, t1, &D->m);
     D->tau_m = rd_guide_pdf_tau(&D->m);
 }
 
@@ -191,6 +174,14 @@ static void flight_dist(const rd_render_ctx *ctx, const gu_scratch *sc, ray3 r, 
     const rd_scene *s = ctx->scene;
     build_guide_pdf(ctx, sc, r, t0, t1, &D->g);
     D->B = 0.0;
+    if (L_behind < 0.0) {
+        /* A surface ends the flight: what lies behind it is the rest of the path, unknown
+         * here. Any pass probability in (0, 1) keeps (4) unbiased; the guide strategy
+         * passes half the time. */
+        D->P_g = 0.5;
+        D->P_m = -expm1(-rd_guide_pdf_tau(&D->m));
+        return;
+    }
     if (!(L_behind > 0.0)) {
         D->P_g = D->P_m = 1.0;
         return;
@@ -213,7 +204,15 @@ static double dist_pass(const gu_dist *D)
     return (1.0 - D->w) * (1.0 - D->P_g) + D->w * (1.0 - D->P_m);
 }
 
-/* The media interval of a flight, before the nearest light; 0 when it meets no medium. */
+/* The channel mean of what a pass-through receives (rd_flight_behind), or -1 when the flight
+ * ends at a surface (the path goes on from there: unknown, and not 0). */
+static double behind_mean(const rd_scene *s, const rd_flight_in *in)
+{
+    return in->hit_shape >= 0 ? -1.0 : mean3(rd_flight_behind(s, in));
+}
+
+/* The media interval of a flight, before the nearest light or surface; 0 when it meets no
+ * medium. */
 static int flight_interval(const rd_scene *s, const rd_flight_in *in, double *t0, double *t1)
 {
     return s->n_media > 0 && rd_box_intersect(s->bmin, s->bmax, in->r, 0.0, in->t_light, t0, t1) &&
@@ -257,14 +256,14 @@ static rd_flight guided_flight(const rd_flight_sampler *fs, const rd_scene *s,
     gu_scratch sc;
     scratch_layout(ctx->state, &sc, u->scratch);
     gu_dist D;
-    flight_majorant(ctx, &sc, r, t0, t1, &D);
+    flight_majorant(ctx, &sc, in->region, r, t0, t1, &D);
     /* An optically thick flight (majorant depth above guide.distance_tau_max) is delta
      * tracking's: there T sigma_t, which delta tracking samples exactly, is most of the
      * integrand's shape, and the guide's cell-mean T~ and sigma can only add weight noise
      * (docs/guided-unbiased.md). Decided by the flight alone: unbiased either way. */
     if (D.tau_m > s->guide.distance_tau_max) guided = 0;
     if (!(guided || want_I)) return rd_flight_delta(s, in, rng, c);
-    flight_dist(ctx, &sc, r, t0, t1, mean3(rd_flight_behind(s, in)), &D);
+    flight_dist(ctx, &sc, r, t0, t1, behind_mean(s, in), &D);
     if (in->depth == 0) u->I_cam = D.g.I + D.B;
     /* A guide with no light along this ray (an empty or wrong guide, or a dark region) knows
      * nothing to guide by: delta tracking's flight. The choice depends on the ray alone, so
@@ -279,7 +278,7 @@ static rd_flight guided_flight(const rd_flight_sampler *fs, const rd_scene *s,
     int maj = pcg32_uniform(rng) < D.w;
     if (pcg32_uniform(rng) >= (maj ? D.P_m : D.P_g)) {
         if (!(P_pass > 0.0)) return f; /* rounding only: P_pass = 0 never gets here */
-        double T = rd_transmittance(s, r, t0, t1, rng, c);
+        double T = rd_transmittance(s, in->region, r, t0, t1, rng, c);
         f.kind = RD_FLIGHT_PASS;
         f.weight = v3_scale(v3(1, 1, 1), T / P_pass); /* eq. 4, pass */
         return f;
@@ -287,12 +286,12 @@ static rd_flight guided_flight(const rd_flight_sampler *fs, const rd_scene *s,
     double t = rd_guide_pdf_sample(maj ? &D.m : &D.g, pcg32_uniform(rng), NULL);
     double q = dist_scatter_pdf(&D, t);
     vec3 x = ray_at(r, t);
-    const rd_medium *m = rd_scene_medium_at(s, x);
+    const rd_medium *m = rd_scene_medium_at(s, in->region, x);
     double sigma_t = m ? rd_medium_sigma_t(m, x) : 0.0;
     c->lookups += m != NULL;
     f.t = t;
     if (!(sigma_t > 0.0) || !(q > 0.0)) return f; /* zero integrand: the path adds no more */
-    double T = rd_transmittance(s, r, t0, t, rng, c);
+    double T = rd_transmittance(s, in->region, r, t0, t, rng, c);
     f.kind = RD_FLIGHT_SCATTER;
     f.medium = m;
     f.weight = v3_scale(m->albedo, sigma_t * T / q); /* eq. 4, scatter: sigma_s = albedo sigma_t */
@@ -461,9 +460,9 @@ double rd_gu_flight_cdf(const rd_render_ctx *ctx, void *scratch, const rd_flight
     gu_scratch sc;
     scratch_layout(ctx->state, &sc, scratch);
     gu_dist D;
-    flight_majorant(ctx, &sc, in->r, t0, t1, &D);
+    flight_majorant(ctx, &sc, in->region, in->r, t0, t1, &D);
     if (D.tau_m > ctx->scene->guide.distance_tau_max) return 0.0; /* delta's (guided_flight) */
-    flight_dist(ctx, &sc, in->r, t0, t1, mean3(rd_flight_behind(ctx->scene, in)), &D);
+    flight_dist(ctx, &sc, in->r, t0, t1, behind_mean(ctx->scene, in), &D);
     if (!(D.g.I > 0.0)) return 0.0; /* delta tracking's flight (guided_flight) */
     if (P_pass) *P_pass = dist_pass(&D);
     return (1.0 - D.w) * D.P_g * rd_guide_pdf_cdf(&D.g, t) + D.w * D.P_m * rd_guide_pdf_cdf(&D.m, t);
@@ -513,7 +512,9 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
                         ? gs.res[0] + gs.res[1] + gs.res[2] + 2
                         : 3 * (1 << (gs.depth_max < 12 ? gs.depth_max : 12)) + 2;
     }
-    st->cap_m = 1;
+    /* The scene-wide medium may come in pieces between box media: one more walk start and
+     * gap each (rd_media_intervals). */
+    st->cap_m = 1 + 2 * s->n_media;
     for (int i = 0; i < s->n_media; i++) st->cap_m += majorant_crossings(&s->media[i]) + 1;
     ctx->state = st;
     return RD_OK;

@@ -28,6 +28,7 @@
  * Given S, the estimate is unbiased for every placement (the defensive mixture keeps p > 0
  * wherever the integrand can be non-zero, and every ray gets at least one sample); what the
  * placements change is the variance. The photon estimate's own bias is shared. */
+#include "rd_geom.h"
 #include "rd_guide_pdf.h"
 #include "rd_method.h"
 #include "rd_photons.h"
@@ -99,13 +100,24 @@ static vec3 behind(const rd_scene *s, int hit_light)
     return L;
 }
 
-/* The part of the ray inside the media bounds, before the nearest light: [t0, t1]. */
-static int medium_span(const rd_scene *s, ray3 r, double *t0, double *t1, int *hit_light)
+/* The part of the ray inside the scene bounds before t_end (the nearest light or surface):
+ * [t0, t1]. */
+static int medium_span(const rd_scene *s, ray3 r, double t_end, double *t0, double *t1)
 {
-    double t_light;
-    *hit_light = rd_scene_hit_light(s, r, INFINITY, -1, &t_light);
     if (s->n_media == 0) return 0;
-    return rd_box_intersect(s->bmin, s->bmax, r, 0.0, t_light, t0, t1) && *t1 > *t0;
+    return rd_box_intersect(s->bmin, s->bmax, r, 0.0, t_end, t0, t1) && *t1 > *t0;
+}
+
+/* The camera ray's first straight segment: its region and the part [t0, t1] inside the scene
+ * bounds before the first light or surface; *hit_light gets that light, or -1. */
+static int first_segment(const rd_scene *s, ray3 r, int *region, double *t0, double *t1,
+                         int *hit_light)
+{
+    rd_hit h;
+    int got = rd_scene_intersect(s, r, INFINITY, NULL, &h);
+    *region = rd_scene_region_at(s, r.o);
+    *hit_light = got ? h.light : -1;
+    return medium_span(s, r, got ? h.t : INFINITY, t0, t1);
 }
 
 /* ---- The three placements ------------------------------------------------------------------ */
@@ -117,8 +129,8 @@ static int medium_span(const rd_scene *s, ray3 r, double *t0, double *t1, int *h
  * sigma_t(t) T~(0,t) L~_s(cell) instead of the cell mean (eq. 16 with sigma_s at the
  * lookup's resolution). Writes the pieces into ms->tb/f/sig and rebuilds pdf from them (the
  * guide segments are read before the rebuild overwrites their storage). */
-static void refine_by_lookups(const rd_render_ctx *ctx, const march_scratch *ms, ray3 r,
-                              rd_guide_pdf *pdf, rd_track_counters *c)
+static void refine_by_lookups(const rd_render_ctx *ctx, const march_scratch *ms, int region,
+                              ray3 r, rd_guide_pdf *pdf, rd_track_counters *c)
 {
     const rd_scene *s = ctx->scene;
     const march_state *st = ctx->state;
@@ -132,7 +144,7 @@ static void refine_by_lookups(const rd_render_ctx *ctx, const march_scratch *ms,
             if (lattice <= a) lattice += h;                             /* rounding */
             double b = lattice < sg.t1 ? lattice : sg.t1;
             vec3 x = ray_at(r, 0.5 * (a + b));
-            const rd_medium *m = sg.f > 0.0 ? rd_scene_medium_at(s, x) : NULL;
+            const rd_medium *m = sg.f > 0.0 ? rd_scene_medium_at(s, region, x) : NULL;
             double sig = m ? rd_medium_sigma_t(m, x) : 0.0;
             c->lookups += m != NULL;
             ms->tb[n] = a;
@@ -151,8 +163,8 @@ static void refine_by_lookups(const rd_render_ctx *ctx, const march_scratch *ms,
 
 /* The guide's PDF of ray r over [t0, t1] (cells, or cells x lookups; defensive only when the
  * guide walk fails). */
-static void build_guided(const rd_render_ctx *ctx, const march_scratch *ms, ray3 r, double t0,
-                         double t1, rd_guide_pdf *pdf, rd_track_counters *c)
+static void build_guided(const rd_render_ctx *ctx, const march_scratch *ms, int region, ray3 r,
+                         double t0, double t1, rd_guide_pdf *pdf, rd_track_counters *c)
 {
     const rd_march_settings *m = &ctx->scene->march;
     double o[3] = {r.o.x, r.o.y, r.o.z}, d[3] = {r.d.x, r.d.y, r.d.z};
@@ -162,13 +174,14 @@ static void build_guided(const rd_render_ctx *ctx, const march_scratch *ms, ray3
     }
     if (m->detail && pdf->I > 0.0) {
         pdf->alpha = m->alpha; /* the mixture weight asked for, not the I == 0 fallback */
-        refine_by_lookups(ctx, ms, r, pdf, c);
+        refine_by_lookups(ctx, ms, region, r, pdf, c);
     }
 }
 
 /* Build the PDF of `place` over [t0, t1] for ray r into pdf. Returns the samples to take. */
-static int build_pdf(const rd_render_ctx *ctx, placement place, const march_scratch *ms, ray3 r,
-                     double t0, double t1, rd_guide_pdf *pdf, rd_track_counters *c)
+static int build_pdf(const rd_render_ctx *ctx, placement place, const march_scratch *ms,
+                     int region, ray3 r, double t0, double t1, rd_guide_pdf *pdf,
+                     rd_track_counters *c)
 {
     const rd_scene *s = ctx->scene;
     const rd_march_settings *ms_set = &s->march;
@@ -176,7 +189,7 @@ static int build_pdf(const rd_render_ctx *ctx, placement place, const march_scra
     rd_guide_pdf_init(pdf, ms->seg, st->seg_cap);
     int N = st->n_mean[place];
     if (place == PLACE_GUIDED) {
-        build_guided(ctx, ms, r, t0, t1, pdf, c);
+        build_guided(ctx, ms, region, r, t0, t1, pdf, c);
         N = rd_guide_samples_per_ray(pdf->I, st->mean_I, N, ms_set->min_samples, ms_set->max_samples);
     } else if (place == PLACE_UNIFORM) {
         rd_guide_pdf_build(pdf, 0, NULL, NULL, NULL, t0, t1, 1.0, NULL, 0);
@@ -189,7 +202,7 @@ static int build_pdf(const rd_render_ctx *ctx, placement place, const march_scra
         for (int j = 0; j < K; j++) {
             ms->tb[j] = t0 + j * h;
             vec3 x = ray_at(r, t0 + (j + 0.5) * h);
-            const rd_medium *m = rd_scene_medium_at(s, x);
+            const rd_medium *m = rd_scene_medium_at(s, region, x);
             ms->sig[j] = m ? rd_medium_sigma_t(m, x) : 0.0;
             ms->f[j] = ms->sig[j];
             c->lookups += m != NULL;
@@ -212,8 +225,8 @@ static vec3 photon_estimate(const pm_map *map, vec3 x, vec3 w, double g, int k)
     return v3(out[0], out[1], out[2]);
 }
 
-static vec3 source(const rd_render_ctx *ctx, const rd_medium *m, vec3 x, vec3 d, double sigma_t,
-                   pcg32 *rng, rd_track_counters *c)
+static vec3 source(const rd_render_ctx *ctx, const rd_medium *m, int region, vec3 x, vec3 d,
+                   double sigma_t, pcg32 *rng, rd_track_counters *c)
 {
     const rd_scene *s = ctx->scene;
     vec3 S = v3(0, 0, 0);
@@ -230,7 +243,7 @@ static vec3 source(const rd_render_ctx *ctx, const rd_medium *m, vec3 x, vec3 d,
         if (ctx->guide_indirect) sh_guide_eval(ctx->guide_indirect, xd, wd, out);
         S = v3(fmax(0.0, out[0]), fmax(0.0, out[1]), fmax(0.0, out[2]));
         vec3 sigma_s = v3_scale(m->albedo, sigma_t);
-        return v3_add(S, v3_mul(sigma_s, rd_nee_all(s, x, d, m->g, rng, c)));
+        return v3_add(S, v3_mul(sigma_s, rd_nee_all(s, region, x, d, m->g, rng, c)));
     }
     case RD_LS_NEE_PHOTONS:
         S = photon_estimate(ctx->photons_indirect, x, w, m->g, s->guide.k);
@@ -239,48 +252,112 @@ static vec3 source(const rd_render_ctx *ctx, const rd_medium *m, vec3 x, vec3 d,
     case RD_LS_NEE:
     default: {
         vec3 sigma_s = v3_scale(m->albedo, sigma_t);
-        return v3_add(S, v3_mul(sigma_s, rd_nee_all(s, x, d, m->g, rng, c)));
+        return v3_add(S, v3_mul(sigma_s, rd_nee_all(s, region, x, d, m->g, rng, c)));
     }
     }
 }
 
 /* ---- The estimator -------------------------------------------------------------------------- */
 
-static vec3 march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp,
-                           placement place)
+/* One straight segment of the camera ray: r in `region` up to t_end (the next surface or light,
+ * or INFINITY), marched over the part inside the scene bounds with N samples of `place`
+ * stratified by the offset u. Returns the in-scattered estimate; *T_out gets the unbiased
+ * transmittance estimate T(0, t_end). */
+static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int region,
+                          double t_end, placement place, double u, pcg32 *rng, double *T_out)
 {
     const rd_scene *s = ctx->scene;
     rd_track_counters *c = &th->counters;
     double t0, t1;
-    int hit_light;
-    if (!medium_span(s, r, &t0, &t1, &hit_light)) return behind(s, hit_light);
+    *T_out = 1.0;
+    if (!medium_span(s, r, t_end, &t0, &t1)) return v3(0, 0, 0);
     march_scratch ms;
     scratch_layout(ctx->state, &ms, th->scratch);
     rd_guide_pdf pdf;
-    int N = build_pdf(ctx, place, &ms, r, t0, t1, &pdf, c);
+    int N = build_pdf(ctx, place, &ms, region, r, t0, t1, &pdf, c);
     if (th->rays == 0 || (uint32_t)N < th->samples_min) th->samples_min = (uint32_t)N;
     if ((uint32_t)N > th->samples_max) th->samples_max = (uint32_t)N;
     th->rays++;
     th->ray_samples += (uint64_t)N;
     th->cells += (uint64_t)pdf.n;
-    rd_guide_pdf_sample_stratified(&pdf, N, rd_sampler_1d(smp), ms.t, ms.p);
-    pcg32 rng = rd_sampler_stream(smp);
+    rd_guide_pdf_sample_stratified(&pdf, N, u, ms.t, ms.p);
     vec3 L = v3(0, 0, 0);
     double T = 1.0, tp = t0;
     for (int n = 0; n < N && T != 0.0; n++) {
-        T *= rd_transmittance(s, r, tp, ms.t[n], &rng, c); /* T(0, t_n), one sweep */
+        T *= rd_transmittance(s, region, r, tp, ms.t[n], rng, c); /* T(0, t_n), one sweep */
         tp = ms.t[n];
         vec3 x = ray_at(r, ms.t[n]);
-        const rd_medium *m = rd_scene_medium_at(s, x);
+        const rd_medium *m = rd_scene_medium_at(s, region, x);
         if (!m || !(ms.p[n] > 0.0)) continue;
         double sigma_t = rd_medium_sigma_t(m, x);
         c->lookups++;
         if (sigma_t <= 0.0) continue;
-        vec3 S = source(ctx, m, x, r.d, sigma_t, &rng, c);
+        vec3 S = source(ctx, m, region, x, r.d, sigma_t, rng, c);
         L = v3_madd(L, S, T / (N * ms.p[n]));
     }
-    if (T != 0.0) T *= rd_transmittance(s, r, tp, t1, &rng, c);
-    return v3_madd(L, behind(s, hit_light), T);
+    if (T != 0.0) T *= rd_transmittance(s, region, r, tp, t1, rng, c);
+    *T_out = T;
+    return L;
+}
+
+/* Surface crossings of one camera chain that are not events (index-matched interfaces). */
+#define MAX_CROSSINGS 4096
+
+static vec3 march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp,
+                           placement place)
+{
+    const rd_scene *s = ctx->scene;
+    rd_track_counters *c = &th->counters;
+    double u = rd_sampler_1d(smp), T;
+    pcg32 rng = rd_sampler_stream(smp);
+    if (!s->geom) {
+        /* No shapes: one segment, up to the nearest sphere light. */
+        double t_light;
+        int hit_light = rd_scene_hit_light(s, r, INFINITY, -1, &t_light);
+        vec3 L = march_segment(ctx, th, r, s->fill_medium, t_light, place, u, &rng, &T);
+        return v3_madd(L, behind(s, hit_light), T);
+    }
+    /* With shapes: each straight segment of the camera's specular chain is marched in its
+     * region (docs/surfaces.md). At a dielectric one branch is followed, chosen with its
+     * Fresnel probability (rd_surface_event: weight 1, (n_i/n_t)^2 on refraction); an
+     * interface only changes the region; at a diffuse surface the marcher hands the path to
+     * `delta` (next-event estimation there and the path tracer's continuation). */
+    int region = rd_scene_region_at(s, r.o), crossings = 0;
+    vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
+    rd_hit h, prev;
+    const rd_hit *from = NULL;
+    for (int depth = 0;;) {
+        int got = rd_scene_intersect(s, r, INFINITY, from, &h);
+        vec3 Ls = march_segment(ctx, th, r, region, got ? h.t : INFINITY, place, u, &rng, &T);
+        L = v3_add(L, v3_mul(beta, Ls));
+        beta = v3_scale(beta, T);
+        if (!got || h.light >= 0) {
+            L = v3_add(L, v3_mul(beta, behind(s, got ? h.light : -1)));
+            break;
+        }
+        if (!(T != 0.0)) break;
+        u = pcg32_uniform(&rng); /* the next segment's stratification offset */
+        prev = h;
+        from = &prev;
+        if (s->shapes[h.shape].material.kind == RD_MAT_INTERFACE) {
+            if (++crossings > MAX_CROSSINGS) break;
+            region = prev.medium_to;
+            r = rd_hit_spawn(&prev, r.d);
+            continue;
+        }
+        if (++depth > s->settings.max_depth) break;
+        rd_surface_step st = {.r = r, .beta = beta, .region = region, .camera_chain = 1};
+        int go = rd_surface_event(s, &prev, depth, &st, &rng, c);
+        L = v3_add(L, st.L);
+        if (!go) break;
+        if (!st.camera_chain) {
+            /* diffuse: the rest of the path is delta's */
+            L = v3_add(L, v3_mul(st.beta, rd_delta_continue(s, st.r, st.region, st.pdf, depth, 0, &rng, c)));
+            break;
+        }
+        r = st.r, beta = st.beta, region = st.region;
+    }
+    return L;
 }
 
 static vec3 radiance_guided(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
@@ -373,12 +450,12 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
         for (int x = 2; x < s->camera.width; x += 4) {
             ray3 r = rd_camera_ray(&s->camera, x + 0.5, y + 0.5);
             double t0, t1;
-            int hit;
-            if (!medium_span(s, r, &t0, &t1, &hit)) continue;
+            int hit, region;
+            if (!first_segment(s, r, &region, &t0, &t1, &hit)) continue;
             rd_guide_pdf pdf;
             rd_guide_pdf_init(&pdf, ms.seg, mst->seg_cap);
             rd_track_counters c = {0};
-            build_guided(ctx, &ms, r, t0, t1, &pdf, &c);
+            build_guided(ctx, &ms, region, r, t0, t1, &pdf, &c);
             sum += pdf.I;
             n++;
         }
@@ -493,8 +570,9 @@ rd_status rd_march_explain(const rd_render_ctx *ctx, ray3 r, int n, uint64_t see
     const march_state *st = ctx->state;
     e->origin[0] = r.o.x, e->origin[1] = r.o.y, e->origin[2] = r.o.z;
     e->dir[0] = r.d.x, e->dir[1] = r.d.y, e->dir[2] = r.d.z;
-    int hit_light;
-    if (!medium_span(s, r, &e->t0, &e->t1, &hit_light)) return RD_OK;
+    int hit_light, region;
+    /* The camera ray's first straight segment (up to the first surface or light). */
+    if (!first_segment(s, r, &region, &e->t0, &e->t1, &hit_light)) return RD_OK;
     e->hits_media = 1;
     e->n = n;
     int nmax = st->n_max;
@@ -526,7 +604,7 @@ rd_status rd_march_explain(const rd_render_ctx *ctx, ray3 r, int n, uint64_t see
     for (int i = 0; i < n; i++) {
         double t = e->t0 + (i + 0.5) * h;
         vec3 x = ray_at(r, t);
-        const rd_medium *m = rd_scene_medium_at(s, x);
+        const rd_medium *m = rd_scene_medium_at(s, region, x);
         double sig = m ? rd_medium_sigma_t(m, x) : 0.0;
         double T = exp(-(tau + 0.5 * sig * h));
         tau += sig * h;
@@ -534,7 +612,7 @@ rd_status rd_march_explain(const rd_render_ctx *ctx, ray3 r, int n, uint64_t see
         if (m && sig > 0.0) {
             int draws = s->march.ls == RD_LS_PHOTONS ? 1 : 16;
             for (int k = 0; k < draws; k++)
-                S = v3_add(S, source(ctx, m, x, r.d, sig, &rng, &c));
+                S = v3_add(S, source(ctx, m, region, x, r.d, sig, &rng, &c));
             S = v3_scale(S, 1.0 / draws);
         }
         e->t[i] = t;
@@ -548,7 +626,7 @@ rd_status rd_march_explain(const rd_render_ctx *ctx, ray3 r, int n, uint64_t see
     const placement places[RD_EXPLAIN_PLACEMENTS] = {PLACE_GUIDED, PLACE_TRANSMITTANCE, PLACE_UNIFORM};
     for (int k = 0; k < RD_EXPLAIN_PLACEMENTS; k++) {
         rd_guide_pdf pdf;
-        int N = build_pdf(ctx, places[k], &ms, r, e->t0, e->t1, &pdf, &c);
+        int N = build_pdf(ctx, places[k], &ms, region, r, e->t0, e->t1, &pdf, &c);
         if (k == RD_EXPLAIN_GUIDED) e->I_ray = pdf.I;
         for (int i = 0; i < n; i++) e->p[k][i] = rd_guide_pdf_eval(&pdf, e->t[i]);
         e->n_samples[k] = N;

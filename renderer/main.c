@@ -509,7 +509,6 @@ static int cmd_render(int argc, char **argv)
     char err[RD_ERRLEN];
     rd_scene *scene;
     rd_status st = rd_scene_load(&scene, a.scene, a.ov, a.nov, err, sizeof err);
-    if (st == RD_OK && (st = rd_scene_check_renderable(scene, err, sizeof err)) != RD_OK) rd_scene_free(scene);
     if (st) return report_error(st, err);
     rd_image ref = {0, 0, NULL, 0};
     if (refpath && (st = rd_image_read(refpath, &ref, err, sizeof err)) != RD_OK) {
@@ -671,8 +670,12 @@ static void print_bake_stats(const rd_bake_stats *b)
     if (!b->loaded) {
         printf("tracing    %.3f s, %.0f photons/s emitted, %.2f tentative collisions per photon\n", b->trace_seconds,
                b->trace_seconds > 0 ? b->emitted / b->trace_seconds : 0.0, b->collisions_per_photon);
-        printf("power      emitted %.4g W = absorbed %.4g + escaped %.4g + cut at max depth %.4g (luminance)\n",
-               b->power_emitted, b->power_absorbed, b->power_escaped, b->power_cut);
+        if (b->power_absorbed_surfaces > 0.0)
+            printf("power      emitted %.4g W = absorbed %.4g + by surfaces %.4g + escaped %.4g + cut at max depth %.4g (luminance)\n",
+                   b->power_emitted, b->power_absorbed, b->power_absorbed_surfaces, b->power_escaped, b->power_cut);
+        else
+            printf("power      emitted %.4g W = absorbed %.4g + escaped %.4g + cut at max depth %.4g (luminance)\n",
+                   b->power_emitted, b->power_absorbed, b->power_escaped, b->power_cut);
     }
     printf("index      FLANN kd-tree built in %.3f s\n", b->index_seconds);
 }
@@ -765,7 +768,6 @@ static int cmd_bake(int argc, char **argv)
     char err[RD_ERRLEN];
     rd_scene *s;
     rd_status st = rd_scene_load(&s, a.scene, a.ov, a.nov, err, sizeof err);
-    if (st == RD_OK && (st = rd_scene_check_renderable(s, err, sizeof err)) != RD_OK) rd_scene_free(s);
     if (st) return report_error(st, err);
     rd_baked *b = NULL;
     int code = 0;
@@ -880,7 +882,6 @@ static int cmd_explain(int argc, char **argv)
     char err[RD_ERRLEN];
     rd_scene *scene;
     rd_status st = rd_scene_load(&scene, a.scene, a.ov, a.nov, err, sizeof err);
-    if (st == RD_OK && (st = rd_scene_check_renderable(scene, err, sizeof err)) != RD_OK) rd_scene_free(scene);
     if (st) return report_error(st, err);
     int code = 0;
     rd_baked *baked = NULL;
@@ -1066,7 +1067,6 @@ static int cmd_compare(int argc, char **argv)
     char err[RD_ERRLEN];
     rd_scene *scene;
     rd_status st = rd_scene_load(&scene, ca.a.scene, ca.a.ov, ca.a.nov, err, sizeof err);
-    if (st == RD_OK && (st = rd_scene_check_renderable(scene, err, sizeof err)) != RD_OK) rd_scene_free(scene);
     if (st) return report_error(st, err);
     ca.o.seed = ca.seed >= 0 ? (uint64_t)ca.seed : rd_scene_seed(scene);
     ca.o.cancel = &interrupted;

@@ -13,6 +13,7 @@
  * Determinism: photon i draws from the PCG32 stream (i, seed); photons are traced in blocks
  * whose results are concatenated in block order, so the map is the same whatever the thread
  * count. */
+#include "rd_geom.h"
 #include "rd_photons.h"
 
 #include <omp.h>
@@ -28,7 +29,7 @@ typedef struct {
     size_t n_ph, cap_ph;
     pm_segment *seg;
     size_t n_seg, cap_seg;
-    double emitted[3], absorbed[3], escaped[3], carried[3];
+    double emitted[3], absorbed[3], escaped[3], carried[3], absorbed_surf[3];
     int oom;
 } block_out;
 
@@ -159,12 +160,17 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
         if (!rd_light_sample_emission(s, &s->lights[lo], &rng, &r, &beta)) continue;
         beta = v3_scale(beta, inv_n / p_light); /* photon power: Phi_l / (N p_l) */
         acc(b->emitted, beta);
+        /* The region the photon starts in (rd_internal.h "Surfaces in the transport"). */
+        int region = rd_scene_region_at(s, r.o), crossings = 0;
+        rd_hit h, prev;
+        const rd_hit *from = NULL;
         for (int depth = 1;; depth++) {
             /* Sphere lights are opaque to camera paths and shadow rays, so to photons too: a
-             * photon that reaches one ends there (counted as escaped). */
-            double t_light;
-            rd_scene_hit_light(s, r, INFINITY, -1, &t_light);
-            rd_collision col = rd_sample_free_path(s, r, t_light, &rng, tc);
+             * photon that reaches one ends there (counted as escaped). A surface ends the
+             * flight too. */
+            int got = rd_scene_intersect(s, r, INFINITY, from, &h);
+            double t_light = got ? h.t : INFINITY;
+            rd_collision col = rd_sample_free_path(s, region, r, t_light, &rng, tc);
             /* The first flight carries direct light: store it only with store_direct, as for
              * the photons, so k-NN and track-length bakes see the same light. */
             if (o->segments && (depth > 1 || o->store_direct))
@@ -173,7 +179,44 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
              * analog trackers return 1. (Segments keep the flowing power before it: the
              * track-length estimate assumes an analog tracker, the default.) */
             if (col.weight != 1.0) beta = v3_scale(beta, col.weight);
+            if (!col.hit && got && h.shape >= 0) {
+                /* At a surface, in IMPORTANCE mode (rd_geom.h): a refraction carries the
+                 * power on unscaled, the Fresnel choice splitting it between the two
+                 * branches, so the photon map holds the volume caustics. An interface only
+                 * changes the region. Nothing is stored on surfaces. */
+                const rd_material *mat = &s->shapes[h.shape].material;
+                prev = h;
+                from = &prev;
+                if (mat->kind == RD_MAT_INTERFACE) {
+                    if (++crossings > 4096) break;
+                    region = prev.medium_to;
+                    r = rd_hit_spawn(&prev, r.d);
+                    depth--; /* not an event */
+                    continue;
+                }
+                if (depth >= o->max_depth) { acc(b->carried, beta); break; }
+                double ue = pcg32_uniform(&rng), u1 = pcg32_uniform(&rng), u2 = pcg32_uniform(&rng);
+                rd_surface_sample ss;
+                if (!rd_material_sample(mat, r.d, prev.ng, prev.ns, RD_TRANSPORT_IMPORTANCE, ue, u1, u2, &ss)) {
+                    acc(b->absorbed_surf, beta); /* nothing leaves: the surface keeps it */
+                    break;
+                }
+                vec3 out = v3_mul(beta, ss.weight);
+                acc(b->absorbed_surf, v3_sub(beta, out)); /* diffuse: (1 - albedo) x incident */
+                /* Russian roulette on the weight (the albedo at a diffuse surface; 1 for glass) */
+                double p = fmin(1.0, v3_maxc(ss.weight));
+                if (p <= 0.0) break;
+                if (p < 1.0) {
+                    if (pcg32_uniform(&rng) >= p) break;
+                    out = v3_scale(out, 1.0 / p);
+                }
+                beta = out;
+                region = ss.crossed ? prev.medium_to : prev.medium_from;
+                r = rd_hit_spawn(&prev, ss.d);
+                continue;
+            }
             if (!col.hit) { acc(b->escaped, beta); break; }
+            from = NULL;
             const rd_medium *m = col.medium;
             vec3 x = ray_at(r, col.t);
             vec3 scattered = v3_mul(beta, m->albedo);
@@ -276,6 +319,7 @@ rd_status rd_trace_photons(const rd_scene *s, const rd_photon_opts *o, pm_map *m
             st->power_absorbed[c] += b->absorbed[c];
             st->power_escaped[c] += b->escaped[c];
             st->power_carried[c] += b->carried[c];
+            st->power_absorbed_surfaces[c] += b->absorbed_surf[c];
         }
         st->stored += b->n_ph;
         st->segments += b->n_seg;

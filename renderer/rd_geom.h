@@ -189,7 +189,7 @@ int rd_scene_medium_bound(const rd_scene *s, int i);
 typedef struct rd_geom rd_geom; /* opaque */
 
 /* What a ray met. Exactly one of shape / light is >= 0 after a hit. */
-typedef struct {
+struct rd_hit {
     double t;            /* distance along the (unit-direction) ray, in double precision:
                           * recomputed from the float geometry Embree found (below) */
     vec3 p;              /* the hit point o + t d */
@@ -205,7 +205,7 @@ typedef struct {
     int medium_from;     /* medium on the side the ray arrived from (index or -1) */
     int medium_to;       /* medium on the other side (index or -1); equal for lights */
     double eps;          /* the spawn offset for this hit (rd_hit_spawn) */
-} rd_hit;
+};
 
 /* Build the Embree scene of s's shapes (one triangle geometry each) and sphere lights (one
  * user geometry each, intersected in double precision by rd_light_hit, so lights are hit

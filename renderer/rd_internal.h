@@ -119,6 +119,9 @@ typedef struct {
     double sigma_maj;          /* global majorant = density_max * sigma_t_scale */
     double density_min;        /* conservative lower bound of density over the bounds */
     struct rd_majorant *majorant; /* super-voxel grid / octree (rd_freepath.h); owned, may be NULL */
+    int bound;                 /* 1: named by a shape's inside/outside or the scene-wide "medium"
+                                * (rd_scene_medium_bound): it exists where the surfaces say; 0: a
+                                * box medium, filling its bounds in the open region */
 } rd_medium;
 
 /* Improved Perlin noise pieces (Perlin 2002), shared by the density (medium.c) and its bounds
@@ -315,7 +318,29 @@ struct rd_scene {
     int n_shapes;
     int fill_medium;      /* scene key "medium": index of the medium that fills everything
                            * outside every shape and box medium, or -1 (vacuum) */
+    struct rd_geom *geom; /* the Embree scene of shapes and sphere lights (rd_geom.h), built by
+                           * the loader when there are shapes; NULL without (then sphere lights
+                           * are hit by rd_scene_hit_light, as before shapes existed) */
 };
+
+/* ---- Surfaces in the transport (issue 14; docs/surfaces.md) --------------------------------- *
+ * A ray travels in a REGION, named by the medium on its side of the surfaces: a medium index,
+ * or -1 for vacuum (pbrt-v4's MediumInterface: each surface says which medium lies on each
+ * side, and a path crossing it takes the other side's). The region s->fill_medium (the
+ * scene-wide medium; -1 when the scene has none) is the OPEN region: there the box media (the
+ * media no shape names) fill their bounds and the scene-wide medium fills the rest of its own
+ * bounds. Any other region holds its one bound medium, whose density is 0 outside that medium's
+ * bounds. A scene without shapes is one open region, so every call below with
+ * region = s->fill_medium behaves as before shapes existed. */
+typedef struct rd_hit rd_hit; /* rd_geom.h */
+/* The region containing point x: one ray query from x (the first shape it meets says which
+ * medium lies on the side it arrives from); s->fill_medium when no shape is met. */
+int rd_scene_region_at(const rd_scene *s, vec3 x);
+/* The nearest surface or sphere light r meets with t in (0, tmax) (`from`: the hit r leaves
+ * from, or NULL; rd_geom_intersect). Without shapes: the sphere lights by rd_scene_hit_light
+ * (h->shape = -1, h->light, h->t, h->p; the rest zero). Returns 1 with *h filled, else 0. The
+ * one answer to "what does this ray meet first". */
+int rd_scene_intersect(const rd_scene *s, ray3 r, double tmax, const rd_hit *from, rd_hit *h);
 
 /* The nearest sphere light that r hits before tmax (skipping light `skip`, -1 for none), or -1;
  * *t_hit (may be NULL) gets its distance. The one answer to "does this ray meet a light". */
@@ -345,20 +370,42 @@ typedef struct {
 #include "rd_freepath.h"
 
 
-/* Free-path sampling along r through every medium it crosses, in order, from t = 0 up to tmax,
- * with the tracker of s->settings.tracker (default: delta tracking over each medium's majorant
- * structure; "woodcock" uses the global majorant). The caller multiplies its path weight by
- * the returned weight (1 except for the weighted trackers). */
-rd_collision rd_sample_free_path(const rd_scene *s, ray3 r, double tmax, pcg32 *rng,
+/* The media of `region` r crosses within [tmin, tmax]: disjoint intervals sorted by entry
+ * distance, each of one medium (media with sigma_maj = 0 left out). At most RD_MAX_INTERVALS
+ * (64 box media and the scene-wide medium in the gaps between them). Returns their number. */
+typedef struct { double t0, t1; const rd_medium *m; } rd_interval;
+#define RD_MAX_INTERVALS 130
+int rd_media_intervals(const rd_scene *s, int region, ray3 r, double tmin, double tmax,
+                       rd_interval *out);
+
+/* Free-path sampling along r through every medium of `region` it crosses, in order, from t = 0
+ * up to tmax (the next surface: the caller clips to it), with the tracker of
+ * s->settings.tracker (default: delta tracking over each medium's majorant structure;
+ * "woodcock" uses the global majorant). The caller multiplies its path weight by the returned
+ * weight (1 except for the weighted trackers). */
+rd_collision rd_sample_free_path(const rd_scene *s, int region, ray3 r, double tmax, pcg32 *rng,
                                  rd_track_counters *c);
 
-/* Transmittance estimate along r over [t0, t1] with the estimator of
+/* Transmittance estimate along r over [t0, t1] within `region` (no surface in between: the
+ * caller clips; rd_shadow_transmittance crosses surfaces) with the estimator of
  * s->settings.transmittance (THEORY.md §2, docs/free-path.md). */
-double rd_transmittance(const rd_scene *s, ray3 r, double t0, double t1, pcg32 *rng,
+double rd_transmittance(const rd_scene *s, int region, ray3 r, double t0, double t1, pcg32 *rng,
                         rd_track_counters *c);
 
-/* The medium whose bounds contain x (media do not overlap), or NULL. */
-const rd_medium *rd_scene_medium_at(const rd_scene *s, vec3 x);
+/* Transmittance along a shadow ray from its origin in `region` to the point at distance
+ * `dist` on light `light` (-1: a point, spot, directional or environment light): the product of
+ * the transmittance estimates of every medium interval on the way, crossing `interface`
+ * surfaces (the region changes), and 0 when a dielectric or diffuse surface or another sphere
+ * light lies in between (a light behind glass is reached only by paths that refract: no
+ * shadow ray connects through a dielectric). `from`: the surface the ray leaves (NULL for a
+ * medium vertex). */
+double rd_shadow_transmittance(const rd_scene *s, int region, ray3 r, double dist, int light,
+                               const rd_hit *from, pcg32 *rng, rd_track_counters *c);
+/* The medium of `region` at x (the bound medium, or in the open region the box medium whose
+ * bounds contain x, else the scene-wide medium), or NULL where there is none. */
+const rd_medium *rd_scene_medium_at(const rd_scene *s, int region, vec3 x);
+/* The medium at x, wherever x is: rd_scene_medium_at(s, rd_scene_region_at(s, x), x). */
+const rd_medium *rd_scene_medium_at_point(const rd_scene *s, vec3 x);
 
 /* Scene radius: half the diagonal of the media bounds, at least 1e-3. */
 double rd_scene_radius(const rd_scene *s);
@@ -366,7 +413,8 @@ double rd_scene_radius(const rd_scene *s);
 /* Next-event estimation at a scattering point x of a medium with HG asymmetry g, for a path
  * travelling along d: one light chosen by power (s->light_sampler), one sample of it, phase,
  * unbiased shadow transmittance, MIS against phase sampling. Multiply by the path weight. */
-vec3 rd_nee(const rd_scene *s, vec3 x, vec3 d, double g, pcg32 *rng, rd_track_counters *c);
+vec3 rd_nee(const rd_scene *s, int region, vec3 x, vec3 d, double g, pcg32 *rng,
+            rd_track_counters *c);
 
 /* How a path continues from a scattering vertex reached along d: with probability a a von
  * Mises-Fisher lobe (mean mu, concentration kappa: the guide's incident light), else the HG
@@ -384,14 +432,21 @@ double rd_dir_mix_pdf(const rd_dir_mix *mx, double g, vec3 d, vec3 wo);
 vec3 rd_dir_mix_sample(const rd_dir_mix *mx, double g, vec3 d, pcg32 *rng, double *pdf);
 /* rd_nee with the MIS weight taken against the direction mixture mx (NULL: phase sampling,
  * which is rd_nee). */
-vec3 rd_nee_mix(const rd_scene *s, vec3 x, vec3 d, double g, const rd_dir_mix *mx, pcg32 *rng,
-                rd_track_counters *c);
+vec3 rd_nee_mix(const rd_scene *s, int region, vec3 x, vec3 d, double g, const rd_dir_mix *mx,
+                pcg32 *rng, rd_track_counters *c);
+/* Next-event estimation at a diffuse surface hit h reached along d: one light by power, the
+ * BSDF (rd_material_eval) times the cosine at the light's direction, the shadow ray from the
+ * surface (rd_shadow_transmittance, in the region on d's side), MIS (power heuristic) against
+ * BSDF sampling. Multiply by the path weight. */
+vec3 rd_nee_surface(const rd_scene *s, const rd_hit *h, vec3 d, pcg32 *rng,
+                    rd_track_counters *c);
 
 /* Direct light at x with no path to share it with (the ray marchers): one sample of every
  * light, summed, no MIS weight (nothing else estimates the direct part, so a weight < 1 would
  * lose light from sphere and environment lights). A light that gives nothing at x (outside a
  * spot's cone, behind a finite beam) costs no shadow ray. */
-vec3 rd_nee_all(const rd_scene *s, vec3 x, vec3 d, double g, pcg32 *rng, rd_track_counters *c);
+vec3 rd_nee_all(const rd_scene *s, int region, vec3 x, vec3 d, double g, pcg32 *rng,
+                rd_track_counters *c);
 
 /* Radiance arriving at the camera along r with the `delta` method: unbiased volumetric path
  * tracing (delta tracking, next-event estimation with ratio tracking, HG sampling, Russian
@@ -417,15 +472,23 @@ typedef struct {
 } rd_flight;
 typedef struct {
     ray3 r;                   /* the flight's ray (r.d unit) */
-    double t_light;           /* distance to the nearest sphere light, or INFINITY */
-    int hit_light;            /* that light, or -1 */
-    double phase_pdf;         /* pdf of r.d from phase sampling; 0 for the camera ray */
+    double t_light;           /* distance to what the ray meets first (a sphere light or a
+                               * surface: rd_scene_intersect), or INFINITY */
+    int hit_light;            /* that sphere light, or -1 */
+    int hit_shape;            /* that shape, or -1: a pass-through then reaches a surface and
+                               * the path loop goes on from it (rd_flight_behind gives 0) */
+    int region;               /* the region the flight travels in (rd_scene_region_at) */
+    double phase_pdf;         /* pdf of r.d from phase or diffuse-BSDF sampling; 0 for the
+                               * camera ray and after a specular surface event (no MIS) */
     int depth;                /* scattering events before this flight (0: the camera ray) */
+    int camera_chain;         /* 1: the camera ray, or it followed by specular surface events
+                               * only (an escape then sees the background) */
 } rd_flight_in;
 /* A scattering vertex, as the path loop offers it to a vertex policy. */
 typedef struct {
     vec3 x, d;                /* the vertex and the direction the path arrived along */
     const rd_medium *medium;
+    int region;               /* the region of the vertex */
     int depth;                /* scattering events up to and including this one (>= 1) */
     vec3 beta;                /* path throughput up to here, flight weight included */
 } rd_vertex_in;
@@ -455,12 +518,33 @@ typedef struct rd_flight_sampler {
  * the sampler's vertex policy, with splitting). */
 vec3 rd_path_radiance(const rd_scene *s, ray3 r, const rd_flight_sampler *fs, pcg32 *rng,
                       rd_track_counters *c);
+/* One scattering event at surface hit h (not an interface) of a path arriving along st->r.d
+ * with throughput st->beta in region st->region, at scattering event `depth` (for the
+ * roulette): next-event estimation at a diffuse surface (into st->L, throughput included),
+ * Russian roulette, and the material's sampled continuation (RADIANCE mode, rd_geom.h). On
+ * return 1, st holds the next ray (spawned off the surface), throughput, region, pdf (0 after
+ * a specular event: no MIS) and camera_chain; 0: the path ends (st->L still counts). The path
+ * loop and the marcher share it. */
+typedef struct {
+    ray3 r;
+    vec3 beta, L;
+    int region;
+    double pdf;
+    int camera_chain;
+} rd_surface_step;
+int rd_surface_event(const rd_scene *s, const rd_hit *h, int depth, rd_surface_step *st,
+                     pcg32 *rng, rd_track_counters *c);
+/* `delta`'s path from a flight along r on (in `region`; r.d drawn with pdf `pdf`, 0 for none;
+ * `depth` scattering events before it): the radiance estimate of L(r.o, -r.d). */
+vec3 rd_delta_continue(const rd_scene *s, ray3 r, int region, double pdf, int depth,
+                       int camera_chain, pcg32 *rng, rd_track_counters *c);
 /* Delta tracking's flight (rd_sample_free_path with the scene's tracker). */
 rd_flight rd_flight_delta(const rd_scene *s, const rd_flight_in *in, pcg32 *rng,
                           rd_track_counters *c);
 /* Radiance a pass-through receives: the hit sphere light or the environment, MIS-weighted
  * against the light sampling of rd_nee when in->phase_pdf > 0, plus the background for a
- * camera ray that hits no light. Deterministic (no random numbers). */
+ * camera chain that hits no light; 0 when the flight ends at a surface (in->hit_shape >= 0:
+ * the loop continues from it). Deterministic (no random numbers). */
 vec3 rd_flight_behind(const rd_scene *s, const rd_flight_in *in);
 
 /* A growing text buffer (text.c): rd_text_printf appends; on a failed allocation it sets oom

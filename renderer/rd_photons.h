@@ -24,10 +24,12 @@ typedef struct {
     double seconds;          /* tracing wall time */
     size_t emitted, stored, segments;
     uint64_t collisions, lookups;
-    /* Power balance [W, RGB]: emitted = absorbed + escaped + carried (by the max_depth cut)
-     * in expectation; absorbed is the expected absorption (1 - albedo) x incident power at
-     * every collision, so the balance is a check of the Russian roulette. */
+    /* Power balance [W, RGB]: emitted = absorbed + absorbed_surfaces + escaped + carried (by
+     * the max_depth cut) in expectation; absorbed is the expected absorption (1 - albedo) x
+     * incident power at every collision in a medium, absorbed_surfaces the same at diffuse
+     * surfaces, so the balance is a check of the Russian roulette. */
     double power_emitted[3], power_absorbed[3], power_escaped[3], power_carried[3];
+    double power_absorbed_surfaces[3];
 } rd_photon_stats;
 
 /* Sample one photon leaving light l (THEORY.md §3): its ray r (origin, unit direction) and

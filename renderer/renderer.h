@@ -52,11 +52,6 @@ void rd_scene_free(rd_scene *scene);
 /* Human-readable description: media, bounds, density range, lights, memory. */
 void rd_scene_info(const rd_scene *scene, FILE *out);
 
-/* RD_OK when the render methods can render the scene; RD_ERR_SCENE with one line ("SCENE:
- * shapes: ...") when it has shapes or a scene-wide medium, which the transport does not use
- * yet (issue 14, docs/surfaces.md): refused so that nobody gets a silently wrong image.
- * render, compare, bake and explain call it after loading. */
-rd_status rd_scene_check_renderable(const rd_scene *scene, char *err, size_t errlen);
 
 /* Render settings as loaded (after overrides). */
 int rd_scene_width(const rd_scene *scene);
@@ -245,6 +240,7 @@ typedef struct {
     double collisions_per_photon;
     size_t map_bytes;          /* photons, segments and index */
     double power_emitted, power_absorbed, power_escaped, power_cut; /* luminance, W */
+    double power_absorbed_surfaces; /* luminance, W: absorbed by diffuse surfaces */
     /* guide grid (has_guide = 0 with no_guide) */
     int has_guide;
     int adaptive, track;       /* uniform/adaptive grid, k-NN/track-length bake */

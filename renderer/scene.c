@@ -985,8 +985,11 @@ int rd_scene_medium_bound(const rd_scene *s, int i)
     return 0;
 }
 
-/* A box medium (not bound to surfaces) fills its bounds whatever the shapes say, so no shape
- * may reach into it: its bounds must not overlap any shape's bounding box. */
+/* A box medium (not bound to surfaces) fills its bounds in the open region (the region of the
+ * scene-wide medium: rd_internal.h "Surfaces in the transport"), so no shape that encloses
+ * another region may reach into it: its bounds must not overlap the bounding box of a shape
+ * whose inside is not the scene-wide medium. (A room whose walls enclose the scene-wide medium
+ * may hold box media.) */
 static rd_status check_boxes_clear_of_shapes(vctx *c, const rd_scene *s)
 {
     for (int i = 0; i < s->n_media; i++) {
@@ -994,26 +997,17 @@ static rd_status check_boxes_clear_of_shapes(vctx *c, const rd_scene *s)
         const rd_medium *a = &s->media[i];
         for (int k = 0; k < s->n_shapes; k++) {
             const rd_mesh *m = &s->shapes[k].mesh;
+            if (s->shapes[k].inside == s->fill_medium) continue;
             if (a->bmin.x < m->bmax.x && m->bmin.x < a->bmax.x && a->bmin.y < m->bmax.y &&
                 m->bmin.y < a->bmax.y && a->bmin.z < m->bmax.z && m->bmin.z < a->bmax.z) {
                 char p[64];
                 snprintf(p, sizeof p, "media[%d].bounds", i);
-                return fail(c, p, "overlaps the bounding box of shapes[%d] (\"%s\"): a box medium must lie clear of every shape; "
-                                  "make it a shape's inside (an \"interface\" shape around it) instead", k, s->shapes[k].name);
+                return fail(c, p, "overlaps the bounding box of shapes[%d] (\"%s\"): a box medium must lie clear of every shape "
+                                  "that encloses a region other than the scene-wide medium's; make it a shape's inside (an \"interface\" shape around it) instead", k, s->shapes[k].name);
             }
         }
     }
     return RD_OK;
-}
-
-rd_status rd_scene_check_renderable(const rd_scene *s, char *err, size_t errlen)
-{
-    if (s->n_shapes == 0 && s->fill_medium < 0) return RD_OK;
-    if (err && errlen)
-        snprintf(err, errlen, "%s: %s: the render methods do not use shapes or a scene-wide medium yet (issue 14; "
-                              "docs/scene-format.md \"Shapes\"): refusing rather than rendering a wrong image",
-                 s->path, s->n_shapes ? "shapes" : "medium");
-    return RD_ERR_SCENE;
 }
 
 /* ---- --set overrides ----------------------------------------------------------------------- */
@@ -1130,6 +1124,7 @@ void rd_scene_free(rd_scene *s)
     rd_light_sampler_free(&s->light_sampler);
     free(s->sphere_lights);
     free(s->description);
+    rd_geom_free(s->geom);
     for (int i = 0; i < s->n_shapes; i++) rd_mesh_free(&s->shapes[i].mesh);
     free(s->shapes);
     free(s);
@@ -1161,6 +1156,7 @@ static rd_status validate(vctx *c, const cJSON *root, rd_scene *s)
         if (st) return st;
     }
     TRY(parse_surfaces(c, root, s));
+    for (int i = 0; i < nm; i++) s->media[i].bound = rd_scene_medium_bound(s, i);
     /* Media must not overlap: the trackers visit them one interval at a time. (Media bound to
      * shapes are exempt: the surfaces say where they are; box media stay clear of shapes.) */
     TRY(check_boxes_clear_of_shapes(c, s));
@@ -1182,6 +1178,14 @@ static rd_status validate(vctx *c, const cJSON *root, rd_scene *s)
         s->bmax = v3(fmax(s->bmax.x, s->media[i].bmax.x), fmax(s->bmax.y, s->media[i].bmax.y), fmax(s->bmax.z, s->media[i].bmax.z));
     }
     if (nm == 0) s->bmin = s->bmax = v3(0, 0, 0);
+    /* Shapes bound the scene too (a surface refracts light into the media): the photon emission
+     * disc and a directional light's power cover them. */
+    for (int k = 0; k < s->n_shapes; k++) {
+        const rd_mesh *m = &s->shapes[k].mesh;
+        if (nm == 0 && k == 0) s->bmin = m->bmin, s->bmax = m->bmax;
+        s->bmin = v3(fmin(s->bmin.x, m->bmin.x), fmin(s->bmin.y, m->bmin.y), fmin(s->bmin.z, m->bmin.z));
+        s->bmax = v3(fmax(s->bmax.x, m->bmax.x), fmax(s->bmax.y, m->bmax.y), fmax(s->bmax.z, m->bmax.z));
+    }
 
     const cJSON *lights = cJSON_GetObjectItemCaseSensitive(root, "lights");
     if (lights) {
@@ -1261,6 +1265,13 @@ static uint64_t bake_key(const cJSON *root, const rd_scene *s)
             h = fnv1a(h, b->voxels, b->n_bricks * RD_BRICK * RD_BRICK * RD_BRICK * sizeof *b->voxels);
         }
     }
+    /* The meshes as loaded and placed (a mesh file replaced on disk changes the bake). */
+    for (int k = 0; k < s->n_shapes; k++) {
+        const rd_mesh *m = &s->shapes[k].mesh;
+        h = fnv1a(h, m->positions, 3 * m->n_vertices * sizeof *m->positions);
+        h = fnv1a(h, m->indices, 3 * m->n_triangles * sizeof *m->indices);
+        if (m->normals) h = fnv1a(h, m->normals, 3 * m->n_vertices * sizeof *m->normals);
+    }
     return h;
 }
 
@@ -1302,6 +1313,17 @@ rd_status rd_scene_load(rd_scene **out, const char *path, const rd_override *ov,
     s->fill_medium = -1;
     st = validate(&c, root, s);
     if (st == RD_OK) s->bake_key = bake_key(root, s);
+    if (st == RD_OK && s->n_shapes > 0) {
+        /* One Embree scene for the shapes and the sphere lights (rd_scene_intersect). */
+        char gerr[RD_ERRLEN];
+        s->geom = rd_geom_build(s, gerr, sizeof gerr);
+        if (!s->geom) {
+            snprintf(err, errlen, "%s: shapes: %s", path, gerr);
+            cJSON_Delete(root);
+            rd_scene_free(s);
+            return RD_ERR_INTERNAL;
+        }
+    }
     cJSON_Delete(root);
     if (st) {
         if (st == RD_ERR_NOMEM) snprintf(err, errlen, "%s: out of memory", path);

@@ -224,6 +224,6 @@ Test(freepath, settings_select_the_tracker)
     pcg32 rng = pcg32_seed(1, 1, 1);
     rd_track_counters c = {0};
     ray3 r = {v3(-3, 0, 0), v3(1, 0, 0)};
-    cr_expect(fabs(rd_transmittance(s, r, 0.0, INFINITY, &rng, &c) - exp(-2.0)) < 1e-12, "exact transmittance");
+    cr_expect(fabs(rd_transmittance(s, -1, r, 0.0, INFINITY, &rng, &c) - exp(-2.0)) < 1e-12, "exact transmittance");
     rd_scene_free(s);
 }

@@ -232,6 +232,7 @@ static void chi_square_flights(const char *extra, uint64_t seed)
     enum { K = 64, N = 200000 };
     for (int k = 0; k < 2; k++) {
         rd_flight_in in = {.r = rays[k], .t_light = INFINITY, .hit_light = -1,
+                           .hit_shape = -1, .region = -1, .camera_chain = k == 0,
                            .phase_pdf = phase_pdf[k], .depth = k};
         double t0, t1, P_pass;
         cr_assert(rd_box_intersect(s->bmin, s->bmax, in.r, 0.0, INFINITY, &t0, &t1));
@@ -388,7 +389,7 @@ Test(guided_unbiased, guide_lobe_points_at_the_light, .timeout = 300)
                          v3(0.1, -0.8, -0.3), v3(0.2, 0.1, 0.8), v3(-0.5, -0.5, -0.7)};
     pcg32 rng = pcg32_seed(5, 6, 7);
     for (int i = 0; i < 6; i++) {
-        rd_vertex_in v = {.x = pts[i], .d = v3_norm(v3_sub(light, pts[i])), .medium = &s->media[0],
+        rd_vertex_in v = {.x = pts[i], .d = v3_norm(v3_sub(light, pts[i])), .medium = &s->media[0], .region = -1,
                           .depth = 1, .beta = v3(1, 1, 1)};
         rd_vertex_out o;
         rd_gu_vertex(&ctx, &v, 0.0, &rng, &o);
@@ -399,7 +400,7 @@ Test(guided_unbiased, guide_lobe_points_at_the_light, .timeout = 300)
         cr_log_info("lobe %d: cos to light %.4f, kappa %.2f", i, c, o.mix.kappa);
     }
     /* Switched off, or in a near-isotropic medium, there is no lobe. */
-    rd_vertex_in v = {.x = pts[0], .d = v3(0, 0, -1), .medium = &s->media[0], .depth = 1, .beta = v3(1, 1, 1)};
+    rd_vertex_in v = {.x = pts[0], .d = v3(0, 0, -1), .medium = &s->media[0], .region = -1, .depth = 1, .beta = v3(1, 1, 1)};
     rd_vertex_out o;
     s->guide.directions = 0;
     rd_gu_vertex(&ctx, &v, 0.0, &rng, &o);
@@ -440,10 +441,10 @@ Test(guided_unbiased, nee_and_mixture_directions_share_a_sphere_light_by_mis)
         double sum = 0.0, sum2 = 0.0;
         const int n = 400000;
         for (int i = 0; i < n; i++) {
-            double v = rd_nee_mix(s, x, d, g, &mixes[k], &rng, &c).y;
+            double v = rd_nee_mix(s, -1, x, d, g, &mixes[k], &rng, &c).y;
             double pdf;
             vec3 wo = rd_dir_mix_sample(&mixes[k], g, d, &rng, &pdf);
-            rd_flight_in in = {.r = {x, wo}, .phase_pdf = pdf, .depth = 1};
+            rd_flight_in in = {.r = {x, wo}, .phase_pdf = pdf, .depth = 1, .hit_shape = -1, .region = -1};
             in.hit_light = rd_scene_hit_light(s, in.r, INFINITY, -1, &in.t_light);
             if (in.hit_light >= 0) v += rd_hg_eval(g, v3_dot(d, wo)) / pdf * rd_flight_behind(s, &in).y;
             sum += v;
@@ -472,7 +473,7 @@ Test(guided_unbiased, thick_flights_are_delta_tracking, .timeout = 300)
         rd_render_ctx ctx;
         void *scratch = prepare_ctx(s, b, &ctx);
         rd_flight_in in = {.r = {v3(0, 0.1, 4.2), v3_norm(v3(0, -0.03, -1))}, .t_light = INFINITY,
-                           .hit_light = -1, .depth = 0};
+                           .hit_light = -1, .hit_shape = -1, .region = -1, .camera_chain = 1, .depth = 0};
         pcg32 rng = pcg32_seed(1, 2, 3);
         rd_track_counters c = {0};
         double P_pass;

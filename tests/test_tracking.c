@@ -23,8 +23,8 @@ static void estimate(const rd_scene *s, ray3 r, double tmax, int n, uint64_t see
     double sum = 0, sum2 = 0;
     for (int i = 0; i < n; i++) {
         pcg32 rng = pcg32_seed(seed, i, 77);
-        if (!rd_sample_free_path(s, r, tmax, &rng, &c).hit) escaped++;
-        double T = rd_transmittance(s, r, 0.0, tmax, &rng, &c);
+        if (!rd_sample_free_path(s, -1, r, tmax, &rng, &c).hit) escaped++;
+        double T = rd_transmittance(s, -1, r, 0.0, tmax, &rng, &c);
         sum += T;
         sum2 += T * T;
     }

@@ -652,7 +652,7 @@ Test(volume, exact_transmittance_through_a_sparse_vdb, .timeout = 60)
         double tau = 0.0, h = len / 20000;
         for (int i = 0; i < 20000; i++) tau += rd_medium_sigma_t(m, ray_at(r, (i + 0.5) * h)) * h;
         rd_track_counters c = {0};
-        double T = rd_transmittance(s, r, 0.0, len, &rng, &c);
+        double T = rd_transmittance(s, -1, r, 0.0, len, &rng, &c);
         cr_assert(tau > 0.01, "ray %d must cross medium (tau %g)", q, tau);
         cr_expect(fabs(T - exp(-tau)) < 1e-6 + 1e-5 * exp(-tau), "ray %d: exact T %.9g, quadrature %.9g", q, T, exp(-tau));
     }
