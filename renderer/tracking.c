@@ -125,12 +125,10 @@ int rd_scene_intersect(const rd_scene *s, ray3 r, double tmax, const rd_hit *fro
     return 1;
 }
 
-int rd_scene_region_at(const rd_scene *s, vec3 x)
+/* The region the first shape met along r says x is in (sphere lights do not bound regions:
+ * the ray steps past them). */
+static int region_along(const rd_scene *s, ray3 r)
 {
-    if (!s->geom) return s->fill_medium;
-    /* A direction off every axis and diagonal, so the ray does not run along the edges of
-     * axis-aligned meshes. Sphere lights do not bound regions: step past them. */
-    ray3 r = {x, v3_norm(v3(0.5316, 0.6124, 0.5851))};
     rd_hit h, prev;
     const rd_hit *from = NULL;
     for (int k = 0; k < 64; k++) {
@@ -141,6 +139,20 @@ int rd_scene_region_at(const rd_scene *s, vec3 x)
         r = rd_hit_spawn(&prev, r.d);
     }
     return s->fill_medium;
+}
+
+int rd_scene_region_at(const rd_scene *s, vec3 x)
+{
+    if (!s->geom) return s->fill_medium;
+    /* Directions off every axis and diagonal, so the rays do not run along the edges of
+     * axis-aligned meshes. A ray through a crack between two triangles (Embree's float test is
+     * not watertight) would miss a surface and name the wrong side: two rays that agree
+     * decide; a third settles a disagreement. */
+    int a = region_along(s, (ray3){x, v3_norm(v3(0.5316, 0.6124, 0.5851))});
+    int b = region_along(s, (ray3){x, v3_norm(v3(-0.7213, 0.1877, -0.4409))});
+    if (a == b) return a;
+    int c = region_along(s, (ray3){x, v3_norm(v3(0.2219, -0.8377, 0.3583))});
+    return c == b ? b : a;
 }
 
 double rd_shadow_transmittance(const rd_scene *s, int region, ray3 r, double dist, int light,
