@@ -262,15 +262,21 @@ static vec3 source(const rd_render_ctx *ctx, const rd_medium *m, int region, vec
 /* One straight segment of the camera ray: r in `region` up to t_end (the next surface or light,
  * or INFINITY), marched over the part inside the scene bounds with N samples of `place`
  * stratified by the offset u. Returns the in-scattered estimate; *T_out gets the unbiased
- * transmittance estimate T(0, t_end). */
+ * transmittance estimate T(0, t_end). `scatter` 0: the transmittance alone (the segment lies
+ * behind settings.max_depth surface events, where `delta` scatters no more either). */
 static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int region,
-                          double t_end, placement place, double u, pcg32 *rng, double *T_out)
+                          double t_end, placement place, double u, int scatter, pcg32 *rng,
+                          double *T_out)
 {
     const rd_scene *s = ctx->scene;
     rd_track_counters *c = &th->counters;
     double t0, t1;
     *T_out = 1.0;
     if (!medium_span(s, r, t_end, &t0, &t1)) return v3(0, 0, 0);
+    if (!scatter) {
+        *T_out = rd_transmittance(s, region, r, t0, t1, rng, c);
+        return v3(0, 0, 0);
+    }
     march_scratch ms;
     scratch_layout(ctx->state, &ms, th->scratch);
     rd_guide_pdf pdf;
@@ -314,7 +320,7 @@ static vec3 march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_s
         /* No shapes: one segment, up to the nearest sphere light. */
         double t_light;
         int hit_light = rd_scene_hit_light(s, r, INFINITY, -1, &t_light);
-        vec3 L = march_segment(ctx, th, r, s->fill_medium, t_light, place, u, &rng, &T);
+        vec3 L = march_segment(ctx, th, r, s->fill_medium, t_light, place, u, 1, &rng, &T);
         return v3_madd(L, behind(s, hit_light), T);
     }
     /* With shapes: each straight segment of the camera's specular chain is marched in its
@@ -328,7 +334,10 @@ static vec3 march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_s
     const rd_hit *from = NULL;
     for (int depth = 0;;) {
         int got = rd_scene_intersect(s, r, INFINITY, from, &h);
-        vec3 Ls = march_segment(ctx, th, r, region, got ? h.t : INFINITY, place, u, &rng, &T);
+        /* In-scattering on a segment behind `depth` surface events is event depth + 1, as in
+         * delta's path loop (settings.max_depth bounds both alike). */
+        int scatter = depth + 1 <= s->settings.max_depth;
+        vec3 Ls = march_segment(ctx, th, r, region, got ? h.t : INFINITY, place, u, scatter, &rng, &T);
         L = v3_add(L, v3_mul(beta, Ls));
         beta = v3_scale(beta, T);
         if (!got || h.light >= 0) {
