@@ -217,12 +217,49 @@ static int build_pdf(const rd_render_ctx *ctx, placement place, const march_scra
 
 static double phase_cb(double cos_theta, void *user) { return rd_hg_eval(*(const double *)user, cos_theta); }
 
-static vec3 photon_estimate(const pm_map *map, vec3 x, vec3 w, double g, int k)
+/* Largest k the scene allows (guide.k, scene.c). */
+#define MAX_GATHER 4096
+
+/* sigma_s L_s(x, w) from the k nearest photons (THEORY.md §3, pm_map_radiance):
+ *     sum_k p(w'_k . w) dPhi_k / ((4/3) pi r^3),  r = distance to the k-th photon.
+ * With shapes, a photon is used only when no surface lies between x and it: photons stored
+ * behind a surface belong to another region (the dense medium inside a glass, say), and
+ * gathering them by position alone would carry that region's light across the surface (a halo
+ * around the shape: tests/test_surface_photon_leak.c). The sphere of radius r keeps its full
+ * volume, so a sample within r of a surface is underestimated by the share of the sphere
+ * beyond it (the usual boundary bias of density estimation, now on the dark side). */
+static vec3 photon_estimate(const rd_scene *s, const pm_map *map, vec3 x, vec3 w, double g, int k)
 {
     double xd[3] = {x.x, x.y, x.z};
     float wf[3] = {(float)w.x, (float)w.y, (float)w.z}, out[3];
-    if (!map || pm_map_radiance(map, xd, wf, k, phase_cb, &g, out) < 0) return v3(0, 0, 0);
-    return v3(out[0], out[1], out[2]);
+    if (!map) return v3(0, 0, 0);
+    if (!s->geom) {
+        if (pm_map_radiance(map, xd, wf, k, phase_cb, &g, out) < 0) return v3(0, 0, 0);
+        return v3(out[0], out[1], out[2]);
+    }
+    int idx[MAX_GATHER];
+    float d2[MAX_GATHER];
+    if (k > MAX_GATHER) k = MAX_GATHER;
+    int n = pm_map_knn(map, xd, k, idx, d2);
+    if (n <= 0 || !(d2[n - 1] > 0.0f)) return v3(0, 0, 0);
+    const pm_photon *ph = pm_map_photons(map);
+    double o[3];
+    pm_map_origin(map, o);
+    vec3 sum = v3(0, 0, 0);
+    for (int i = 0; i < n; i++) {
+        const pm_photon *p = &ph[idx[i]];
+        vec3 q = v3(o[0] + p->pos[0], o[1] + p->pos[1], o[2] + p->pos[2]);
+        vec3 dq = v3_sub(q, x);
+        double len = v3_len(dq);
+        if (len > 0.0) {
+            ray3 r = {x, v3_scale(dq, 1.0 / len)};
+            if (rd_geom_occluded(s->geom, r, 0.0, len, NULL)) continue;
+        }
+        double cw = fmin(1.0, fmax(-1.0, p->dir[0] * w.x + p->dir[1] * w.y + p->dir[2] * w.z));
+        sum = v3_madd(sum, v3(p->power[0], p->power[1], p->power[2]), rd_hg_eval(g, cw));
+    }
+    double r = sqrt((double)d2[n - 1]);
+    return v3_scale(sum, 1.0 / (4.0 / 3.0 * M_PI * r * r * r));
 }
 
 static vec3 source(const rd_render_ctx *ctx, const rd_medium *m, int region, vec3 x, vec3 d,
@@ -233,7 +270,7 @@ static vec3 source(const rd_render_ctx *ctx, const rd_medium *m, int region, vec
     vec3 w = v3_scale(d, -1.0);
     switch (s->march.ls) {
     case RD_LS_PHOTONS:
-        return photon_estimate(ctx->photons, x, w, m->g, s->guide.k);
+        return photon_estimate(s, ctx->photons, x, w, m->g, s->guide.k);
     case RD_LS_NEE_GUIDE: {
         /* Multiple scattering read from the guide of the indirect photons: one cell lookup
          * and one SH evaluation instead of a k-NN query (smoother, coarser: the cell's
@@ -246,7 +283,7 @@ static vec3 source(const rd_render_ctx *ctx, const rd_medium *m, int region, vec
         return v3_add(S, v3_mul(sigma_s, rd_nee_all(s, region, x, d, m->g, rng, c)));
     }
     case RD_LS_NEE_PHOTONS:
-        S = photon_estimate(ctx->photons_indirect, x, w, m->g, s->guide.k);
+        S = photon_estimate(s, ctx->photons_indirect, x, w, m->g, s->guide.k);
         /* add the direct light: */
         /* fall through */
     case RD_LS_NEE:
