@@ -66,6 +66,29 @@ static const char *icosphere(void)
     return path;
 }
 
+/* The icosphere without its vertex normals (flat triangles: the dielectric's shading normal is
+ * the geometric one), written as <tmp>/ico-flat.obj; its path relative to the scene folder. */
+static const char *icosphere_flat(void)
+{
+    FILE *in = fopen(icosphere(), "r");
+    cr_assert(in != NULL);
+    char out[256], line[256];
+    snprintf(out, sizeof out, "%s/ico-flat.obj", rt_tmpdir());
+    FILE *o = fopen(out, "w");
+    cr_assert(o != NULL);
+    while (fgets(line, sizeof line, in)) {
+        if (!strncmp(line, "vn", 2)) continue;
+        if (line[0] == 'f') {
+            unsigned a, b, c, na, nb, nc;
+            cr_assert(sscanf(line, "f %u//%u %u//%u %u//%u", &a, &na, &b, &nb, &c, &nc) == 6, "%s", line);
+            fprintf(o, "f %u %u %u\n", a, b, c);
+        } else fputs(line, o);
+    }
+    fclose(in);
+    fclose(o);
+    return "ico-flat.obj";
+}
+
 static void release(rd_render_result *a, rd_render_result *b)
 {
     rd_render_result_free(a);
@@ -197,6 +220,42 @@ Test(surface_images, dielectric_of_index_one_is_invisible, .timeout = 300)
     rd_scene_free(s1);
 }
 
+/* A white furnace seen from inside glass: the camera at the centre of a glass sphere (index
+ * 1.5, radius 2, flat triangles) of albedo-1 medium, under a uniform environment of radiance 1.
+ * Nothing is absorbed and every path ends by refracting out once more than in: a camera path
+ * carries radiance, whose L / n^2 is invariant (Veach 1997 eq. 5.13), so every pixel sees
+ * n^2 = 2.25. Every event's weight is 1 (albedo 1; Fresnel choice) but the last refraction's
+ * 1/eta^2, so each sample is exactly 2.25 and the check is exact up to float round-off. Since
+ * every light is outside the glass in the other tests, a camera path there crosses the surface
+ * out as often as in and the (n_i/n_t)^2 factors cancel: this is the one test that sees them.
+ * (With the icosphere's vertex normals as shading normals some paths die where the sampled
+ * direction leaves on the wrong side of the geometric normal: the report measures that loss.) */
+Test(surface_images, white_furnace_inside_a_glass_sphere_sees_n_squared, .timeout = 300)
+{
+    char js[2048];
+    snprintf(js, sizeof js,
+             "{\"camera\":{\"position\":[0,0,0],\"look_at\":[0,0,-1],\"fov\":60,\"resolution\":[8,6]},"
+             "\"media\":[{\"name\":\"fog\",\"bounds\":{\"min\":[-2,-2,-2],\"max\":[2,2,2]},"
+             "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1,\"albedo\":1,\"g\":0.5}],"
+             "\"shapes\":[{\"name\":\"glass\",\"file\":\"%s\",\"transform\":{\"scale\":2},"
+             "\"material\":{\"type\":\"dielectric\",\"ior\":1.5},\"inside\":\"fog\"}],"
+             "\"lights\":[{\"type\":\"environment\",\"radiance\":1}],"
+             "\"settings\":{\"max_depth\":100000,\"rr_depth\":3}}",
+             icosphere_flat());
+    rd_scene *s = rt_scene("t_furnace.json", js);
+    rd_render_result r = rt_render(s, "delta", 64, 601, NULL);
+    int n = r.image.w * r.image.h;
+    double sum = 0.0;
+    for (int i = 0; i < n; i++) {
+        double v = r.image.rgb[3 * i + 1];
+        cr_expect(fabs(v - 2.25) < 1e-5, "pixel %d: %.7f, expected 2.25", i, v);
+        sum += v;
+    }
+    cr_log_info("furnace inside glass: mean %.7f (expected 2.25)", sum / n);
+    rd_render_result_free(&r);
+    rd_scene_free(s);
+}
+
 /* ---- 3. delta and guided-unbiased with a dielectric boundary ------------------------------- */
 
 /* A glass icosphere (radius 0.8, index 1.5) of forward-scattering medium inside a scene-wide
@@ -241,11 +300,14 @@ Test(surface_images, guided_unbiased_equals_delta_through_a_glass_sphere, .timeo
 
 /* ---- 4. the marchers through a glass sphere -------------------------------------------------- */
 
-/* The camera at z = 3 sees only a glass sphere (radius 1, index 1.5: every camera ray hits it
- * at incidence below 35 degrees), and behind it a box of heterogeneous medium lit by a spot and
- * the environment. A camera path reaches the medium only after exactly 2 Fresnel events (in,
- * out) or 4 or more (two internal reflections): reflections off the front and paths that
- * exit after one internal reflection leave toward +z, where there is nothing. So at max_depth 3
+/* The camera at z = 3 sees only a glass sphere (radius 1, index 1.5; vertical fov 14 degrees,
+ * so every camera ray is within 11.6 degrees of the axis and hits it at incidence i below 37
+ * degrees), and behind it a box of heterogeneous medium lit by a spot and the environment. A
+ * camera path reaches the medium only after exactly 2 Fresnel events (in, out) or 4 or more
+ * (two internal reflections): a reflection off the front turns the ray by 180 - 2i > 106
+ * degrees, back toward +z; a path out after one internal reflection turns by 180 + 2i - 4r
+ * (r the refraction angle; the rainbow's deviation) > 159 degrees, also toward +z, where
+ * there is nothing. So at max_depth 3
  * delta's image is single scattering after the 2 events (in, out, scatter = 3 events), and the
  * marchers march that segment (their source is single scattering), both cut the 4-event
  * paths: their expectations are equal. */
