@@ -162,7 +162,7 @@ static const char *t1b_json(int shapes)
              "\"density\":{\"type\":\"noise\",\"octaves\":3,\"frequency\":2,\"amplitude\":2,\"seed\":7},"
              "\"sigma_t\":2.5,\"albedo\":0.85,\"g\":0.5},"
              "{\"name\":\"room\",\"bounds\":{\"min\":[-3,-3,-3],\"max\":[3,3,3]},"
-             "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":0.4,\"albedo\":0.8,\"g\":0}],"
+             "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":0.8,\"albedo\":0.5,\"g\":0}],"
              "\"lights\":[{\"type\":\"spot\",\"position\":[-2.5,2,1.5],\"look_at\":[0,0,0],\"angle\":40,"
              "\"falloff\":6,\"intensity\":[20,16,12]},"
              "{\"type\":\"point\",\"position\":[1.8,1.4,1.6],\"intensity\":[2,3,4]}],"
@@ -180,8 +180,8 @@ Test(surface_images, interface_between_a_bound_medium_and_the_scene_wide_medium,
     rd_scene *box = rt_scene("t1b_box.json", t1b_json(0));
     rd_scene *itf = rt_scene("t1b_itf.json", t1b_json(1));
     cr_assert(itf->n_shapes == 1 && !box->media[0].bound && itf->media[0].bound);
-    rd_render_result a = rt_render(box, "delta", 96, 111, NULL);
-    rd_render_result b = rt_render(itf, "delta", 96, 112, NULL);
+    rd_render_result a = rt_render(box, "delta", 256, 111, NULL);
+    rd_render_result b = rt_render(itf, "delta", 256, 112, NULL);
     rt_expect_same(&a, &b, "delta: box medium in a room vs interface cube with the room outside");
     release(&a, &b);
     rd_scene_free(box);
