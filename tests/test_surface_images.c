@@ -348,10 +348,12 @@ Test(surface_images, guided_unbiased_equals_delta_through_a_glass_sphere, .timeo
  * (two internal reflections): a reflection off the front turns the ray by 180 - 2i > 106
  * degrees, back toward +z; a path out after one internal reflection turns by 180 + 2i - 4r
  * (r the refraction angle; the rainbow's deviation) > 159 degrees, also toward +z, where
- * there is nothing. So at max_depth 3
- * delta's image is single scattering after the 2 events (in, out, scatter = 3 events), and the
- * marchers march that segment (their source is single scattering), both cut the 4-event
- * paths: their expectations are equal. */
+ * there is nothing. So at max_depth 3 delta's image behind the glass is single scattering
+ * after the 2 events (in, out, scatter = 3 events; a second scattering would be a 4th), the
+ * marchers march that segment with single scattering as their source, and both cut the
+ * 4-event paths: their expectations are equal. (At max_depth 1, the issue's "single
+ * scattering", delta cannot scatter behind the glass at all; at 2 the marchers still do: the
+ * DEFECT test below.) */
 static const char *t4_json(int max_depth)
 {
     static char buf[4096];
