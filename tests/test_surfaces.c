@@ -841,4 +841,23 @@ Test(surfaces, diffuse_floor_under_sphere_and_point_lights, .timeout = 60)
         }
         rd_scene_free(s);
     }
+    /* The point light again, with the floor in a scene-wide, purely absorbing medium (sigma_t
+     * 0.3, albedo 0): the shadow ray from the floor leaves in the floor's outside region and the
+     * camera ray crosses the same medium, so the radiance is
+     *   exp(-sigma |c - p|) rho/pi I/h^2 exp(-sigma h).
+     * The camera flight (delta tracking: a collision ends the path, albedo 0) makes it random
+     * (a Bernoulli factor); the shadow ray's transmittance is the closed form: 5 standard errors. */
+    box_shape(floor_, sizeof floor_, "floor", v3(-10, -0.2, -10), v3(10, 0, 10), "{\"type\":\"diffuse\",\"albedo\":0.5}", "null", "\"air\"");
+    snprintf(json, sizeof json,
+             "{\"camera\":{\"position\":[0,3,5],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
+             "\"media\":[{\"name\":\"air\",\"bounds\":{\"min\":[-12,-12,-12],\"max\":[12,12,12]},\"density\":1,\"sigma_t\":0.3,\"albedo\":0}],"
+             "\"medium\":\"air\",\"shapes\":[%s],\"lights\":[{\"type\":\"point\",\"position\":[0,2,0],\"intensity\":1.5}]}",
+             floor_);
+    rd_scene *s = rt_scene("floor_air.json", json);
+    cr_assert_eq(rd_scene_region_at(s, cam.o), 0, "the camera is in the air");
+    rt_mc mc = rt_delta_mc(s, cam, 20000, 130);
+    double e = exp(-0.3 * sqrt(34.0)) * rho / M_PI * I / (h * h) * exp(-0.3 * h);
+    cr_expect(mc.se.y > 0, "absorbing air: random");
+    cr_expect(fabs(mc.mean.y - e) < 5 * mc.se.y, "absorbing air: %.6f +- %.6f vs %.6f", mc.mean.y, mc.se.y, e);
+    rd_scene_free(s);
 }
