@@ -87,10 +87,11 @@ int rd_surface_event(const rd_scene *s, const rd_hit *h, int depth, rd_surface_s
     /* A diffuse surface: next-event estimation with its BSDF, MIS against the BSDF sampling
      * below (rd_nee_surface). */
     if (mat->kind == RD_MAT_DIFFUSE) st->L = v3_mul(st->beta, rd_nee_surface(s, h, d, rng, c));
-    /* Russian roulette on the throughput, as at a medium vertex. */
+    /* Russian roulette on the throughput, as at a medium vertex (without the radiance
+     * factors of the refractions: eta_scale). */
     if (depth >= s->settings.rr_depth) {
         vec3 b = st->beta;
-        double q = fmin(1.0, fmax(fabs(b.x), fmax(fabs(b.y), fabs(b.z))));
+        double q = fmin(1.0, fmax(fabs(b.x), fmax(fabs(b.y), fabs(b.z))) * st->eta_scale);
         if (q <= 0.0 || pcg32_uniform(rng) >= q) return 0;
         st->beta = v3_scale(b, 1.0 / q);
     }
@@ -101,6 +102,8 @@ int rd_surface_event(const rd_scene *s, const rd_hit *h, int depth, rd_surface_s
     rd_surface_sample ss;
     if (!rd_material_sample(mat, d, h->ng, h->ns, RD_TRANSPORT_RADIANCE, ue, u1, u2, &ss)) return 0;
     st->beta = v3_mul(st->beta, ss.weight);
+    /* A dielectric refraction's weight is (n_i/n_t)^2 in every channel (rd_geom.h). */
+    if (mat->kind == RD_MAT_DIELECTRIC && ss.crossed && ss.weight.x > 0.0) st->eta_scale /= ss.weight.x;
     st->pdf = ss.specular ? 0.0 : ss.pdf; /* no MIS after a delta event */
     st->camera_chain = st->camera_chain && ss.specular;
     st->region = ss.crossed ? h->medium_to : h->medium_from;
@@ -146,6 +149,7 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
     rd_hit hit, prev;
     const rd_hit *from = NULL; /* the surface the current ray leaves, if any */
     int crossings = 0;
+    double eta_scale = 1.0; /* rd_surface_step */
     for (int depth = depth0;; depth++) {
         /* What the ray meets first (a sphere light or a surface) ends the free flight. */
         rd_flight_in in = {.r = r, .depth = depth, .phase_pdf = phase_pdf, .region = region,
@@ -176,11 +180,13 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
                 continue;
             }
             if (depth + 1 > s->settings.max_depth) break;
-            rd_surface_step st = {.r = r, .beta = beta, .region = region, .camera_chain = camera_chain};
+            rd_surface_step st = {.r = r, .beta = beta, .region = region, .camera_chain = camera_chain,
+                                  .eta_scale = eta_scale};
             int go = rd_surface_event(s, &prev, depth + 1, &st, rng, c);
             L = v3_add(L, st.L);
             if (!go) break;
             r = st.r, beta = st.beta, region = st.region, camera_chain = st.camera_chain;
+            eta_scale = st.eta_scale;
             phase_pdf = st.pdf;
             continue;
         }
@@ -221,7 +227,7 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
         /* Russian roulette on the throughput. Weighted trackers with non-bounding majorants
          * can make weights negative: survive with the largest magnitude, not the largest value. */
         if (depth + 1 >= s->settings.rr_depth) {
-            double q = fmin(1.0, fmax(fabs(beta.x), fmax(fabs(beta.y), fabs(beta.z))));
+            double q = fmin(1.0, fmax(fabs(beta.x), fmax(fabs(beta.y), fabs(beta.z))) * eta_scale);
             if (q <= 0.0 || pcg32_uniform(rng) >= q) break;
             beta = v3_scale(beta, 1.0 / q);
         }

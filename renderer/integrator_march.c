@@ -366,6 +366,7 @@ static vec3 march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_s
      * interface only changes the region; at a diffuse surface the marcher hands the path to
      * `delta` (next-event estimation there and the path tracer's continuation). */
     int region = rd_scene_region_at(s, r.o), crossings = 0;
+    double eta_scale = 1.0; /* rd_surface_step */
     vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
     rd_hit h, prev;
     const rd_hit *from = NULL;
@@ -392,7 +393,7 @@ static vec3 march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_s
             continue;
         }
         if (++depth > s->settings.max_depth) break;
-        rd_surface_step st = {.r = r, .beta = beta, .region = region, .camera_chain = 1};
+        rd_surface_step st = {.r = r, .beta = beta, .region = region, .camera_chain = 1, .eta_scale = eta_scale};
         int go = rd_surface_event(s, &prev, depth, &st, &rng, c);
         L = v3_add(L, st.L);
         if (!go) break;
@@ -401,7 +402,7 @@ static vec3 march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_s
             L = v3_add(L, v3_mul(st.beta, rd_delta_continue(s, st.r, st.region, st.pdf, depth, 0, &rng, c)));
             break;
         }
-        r = st.r, beta = st.beta, region = st.region;
+        r = st.r, beta = st.beta, region = st.region, eta_scale = st.eta_scale;
     }
     return L;
 }

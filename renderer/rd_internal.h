@@ -531,6 +531,10 @@ typedef struct {
     int region;
     double pdf;
     int camera_chain;
+    double eta_scale;  /* product of (n_t/n_i)^2 over the refractions so far (pbrt-v4's
+                        * etaScale): the roulette decides on beta x eta_scale, so the radiance
+                        * factor (n_i/n_t)^2 of entering glass, which leaving undoes, kills no
+                        * path. 1 for a path outside every glass */
 } rd_surface_step;
 int rd_surface_event(const rd_scene *s, const rd_hit *h, int depth, rd_surface_step *st,
                      pcg32 *rng, rd_track_counters *c);

@@ -23,8 +23,8 @@
  * the quadrature (test 5) the standard error is the render's alone (the quadrature's error is
  * below 1e-6 relative, checked by halving its step).
  *
- * DEFECT (marked below, fails on purpose): the marchers count a marched segment's in-scattering
- * as no event at all, delta counts it as one (integrator_march.c march_radiance). */
+ * 4b. the same at max_depth 2, where neither may scatter behind the glass (the marchers once
+ *     counted a segment's in-scattering as no event: z -122 before the fix). */
 #include "support/rd_test.h"
 #include "rd_photons.h"
 
@@ -352,8 +352,8 @@ Test(surface_images, guided_unbiased_equals_delta_through_a_glass_sphere, .timeo
  * after the 2 events (in, out, scatter = 3 events; a second scattering would be a 4th), the
  * marchers march that segment with single scattering as their source, and both cut the
  * 4-event paths: their expectations are equal. (At max_depth 1, the issue's "single
- * scattering", delta cannot scatter behind the glass at all; at 2 the marchers still do: the
- * DEFECT test below.) */
+ * scattering", delta cannot scatter behind the glass at all; at 2 neither does: the test
+ * after the next.) */
 static const char *t4_json(int max_depth)
 {
     static char buf[4096];
@@ -388,17 +388,17 @@ Test(surface_images, marchers_equal_delta_single_scattering_through_a_glass_sphe
     rd_scene_free(s);
 }
 
-/* DEFECT (fails on purpose; see the file's head): at max_depth 2 delta cannot scatter behind
- * the glass (in, out, scatter would be event 3), so its image there is the environment seen
- * through the glass; the marchers still march the segment behind the glass with its
- * in-scattering (integrator_march.c march_radiance counts only surface events against
- * max_depth), so they add single scattering that delta's max_depth excludes. */
-Test(surface_images, DEFECT_marcher_max_depth_counts_in_scattering_like_delta, .timeout = 300)
+/* At max_depth 2 delta cannot scatter behind the glass (in, out, scatter would be event 3), so
+ * its image there is the environment seen through the glass; the marchers must not march
+ * in-scattering on that segment either (integrator_march.c march_radiance: a segment behind
+ * k surface events scatters as event k + 1). Before that rule the marchers added single
+ * scattering there: z -122 / -57. */
+Test(surface_images, marcher_max_depth_counts_in_scattering_like_delta, .timeout = 300)
 {
     rd_scene *s = rt_scene("t4d.json", t4_json(2));
     rd_render_result d = rt_render(s, "delta", 128, 411, NULL);
     rd_render_result m = rt_render(s, "transmittance", 16, 412, NULL);
-    rt_expect_same(&d, &m, "DEFECT: transmittance vs delta at max_depth 2 through a glass sphere");
+    rt_expect_same(&d, &m, "transmittance vs delta at max_depth 2 through a glass sphere");
     release(&d, &m);
     rd_scene_free(s);
 }
