@@ -30,8 +30,9 @@
 #                BUDGET (15 s per run), RUNS (2), THREADS (2), REF (uniform), REF_SPP (4096),
 #                REF_TIME (300), REF_PHOTONS (1000000), RATIO_TO (uniform), OUT
 #                (bench/results/fig5-REF)
-# Run it under `nice -n 19` on a shared machine; every figure it reports is a ratio within one
-# compare run (same load for all methods, interleaved only by method order).
+# Run it under `nice -n 19` on a shared machine; quote the ratios within one compare run. The
+# methods run one after another (each method's K runs together), so load that changes during
+# the run moves the ratios: compare two passes before trusting a ratio near 1.
 set -euo pipefail
 . "$(dirname "$0")/machine.sh"
 bench_machine_note
