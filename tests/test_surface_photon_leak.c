@@ -1,11 +1,14 @@
-/* KNOWN DEFECT (issue 14), FAILS ON PURPOSE until it is fixed: the photon estimate of the
- * ray-marching methods gathers photons across surfaces.
+/* Regression test (issue 14): the photon estimate of the ray-marching methods must not gather
+ * photons across surfaces. Before main's 71c148a ("march: with shapes the photon estimate uses
+ * only the photons no surface hides from the sample") it did, and this test FAILS on any commit
+ * before that one (it was written on branch h-s, based on 7eb0778, to show the defect; on main
+ * at 9d5ccc8 with this file added it passes).
  *
- * integrator_march.c photon_estimate() takes the k nearest photons of the map by position
- * alone (pm_map_radiance), whatever region (medium behind the surfaces) they were stored in.
- * Beside a shape holding a dense medium, a marching sample in the thin medium outside gathers
- * the dense medium's photons from inside (stored at its collision density, 100 times the
- * outside's here) and the image shows a bright halo around the shape. Found by
+ * The defect: integrator_march.c photon_estimate() took the k nearest photons of the map by
+ * position alone (pm_map_radiance), whatever region (medium behind the surfaces) they were
+ * stored in. Beside a shape holding a dense medium, a marching sample in the thin medium
+ * outside gathered the dense medium's photons from inside (stored at its collision density,
+ * 100 times the outside's here), and the image showed a bright halo around the shape. Found by
  * bench/bench_fig5.sh (docs/benchmarks.md, "Surfaces (issue 14)": the marchers' error maps on
  * exp1-point.json have a crescent outside the blob's silhouette).
  *
@@ -17,10 +20,7 @@
  * homogeneous thin fog is far below that, as the control annulus farther out shows). Measured
  * before a fix through the CLI at 64 spp: delta 0.068, uniform 0.111 in the near annulus (62%
  * too bright, ~50 standard errors); 0.072 against 0.074 in the far one. The test takes 16 spp
- * (the gap is then still ~25 standard errors).
- *
- * Suggested fix: keep the region of each stored photon (one photon map per region, or a region
- * tag filtered in the gather) and let photon_estimate gather only the sample's region. */
+ * (before the fix the gap was then still ~23 standard errors). */
 #include "support/rd_test.h"
 
 #include <math.h>
@@ -47,7 +47,7 @@ static void ring_mean(const rd_render_result *r, double cx, double cy, double r0
     *se = sqrt(var) / n;
 }
 
-Test(surface_photon_leak, KNOWN_DEFECT_marchers_gather_photons_across_surfaces, .timeout = 300)
+Test(surface_photon_leak, marchers_do_not_gather_photons_across_surfaces, .timeout = 300)
 {
     char cwd[512], json[2048];
     cr_assert(getcwd(cwd, sizeof cwd) != NULL);
@@ -82,7 +82,7 @@ Test(surface_photon_leak, KNOWN_DEFECT_marchers_gather_photons_across_surfaces, 
     ring_mean(&rd, cx, cy, 12.5, 15, &md, &sd);
     ring_mean(&ru, cx, cy, 12.5, 15, &mu, &su);
     cr_expect(fabs(mu - md) < 5 * hypot(sd, su),
-              "KNOWN DEFECT (issue 14): photons gathered across the surface: near annulus, uniform %.4f, "
+              "photons gathered across the surface (issue 14; fixed by 71c148a): near annulus, uniform %.4f, "
               "delta %.4f +- %.4f",
               mu, md, hypot(sd, su));
     rd_render_result_free(&rd);
