@@ -245,8 +245,8 @@ vec3 rd_path_radiance(const rd_scene *s, ray3 r, const rd_flight_sampler *fs, pc
                       rd_track_counters *c)
 {
     int budget = RD_SPLIT_BUDGET;
-    /* The camera's region: rd_scene_region_at (one ray query; the open region without shapes). */
-    return trace(s, r, rd_scene_region_at(s, r.o), 0.0, 0, 1, fs, rng, c, &budget);
+    /* The camera's region (rd_scene_camera_region: found once for a perspective camera). */
+    return trace(s, r, rd_scene_camera_region(s, r), 0.0, 0, 1, fs, rng, c, &budget);
 }
 
 vec3 rd_delta_continue(const rd_scene *s, ray3 r, int region, double pdf, int depth,

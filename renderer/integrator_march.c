@@ -115,7 +115,7 @@ static int first_segment(const rd_scene *s, ray3 r, int *region, double *t0, dou
 {
     rd_hit h;
     int got = rd_scene_intersect(s, r, INFINITY, NULL, &h);
-    *region = rd_scene_region_at(s, r.o);
+    *region = rd_scene_camera_region(s, r);
     *hit_light = got ? h.light : -1;
     return medium_span(s, r, got ? h.t : INFINITY, t0, t1);
 }
@@ -365,7 +365,7 @@ static vec3 march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_s
      * Fresnel probability (rd_surface_event: weight 1, (n_i/n_t)^2 on refraction); an
      * interface only changes the region; at a diffuse surface the marcher hands the path to
      * `delta` (next-event estimation there and the path tracer's continuation). */
-    int region = rd_scene_region_at(s, r.o), crossings = 0;
+    int region = rd_scene_camera_region(s, r), crossings = 0;
     double eta_scale = 1.0; /* rd_surface_step */
     vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
     rd_hit h, prev;

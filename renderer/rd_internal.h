@@ -318,6 +318,8 @@ struct rd_scene {
     int n_shapes;
     int fill_medium;      /* scene key "medium": index of the medium that fills everything
                            * outside every shape and box medium, or -1 (vacuum) */
+    int camera_region;    /* the region of a perspective camera's position (rd_scene_region_at),
+                           * found once by the loader: every camera ray starts there */
     struct rd_geom *geom; /* the Embree scene of shapes and sphere lights (rd_geom.h), built by
                            * the loader when there are shapes; NULL without (then sphere lights
                            * are hit by rd_scene_hit_light, as before shapes existed) */
@@ -333,6 +335,9 @@ struct rd_scene {
  * bounds. A scene without shapes is one open region, so every call below with
  * region = s->fill_medium behaves as before shapes existed. */
 typedef struct rd_hit rd_hit; /* rd_geom.h */
+/* The region a camera ray starts in: s->camera_region for a ray from a perspective camera's
+ * position, else rd_scene_region_at(s, r.o). */
+int rd_scene_camera_region(const rd_scene *s, ray3 r);
 /* The region containing point x: one ray query from x (the first shape it meets says which
  * medium lies on the side it arrives from); s->fill_medium when no shape is met. */
 int rd_scene_region_at(const rd_scene *s, vec3 x);

@@ -1324,6 +1324,7 @@ rd_status rd_scene_load(rd_scene **out, const char *path, const rd_override *ov,
             return RD_ERR_INTERNAL;
         }
     }
+    if (st == RD_OK) s->camera_region = rd_scene_region_at(s, s->camera.pos);
     cJSON_Delete(root);
     if (st) {
         if (st == RD_ERR_NOMEM) snprintf(err, errlen, "%s: out of memory", path);
@@ -1463,7 +1464,7 @@ void rd_scene_info(const rd_scene *s, FILE *out)
     }
     if (s->n_shapes || s->fill_medium >= 0) {
         static const char *const mkind[] = {"interface", "dielectric", "diffuse"};
-        fprintf(out, "shapes     %d (not rendered yet: issue 14)", s->n_shapes);
+        fprintf(out, "shapes     %d", s->n_shapes);
         if (s->fill_medium >= 0) fprintf(out, ", scene-wide medium %s", s->media[s->fill_medium].name);
         fprintf(out, "\n");
         for (int i = 0; i < s->n_shapes; i++) {

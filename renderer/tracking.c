@@ -141,6 +141,15 @@ static int region_along(const rd_scene *s, ray3 r)
     return s->fill_medium;
 }
 
+int rd_scene_camera_region(const rd_scene *s, ray3 r)
+{
+    if (!s->geom) return s->fill_medium;
+    const vec3 c = s->camera.pos;
+    if (s->camera.kind == RD_CAM_PERSPECTIVE && r.o.x == c.x && r.o.y == c.y && r.o.z == c.z)
+        return s->camera_region;
+    return rd_scene_region_at(s, r.o);
+}
+
 int rd_scene_region_at(const rd_scene *s, vec3 x)
 {
     if (!s->geom) return s->fill_medium;
