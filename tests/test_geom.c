@@ -8,18 +8,10 @@
 #include <omp.h>
 
 /* ---- helpers ------------------------------------------------------------------------------- */
-static const char *tmp_path(const char *name)
-{
-    static char path[4][256];
-    static int k = 0;
-    k = (k + 1) % 4;
-    snprintf(path[k], sizeof path[k], "%s/%s", rt_tmpdir(), name);
-    return path[k];
-}
 
 static const char *write_text(const char *name, const char *text)
 {
-    const char *p = tmp_path(name);
+    const char *p = rt_tmp_path(name);
     rt_write_file(p, text, strlen(text));
     return p;
 }
@@ -209,7 +201,7 @@ Test(geom, mesh_error_paths)
 {
     rd_mesh m;
     char err[RD_ERRLEN];
-    cr_expect(rd_mesh_load(tmp_path("nothere.obj"), NULL, &m, err, sizeof err) == RD_ERR_IO);
+    cr_expect(rd_mesh_load(rt_tmp_path("nothere.obj"), NULL, &m, err, sizeof err) == RD_ERR_IO);
     cr_expect(strstr(err, "nothere.obj: no such file") != NULL, "%s", err);
     cr_expect(m.positions == NULL && m.n_triangles == 0);
     cr_expect(rd_mesh_load(rt_tmpdir(), NULL, &m, err, sizeof err) == RD_ERR_IO);

@@ -20,14 +20,6 @@
 
 /* ---- helpers ------------------------------------------------------------------------------- */
 
-static const char *tmp_path(const char *name)
-{
-    static char path[4][256];
-    static int k = 0;
-    k = (k + 1) % 4;
-    snprintf(path[k], sizeof path[k], "%s/%s", rt_tmpdir(), name);
-    return path[k];
-}
 
 /* The unit cube [0,1]^3 as six quads, wound counter-clockwise seen from outside, written as
  * <tmp>/cube.obj (scenes place it with a transform: scale s, translate t gives [t, t+s]). */
@@ -35,7 +27,7 @@ static void write_cube(void)
 {
     const char *text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n"
                        "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n";
-    rt_write_file(tmp_path("cube.obj"), text, strlen(text));
+    rt_write_file(rt_tmp_path("cube.obj"), text, strlen(text));
 }
 
 /* A shape entry for the box [lo, hi] made of the unit cube. */
@@ -118,7 +110,7 @@ static const char *icosphere_flat_path(void)
 {
     FILE *in = fopen(icosphere_path(), "r");
     cr_assert(in != NULL);
-    const char *p = tmp_path("ico-flat.obj");
+    const char *p = rt_tmp_path("ico-flat.obj");
     FILE *out = fopen(p, "w");
     cr_assert(out != NULL);
     char line[512];

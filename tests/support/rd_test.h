@@ -43,6 +43,16 @@ static inline void rt_write_file(const char *path, const void *data, size_t n)
     fclose(f);
 }
 
+/* <tmp>/<name>, in one of four rotating buffers (valid until the fourth call after it). */
+static inline const char *rt_tmp_path(const char *name)
+{
+    static char path[4][256];
+    static int k = 0;
+    k = (k + 1) % 4;
+    snprintf(path[k], sizeof path[k], "%s/%s", rt_tmpdir(), name);
+    return path[k];
+}
+
 /* Write `json` to <tmp>/<name> and load it; the test fails with the loader's message if the
  * scene does not load. */
 static inline rd_scene *rt_scene(const char *name, const char *json)
