@@ -25,7 +25,7 @@
  * (default scenes: scenes/exp1-point.json scenes/exp2-directional.json scenes/glass-fog.json;
  * run from the repository root). */
 #include "rd_internal.h"
-#include "rd_geom.h"
+#include "scene/rd_geom.h"
 
 #include <stdio.h>
 #include <stdlib.h>

@@ -42,7 +42,7 @@
  * Fixed seeds everywhere; the result does not depend on the thread count (one PCG32 stream per
  * (point, path) in the reference; photon tracing and bakes are deterministic). Prints markdown
  * tables (progress on stderr). Not a test. */
-#include "rd_photons.h"
+#include "bake/rd_photons.h"
 #include "sh.h"
 
 #include <math.h>

@@ -4,7 +4,7 @@
  *
  *   build/bench/bench_photons [--quick] [--json FILE]
  */
-#include "rd_photons.h"
+#include "bake/rd_photons.h"
 
 #include <omp.h>
 #include <stdio.h>

@@ -22,7 +22,7 @@
 #include <string.h>
 
 #include "photonmap.h"
-#include "rd_photons.h"
+#include "bake/rd_photons.h"
 #include "sh.h"
 
 #ifndef M_PI

@@ -7,7 +7,7 @@
 #ifndef RD_INTERNAL_H
 #define RD_INTERNAL_H
 
-#include "rd_math.h"
+#include "core/rd_math.h"
 #include "renderer.h"
 
 #include <stdint.h>
@@ -372,7 +372,7 @@ typedef struct {
                          for a collision and for an escape alike */
 } rd_collision;
 
-#include "rd_freepath.h"
+#include "media/rd_freepath.h"
 
 
 /* The media of `region` r crosses within [tmin, tmax]: disjoint intervals sorted by entry

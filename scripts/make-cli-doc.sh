@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Regenerate docs/cli.md from the binary's own --help texts, so the reference cannot drift
-# from the program, then check that every option renderer/main.c parses is named in the page
+# from the program, then check that every option renderer/cli/ parses is named in the page
 # (its --help sections or the hand-written "Option values" table); exit 1 if one is not.
 # Usage: scripts/make-cli-doc.sh [path/to/photonmarch]
 set -euo pipefail
@@ -23,11 +23,11 @@ echo "make-cli-doc: wrote $out from $BIN --help" >&2
 
 # Every option literal of main.c ("--name" as a C string) must appear in the page.
 missing=0
-for opt in $(grep -o '"--[a-z][a-z-]*"' renderer/main.c | tr -d '"' | sort -u); do
+for opt in $(grep -oh '"--[a-z][a-z-]*"' renderer/cli/*.c | tr -d '"' | sort -u); do
     if ! grep -q -- "$opt" "$out"; then
-        echo "make-cli-doc: $opt is parsed in renderer/main.c but not named in $out" >&2
+        echo "make-cli-doc: $opt is parsed in renderer/cli/ but not named in $out" >&2
         missing=1
     fi
 done
-[ $missing = 0 ] && echo "make-cli-doc: every option of renderer/main.c is in $out" >&2
+[ $missing = 0 ] && echo "make-cli-doc: every option of renderer/cli/ is in $out" >&2
 exit $missing

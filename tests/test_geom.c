@@ -3,7 +3,7 @@
  * computed here in double precision. Run from the repository root (the icosphere is
  * scenes/data/icosphere-3.obj, made by scripts/make-meshes.sh). */
 #include "support/rd_test.h"
-#include "rd_geom.h"
+#include "scene/rd_geom.h"
 
 #include <omp.h>
 

@@ -7,7 +7,7 @@
 
 #include <float.h>
 
-#include "rd_guide_pdf.h"
+#include "integrators/rd_guide_pdf.h"
 #include "sh.h"
 
 #define MAXS 48

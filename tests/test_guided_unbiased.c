@@ -15,8 +15,8 @@
  * is 5 (5.7e-7). */
 #include "support/rd_test.h"
 
-#include "rd_guide_pdf.h"
-#include "rd_method.h"
+#include "integrators/rd_guide_pdf.h"
+#include "integrators/rd_method.h"
 
 static rd_baked *bake(const rd_scene *s)
 {

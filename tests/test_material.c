@@ -5,7 +5,7 @@
  * modes, and a plane-parallel glass slab followed through the sampler (the analytic check the
  * transport step will use: (1 - R) / (1 + R) at normal incidence). */
 #include "support/rd_test.h"
-#include "rd_geom.h"
+#include "scene/rd_geom.h"
 
 static vec3 unit(double x, double y, double z) { return v3_norm(v3(x, y, z)); }
 

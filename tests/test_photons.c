@@ -3,7 +3,7 @@
  * medium, the power balance, thread-count independence, and the k-NN radiance estimate against
  * an independent delta-tracking estimate of in-scattered radiance. Fixed seeds throughout. */
 #include "support/rd_test.h"
-#include "rd_photons.h"
+#include "bake/rd_photons.h"
 
 #include "photonmap.h"
 

@@ -26,7 +26,7 @@
  * 4b. the same at max_depth 2, where neither may scatter behind the glass (the marchers once
  *     counted a segment's in-scattering as no event: z -122 before the fix). */
 #include "support/rd_test.h"
-#include "rd_photons.h"
+#include "bake/rd_photons.h"
 
 #include "photonmap.h"
 

@@ -13,8 +13,8 @@
  * probability 6e-7 per check), the standard error estimated from the samples themselves. Run from
  * the repository root (scenes/data/icosphere-3.obj). */
 #include "support/rd_test.h"
-#include "rd_geom.h"
-#include "rd_photons.h"
+#include "scene/rd_geom.h"
+#include "bake/rd_photons.h"
 
 #include "photonmap.h"
 

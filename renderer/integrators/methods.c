@@ -1,6 +1,6 @@
 /* methods.c: the table of render methods. Adding a method is one file defining a
  * `const rd_method` (rd_method.h) plus one row here. */
-#include "rd_method.h"
+#include "integrators/rd_method.h"
 
 #include <string.h>
 

@@ -1,7 +1,7 @@
 /* mesh.c: triangle meshes from OBJ and PLY files through assimp's C API (assimp/cimport.h),
  * placed by a shape's transform; closedness and orientation for media bounded by meshes
  * (rd_geom.h). */
-#include "rd_geom.h"
+#include "scene/rd_geom.h"
 
 #include <assimp/cimport.h>
 #include <assimp/postprocess.h>

@@ -4,7 +4,7 @@
 // with a scale and translation or any affine index-to-world map (for tests and the
 // scene-making scripts). Every exception is caught and turned into a one-line message.
 #include "rd_internal.h"
-#include "rd_vdb.h"
+#include "core/rd_vdb.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/io/File.h>

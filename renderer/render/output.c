@@ -4,7 +4,7 @@
  * partial file where a good one was; a run killed mid-write leaves at most a hidden temporary
  * (".OUT.tmp<pid>.exr"), which the next run writing the same output removes. */
 #define _DEFAULT_SOURCE /* mkdir, kill */
-#include "rd_method.h"
+#include "integrators/rd_method.h"
 
 #include <cJSON.h>
 #include <dirent.h>

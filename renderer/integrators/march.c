@@ -28,10 +28,10 @@
  * Given S, the estimate is unbiased for every placement (the defensive mixture keeps p > 0
  * wherever the integrand can be non-zero, and every ray gets at least one sample); what the
  * placements change is the variance. The photon estimate's own bias is shared. */
-#include "rd_geom.h"
-#include "rd_guide_pdf.h"
-#include "rd_method.h"
-#include "rd_photons.h"
+#include "scene/rd_geom.h"
+#include "integrators/rd_guide_pdf.h"
+#include "integrators/rd_method.h"
+#include "bake/rd_photons.h"
 #include "sh.h"
 
 #include <stdlib.h>

@@ -1,6 +1,6 @@
 /* guide_pdf.c: the per-ray histogram PDF of guided ray marching (THEORY.md §6; seed 001 §3.3
  * eq. 16 for the PDF, eq. 17 for the samples per ray). Contract in rd_guide_pdf.h. */
-#include "rd_guide_pdf.h"
+#include "integrators/rd_guide_pdf.h"
 
 #include <float.h>
 #include <math.h>

@@ -13,8 +13,8 @@
  * Determinism: photon i draws from the PCG32 stream (i, seed); photons are traced in blocks
  * whose results are concatenated in block order, so the map is the same whatever the thread
  * count. */
-#include "rd_geom.h"
-#include "rd_photons.h"
+#include "scene/rd_geom.h"
+#include "bake/rd_photons.h"
 
 #include <omp.h>
 #include <stdlib.h>

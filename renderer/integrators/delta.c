@@ -7,8 +7,8 @@
  * transmittance), Henyey-Greenstein phase sampling, Russian roulette on the path weight, and
  * multiple importance sampling (power heuristic) between light sampling and phase sampling for
  * the lights a path can hit (sphere, environment). */
-#include "rd_geom.h"
-#include "rd_method.h"
+#include "scene/rd_geom.h"
+#include "integrators/rd_method.h"
 
 /* Light reached by an escaping ray, or by a ray that hits sphere light `hit_light`. `phase_pdf`
  * is the pdf with which the direction was sampled (0 for camera rays: no MIS, full weight);

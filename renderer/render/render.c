@@ -12,7 +12,7 @@
  * (docs/cli.md). A time limit or Ctrl-C is checked before every pixel, so a render stops within
  * one pixel's work of the budget; pixels then differ in count by at most one pass, which the
  * per-pixel count accounts for. */
-#include "rd_method.h"
+#include "integrators/rd_method.h"
 
 #include <omp.h>
 #include <stdlib.h>

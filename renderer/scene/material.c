@@ -1,6 +1,6 @@
 /* material.c: surface scattering (rd_geom.h): the index-matched interface, the smooth Fresnel
  * dielectric and the Lambertian diffuse reflector, sampled in the path's direction of travel. */
-#include "rd_geom.h"
+#include "scene/rd_geom.h"
 
 /* Unpolarised Fresnel reflectance of a dielectric boundary (Born & Wolf §1.5.3, eqs. 20-21
  * squared and averaged; pbrt-v4 FrDielectric), eta = n_t / n_i. */

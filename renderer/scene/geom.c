@@ -10,7 +10,7 @@
  *  - a ray leaving a hit skips the triangle it leaves (an intersection filter) and starts a
  *    little off the surface (rd_hit_spawn), so float round-off never makes it re-hit the
  *    surface it leaves. */
-#include "rd_geom.h"
+#include "scene/rd_geom.h"
 
 #include <embree3/rtcore.h>
 #include <stdlib.h>

@@ -4,9 +4,9 @@
  *   fog.json: media[0].albedo: expected a number or 3 numbers in [0, 1]
  * Unknown keys are errors, so a typo is never silently ignored. The format is documented in
  * docs/scene-format.md. */
-#include "rd_geom.h"
+#include "scene/rd_geom.h"
 #include "rd_internal.h"
-#include "rd_method.h"
+#include "integrators/rd_method.h"
 
 #include <cJSON.h>
 #include <errno.h>

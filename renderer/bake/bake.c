@@ -1,8 +1,8 @@
 /* bake.c: from a scene to its photon map and SH guide grid (seed 001 §3, THEORY.md §3-5), and
  * the pictures that show them: a projection of the stored photons through the scene camera,
  * and slices of the guide evaluated toward a direction. */
-#include "rd_method.h"
-#include "rd_photons.h"
+#include "integrators/rd_method.h"
+#include "bake/rd_photons.h"
 #include "sh.h"
 
 #include <stdlib.h>

@@ -1,6 +1,6 @@
 /* lights.c: light sampling for next-event estimation, pdfs for multiple importance sampling,
  * and light power (for choosing lights in proportion to power when tracing photons). */
-#include "rd_geom.h"
+#include "scene/rd_geom.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -1,7 +1,7 @@
 /* tracking.c: free-path sampling and transmittance through the scene's media (THEORY.md §2;
  * seeds 000, 002, 003): the media the ray crosses, in order, each handed to the free-path
  * engine (freepath.c) with the tracker and estimator the scene settings choose. */
-#include "rd_geom.h"
+#include "scene/rd_geom.h"
 
 #include <string.h>
 

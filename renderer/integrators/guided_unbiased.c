@@ -41,8 +41,8 @@
  * Unlike delta tracking the vertex carries sigma_s(t) and T(t0,t) explicitly (delta's pdf
  * cancels both, leaving the albedo). NEE at the vertex estimates L_s = integral p L_direct,
  * which holds no sigma_s, so the vertex weight multiplies it as it is (rd_path_radiance). */
-#include "rd_guide_pdf.h"
-#include "rd_method.h"
+#include "integrators/rd_guide_pdf.h"
+#include "integrators/rd_method.h"
 #include "sh.h"
 
 #include <stdlib.h>
