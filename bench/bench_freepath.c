@@ -17,7 +17,7 @@
  * thread; the configurations of a table are timed interleaved (1, 2, ..., n, 1, 2, ...) and the
  * median and min-max over the repeats are printed, so every ratio is taken within one run under
  * the same load. */
-#include "rd_internal.h"
+#include "transport/rd_path.h"
 
 #include <omp.h>
 #include <stdio.h>

@@ -24,7 +24,7 @@
  * Usage: bench_geom_rays [--quick] [--rays N] [--repeats K] [--json FILE] [SCENE.json ...]
  * (default scenes: scenes/exp1-point.json scenes/exp2-directional.json scenes/glass-fog.json;
  * run from the repository root). */
-#include "rd_internal.h"
+#include "transport/rd_path.h"
 #include "scene/rd_geom.h"
 
 #include <stdio.h>

@@ -43,6 +43,7 @@
  * (point, path) in the reference; photon tracing and bakes are deterministic). Prints markdown
  * tables (progress on stderr). Not a test. */
 #include "bake/rd_photons.h"
+#include "transport/rd_path.h"
 #include "sh.h"
 
 #include <math.h>
@@ -163,7 +164,7 @@ static double median(double *v, int n)
 
 static double density_at(const rd_scene *s, vec3 x)
 {
-    const rd_medium *m = rd_scene_medium_at(s, x);
+    const rd_medium *m = rd_scene_medium_at_point(s, x);
     return m ? rd_medium_density(m, x) : 0.0;
 }
 
@@ -198,7 +199,7 @@ static int pick_points(const rd_scene *s, int n, int mode, uint64_t seed, vec3 *
  * SH truncation error, which no bake removes. */
 static void reference_point(const rd_scene *s, ref_point *p, uint64_t stream, const bench_opts *o)
 {
-    const rd_medium *m = rd_scene_medium_at(s, p->x);
+    const rd_medium *m = rd_scene_medium_at_point(s, p->x);
     const double st = rd_medium_sigma_t(m, p->x);
     const vec3 ss = v3_scale(m->albedo, st);
     double b[GUIDE_BANDS];
@@ -222,7 +223,7 @@ static void reference_point(const rd_scene *s, ref_point *p, uint64_t stream, co
                 double u1 = pcg32_uniform(&r), u2 = pcg32_uniform(&r);
                 if (!rd_light_sample_li(&s->lights[i], p->x, u1, u2, &ls) || ls.pdf > 0.0) continue;
                 ray3 sr = {p->x, ls.wi};
-                double T = rd_transmittance(s, sr, 0.0, ls.dist, &r, &c);
+                double T = rd_transmittance(s, rd_scene_region_at(s, p->x), sr, 0.0, ls.dist, &r, &c);
                 double mul = -v3_dot(ls.wi, p->w);
                 D = v3_madd(D, ls.contrib, rd_hg_eval(m->g, mul) * T);
                 DL = v3_madd(DL, ls.contrib, sh_phase_truncated(b, GUIDE_BANDS, mul) * T);

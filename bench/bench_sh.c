@@ -188,7 +188,7 @@ static void print_header(const char *title)
 /* sigma_t of the scene's medium at x [1/m], as renderer/bake.c gives it to the bake. */
 static double scene_sigma_t(const double x[3], void *user)
 {
-    const rd_medium *m = rd_scene_medium_at(user, v3(x[0], x[1], x[2]));
+    const rd_medium *m = rd_scene_medium_at_point(user, v3(x[0], x[1], x[2]));
     return m ? rd_medium_sigma_t(m, v3(x[0], x[1], x[2])) : 0.0;
 }
 

@@ -3,7 +3,8 @@
 #include "harness.h"
 
 #include "photonmap.h"
-#include "rd_internal.h"
+#include "core/rd_core.h"
+#include "transport/rd_path.h"
 #include "sh.h"
 
 #include <stdio.h>

@@ -20,6 +20,9 @@ SPP=${SPP:-4}
 RES=${RES:-24,18}
 PHOTONS=${PHOTONS:-20000}
 THREADS=${THREADS:-2}
+# BIN and OUT as given from the caller's folder, before the script moves to the project root.
+case $BIN in /*) ;; */*) BIN="$PWD/$BIN" ;; esac
+case $OUT in /*) ;; *) OUT="$PWD/$OUT" ;; esac
 cd "$(dirname "$0")/.."
 mkdir -p "$OUT"
 

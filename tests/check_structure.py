@@ -10,7 +10,10 @@ Rules (docs/render-core.md, "The map"):
      strongly connected component of two or more objects (Tarjan's algorithm).
   2. Modules depend one way: renderer -> sh -> photonmap, renderer -> walk, sh -> walk. No object
      of a lower module uses a symbol of a higher one (walk and photonmap are leaves).
-  3. No library source file over 1000 lines; no internal header over 300 (the public header of
+  3. Inside renderer/, folders are layers and depend downward only, in the order of
+     RENDERER_LAYERS (core/ at the bottom, cli/ at the top): an object may use symbols of its own
+     folder and of the folders below it.
+  4. No library source file over 1000 lines; no internal header over 300 (the public header of
      each module, walk.h, photonmap.h, sh.h and renderer.h, is the module's whole contract and
      is not capped).
 Each broken rule prints one line naming the files and the symbols that tie them.
@@ -27,6 +30,9 @@ ALLOWED = {
     "sh": {"photonmap", "walk"},
     "renderer": {"sh", "photonmap", "walk"},
 }
+# renderer/'s folders from the bottom up (docs/render-core.md, "The map").
+RENDERER_LAYERS = ["core", "media", "scene", "transport", "integrators", "bake", "render", "load",
+                   "compare", "cli"]
 PUBLIC_HEADERS = {"walk/walk.h", "photonmap/photonmap.h", "sh/sh.h", "renderer/renderer.h"}
 MAX_SOURCE_LINES = 1000
 MAX_INTERNAL_HEADER_LINES = 300
@@ -123,6 +129,32 @@ def check_graph(tables):
             if ma != mb and mb not in ALLOWED.get(ma, set()):
                 problems.append("module %s may not use %s: %s -> %s (%s)"
                                 % (ma, mb, a, b, ", ".join(sorted(syms)[:4])))
+    for a, targets in sorted(graph.items()):
+        for b, syms in sorted(targets.items()):
+            la, lb = layer_of(a), layer_of(b)
+            if la is not None and lb is not None and lb > la:
+                problems.append("renderer/%s/ may not use renderer/%s/ (a higher layer): %s -> %s (%s)"
+                                % (RENDERER_LAYERS[la], RENDERER_LAYERS[lb], a, b,
+                                   ", ".join(sorted(syms)[:4])))
+    return problems
+
+
+def layer_of(unit):
+    """Index of a renderer/ unit's folder in RENDERER_LAYERS; None outside renderer/ (or for a
+    folder the list does not name, which check_layers_known reports)."""
+    parts = unit.split("/")
+    if parts[0] != "renderer" or len(parts) < 3 or parts[1] not in RENDERER_LAYERS:
+        return None
+    return RENDERER_LAYERS.index(parts[1])
+
+
+def check_layers_known(units):
+    problems = []
+    for u in sorted(units):
+        parts = u.split("/")
+        if parts[0] == "renderer" and (len(parts) < 3 or parts[1] not in RENDERER_LAYERS):
+            problems.append("%s: renderer/ code lives in one of the layer folders (%s)"
+                            % (u, ", ".join(RENDERER_LAYERS)))
     return problems
 
 
@@ -152,18 +184,25 @@ def unit_name(build, obj):
     return os.path.splitext(os.path.relpath(obj, build))[0]
 
 
-def objects(build):
+def objects(build, root):
+    """The object files of the libraries whose source still exists (a moved or deleted source
+    leaves its old object in the build folder; it is not part of the build)."""
     out = []
     for mod in MODULES:
         for dirpath, _, files in os.walk(os.path.join(build, mod)):
             for f in files:
-                if f.endswith(".o"):
-                    out.append(os.path.join(dirpath, f))
+                if not f.endswith(".o"):
+                    continue
+                obj = os.path.join(dirpath, f)
+                src = os.path.join(root, os.path.splitext(os.path.relpath(obj, build))[0])
+                if os.path.exists(src + ".c") or os.path.exists(src + ".cpp"):
+                    out.append(obj)
     return sorted(out)
 
 
 def self_test():
-    """The checker must find a planted cycle and a planted upward use, and pass a clean graph."""
+    """The checker must find a planted cycle, a planted upward use between modules and between
+    renderer/ layers, and a file outside the layer folders, and pass clean graphs."""
     clean = {
         "renderer/a": ({"ra"}, {"rb", "sh_x"}),
         "renderer/b": ({"rb"}, {"pm_y"}),
@@ -181,7 +220,19 @@ def self_test():
     p = check_graph(up)
     assert any("module photonmap may not use sh" in x for x in p), p
     assert any("cycle" in x for x in p), p   # photonmap/y <-> sh/x is also a cycle
-    print("check_structure self-test: 3 passed, 0 failed")
+    down = dict(clean)
+    down["renderer/scene/q"] = ({"rd_q"}, set())
+    down["renderer/transport/t"] = ({"rd_t"}, {"rd_q"})
+    assert check_graph(down) == [], check_graph(down)
+    upward = dict(down)
+    upward["renderer/transport/t"] = ({"rd_t"}, {"rd_q", "rd_i"})
+    upward["renderer/integrators/i"] = ({"rd_i"}, set())
+    upward["renderer/scene/q"] = ({"rd_q"}, {"rd_i"})
+    p = check_graph(upward)
+    assert len(p) == 2 and all("may not use renderer/integrators/" in x for x in p), p
+    assert check_layers_known({"renderer/x.c": 0, "renderer/misc/y": 0}) and \
+        not check_layers_known({"renderer/cli/main": 0})
+    print("check_structure self-test: 6 passed, 0 failed")
     return 0
 
 
@@ -193,12 +244,12 @@ def main(argv):
         return 2
     build = argv[1]
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    objs = objects(build)
+    objs = objects(build, root)
     if not objs:
         print("check_structure: %s: no object files (build first)" % build, file=sys.stderr)
         return 2
     tables = {unit_name(build, o): read_symbols(o) for o in objs}
-    problems = check_graph(tables) + check_sizes(root)
+    problems = check_graph(tables) + check_layers_known(tables) + check_sizes(root)
     for p in problems:
         print("check_structure: " + p)
     print("check_structure: %d objects, %d problem(s)" % (len(objs), len(problems)))

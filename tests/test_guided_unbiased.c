@@ -16,6 +16,7 @@
 #include "support/rd_test.h"
 
 #include "integrators/rd_guide_pdf.h"
+#include "bake/rd_photons.h"
 #include "integrators/rd_method.h"
 
 static rd_baked *bake(const rd_scene *s)

@@ -7,7 +7,7 @@
  * seeds; tolerances are 5 standard errors (a false alarm per check has probability 6e-7). */
 #include "support/rd_test.h"
 
-#include "core/rd_vdb.h"
+#include "media/rd_vdb.h"
 
 Test(volume, vdb_roundtrip_honours_the_transform, .timeout = 60)
 {

@@ -14,6 +14,7 @@
  * whose results are concatenated in block order, so the map is the same whatever the thread
  * count. */
 #include "scene/rd_geom.h"
+#include "transport/rd_path.h"
 #include "bake/rd_photons.h"
 
 #include <omp.h>

@@ -4,7 +4,7 @@
 #define RD_PHOTONS_H
 
 #include "photonmap.h"
-#include "rd_internal.h"
+#include "scene/rd_scene.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -68,6 +68,12 @@ rd_status rd_photon_image(const rd_scene *s, const pm_map *map, rd_image *img, c
 
 /* Scale so the 99.5th-percentile luminance is 1 (previews of quantities with no exposure). */
 void rd_image_normalise(rd_image *img);
+
+/* What rd_bake made (bake/bake.c): the built photon map and the guide (NULL after no_guide). */
+const struct pm_map *rd_baked_map(const rd_baked *b);
+const struct pm_map *rd_baked_indirect_map(const rd_baked *b);
+const struct sh_guide *rd_baked_guide(const rd_baked *b);
+const struct sh_guide *rd_baked_indirect_guide(const rd_baked *b);
 
 /* The phase-function callback for pm_map_radiance: Henyey-Greenstein with g = *(double *)user. */
 double rd_phase_hg_cb(double cos_theta, void *user);

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -130,4 +131,11 @@ extern "C" rd_status rd_image_read(const char *path, rd_image *out, char *err, s
         std::snprintf(err, errlen, "%s: unknown error reading image", path);
     }
     return RD_ERR_INTERNAL;
+}
+
+extern "C" void rd_image_free_pixels(rd_image *img)
+{
+    if (!img) return;
+    std::free(img->rgb);
+    img->rgb = nullptr;
 }

@@ -42,6 +42,7 @@
  * cancels both, leaving the albedo). NEE at the vertex estimates L_s = integral p L_direct,
  * which holds no sigma_s, so the vertex weight multiplies it as it is (rd_path_radiance). */
 #include "integrators/rd_guide_pdf.h"
+#include "transport/rd_path.h"
 #include "integrators/rd_method.h"
 #include "sh.h"
 

@@ -1,6 +1,6 @@
-/* integrator_march.c: ray marching with importance-sampled sample positions, the method of
- * seed 001 (§3.3-4; THEORY.md §6) and its two baselines, as one integrator with three
- * placements of the samples along a camera ray:
+/* march.c: the ray marcher, with importance-sampled sample positions: the method of seed 001
+ * (§3.3-4; THEORY.md §6) and its two baselines share it, each a placement of the samples along
+ * a camera ray (the method files guided.c, uniform.c and transmittance.c pick theirs):
  *
  *   guided         p(t) = the histogram PDF of the ray through the SH guide grid (eq. 16),
  *                  mixed with a uniform defensive component (weight guide.alpha), N_ray samples
@@ -28,16 +28,14 @@
  * Given S, the estimate is unbiased for every placement (the defensive mixture keeps p > 0
  * wherever the integrand can be non-zero, and every ray gets at least one sample); what the
  * placements change is the variance. The photon estimate's own bias is shared. */
+#include "integrators/rd_march.h"
 #include "scene/rd_geom.h"
-#include "integrators/rd_guide_pdf.h"
-#include "integrators/rd_method.h"
-#include "bake/rd_photons.h"
+#include "transport/rd_path.h"
+#include "photonmap.h"
 #include "sh.h"
 
 #include <stdlib.h>
 #include <string.h>
-
-typedef enum { PLACE_GUIDED, PLACE_UNIFORM, PLACE_TRANSMITTANCE, PLACE_COUNT } placement;
 
 /* Samples per ray when the scene does not set march.samples: each placement's best on the
  * calibration scenes cloud.json and smoke-vdb.json (bench/bench_samples.sh, 4 spp, efficiency
@@ -50,25 +48,7 @@ static int march_default_samples(placement p)
     return n[p];
 }
 
-/* What every thread reads: the pilot's mean I_ray (eq. 17) and the scratch layout. */
-typedef struct {
-    double mean_I;   /* mean over the pilot's rays of I_ray, 0 when unknown */
-    int n_mean[PLACE_COUNT]; /* N_mean of each placement: march.samples, or its default */
-    int seg_cap;     /* PDF segments per ray */
-    int n_max;       /* samples per ray at most */
-    int k_steps;     /* extinction lookups per ray at most: 4 N_mean (transmittance; guided
-                      * detail lattice), over the placements */
-    int piece_cap;   /* entries of the tb/f/sig tables: k_steps, or cells + k_steps (detail) */
-} march_state;
-
-/* Scratch of one thread: PDF segments, sample positions and densities, extinction table. */
-typedef struct {
-    rd_gpdf_seg *seg;
-    double *t, *p;
-    double *tb, *f, *sig;
-} march_scratch;
-
-static size_t scratch_layout(const march_state *st, march_scratch *ms, void *base)
+size_t rd_march_scratch_layout(const march_state *st, march_scratch *ms, void *base)
 {
     size_t off = 0;
     char *b = base;
@@ -110,7 +90,7 @@ static int medium_span(const rd_scene *s, ray3 r, double t_end, double *t0, doub
 
 /* The camera ray's first straight segment: its region and the part [t0, t1] inside the scene
  * bounds before the first light or surface; *hit_light gets that light, or -1. */
-static int first_segment(const rd_scene *s, ray3 r, int *region, double *t0, double *t1,
+int rd_march_first_segment(const rd_scene *s, ray3 r, int *region, double *t0, double *t1,
                          int *hit_light)
 {
     rd_hit h;
@@ -163,7 +143,7 @@ static void refine_by_lookups(const rd_render_ctx *ctx, const march_scratch *ms,
 
 /* The guide's PDF of ray r over [t0, t1] (cells, or cells x lookups; defensive only when the
  * guide walk fails). */
-static void build_guided(const rd_render_ctx *ctx, const march_scratch *ms, int region, ray3 r,
+void rd_march_build_guided(const rd_render_ctx *ctx, const march_scratch *ms, int region, ray3 r,
                          double t0, double t1, rd_guide_pdf *pdf, rd_track_counters *c)
 {
     const rd_march_settings *m = &ctx->scene->march;
@@ -179,7 +159,7 @@ static void build_guided(const rd_render_ctx *ctx, const march_scratch *ms, int 
 }
 
 /* Build the PDF of `place` over [t0, t1] for ray r into pdf. Returns the samples to take. */
-static int build_pdf(const rd_render_ctx *ctx, placement place, const march_scratch *ms,
+int rd_march_build_pdf(const rd_render_ctx *ctx, placement place, const march_scratch *ms,
                      int region, ray3 r, double t0, double t1, rd_guide_pdf *pdf,
                      rd_track_counters *c)
 {
@@ -189,7 +169,7 @@ static int build_pdf(const rd_render_ctx *ctx, placement place, const march_scra
     rd_guide_pdf_init(pdf, ms->seg, st->seg_cap);
     int N = st->n_mean[place];
     if (place == PLACE_GUIDED) {
-        build_guided(ctx, ms, region, r, t0, t1, pdf, c);
+        rd_march_build_guided(ctx, ms, region, r, t0, t1, pdf, c);
         N = rd_guide_samples_per_ray(pdf->I, st->mean_I, N, ms_set->min_samples, ms_set->max_samples);
     } else if (place == PLACE_UNIFORM) {
         rd_guide_pdf_build(pdf, 0, NULL, NULL, NULL, t0, t1, 1.0, NULL, 0);
@@ -262,7 +242,7 @@ static vec3 photon_estimate(const rd_scene *s, const pm_map *map, vec3 x, vec3 w
     return v3_scale(sum, 1.0 / (4.0 / 3.0 * M_PI * r * r * r));
 }
 
-static vec3 source(const rd_render_ctx *ctx, const rd_medium *m, int region, vec3 x, vec3 d,
+vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, vec3 x, vec3 d,
                    double sigma_t, pcg32 *rng, rd_track_counters *c)
 {
     const rd_scene *s = ctx->scene;
@@ -315,9 +295,9 @@ static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int r
         return v3(0, 0, 0);
     }
     march_scratch ms;
-    scratch_layout(ctx->state, &ms, th->scratch);
+    rd_march_scratch_layout(ctx->state, &ms, th->scratch);
     rd_guide_pdf pdf;
-    int N = build_pdf(ctx, place, &ms, region, r, t0, t1, &pdf, c);
+    int N = rd_march_build_pdf(ctx, place, &ms, region, r, t0, t1, &pdf, c);
     if (th->rays == 0 || (uint32_t)N < th->samples_min) th->samples_min = (uint32_t)N;
     if ((uint32_t)N > th->samples_max) th->samples_max = (uint32_t)N;
     th->rays++;
@@ -335,7 +315,7 @@ static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int r
         double sigma_t = rd_medium_sigma_t(m, x);
         c->lookups++;
         if (sigma_t <= 0.0) continue;
-        vec3 S = source(ctx, m, region, x, r.d, sigma_t, rng, c);
+        vec3 S = rd_march_source(ctx, m, region, x, r.d, sigma_t, rng, c);
         L = v3_madd(L, S, T / (N * ms.p[n]));
     }
     if (T != 0.0) T *= rd_transmittance(s, region, r, tp, t1, rng, c);
@@ -346,7 +326,7 @@ static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int r
 /* Surface crossings of one camera chain that are not events (index-matched interfaces). */
 #define MAX_CROSSINGS 4096
 
-static vec3 march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp,
+vec3 rd_march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp,
                            placement place)
 {
     const rd_scene *s = ctx->scene;
@@ -407,28 +387,15 @@ static vec3 march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_s
     return L;
 }
 
-static vec3 radiance_guided(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
-{
-    return march_radiance(ctx, th, r, smp, PLACE_GUIDED);
-}
-static vec3 radiance_uniform(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
-{
-    return march_radiance(ctx, th, r, smp, PLACE_UNIFORM);
-}
-static vec3 radiance_transmittance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
-{
-    return march_radiance(ctx, th, r, smp, PLACE_TRANSMITTANCE);
-}
-
 /* ---- Set-up: scratch sizes and the pilot pass ---------------------------------------------- */
 
-static size_t march_scratch_bytes(const rd_render_ctx *ctx)
+size_t rd_march_scratch_bytes(const rd_render_ctx *ctx)
 {
     march_scratch ms;
-    return scratch_layout(ctx->state, &ms, NULL);
+    return rd_march_scratch_layout(ctx->state, &ms, NULL);
 }
 
-static rd_status march_prepare_common(rd_render_ctx *ctx, char *err, size_t errlen)
+rd_status rd_march_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
 {
     const rd_march_settings *m = &ctx->scene->march;
     rd_status st = rd_guide_sampler_check(m->alpha, m->min_samples, m->max_samples, err, errlen);
@@ -467,51 +434,7 @@ static rd_status march_prepare_common(rd_render_ctx *ctx, char *err, size_t errl
     return RD_OK;
 }
 
-static void march_release(rd_render_ctx *ctx);
-
-static rd_status prepare_plain(rd_render_ctx *ctx, char *err, size_t errlen)
-{
-    return march_prepare_common(ctx, err, errlen);
-}
-
-/* The pilot pass of eq. 17: mean I_ray over a sparse grid of camera rays through pixel centres
- * (every 4th pixel each way) that enter the media. Costs a guide walk per ray, no tracking. */
-static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
-{
-    rd_status st = march_prepare_common(ctx, err, errlen);
-    if (st != RD_OK) return st;
-    march_state *mst = ctx->state;
-    const rd_scene *s = ctx->scene;
-    march_scratch ms;
-    size_t bytes = scratch_layout(mst, &ms, NULL);
-    void *buf = aligned_alloc(16, (bytes + 15) / 16 * 16);
-    if (!buf) {
-        snprintf(err, errlen, "out of memory for the pilot pass");
-        march_release(ctx);
-        return RD_ERR_NOMEM;
-    }
-    scratch_layout(mst, &ms, buf);
-    double sum = 0.0;
-    long n = 0;
-    for (int y = 2; y < s->camera.height; y += 4)
-        for (int x = 2; x < s->camera.width; x += 4) {
-            ray3 r = rd_camera_ray(&s->camera, x + 0.5, y + 0.5);
-            double t0, t1;
-            int hit, region;
-            if (!first_segment(s, r, &region, &t0, &t1, &hit)) continue;
-            rd_guide_pdf pdf;
-            rd_guide_pdf_init(&pdf, ms.seg, mst->seg_cap);
-            rd_track_counters c = {0};
-            build_guided(ctx, &ms, region, r, t0, t1, &pdf, &c);
-            sum += pdf.I;
-            n++;
-        }
-    free(buf);
-    mst->mean_I = n > 0 ? sum / n : 0.0;
-    return RD_OK;
-}
-
-static void march_release(rd_render_ctx *ctx)
+void rd_march_release(rd_render_ctx *ctx)
 {
     free(ctx->state);
     ctx->state = NULL;
@@ -519,7 +442,7 @@ static void march_release(rd_render_ctx *ctx)
 
 /* What the scene's source needs baked: the photon map (photons) or its indirect part
  * (nee+photons); the guided placement needs the guide (and so a photon map) in any case. */
-static unsigned source_needs(const rd_scene *s)
+unsigned rd_march_source_needs(const rd_scene *s)
 {
     switch (s->march.ls) {
     case RD_LS_PHOTONS: return RD_NEEDS_PHOTONS;
@@ -527,161 +450,4 @@ static unsigned source_needs(const rd_scene *s)
     case RD_LS_NEE_GUIDE: return RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE;
     default: return 0u;
     }
-}
-static unsigned needs_guided(const rd_scene *s) { return source_needs(s) | RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE; }
-#define MARCH_NEEDS (RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE)
-
-const rd_method rd_method_guided = {
-    .name = "guided",
-    .summary = "seed 001: ray marching with samples placed by the photon-map SH guide (eq. 16-17)",
-    .needs = MARCH_NEEDS,
-    .needs_for = needs_guided,
-    .scratch_bytes = march_scratch_bytes,
-    .prepare = prepare_guided,
-    .release = march_release,
-    .radiance = radiance_guided,
-};
-
-const rd_method rd_method_uniform = {
-    .name = "uniform",
-    .summary = "seed 001 baseline: ray marching with a fixed step and one random offset (eq. 5)",
-    .needs = RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE,
-    .needs_for = source_needs,
-    .scratch_bytes = march_scratch_bytes,
-    .prepare = prepare_plain,
-    .release = march_release,
-    .radiance = radiance_uniform,
-};
-
-const rd_method rd_method_transmittance = {
-    .name = "transmittance",
-    .summary = "seed 001 baseline: ray marching with samples placed by sigma_t T (eq. 11)",
-    .needs = RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE,
-    .needs_for = source_needs,
-    .scratch_bytes = march_scratch_bytes,
-    .prepare = prepare_plain,
-    .release = march_release,
-    .radiance = radiance_transmittance,
-};
-
-/* ---- explain: one camera ray laid open (renderer.h rd_explain) ---------------------------- */
-
-/* Dense integrand value at t (piecewise constant on the dense cells). */
-static double dense_f(const rd_explain_result *e, double t)
-{
-    double h = (e->t1 - e->t0) / e->n;
-    long i = (long)floor((t - e->t0) / h);
-    if (i < 0) i = 0;
-    if (i >= e->n) i = e->n - 1;
-    return e->f[i];
-}
-
-/* Variance (and the standard error of that variance, and the fourth central moment) of the
- * stratified estimate (1/N) sum f(t_n)/p(t_n) of I over R draws of u, against the dense f. */
-static void placement_variance(const rd_explain_result *e, const rd_guide_pdf *pdf, int N,
-                               double *t, double *p, uint64_t seed, double *var, double *se,
-                               double *m4)
-{
-    enum { R = 4000 };
-    double *est = malloc(sizeof(double) * R);
-    if (!est) { *var = *se = *m4 = NAN; return; }
-    pcg32 rng = pcg32_seed(seed, 0x6578706cU, 1);
-    double mean = 0.0;
-    for (int k = 0; k < R; k++) {
-        rd_guide_pdf_sample_stratified(pdf, N, pcg32_uniform(&rng), t, p);
-        double sum = 0.0;
-        for (int n = 0; n < N; n++)
-            if (p[n] > 0.0) sum += dense_f(e, t[n]) / p[n];
-        est[k] = sum / N;
-        mean += est[k];
-    }
-    mean /= R;
-    double m2 = 0.0, q = 0.0;
-    for (int k = 0; k < R; k++) {
-        double d = est[k] - mean;
-        m2 += d * d;
-        q += d * d * d * d;
-    }
-    m2 /= R - 1;
-    q /= R;
-    *var = m2;
-    *m4 = q;
-    *se = sqrt(fmax(0.0, q - m2 * m2) / R); /* var of a sample variance ~ (m4 - s^4) / R */
-    free(est);
-}
-
-rd_status rd_march_explain(const rd_render_ctx *ctx, ray3 r, int n, uint64_t seed,
-                           rd_explain_result *e, char *err, size_t errlen)
-{
-    const rd_scene *s = ctx->scene;
-    const march_state *st = ctx->state;
-    e->origin[0] = r.o.x, e->origin[1] = r.o.y, e->origin[2] = r.o.z;
-    e->dir[0] = r.d.x, e->dir[1] = r.d.y, e->dir[2] = r.d.z;
-    int hit_light, region;
-    /* The camera ray's first straight segment (up to the first surface or light). */
-    if (!first_segment(s, r, &region, &e->t0, &e->t1, &hit_light)) return RD_OK;
-    e->hits_media = 1;
-    e->n = n;
-    int nmax = st->n_max;
-    e->t = malloc(sizeof(double) * n);
-    e->T = malloc(sizeof(double) * n);
-    e->f = malloc(sizeof(double) * n);
-    int ok = e->t && e->T && e->f;
-    for (int k = 0; k < RD_EXPLAIN_PLACEMENTS; k++) {
-        e->p[k] = malloc(sizeof(double) * n);
-        e->samples[k] = malloc(sizeof(double) * nmax);
-        ok = ok && e->p[k] && e->samples[k];
-    }
-    march_scratch ms;
-    size_t bytes = scratch_layout(st, &ms, NULL);
-    void *buf = aligned_alloc(16, (bytes + 15) / 16 * 16);
-    double *pbuf = malloc(sizeof(double) * nmax);
-    if (!ok || !buf || !pbuf) {
-        free(buf), free(pbuf);
-        snprintf(err, errlen, "out of memory for explain (%d dense points)", n);
-        return RD_ERR_NOMEM;
-    }
-    scratch_layout(st, &ms, buf);
-
-    /* The dense integrand: T by the midpoint rule on sigma_t, S averaged over 16 draws. */
-    rd_track_counters c = {0};
-    pcg32 rng = pcg32_seed(seed, 0x64656e73U, 2);
-    double h = (e->t1 - e->t0) / n, tau = 0.0;
-    e->I = 0.0;
-    for (int i = 0; i < n; i++) {
-        double t = e->t0 + (i + 0.5) * h;
-        vec3 x = ray_at(r, t);
-        const rd_medium *m = rd_scene_medium_at(s, region, x);
-        double sig = m ? rd_medium_sigma_t(m, x) : 0.0;
-        double T = exp(-(tau + 0.5 * sig * h));
-        tau += sig * h;
-        vec3 S = v3(0, 0, 0);
-        if (m && sig > 0.0) {
-            int draws = s->march.ls == RD_LS_PHOTONS ? 1 : 16;
-            for (int k = 0; k < draws; k++)
-                S = v3_add(S, source(ctx, m, region, x, r.d, sig, &rng, &c));
-            S = v3_scale(S, 1.0 / draws);
-        }
-        e->t[i] = t;
-        e->T[i] = T;
-        e->f[i] = T * v3_lum(S);
-        e->I += e->f[i] * h;
-    }
-    e->T_end = exp(-tau);
-
-    /* Each placement's pdf, one draw of its samples, and its variance. */
-    const placement places[RD_EXPLAIN_PLACEMENTS] = {PLACE_GUIDED, PLACE_TRANSMITTANCE, PLACE_UNIFORM};
-    for (int k = 0; k < RD_EXPLAIN_PLACEMENTS; k++) {
-        rd_guide_pdf pdf;
-        int N = build_pdf(ctx, places[k], &ms, region, r, e->t0, e->t1, &pdf, &c);
-        if (k == RD_EXPLAIN_GUIDED) e->I_ray = pdf.I;
-        for (int i = 0; i < n; i++) e->p[k][i] = rd_guide_pdf_eval(&pdf, e->t[i]);
-        e->n_samples[k] = N;
-        rd_guide_pdf_sample_stratified(&pdf, N, pcg32_uniform(&rng), e->samples[k], pbuf);
-        placement_variance(e, &pdf, N, ms.t, ms.p, seed + (uint64_t)k, &e->var[k], &e->var_se[k], &e->m4[k]);
-    }
-    e->mean_I = st->mean_I;
-    free(buf);
-    free(pbuf);
-    return RD_OK;
 }

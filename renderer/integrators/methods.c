@@ -1,15 +1,13 @@
-/* methods.c: the table of render methods. Adding a method is one file defining a
- * `const rd_method` (rd_method.h) plus one row here. */
+/* methods.c: the table of render methods, made from the rows of method_list.h. Adding a method
+ * is one file defining a `const rd_method` (rd_method.h) plus one row in method_list.h. */
 #include "integrators/rd_method.h"
 
 #include <string.h>
 
 static const rd_method *const table[] = {
-    &rd_method_delta,
-    &rd_method_guided,
-    &rd_method_guided_unbiased,
-    &rd_method_transmittance,
-    &rd_method_uniform,
+#define RD_METHOD(id) &rd_method_##id,
+#include "integrators/method_list.h"
+#undef RD_METHOD
 };
 enum { N_METHODS = sizeof table / sizeof table[0] };
 

@@ -1,15 +1,15 @@
 /* rd_method.h: the render methods' table and the context they render in. Internal to
  * renderer/ (tests include it too).
  *
- * A method is one file that defines a `const rd_method` and one row in renderer/methods.c. It
+ * A method is one file that defines a `const rd_method` and one row in method_list.h. It
  * says what it needs baked (a photon map, a guide grid), may prepare shared state once per
  * render (a pilot pass, tables), and answers radiance queries for camera rays from worker
- * threads, each with its own rd_thread (counters, scratch memory). render.c owns the passes,
+ * threads, each with its own rd_thread (counters, scratch memory). render/render.c owns the passes,
  * the film, the time budget and the random numbers; nothing in a method touches them. */
 #ifndef RD_METHOD_H
 #define RD_METHOD_H
 
-#include "rd_internal.h"
+#include "transport/rd_path.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -62,16 +62,10 @@ typedef struct rd_method {
     vec3 (*radiance)(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp);
 } rd_method;
 
-/* What rd_bake made (bake.c): the built photon map and the guide (NULL after no_guide). */
-const struct pm_map *rd_baked_map(const rd_baked *b);
-const struct pm_map *rd_baked_indirect_map(const rd_baked *b);
-const struct sh_guide *rd_baked_guide(const rd_baked *b);
-const struct sh_guide *rd_baked_indirect_guide(const rd_baked *b);
-
 /* The table (methods.c). NULL for an unknown name. */
 const rd_method *rd_method_find(const char *name);
 
-/* guided-unbiased (integrator_gu.c), for the sampler's tests, on a context prepared for the
+/* guided-unbiased (integrators/guided_unbiased.c), for the sampler's tests, on a context prepared for the
  * method (scratch: method->scratch_bytes(ctx) bytes). rd_gu_flight draws one free flight
  * exactly as its path tracer does; *P_pass (may be NULL) gets the flight's pass probability
  * (-1 when it fell back to delta tracking: no guide, guide.secondary off at depth > 0, no
@@ -87,13 +81,14 @@ double rd_gu_flight_cdf(const rd_render_ctx *ctx, void *scratch, const rd_flight
 void rd_gu_vertex(const rd_render_ctx *ctx, const rd_vertex_in *v, double I_cam, pcg32 *rng,
                   rd_vertex_out *out);
 
-/* explain (integrator_march.c): fill res for ray r on a context prepared for `guided`. */
+/* explain (integrators/march_explain.c): fill res for ray r on a context prepared for `guided`. */
 rd_status rd_march_explain(const rd_render_ctx *ctx, ray3 r, int n, uint64_t seed,
                            rd_explain_result *res, char *err, size_t errlen);
 
-extern const rd_method rd_method_delta;
-extern const rd_method rd_method_guided_unbiased;
-extern const rd_method rd_method_guided, rd_method_uniform, rd_method_transmittance;
+/* The methods, one `rd_method_<id>` per row of method_list.h. */
+#define RD_METHOD(id) extern const rd_method rd_method_##id;
+#include "integrators/method_list.h"
+#undef RD_METHOD
 
 #ifdef __cplusplus
 }

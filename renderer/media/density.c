@@ -1,6 +1,6 @@
 /* medium.c: density fields of the media (constant, voxel grid, procedural noise), ray-box
  * clipping, and the raw volume reader. */
-#include "rd_internal.h"
+#include "media/rd_medium.h"
 #include "walk.h"
 
 #include <errno.h>
@@ -239,28 +239,3 @@ double rd_medium_density(const rd_medium *m, vec3 x)
     return 0.0;
 }
 
-static int in_box(const rd_medium *m, vec3 x)
-{
-    return x.x >= m->bmin.x && x.y >= m->bmin.y && x.z >= m->bmin.z && x.x <= m->bmax.x &&
-           x.y <= m->bmax.y && x.z <= m->bmax.z;
-}
-
-const rd_medium *rd_scene_medium_at(const rd_scene *s, int region, vec3 x)
-{
-    /* rd_internal.h "Surfaces in the transport": a bound region holds its medium; the open
-     * region the box media within their bounds and the scene-wide medium elsewhere. */
-    if (region != s->fill_medium)
-        return region >= 0 && region < s->n_media && in_box(&s->media[region], x) ? &s->media[region] : NULL;
-    for (int i = 0; i < s->n_media; i++) {
-        const rd_medium *m = &s->media[i];
-        if (m->bound) continue;
-        if (in_box(m, x)) return m;
-    }
-    if (s->fill_medium >= 0 && in_box(&s->media[s->fill_medium], x)) return &s->media[s->fill_medium];
-    return NULL;
-}
-
-const rd_medium *rd_scene_medium_at_point(const rd_scene *s, vec3 x)
-{
-    return rd_scene_medium_at(s, rd_scene_region_at(s, x), x);
-}

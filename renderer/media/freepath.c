@@ -4,7 +4,7 @@
  * is the walk with one global segment, super-voxel delta tracking the walk over the grid or
  * octree (seed 003 §3.3 SuperVoxelTraversal: draw tau* = -ln(1-u), accumulate the majorant's
  * optical depth segment by segment, solve inside the segment where it passes tau*). */
-#include "rd_internal.h"
+#include "media/rd_freepath.h"
 #include "walk.h"
 
 #include <string.h>

@@ -15,7 +15,7 @@
  *  - The value-type iterator rd_majorant_next over walk/ (the 3D-DDA of Amanatides and Woo 1987
  *    for the grid; neighbour finding by descent from the root with plane snapping for the
  *    octree). */
-#include "rd_internal.h"
+#include "media/rd_freepath.h"
 #include "walk.h"
 
 #include <float.h>

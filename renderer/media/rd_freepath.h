@@ -9,14 +9,30 @@
  *  - trackers and transmittance estimators (freepath.c) behind one interface, chosen by
  *    rd_fp_params (scene settings "tracker", "transmittance", "b", "m", "step").
  *
- * Included by rd_internal.h (after rd_medium and rd_track_counters are defined). Internal. */
+ * Internal to renderer/ (tests include it). */
 #ifndef RD_FREEPATH_H
 #define RD_FREEPATH_H
 
 #include <stddef.h>
 #include <stdint.h>
 
+#include "media/rd_medium.h"
 #include "walk.h"
+
+/* Counters a tracker increments (per thread, summed by the caller). */
+typedef struct {
+    uint64_t collisions, lookups;
+    uint64_t shadow_rays;  /* next-event transmittance estimates */
+} rd_track_counters;
+
+typedef struct {
+    int hit;          /* 1 = real collision */
+    double t;         /* distance along the ray */
+    const rd_medium *medium;
+    double weight;    /* path weight factor: 1 for analog trackers; weighted delta and
+                         decomposition tracking (seed 002 Alg. 2-3) return their weight here,
+                         for a collision and for an escape alike */
+} rd_collision;
 
 /* ---- Majorant structures ------------------------------------------------------------------ */
 typedef enum { RD_MAJ_AUTO, RD_MAJ_NONE, RD_MAJ_GRID, RD_MAJ_OCTREE } rd_maj_kind;

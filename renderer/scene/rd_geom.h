@@ -16,7 +16,7 @@
 #ifndef RD_GEOM_H
 #define RD_GEOM_H
 
-#include "rd_internal.h"
+#include "scene/rd_scene.h"
 
 #include <stddef.h>
 #include <stdint.h>

@@ -1,6 +1,7 @@
 /* voxelize.c: a medium's density sampled at voxel centres, written as OpenVDB or raw float32
  * (docs/cli.md, voxelize; the format of raw grids in docs/scene-format.md). */
-#include "rd_internal.h"
+#include "core/rd_core.h"
+#include "scene/rd_scene.h"
 
 #include <stdlib.h>
 #include <string.h>

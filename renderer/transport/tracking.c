@@ -2,6 +2,7 @@
  * seeds 000, 002, 003): the media the ray crosses, in order, each handed to the free-path
  * engine (freepath.c) with the tracker and estimator the scene settings choose. */
 #include "scene/rd_geom.h"
+#include "transport/rd_transport.h"
 
 #include <string.h>
 
@@ -106,62 +107,6 @@ double rd_transmittance(const rd_scene *s, int region, ray3 r, double t0, double
         T *= rd_fp_transmittance(&p, &fm, r, iv[i].t0, iv[i].t1, rng, c);
     }
     return T;
-}
-
-/* ---- Surfaces: what a ray meets, which region a point is in, shadow rays across interfaces -- */
-
-int rd_scene_intersect(const rd_scene *s, ray3 r, double tmax, const rd_hit *from, rd_hit *h)
-{
-    if (s->geom) return rd_geom_intersect(s->geom, r, 0.0, tmax, from, h);
-    double t;
-    int i = rd_scene_hit_light(s, r, tmax, -1, &t);
-    if (i < 0) return 0;
-    memset(h, 0, sizeof *h);
-    h->t = t;
-    h->p = ray_at(r, t);
-    h->shape = -1;
-    h->light = i;
-    h->medium_from = h->medium_to = -1;
-    return 1;
-}
-
-/* The region the first shape met along r says x is in (sphere lights do not bound regions:
- * the ray steps past them). */
-static int region_along(const rd_scene *s, ray3 r)
-{
-    rd_hit h, prev;
-    const rd_hit *from = NULL;
-    for (int k = 0; k < 64; k++) {
-        if (!rd_geom_intersect(s->geom, r, 0.0, INFINITY, from, &h)) return s->fill_medium;
-        if (h.shape >= 0) return h.medium_from;
-        prev = h;
-        from = &prev;
-        r = rd_hit_spawn(&prev, r.d);
-    }
-    return s->fill_medium;
-}
-
-int rd_scene_camera_region(const rd_scene *s, ray3 r)
-{
-    if (!s->geom) return s->fill_medium;
-    const vec3 c = s->camera.pos;
-    if (s->camera.kind == RD_CAM_PERSPECTIVE && r.o.x == c.x && r.o.y == c.y && r.o.z == c.z)
-        return s->camera_region;
-    return rd_scene_region_at(s, r.o);
-}
-
-int rd_scene_region_at(const rd_scene *s, vec3 x)
-{
-    if (!s->geom) return s->fill_medium;
-    /* Directions off every axis and diagonal, so the rays do not run along the edges of
-     * axis-aligned meshes. A ray through a crack between two triangles (Embree's float test is
-     * not watertight) would miss a surface and name the wrong side: two rays that agree
-     * decide; a third settles a disagreement. */
-    int a = region_along(s, (ray3){x, v3_norm(v3(0.5316, 0.6124, 0.5851))});
-    int b = region_along(s, (ray3){x, v3_norm(v3(-0.7213, 0.1877, -0.4409))});
-    if (a == b) return a;
-    int c = region_along(s, (ray3){x, v3_norm(v3(0.2219, -0.8377, 0.3583))});
-    return c == b ? b : a;
 }
 
 double rd_shadow_transmittance(const rd_scene *s, int region, ray3 r, double dist, int light,

@@ -4,7 +4,8 @@
 #define RD_TEST_H
 
 #define _DEFAULT_SOURCE
-#include "rd_internal.h"
+#include "core/rd_core.h"
+#include "transport/rd_path.h"
 
 #include <criterion/criterion.h>
 #include <fcntl.h>

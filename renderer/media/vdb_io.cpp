@@ -3,8 +3,8 @@
 // index-to-world transform; writes a dense array as a .vdb
 // with a scale and translation or any affine index-to-world map (for tests and the
 // scene-making scripts). Every exception is caught and turned into a one-line message.
-#include "rd_internal.h"
-#include "core/rd_vdb.h"
+#include "media/rd_medium.h"
+#include "media/rd_vdb.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/io/File.h>

@@ -1,0 +1,67 @@
+/* guided.c: the method `guided`, seed 001's (§3.3-4, eq. 16-17; THEORY.md §6): ray marching
+ * (integrators/march.c) with the samples placed by the histogram PDF of the camera ray through
+ * the photon map's SH guide grid, mixed with a uniform defensive part (weight march.alpha), and
+ * N_ray samples per ray by eq. 17 from a pilot pass over the image. */
+#include "integrators/rd_march.h"
+#include "sh.h"
+
+#include <stdlib.h>
+
+/* The pilot pass of eq. 17: mean I_ray over a sparse grid of camera rays through pixel centres
+ * (every 4th pixel each way) that enter the media. Costs a guide walk per ray, no tracking. */
+static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
+{
+    rd_status st = rd_march_prepare(ctx, err, errlen);
+    if (st != RD_OK) return st;
+    march_state *mst = ctx->state;
+    const rd_scene *s = ctx->scene;
+    march_scratch ms;
+    size_t bytes = rd_march_scratch_layout(mst, &ms, NULL);
+    void *buf = aligned_alloc(16, (bytes + 15) / 16 * 16);
+    if (!buf) {
+        snprintf(err, errlen, "out of memory for the pilot pass");
+        rd_march_release(ctx);
+        return RD_ERR_NOMEM;
+    }
+    rd_march_scratch_layout(mst, &ms, buf);
+    double sum = 0.0;
+    long n = 0;
+    for (int y = 2; y < s->camera.height; y += 4)
+        for (int x = 2; x < s->camera.width; x += 4) {
+            ray3 r = rd_camera_ray(&s->camera, x + 0.5, y + 0.5);
+            double t0, t1;
+            int hit, region;
+            if (!rd_march_first_segment(s, r, &region, &t0, &t1, &hit)) continue;
+            rd_guide_pdf pdf;
+            rd_guide_pdf_init(&pdf, ms.seg, mst->seg_cap);
+            rd_track_counters c = {0};
+            rd_march_build_guided(ctx, &ms, region, r, t0, t1, &pdf, &c);
+            sum += pdf.I;
+            n++;
+        }
+    free(buf);
+    mst->mean_I = n > 0 ? sum / n : 0.0;
+    return RD_OK;
+}
+
+static vec3 radiance_guided(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
+{
+    return rd_march_radiance(ctx, th, r, smp, PLACE_GUIDED);
+}
+
+/* The guided placement needs the guide (and so a photon map) whatever the source needs. */
+static unsigned needs_guided(const rd_scene *s)
+{
+    return rd_march_source_needs(s) | RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE;
+}
+
+const rd_method rd_method_guided = {
+    .name = "guided",
+    .summary = "seed 001: ray marching with samples placed by the photon-map SH guide (eq. 16-17)",
+    .needs = RD_MARCH_NEEDS,
+    .needs_for = needs_guided,
+    .scratch_bytes = rd_march_scratch_bytes,
+    .prepare = prepare_guided,
+    .release = rd_march_release,
+    .radiance = radiance_guided,
+};

@@ -1,0 +1,63 @@
+/* rd_march.h: the ray marcher shared by `guided`, `uniform` and `transmittance` (seed 001
+ * §3.3-4; THEORY.md §6), for the three method files and explain (integrators/march.c holds the
+ * marcher; guided.c, uniform.c and transmittance.c the methods; march_explain.c explain).
+ * Internal to integrators/. */
+#ifndef RD_MARCH_H
+#define RD_MARCH_H
+
+#include "integrators/rd_guide_pdf.h"
+#include "integrators/rd_method.h"
+
+/* Where the samples along a camera ray go (one method each). */
+typedef enum { PLACE_GUIDED, PLACE_UNIFORM, PLACE_TRANSMITTANCE, PLACE_COUNT } placement;
+
+/* What every thread reads: the pilot's mean I_ray (eq. 17) and the scratch layout. */
+typedef struct {
+    double mean_I;   /* mean over the pilot's rays of I_ray, 0 when unknown */
+    int n_mean[PLACE_COUNT]; /* N_mean of each placement: march.samples, or its default */
+    int seg_cap;     /* PDF segments per ray */
+    int n_max;       /* samples per ray at most */
+    int k_steps;     /* extinction lookups per ray at most: 4 N_mean (transmittance; guided
+                      * detail lattice), over the placements */
+    int piece_cap;   /* entries of the tb/f/sig tables: k_steps, or cells + k_steps (detail) */
+} march_state;
+
+/* Scratch of one thread: PDF segments, sample positions and densities, extinction table. */
+typedef struct {
+    rd_gpdf_seg *seg;
+    double *t, *p;
+    double *tb, *f, *sig;
+} march_scratch;
+
+/* Lay the scratch out at base (NULL: only measure); returns its size in bytes. */
+size_t rd_march_scratch_layout(const march_state *st, march_scratch *ms, void *base);
+/* The camera ray's first straight segment: its region and the part [t0, t1] inside the scene
+ * bounds before the first light or surface; *hit_light gets that light, or -1. 0: it misses. */
+int rd_march_first_segment(const rd_scene *s, ray3 r, int *region, double *t0, double *t1,
+                           int *hit_light);
+/* The guide's PDF of ray r over [t0, t1] (cells, or cells x lookups; defensive only when the
+ * guide walk fails). */
+void rd_march_build_guided(const rd_render_ctx *ctx, const march_scratch *ms, int region, ray3 r,
+                           double t0, double t1, rd_guide_pdf *pdf, rd_track_counters *c);
+/* Build the PDF of `place` over [t0, t1] for ray r into pdf. Returns the samples to take. */
+int rd_march_build_pdf(const rd_render_ctx *ctx, placement place, const march_scratch *ms,
+                       int region, ray3 r, double t0, double t1, rd_guide_pdf *pdf,
+                       rd_track_counters *c);
+/* The in-scattered radiance source S = sigma_s L_s at x toward -d, from march.ls. */
+vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, vec3 x, vec3 d,
+                     double sigma_t, pcg32 *rng, rd_track_counters *c);
+/* Radiance along camera ray r with the samples of `place` (the estimator of THEORY.md §6). */
+vec3 rd_march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp,
+                       placement place);
+/* The method table's hooks, shared by the three methods: scratch size, the common prepare
+ * (march_state from the scene's march settings; guided adds its pilot pass), release. */
+size_t rd_march_scratch_bytes(const rd_render_ctx *ctx);
+rd_status rd_march_prepare(rd_render_ctx *ctx, char *err, size_t errlen);
+void rd_march_release(rd_render_ctx *ctx);
+/* What the scene's source needs baked: the photon map (photons) or its indirect part
+ * (nee+photons), and the indirect guide (nee+guide). */
+unsigned rd_march_source_needs(const rd_scene *s);
+/* Every bake a marcher may need (the methods' `needs`). */
+#define RD_MARCH_NEEDS (RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE)
+
+#endif /* RD_MARCH_H */

@@ -1,0 +1,19 @@
+/* uniform.c: the method `uniform`, seed 001's first baseline (eq. 5): ray marching
+ * (integrators/march.c) with N evenly spaced samples per camera ray, one random offset each. */
+#include "integrators/rd_march.h"
+
+static vec3 radiance_uniform(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
+{
+    return rd_march_radiance(ctx, th, r, smp, PLACE_UNIFORM);
+}
+
+const rd_method rd_method_uniform = {
+    .name = "uniform",
+    .summary = "seed 001 baseline: ray marching with a fixed step and one random offset (eq. 5)",
+    .needs = RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE,
+    .needs_for = rd_march_source_needs,
+    .scratch_bytes = rd_march_scratch_bytes,
+    .prepare = rd_march_prepare,
+    .release = rd_march_release,
+    .radiance = radiance_uniform,
+};

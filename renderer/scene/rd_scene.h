@@ -1,0 +1,152 @@
+/* rd_scene.h: the scene as the renderer holds it (struct rd_scene: camera, media, lights,
+ * settings, shapes), and the questions asked of it: what a ray meets first, which region a
+ * point lies in, which medium is where (scene/queries.c), its radius (scene/scene.c). The
+ * loader that fills it from scene.json is load/. Internal to renderer/ (tests include it). */
+#ifndef RD_SCENE_H
+#define RD_SCENE_H
+
+#include "media/rd_medium.h"
+#include "scene/rd_camera.h"
+#include "scene/rd_light.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct {
+    int spp;
+    int spp_given;       /* settings.spp was in the file (else --time/settings.time alone run
+                            until the time is up) */
+    double time_limit;
+    uint64_t seed;
+    int max_depth;       /* scattering events per path (1 = single scattering) */
+    int rr_depth;        /* Russian roulette from this depth on */
+    char method[32];
+    /* Free-path engine (rd_freepath.h): rd_fp_kind / rd_tr_kind values and their parameters. */
+    int tracker, transmittance;
+    double track_b, track_m, track_step;
+} rd_settings;
+
+/* Photon tracing settings (scene key "photons", docs/scene-format.md). */
+typedef struct {
+    size_t count;        /* photons emitted */
+    int store_direct;    /* store first collisions straight from lights (default 1: the guide
+                            wants all in-scattered light) */
+    int segments;        /* also store path segments (needed by the track-length bake) */
+    int max_depth;
+    uint64_t seed;
+} rd_photon_settings;
+
+/* Guide-grid settings (scene key "guide"). */
+typedef struct {
+    int adaptive;        /* 0 uniform grid, 1 adaptive octree */
+    int track;           /* 0 k-NN bake, 1 track-length bake */
+    int bands;           /* SH bands L */
+    int k;               /* photons per estimate */
+    double lambda;       /* grid quality */
+    int res[3];          /* explicit uniform resolution, 0 = the rule */
+    double min_cell;     /* adaptive: smallest cell edge [m], 0 = default */
+    int max_depth;       /* adaptive: deepest level */
+    int window;          /* 1 (default): Hann window on the phase's b_l (sh_window_hann), 0: none */
+    /* guided-unbiased (docs/guided-unbiased.md): */
+    int distances;       /* 1 (default): free-flight distances and the scatter-or-pass decision
+                          * from the guide; 0: delta tracking's */
+    double distance_alpha; /* defensive weight of the distance pdf's uniform part, in (0, 1] */
+    double pass_floor;   /* the guide strategy's least probability of scatter and of pass, (0, 0.5] */
+    double majorant_weight; /* weight of the majorant (delta-tracking) strategy, in [0, 1) */
+    int secondary;       /* 1 (default): guide secondary flights too; 0: the camera ray's only */
+    double distance_tau_max; /* guide a flight's distance only where its majorant optical depth
+                              * is at most this (thicker flights: delta tracking's), > 0 */
+    int directions;      /* 1 (default): continue from a vertex by a mixture of the guide's
+                          * incident-light lobe and the phase function (MIS); 0: phase alone */
+    double direction_weight; /* probability of the guide's lobe in that mixture, in [0, 1) */
+    int roulette;        /* 1 (default): Russian roulette and splitting by the guide's estimate
+                          * of the path's contribution (weight window, Vorba and Krivanek 2016);
+                          * 0: the throughput roulette of `delta` */
+    int split_max;       /* most copies one vertex splits into, in [1, 64] (1: roulette only) */
+} rd_guide_settings;
+
+/* Ray-marching settings of the guided methods (scene key "march", docs/scene-format.md). */
+typedef enum { RD_LS_NEE_PHOTONS, RD_LS_PHOTONS, RD_LS_NEE, RD_LS_NEE_GUIDE } rd_ls_kind;
+typedef struct {
+    int samples;         /* N_mean: samples per ray (uniform and transmittance: every ray);
+                          * 0 (key absent): each placement's own calibrated default
+                          * (integrator_march.c, march_default_samples) */
+    int min_samples;     /* guided: N_min >= 1 */
+    int max_samples;     /* guided: N_max */
+    double alpha;        /* defensive weight of the mixture, in (0, 1] */
+    rd_ls_kind ls;       /* source of sigma_s L_s at a sample */
+    int detail;          /* guided: 1 scales each cell's f_j by sigma_t(t) / sigma_j from lookups
+                          * along the ray; 0 (default) uses the cells alone (seed 001 eq. 16) */
+} rd_march_settings;
+
+struct rd_scene {
+    char path[1024];
+    char *description;    /* the scene's "description" (what it shows, what to look at), or NULL */
+    rd_camera camera;
+    rd_medium *media;
+    int n_media;
+    rd_light *lights;
+    int n_lights;
+    vec3 background;      /* radiance seen by camera rays that leave the scene (not a light) */
+    vec3 bmin, bmax;      /* bounds of all media */
+    rd_settings settings;
+    rd_photon_settings photons;
+    rd_guide_settings guide;
+    rd_march_settings march;
+    rd_light_sampler light_sampler; /* lights by power, built by the loader */
+    uint64_t bake_key;    /* hash of what a bake depends on (load/ bake key), for the cache */
+    int *sphere_lights;   /* indices of the sphere lights (the lights a path can hit) */
+    int n_sphere_lights;
+    /* Surfaces (issue 14; rd_geom.h, docs/scene-format.md "Shapes"): triangle meshes with a
+     * material and the media on their two sides, and the scene-wide medium. */
+    struct rd_shape *shapes;  /* n_shapes, owned (each owns its mesh) */
+    int n_shapes;
+    int fill_medium;      /* scene key "medium": index of the medium that fills everything
+                           * outside every shape and box medium, or -1 (vacuum) */
+    int camera_region;    /* the region of a perspective camera's position (rd_scene_region_at),
+                           * found once by the loader: every camera ray starts there */
+    struct rd_geom *geom; /* the Embree scene of shapes and sphere lights (rd_geom.h), built by
+                           * the loader when there are shapes; NULL without (then sphere lights
+                           * are hit by rd_scene_hit_light, as before shapes existed) */
+};
+
+/* ---- Surfaces in the transport (issue 14; docs/surfaces.md) --------------------------------- *
+ * A ray travels in a REGION, named by the medium on its side of the surfaces: a medium index,
+ * or -1 for vacuum (pbrt-v4's MediumInterface: each surface says which medium lies on each
+ * side, and a path crossing it takes the other side's). The region s->fill_medium (the
+ * scene-wide medium; -1 when the scene has none) is the OPEN region: there the box media (the
+ * media no shape names) fill their bounds and the scene-wide medium fills the rest of its own
+ * bounds. Any other region holds its one bound medium, whose density is 0 outside that medium's
+ * bounds. A scene without shapes is one open region, so every call below with
+ * region = s->fill_medium behaves as before shapes existed. */
+typedef struct rd_hit rd_hit; /* rd_geom.h */
+/* The region a camera ray starts in: s->camera_region for a ray from a perspective camera's
+ * position, else rd_scene_region_at(s, r.o). */
+int rd_scene_camera_region(const rd_scene *s, ray3 r);
+/* The region containing point x: one ray query from x (the first shape it meets says which
+ * medium lies on the side it arrives from); s->fill_medium when no shape is met. */
+int rd_scene_region_at(const rd_scene *s, vec3 x);
+/* The nearest surface or sphere light r meets with t in (0, tmax) (`from`: the hit r leaves
+ * from, or NULL; rd_geom_intersect). Without shapes: the sphere lights by rd_scene_hit_light
+ * (h->shape = -1, h->light, h->t, h->p; the rest zero). Returns 1 with *h filled, else 0. The
+ * one answer to "what does this ray meet first". */
+int rd_scene_intersect(const rd_scene *s, ray3 r, double tmax, const rd_hit *from, rd_hit *h);
+
+/* The nearest sphere light that r hits before tmax (skipping light `skip`, -1 for none), or -1;
+ * *t_hit (may be NULL) gets its distance. The one answer to "does this ray meet a light". */
+int rd_scene_hit_light(const rd_scene *s, ray3 r, double tmax, int skip, double *t_hit);
+
+/* The medium of `region` at x (the bound medium, or in the open region the box medium whose
+ * bounds contain x, else the scene-wide medium), or NULL where there is none. */
+const rd_medium *rd_scene_medium_at(const rd_scene *s, int region, vec3 x);
+/* The medium at x, wherever x is: rd_scene_medium_at(s, rd_scene_region_at(s, x), x). */
+const rd_medium *rd_scene_medium_at_point(const rd_scene *s, vec3 x);
+
+/* Scene radius: half the diagonal of the media bounds, at least 1e-3. */
+double rd_scene_radius(const rd_scene *s);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* RD_SCENE_H */

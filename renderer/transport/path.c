@@ -1,0 +1,248 @@
+/* path.c: the unbiased volumetric path loop (THEORY.md §1-2) shared by `delta` and
+ * `guided-unbiased`, and delta tracking's free flight, which makes it `delta`'s path.
+ *
+ * Free flights come from a pluggable sampler (rd_flight_sampler: delta tracking over the
+ * free-path engine here, guided distances in integrators/guided_unbiased.c); at every
+ * scattering vertex next-event estimation (rd_nee: one light chosen by power, unbiased shadow
+ * transmittance), Henyey-Greenstein phase sampling (or the sampler's vertex policy), Russian
+ * roulette on the path weight, and multiple importance sampling (power heuristic) between light
+ * sampling and phase sampling for the lights a path can hit (sphere, environment). Surfaces:
+ * rd_surface_event (docs/surfaces.md). */
+#include "scene/rd_geom.h"
+#include "transport/rd_path.h"
+
+/* Light reached by an escaping ray, or by a ray that hits sphere light `hit_light`. `phase_pdf`
+ * is the pdf with which the direction was sampled (0 for camera rays: no MIS, full weight);
+ * the light's pdf in the MIS weight includes its probability of being chosen by rd_nee. */
+static vec3 escaped_radiance(const rd_scene *s, ray3 r, int hit_light, double phase_pdf)
+{
+    if (hit_light >= 0) {
+        double w = phase_pdf > 0.0 ? rd_power_heuristic(phase_pdf, rd_light_mis_pdf(s, hit_light, r.o, r.d)) : 1.0;
+        return v3_scale(s->lights[hit_light].value, w);
+    }
+    vec3 L = v3(0, 0, 0);
+    for (int i = 0; i < s->n_lights; i++) {
+        const rd_light *l = &s->lights[i];
+        if (l->kind != RD_LIGHT_ENVIRONMENT) continue;
+        double w = phase_pdf > 0.0 ? rd_power_heuristic(phase_pdf, rd_light_mis_pdf(s, i, r.o, r.d)) : 1.0;
+        L = v3_madd(L, l->value, w);
+    }
+    return L;
+}
+
+vec3 rd_flight_behind(const rd_scene *s, const rd_flight_in *in)
+{
+    if (in->hit_shape >= 0) return v3(0, 0, 0); /* a surface: the path loop goes on from it */
+    vec3 L = escaped_radiance(s, in->r, in->hit_light, in->phase_pdf);
+    if (in->camera_chain && in->hit_light < 0) L = v3_add(L, s->background);
+    return L;
+}
+
+rd_flight rd_flight_delta(const rd_scene *s, const rd_flight_in *in, pcg32 *rng,
+                          rd_track_counters *c)
+{
+    rd_collision col = rd_sample_free_path(s, in->region, in->r, in->t_light, rng, c);
+    rd_flight f;
+    f.kind = col.hit ? RD_FLIGHT_SCATTER : RD_FLIGHT_PASS;
+    f.t = col.t;
+    f.medium = col.medium;
+    /* Delta tracking draws t with density sigma_t(t) T(0,t) and passes with probability
+     * T(0,t_end), so the vertex weight T sigma_s / (sigma_t T) is the albedo and the pass
+     * weight T / T is 1 (rd_flight); weighted trackers (seed 002 Alg. 2-3) add their own
+     * factor, 1 for delta tracking. */
+    f.weight = col.hit ? v3_scale(col.medium->albedo, col.weight) : v3(col.weight, col.weight, col.weight);
+    return f;
+}
+
+static rd_flight delta_flight(const rd_flight_sampler *fs, const rd_scene *s,
+                              const rd_flight_in *in, pcg32 *rng, rd_track_counters *c)
+{
+    (void)fs;
+    return rd_flight_delta(s, in, rng, c);
+}
+
+int rd_surface_event(const rd_scene *s, const rd_hit *h, int depth, rd_surface_step *st,
+                     pcg32 *rng, rd_track_counters *c)
+{
+    const rd_material *mat = &s->shapes[h->shape].material;
+    vec3 d = st->r.d;
+    st->L = v3(0, 0, 0);
+    /* A diffuse surface: next-event estimation with its BSDF, MIS against the BSDF sampling
+     * below (rd_nee_surface). */
+    if (mat->kind == RD_MAT_DIFFUSE) st->L = v3_mul(st->beta, rd_nee_surface(s, h, d, rng, c));
+    /* Russian roulette on the throughput, as at a medium vertex (without the radiance
+     * factors of the refractions: eta_scale). */
+    if (depth >= s->settings.rr_depth) {
+        vec3 b = st->beta;
+        double q = fmin(1.0, fmax(fabs(b.x), fmax(fabs(b.y), fabs(b.z))) * st->eta_scale);
+        if (q <= 0.0 || pcg32_uniform(rng) >= q) return 0;
+        st->beta = v3_scale(b, 1.0 / q);
+    }
+    /* Fresnel reflection or refraction chosen with its probability (weight 1, times
+     * (n_i/n_t)^2 on refraction: radiance mode, rd_geom.h), a cosine-weighted diffuse
+     * direction (weight = albedo), or straight on through an interface. */
+    double ue = pcg32_uniform(rng), u1 = pcg32_uniform(rng), u2 = pcg32_uniform(rng);
+    rd_surface_sample ss;
+    if (!rd_material_sample(mat, d, h->ng, h->ns, RD_TRANSPORT_RADIANCE, ue, u1, u2, &ss)) return 0;
+    st->beta = v3_mul(st->beta, ss.weight);
+    /* A dielectric refraction's weight is (n_i/n_t)^2 in every channel (rd_geom.h). */
+    if (mat->kind == RD_MAT_DIELECTRIC && ss.crossed && ss.weight.x > 0.0) st->eta_scale /= ss.weight.x;
+    st->pdf = ss.specular ? 0.0 : ss.pdf; /* no MIS after a delta event */
+    st->camera_chain = st->camera_chain && ss.specular;
+    st->region = ss.crossed ? h->medium_to : h->medium_from;
+    st->r = rd_hit_spawn(h, ss.d);
+    return 1;
+}
+
+/* The loop from a free flight along r on, with unit throughput: returns the radiance estimate
+ * of L(r.o, -r.d). `region` is where r starts (rd_internal.h "Surfaces in the transport"),
+ * `phase_pdf` the pdf with which r.d was drawn (0 for the camera ray), `depth` the scattering
+ * events before this flight, *budget the extra copies splitting may still add to this camera
+ * sample. */
+static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int depth0,
+                  int camera_chain, const rd_flight_sampler *fs, pcg32 *rng,
+                  rd_track_counters *c, int *budget);
+
+/* One copy of a continuation from vertex x (arrived along d) with the vertex policy's
+ * direction mixture: next-event estimation plus the continued path, with unit throughput
+ * (an estimate of L_s(x, -d)). */
+static vec3 continue_from(const rd_scene *s, vec3 x, vec3 d, int region, const rd_medium *m,
+                          const rd_dir_mix *mx, int depth, const rd_flight_sampler *fs,
+                          pcg32 *rng, rd_track_counters *c, int *budget)
+{
+    vec3 L = rd_nee_mix(s, region, x, d, m->g, mx, rng, c);
+    double pdf;
+    vec3 wo = rd_dir_mix_sample(mx, m->g, d, rng, &pdf);
+    if (!(pdf > 0.0)) return L;
+    /* Weight p / pdf: 1 for phase sampling alone, the mixture's ratio otherwise. */
+    double w = rd_hg_eval(m->g, v3_dot(d, wo)) / pdf;
+    ray3 next = {x, wo};
+    return v3_add(L, v3_scale(trace(s, next, region, pdf, depth, 0, fs, rng, c, budget), w));
+}
+
+/* Surface crossings of one path that do not count as scattering events (index-matched
+ * interfaces): a bound on the loop should geometry ever trap a ray. */
+#define MAX_CROSSINGS 4096
+
+static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int depth0,
+                  int camera_chain, const rd_flight_sampler *fs, pcg32 *rng,
+                  rd_track_counters *c, int *budget)
+{
+    vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
+    rd_hit hit, prev;
+    const rd_hit *from = NULL; /* the surface the current ray leaves, if any */
+    int crossings = 0;
+    double eta_scale = 1.0; /* rd_surface_step */
+    for (int depth = depth0;; depth++) {
+        /* What the ray meets first (a sphere light or a surface) ends the free flight. */
+        rd_flight_in in = {.r = r, .depth = depth, .phase_pdf = phase_pdf, .region = region,
+                           .camera_chain = camera_chain, .hit_light = -1, .hit_shape = -1,
+                           .t_light = INFINITY};
+        if (rd_scene_intersect(s, r, INFINITY, from, &hit)) {
+            in.t_light = hit.t;
+            in.hit_light = hit.light;
+            in.hit_shape = hit.shape;
+        }
+        rd_flight f = fs->sample(fs, s, &in, rng, c);
+        if (f.kind == RD_FLIGHT_END) break;
+        beta = v3_mul(beta, f.weight);
+        if (f.kind == RD_FLIGHT_PASS && in.hit_shape < 0) {
+            L = v3_add(L, v3_mul(beta, rd_flight_behind(s, &in)));
+            break;
+        }
+        if (f.kind == RD_FLIGHT_PASS) {
+            /* At a surface (docs/surfaces.md). An interface only changes the region: the same
+             * ray goes on, no event counted, no random number drawn. */
+            prev = hit;
+            from = &prev;
+            if (s->shapes[hit.shape].material.kind == RD_MAT_INTERFACE) {
+                if (++crossings > MAX_CROSSINGS) break;
+                region = prev.medium_to;
+                r = rd_hit_spawn(&prev, r.d);
+                depth--; /* not a scattering event */
+                continue;
+            }
+            if (depth + 1 > s->settings.max_depth) break;
+            rd_surface_step st = {.r = r, .beta = beta, .region = region, .camera_chain = camera_chain,
+                                  .eta_scale = eta_scale};
+            int go = rd_surface_event(s, &prev, depth + 1, &st, rng, c);
+            L = v3_add(L, st.L);
+            if (!go) break;
+            r = st.r, beta = st.beta, region = st.region, camera_chain = st.camera_chain;
+            eta_scale = st.eta_scale;
+            phase_pdf = st.pdf;
+            continue;
+        }
+        if (depth + 1 > s->settings.max_depth) break; /* this would be scattering event depth+1 */
+        const rd_medium *m = f.medium;
+        vec3 x = ray_at(r, f.t);
+        from = NULL;
+        camera_chain = 0;
+        /* Scattering vertex: beta now carries T sigma_s / pdf (rd_flight), so what follows
+         * estimates L_s(x, -d) = integral of p L (THEORY.md §1): next-event estimation for the
+         * direct part, the sampled continuation for the rest. */
+        if (fs->vertex) {
+            /* The sampler's vertex policy: roulette or splitting, and the direction mixture.
+             * Every copy but the last recurses; the last continues this loop. */
+            rd_vertex_in vi = {.x = x, .d = r.d, .medium = m, .region = region, .depth = depth + 1, .beta = beta};
+            rd_vertex_out vo;
+            fs->vertex(fs, s, &vi, rng, &vo);
+            int n = vo.n;
+            if (n <= 0) break;
+            if (n - 1 > *budget) n = 1 + *budget;
+            *budget -= n - 1;
+            beta = v3_scale(beta, vo.rr_scale / n);
+            for (int k = 1; k < n; k++)
+                L = v3_add(L, v3_mul(beta, continue_from(s, x, r.d, region, m, &vo.mix, depth + 1, fs,
+                                                         rng, c, budget)));
+            L = v3_add(L, v3_mul(beta, rd_nee_mix(s, region, x, r.d, m->g, &vo.mix, rng, c)));
+            double pdf;
+            vec3 wo = rd_dir_mix_sample(&vo.mix, m->g, r.d, rng, &pdf);
+            if (!(pdf > 0.0)) break;
+            beta = v3_scale(beta, rd_hg_eval(m->g, v3_dot(r.d, wo)) / pdf);
+            phase_pdf = pdf;
+            r.o = x;
+            r.d = wo;
+            continue;
+        }
+        L = v3_add(L, v3_mul(beta, rd_nee(s, region, x, r.d, m->g, rng, c)));
+
+        /* Russian roulette on the throughput. Weighted trackers with non-bounding majorants
+         * can make weights negative: survive with the largest magnitude, not the largest value. */
+        if (depth + 1 >= s->settings.rr_depth) {
+            double q = fmin(1.0, fmax(fabs(beta.x), fmax(fabs(beta.y), fabs(beta.z))) * eta_scale);
+            if (q <= 0.0 || pcg32_uniform(rng) >= q) break;
+            beta = v3_scale(beta, 1.0 / q);
+        }
+
+        /* Phase sampling: the weight p/pdf is 1 for HG importance sampling. */
+        vec3 wo = rd_hg_sample(m->g, r.d, pcg32_uniform(rng), pcg32_uniform(rng));
+        phase_pdf = rd_hg_eval(m->g, v3_dot(r.d, wo));
+        r.o = x;
+        r.d = wo;
+    }
+    return L;
+}
+
+vec3 rd_path_radiance(const rd_scene *s, ray3 r, const rd_flight_sampler *fs, pcg32 *rng,
+                      rd_track_counters *c)
+{
+    int budget = RD_SPLIT_BUDGET;
+    /* The camera's region (rd_scene_camera_region: found once for a perspective camera). */
+    return trace(s, r, rd_scene_camera_region(s, r), 0.0, 0, 1, fs, rng, c, &budget);
+}
+
+vec3 rd_delta_continue(const rd_scene *s, ray3 r, int region, double pdf, int depth,
+                       int camera_chain, pcg32 *rng, rd_track_counters *c)
+{
+    const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL};
+    int budget = 0;
+    return trace(s, r, region, pdf, depth, camera_chain, &fs, rng, c, &budget);
+}
+
+vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c)
+{
+    const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL};
+    return rd_path_radiance(s, r, &fs, rng, c);
+}
+
