@@ -1,5 +1,5 @@
 /* sh_bake.c: filling a guide's cells from a photon map (THEORY.md §3-5; seed 001 §3.1-3.2 and
- * appendix A; seed 004). sh_grid.c has already laid out the cells (sh_guide_bake); here every
+ * appendix A; seed 004). sh_layout.c has already laid out the cells (sh_guide_bake); here every
  * cell gets its 3 L^2 coefficients and its mean extinction, by one of two estimators:
  *   k-NN   at each cell centre, the k nearest photons (shi_bake_knn);
  *   track  every photon path segment deposits into every cell it crosses, weighted by the

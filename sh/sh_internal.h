@@ -5,13 +5,16 @@
  * Where things live (THEORY.md §4-5; seed 001 §3.1, §3.2, §3.4; docs/guide-grid.md):
  *   sh_math.c   SH basis, Legendre polynomials, quadrature, phase coefficients, and the
  *               projection / evaluation of one cell's coefficients.
- *   sh_grid.c   the guide object: sh_guide_bake (parameter checks, the box, the cell layout by
- *               the uniform resolution rule or the adaptive octree build), read access,
- *               point location and evaluation, statistics, free.
+ *   sh_grid.c   the guide object: cell boxes, read access, point location and evaluation,
+ *               statistics, free.
+ *   sh_layout.c sh_guide_bake: parameter checks, the box, the cell layout by the uniform
+ *               resolution rule or the adaptive octree build; then sh_bake.c fills the cells.
  *   sh_bake.c   filling the cells once the layout exists: the k-NN bake, the track-length
  *               bake, and the cell-mean extinction.
  *   sh_ray.c    the ray iterator over both grid kinds (the walks themselves are walk/'s).
  *   sh_io.c     slice images and the guide file (save / load).
+ * No cycle among the files: in the order sh_layout.c, sh_bake.c, sh_io.c, sh_ray.c, sh_grid.c,
+ * sh_math.c each file calls only files after it.
  *
  * Names: functions shared between these files start with shi_ (sh internal); everything else
  * in a .c file is static. The helpers below are static inline because the ray iterator and
@@ -84,7 +87,7 @@ void shi_set_err(char *err, size_t errlen, const char *fmt, ...)
 /* sh_grid.c: the box of cell `cell` (< g->ncells) of either grid kind. */
 void shi_cell_bounds(const sh_guide *g, size_t cell, double lo[3], double hi[3]);
 
-/* sh_bake.c: fill g->coeffs and g->sigma_t of a guide whose cells are laid out (box, kind,
+/* sh_bake.c, called by sh_layout.c: fill g->coeffs and g->sigma_t of a guide whose cells are laid out (box, kind,
  * bands, basis and cells set; coeffs and sigma_t allocated and zeroed). params are checked. */
 sh_status shi_bake_knn(sh_guide *g, const pm_map *map, const sh_bake_params *P, char *err,
                        size_t errlen);
