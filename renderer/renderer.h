@@ -309,7 +309,10 @@ rd_status rd_image_write_png(const char *path, const rd_image *img, double expos
 rd_status rd_image_read(const char *path, rd_image *out, char *err, size_t errlen);
 
 /* ==== Comparing methods: `photonmarch compare` (issue 11; THEORY.md §7; docs/compare.md) ==== *
- * This section is the compare module's (renderer/compare.c, renderer/compare_report.c).
+ * This section is the compare module's, in renderer/compare/: metrics.c (rd_cmp_errors_of,
+ * rd_cmp_split_of, rd_cmp_homogeneity), reference.c (the reference and the --add images;
+ * rd_cmp_extra_parse), runs.c (rd_compare_run, rd_comparison_summary, rd_comparison_free),
+ * report.c (rd_compare_write_report, rd_compare_print_table) with report_page.c (index.html).
  * Metrics are over every pixel and the three channels unless said otherwise. */
 
 /* Error of one image x against a reference r (THEORY.md §7). eps = RD_CMP_EPS keeps the

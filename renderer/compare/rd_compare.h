@@ -1,0 +1,100 @@
+/* rd_compare.h: what the files of `photonmarch compare` share (issue 11; THEORY.md §7;
+ * docs/compare.md). Internal to renderer/compare/.
+ *
+ * The files, in the order the work flows (each uses only the ones before it):
+ *   metrics.c      the metrics of THEORY.md §7 on images (public: rd_cmp_errors_of, ...)
+ *   reference.c    the images read from files, checked to match the scene: the reference
+ *                  (given, cached or rendered by delta) and the --add images
+ *   runs.c         the comparison: the bakes, the K runs per method, the rows of metrics
+ *                  (rd_compare_run, rd_comparison_summary, rd_comparison_free)
+ *   report_page.c  the text of the report's index.html
+ *   report.c       the report folder (images, error maps, crops, convergence plot,
+ *                  metrics.json, index.html) and the metrics table on stdout; it reads the
+ *                  comparison, the comparison never calls it */
+#ifndef RD_COMPARE_H
+#define RD_COMPARE_H
+
+#include "rd_internal.h"
+
+#include <stdio.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Seeds: run k (0-based) of every method uses seed + 1 + k, so method A's run k and method
+ * B's run k are as independent as any two renders; the reference uses a seed no run uses. */
+#define RUN_SEED(seed, k) ((seed) + 1u + (uint64_t)(k))
+#define REF_SEED(seed) ((seed) ^ 0x9e3779b97f4a7c15ULL)
+
+/* One method's runs. */
+typedef struct {
+    const char *name;
+    unsigned needs;       /* RD_NEEDS_* of its bake */
+    rd_baked *baked;      /* shared with the methods of the same needs; owned when owns_baked */
+    int owns_baked;
+    double bake_seconds;  /* the bake's wall time, charged to each run */
+    int done;             /* runs finished */
+    rd_image *img, *se;   /* [runs]: mean and standard error images */
+    rd_render_stats *stats;
+    rd_conv_point **curve;
+    int *n_curve;
+} cmp_method;
+
+struct rd_comparison {
+    rd_cmp_opts opts;     /* a copy; the arrays it points to are the caller's */
+    int n_methods, w, h;
+    double exposure;      /* camera.exposure, for the PNGs */
+    rd_image ref, ref_se; /* ref_se.rgb is NULL when the reference's error is unknown */
+    cmp_method *m;
+    rd_image *extra_img;  /* [n_extras] */
+    rd_cmp_row *rows;
+    const rd_image **row_img; /* [n_rows]: the image shown for each row (a method's first run) */
+    rd_cmp_summary sum;
+    double planned_seconds; /* seconds the runs not yet started will take (progress) */
+};
+
+/* The worst region of the report's crops: the square of side s at (x, y), in pixels. */
+typedef struct { int x, y, s; } crop_box;
+
+/* The one-line error: fmt with one %s, a. */
+static inline rd_status fail(char *err, size_t errlen, rd_status st, const char *fmt, const char *a)
+{
+    if (err) snprintf(err, errlen, fmt, a);
+    return st;
+}
+
+/* Rec. 709 luminance of a linear RGB value: the error maps and homogeneity are of it. */
+static inline double luminance(const float *rgb)
+{
+    return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+}
+
+/* qsort order of doubles, ascending. */
+static inline int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* ---- reference.c ---- */
+
+/* The reference into c->ref (and c->ref_se when its error is known) and c->sum's ref_*:
+ * opts.reference, else the cache (opts.cache_dir), else rendered by delta and cached.
+ * Cancelled while rendering: RD_OK with c->sum.cancelled = 1 and no reference. */
+rd_status rd_cmp_reference_get(rd_comparison *c, const rd_scene *s, char *err, size_t errlen);
+/* The --add images into c->extra_img, each checked to have the scene's size. */
+rd_status rd_cmp_extras_load(rd_comparison *c, char *err, size_t errlen);
+
+/* ---- report_page.c ---- */
+
+/* Append index.html for the comparison c of scene s to b: the error maps' scale and the
+ * worst region bx are the ones its images were written with. */
+void rd_cmp_page_text(rd_text *b, const rd_comparison *c, const rd_scene *s, double scale,
+                      crop_box bx);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

@@ -1,0 +1,343 @@
+/* runs.c: the comparison itself, `photonmarch compare` without its report (issue 11;
+ * THEORY.md §7; docs/compare.md).
+ *
+ * The steps: check the options, read the --add images and get the reference (reference.c),
+ * one bake per kind of bake the methods need (its time charged to every run of those
+ * methods), K runs of every method at equal time or equal samples, then one row per method
+ * and per added image with the metrics of THEORY.md §7 (metrics.c): RMSE, relMSE, mean
+ * absolute relative error, bias^2 and variance from the K runs, efficiency 1/(MSE x time),
+ * seed 002's TTUV (time x RMSE), cost counters and noise homogeneity. The report (report.c)
+ * is written from what this file keeps; nothing here calls it. */
+#include "rd_internal.h"
+#include "compare/rd_compare.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+/* At most this many methods, and this many --add images. */
+#define RD_CMP_MAX_METHODS 8
+
+static double now_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+/* Mean of stderr^2 over every value: the variance the reference adds to every measured MSE. */
+static double image_mean_sq(const rd_image *im)
+{
+    size_t n = (size_t)im->w * im->h * 3;
+    double s = 0.0;
+    for (size_t i = 0; i < n; i++) s += (double)im->rgb[i] * im->rgb[i];
+    return n ? s / n : 0.0;
+}
+
+/* ---- The runs ------------------------------------------------------------------------------ */
+
+/* One bake per distinct set of needs, shared by the methods with those needs; its wall time
+ * is charged to every run of each of them (docs/compare.md). */
+static rd_status bake_for(rd_comparison *c, const rd_scene *s, int mi, char *err, size_t errlen)
+{
+    cmp_method *m = &c->m[mi];
+    unsigned needs = rd_method_needs_for(m->name, s);
+    if (!needs) return RD_OK;
+    for (int j = 0; j < mi; j++)
+        if (c->m[j].baked && c->m[j].needs == needs) {
+            m->baked = c->m[j].baked;
+            m->bake_seconds = c->m[j].bake_seconds;
+            m->needs = needs;
+            return RD_OK;
+        }
+    rd_bake_opts bo = {.seed = -1, .threads = c->opts.threads};
+    rd_bake_opts_for(&bo, needs);
+    double t0 = now_seconds();
+    rd_status st = rd_bake(s, &bo, &m->baked, err, errlen);
+    if (st) return st;
+    m->bake_seconds = now_seconds() - t0;
+    m->needs = needs;
+    m->owns_baked = 1;
+    return RD_OK;
+}
+
+typedef struct {
+    rd_comparison *c;
+    int mi, run;
+    double started;
+} run_ctx;
+
+static void run_progress(void *user, int done, int total, double seconds)
+{
+    run_ctx *r = user;
+    rd_comparison *c = r->c;
+    const rd_cmp_opts *o = &c->opts;
+    cmp_method *m = &c->m[r->mi];
+    double left_run;
+    if (!o->equal_spp) left_run = fmax(0.0, o->budget - seconds);
+    else left_run = done > 0 ? (seconds - m->bake_seconds) * (total - done) / done : 0.0;
+    rd_cmp_progress p = {m->name, r->run + 1, o->runs, done, seconds, o->budget, 0.0};
+    p.left_seconds = left_run + c->planned_seconds;
+    if (o->progress) o->progress(o->progress_user, &p);
+}
+
+/* Seconds the runs not yet started will take (equal time: exact; equal spp: the mean of the
+ * runs finished so far, else unknown = 0). */
+static double planned_after(const rd_comparison *c, int mi, int run)
+{
+    const rd_cmp_opts *o = &c->opts;
+    int left = (c->n_methods - mi - 1) * o->runs + (o->runs - run - 1);
+    if (!o->equal_spp) return left * o->budget;
+    double sum = 0.0;
+    int n = 0;
+    for (int j = 0; j <= mi; j++)
+        for (int k = 0; k < c->m[j].done; k++) sum += c->m[j].stats[k].seconds, n++;
+    return n ? left * sum / n : 0.0;
+}
+
+static rd_status run_one(rd_comparison *c, const rd_scene *s, int mi, int run, char *err, size_t errlen)
+{
+    const rd_cmp_opts *o = &c->opts;
+    cmp_method *m = &c->m[mi];
+    run_ctx rc = {c, mi, run, now_seconds()};
+    rd_render_opts ro = {.method = m->name, .seed = RUN_SEED(o->seed, run), .threads = o->threads,
+                         .cancel = o->cancel, .progress = run_progress, .progress_user = &rc,
+                         .baked = m->baked, .baked_seconds = m->bake_seconds, .reference = &c->ref};
+    /* Equal time: the budget is the run's wall time, its share of the bake included; equal
+     * spp: every method renders `budget` samples per pixel. */
+    ro.spp = o->equal_spp ? (int)o->budget : 1 << 24;
+    ro.time_limit = o->equal_spp ? 0.0 : o->budget;
+    c->planned_seconds = planned_after(c, mi, run);
+    run_progress(&rc, 0, ro.spp, m->bake_seconds);
+    rd_render_result res;
+    rd_status st = rd_render(s, &ro, &res, err, errlen);
+    if (st) return st;
+    if (res.stats.cancelled) {
+        rd_render_result_free(&res); /* a run cut short is not one of the K: left out */
+        c->sum.cancelled = 1;
+        return RD_OK;
+    }
+    if (res.stats.spp < 1) {
+        rd_render_result_free(&res);
+        snprintf(err, errlen, "--budget %g: %s had no time to sample every pixel once (its bake took %.2f s; give it more)",
+                 o->budget, m->name, m->bake_seconds);
+        return RD_ERR_ARG;
+    }
+    int k = m->done++;
+    m->img[k] = res.image;
+    m->se[k] = res.stderr_img;
+    m->stats[k] = res.stats;
+    m->curve[k] = res.curve;
+    m->n_curve[k] = res.n_curve;
+    return RD_OK;
+}
+
+/* ---- Rows ------------------------------------------------------------------------------- */
+
+static void row_nan(rd_cmp_row *r)
+{
+    double nan = NAN;
+    r->seconds = r->bake_seconds = r->spp = nan;
+    r->split.bias2 = r->split.variance = r->split.bias2_se = nan;
+    r->efficiency = r->ttuv = nan;
+    r->collisions_pp = r->lookups_pp = r->shadow_rays_pp = nan;
+}
+
+static void row_method(rd_comparison *c, const cmp_method *m, rd_cmp_row *r)
+{
+    size_t np = (size_t)c->w * c->h;
+    snprintf(r->label, sizeof r->label, "%s", m->name);
+    r->runs = m->done;
+    rd_cmp_errors sum = {0};
+    double secs = 0, spp = 0, col = 0, look = 0, shadow = 0;
+    for (int k = 0; k < m->done; k++) {
+        rd_cmp_errors e;
+        rd_cmp_errors_of(&m->img[k], &c->ref, &e, NULL, 0);
+        sum.mse += e.mse, sum.relmse += e.relmse, sum.mare += e.mare;
+        const rd_render_stats *st = &m->stats[k];
+        secs += st->seconds, spp += st->spp_mean;
+        col += (double)st->collisions / np, look += (double)st->lookups / np, shadow += (double)st->shadow_rays / np;
+    }
+    double K = m->done;
+    r->err = (rd_cmp_errors){sum.mse / K, sqrt(sum.mse / K), sum.relmse / K, sum.mare / K};
+    r->seconds = secs / K, r->spp = spp / K, r->bake_seconds = m->bake_seconds;
+    r->collisions_pp = col / K, r->lookups_pp = look / K, r->shadow_rays_pp = shadow / K;
+    const rd_image *rse = c->ref_se.rgb ? &c->ref_se : NULL;
+    if (m->done >= 2) {
+        rd_cmp_split_of(m->img, m->done, &c->ref, rse, &r->split, NULL, 0);
+        r->split_from_runs = 1;
+    } else {
+        /* One run: its variance from its own stderr image (stderr^2 = variance of the mean). */
+        r->split.variance = image_mean_sq(&m->se[0]);
+        r->split.bias2 = r->err.mse - r->split.variance - (rse ? c->sum.ref_var : 0.0);
+        r->split.bias2_se = NAN;
+    }
+    r->efficiency = 1.0 / (r->err.mse * r->seconds); /* 1 / (MSE x time) */
+    r->ttuv = r->seconds * r->err.rmse;              /* seed 002: TTUV = time x RMSE */
+    r->homogeneity = rd_cmp_homogeneity(&m->img[0], &c->ref);
+}
+
+static void row_extra(rd_comparison *c, int i, rd_cmp_row *r)
+{
+    const rd_cmp_extra *e = &c->opts.extras[i];
+    snprintf(r->label, sizeof r->label, "%s", e->label);
+    r->is_extra = 1;
+    r->runs = 1;
+    rd_cmp_errors_of(&c->extra_img[i], &c->ref, &r->err, NULL, 0);
+    if (e->seconds > 0) {
+        r->seconds = e->seconds;
+        r->efficiency = 1.0 / (r->err.mse * r->seconds);
+        r->ttuv = r->seconds * r->err.rmse;
+    }
+    r->homogeneity = rd_cmp_homogeneity(&c->extra_img[i], &c->ref);
+}
+
+static void make_rows(rd_comparison *c)
+{
+    int n = 0;
+    double min_mse = INFINITY;
+    for (int i = 0; i < c->n_methods; i++) {
+        if (!c->m[i].done) continue;
+        rd_cmp_row *r = &c->rows[n];
+        row_nan(r);
+        row_method(c, &c->m[i], r);
+        c->row_img[n++] = &c->m[i].img[0];
+        min_mse = fmin(min_mse, r->err.mse);
+    }
+    for (int i = 0; i < c->opts.n_extras; i++) {
+        rd_cmp_row *r = &c->rows[n];
+        row_nan(r);
+        row_extra(c, i, r);
+        c->row_img[n++] = &c->extra_img[i];
+    }
+    c->sum.rows = c->rows;
+    c->sum.n_rows = n;
+    /* The reference's variance adds to every measured MSE: above a quarter of the best
+     * method's MSE it hides the differences between methods (docs/compare.md). */
+    c->sum.ref_too_noisy = isfinite(c->sum.ref_var) && n > 0 && c->sum.ref_var > 0.25 * min_mse;
+}
+
+/* ---- The comparison ------------------------------------------------------------------------ */
+
+static rd_status check_opts(const rd_cmp_opts *o, char *err, size_t errlen)
+{
+    if (o->n_methods < 1 && o->n_extras < 1) return fail(err, errlen, RD_ERR_ARG, "%s: no methods to compare", "--methods");
+    if (o->n_methods > RD_CMP_MAX_METHODS) return fail(err, errlen, RD_ERR_ARG, "%s: at most 8 methods", "--methods");
+    if (o->n_extras > RD_CMP_MAX_METHODS) return fail(err, errlen, RD_ERR_ARG, "%s: at most 8 images", "--add");
+    for (int i = 0; i < o->n_methods; i++) {
+        int found = 0;
+        for (int j = 0; j < rd_method_count(); j++) found |= !strcmp(o->methods[i], rd_method_name(j));
+        if (!found) return fail(err, errlen, RD_ERR_ARG, "--methods: unknown method \"%s\"", o->methods[i]);
+        for (int j = 0; j < i; j++)
+            if (!strcmp(o->methods[i], o->methods[j])) return fail(err, errlen, RD_ERR_ARG, "--methods: \"%s\" given twice", o->methods[i]);
+    }
+    if (o->runs < 1 || o->runs > 64) return fail(err, errlen, RD_ERR_ARG, "%s: runs must be in [1, 64]", "--runs");
+    if (!(o->budget > 0) || (o->equal_spp && (o->budget < 1 || o->budget > (1 << 24))))
+        return fail(err, errlen, RD_ERR_ARG, "%s: must be > 0 (seconds), or in [1, 16777216] samples with --equal spp", "--budget");
+    if (!o->reference && o->ref_spp < 1) return fail(err, errlen, RD_ERR_ARG, "%s: must be >= 1", "--ref-spp");
+    for (int i = 0; i < o->n_extras; i++) {
+        /* Labels name the report's files: they must differ from each other and the methods. */
+        int clash = !strcmp(o->extras[i].label, "reference");
+        for (int j = 0; j < o->n_methods; j++) clash |= !strcmp(o->extras[i].label, o->methods[j]);
+        for (int j = 0; j < i; j++) clash |= !strcmp(o->extras[i].label, o->extras[j].label);
+        if (clash) return fail(err, errlen, RD_ERR_ARG, "--add %s: the label is taken (a method, another image or \"reference\")", o->extras[i].label);
+    }
+    return RD_OK;
+}
+
+static rd_status alloc_methods(rd_comparison *c)
+{
+    int K = c->opts.runs, n = c->n_methods + c->opts.n_extras;
+    c->m = calloc((size_t)c->n_methods + 1, sizeof *c->m);
+    c->rows = calloc((size_t)n + 1, sizeof *c->rows);
+    c->row_img = calloc((size_t)n + 1, sizeof *c->row_img);
+    c->extra_img = calloc((size_t)c->opts.n_extras + 1, sizeof *c->extra_img);
+    if (!c->m || !c->rows || !c->row_img || !c->extra_img) return RD_ERR_NOMEM;
+    for (int i = 0; i < c->n_methods; i++) {
+        cmp_method *m = &c->m[i];
+        m->name = c->opts.methods[i];
+        m->img = calloc(K, sizeof *m->img);
+        m->se = calloc(K, sizeof *m->se);
+        m->stats = calloc(K, sizeof *m->stats);
+        m->curve = calloc(K, sizeof *m->curve);
+        m->n_curve = calloc(K, sizeof *m->n_curve);
+        if (!m->img || !m->se || !m->stats || !m->curve || !m->n_curve) return RD_ERR_NOMEM;
+    }
+    return RD_OK;
+}
+
+
+static rd_status run_all(rd_comparison *c, const rd_scene *s, char *err, size_t errlen)
+{
+    for (int mi = 0; mi < c->n_methods && !c->sum.cancelled; mi++) {
+        rd_status st = bake_for(c, s, mi, err, errlen);
+        if (st) return st;
+        for (int k = 0; k < c->opts.runs && !c->sum.cancelled; k++) {
+            if (c->opts.cancel && *c->opts.cancel) { c->sum.cancelled = 1; break; }
+            if ((st = run_one(c, s, mi, k, err, errlen)) != RD_OK) return st;
+        }
+    }
+    return RD_OK;
+}
+
+rd_status rd_compare_run(const rd_scene *scene, const rd_cmp_opts *opts, rd_comparison **out,
+                         char *err, size_t errlen)
+{
+    char dummy[8];
+    if (!err) { err = dummy; errlen = sizeof dummy; }
+    *out = NULL;
+    rd_status st = check_opts(opts, err, errlen);
+    if (st) return st;
+    rd_comparison *c = calloc(1, sizeof *c);
+    if (!c) return fail(err, errlen, RD_ERR_NOMEM, "%s: out of memory", "compare");
+    c->opts = *opts;
+    c->n_methods = opts->n_methods;
+    c->w = rd_scene_width(scene);
+    c->h = rd_scene_height(scene);
+    c->exposure = rd_scene_exposure(scene);
+    c->sum.ref_var = NAN;
+    if ((st = alloc_methods(c)) != RD_OK) {
+        fail(err, errlen, st, "%s: out of memory", "compare");
+        goto bad;
+    }
+    /* Every input is checked before anything long runs. */
+    if ((st = rd_cmp_extras_load(c, err, errlen)) != RD_OK) goto bad;
+    c->planned_seconds = opts->equal_spp ? 0.0 : opts->budget * opts->runs * opts->n_methods;
+    if ((st = rd_cmp_reference_get(c, scene, err, errlen)) != RD_OK) goto bad;
+    if (!c->sum.cancelled) {
+        if (c->ref_se.rgb) c->sum.ref_var = image_mean_sq(&c->ref_se);
+        if ((st = run_all(c, scene, err, errlen)) != RD_OK) goto bad;
+        make_rows(c);
+    }
+    *out = c;
+    return RD_OK;
+bad:
+    rd_comparison_free(c);
+    return st;
+}
+
+const rd_cmp_summary *rd_comparison_summary(const rd_comparison *c)
+{
+    return &c->sum;
+}
+
+void rd_comparison_free(rd_comparison *c)
+{
+    if (!c) return;
+    for (int i = 0; c->m && i < c->n_methods; i++) {
+        cmp_method *m = &c->m[i];
+        for (int k = 0; k < m->done; k++) {
+            rd_image_free_pixels(&m->img[k]);
+            rd_image_free_pixels(&m->se[k]);
+            free(m->curve[k]);
+        }
+        free(m->img), free(m->se), free(m->stats), free(m->curve), free(m->n_curve);
+        if (m->owns_baked) rd_baked_free(m->baked);
+    }
+    for (int i = 0; c->extra_img && i < c->opts.n_extras; i++) rd_image_free_pixels(&c->extra_img[i]);
+    rd_image_free_pixels(&c->ref);
+    rd_image_free_pixels(&c->ref_se);
+    free(c->m), free(c->rows), free(c->row_img), free(c->extra_img);
+    free(c);
+}
