@@ -4,7 +4,6 @@
  * (mean_k - r)^2 - var / K, less the reference's own variance); noise homogeneity, the ratio
  * of the 90th to the 50th percentile of the per-pixel relative error of luminance. Pure
  * functions of the images: runs.c applies them to every method's runs. */
-#include "rd_internal.h"
 #include "compare/rd_compare.h"
 
 #include <math.h>

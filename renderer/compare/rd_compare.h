@@ -14,7 +14,8 @@
 #ifndef RD_COMPARE_H
 #define RD_COMPARE_H
 
-#include "rd_internal.h"
+#include "core/rd_core.h"
+#include "scene/rd_scene.h"
 
 #include <stdio.h>
 

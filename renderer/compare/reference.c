@@ -7,7 +7,6 @@
  * (THEORY.md §2), saved in the cache under a key hashed (FNV-1a) from everything the image
  * depends on. Its standard error gives the variance it adds to every measured MSE
  * (THEORY.md §7). */
-#include "rd_internal.h"
 #include "compare/rd_compare.h"
 
 #include <ctype.h>

@@ -7,7 +7,6 @@
  * (THEORY.md §7) in viridis, on one scale for every map (the 99th percentile over all rows).
  * The worst region is the window with the largest squared error over every row, found with a
  * summed-area table. */
-#include "rd_internal.h"
 #include "compare/rd_compare.h"
 
 #include <cJSON.h>

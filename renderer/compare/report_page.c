@@ -3,7 +3,6 @@
  * reference, the metrics table (best RMSE and efficiency marked), the A/B/reference viewer,
  * the images side by side, the error maps, the worst-region crops and the convergence plot.
  * It only makes text; report.c writes it with the images it names. */
-#include "rd_internal.h"
 #include "compare/rd_compare.h"
 
 #include <math.h>

@@ -8,7 +8,6 @@
  * absolute relative error, bias^2 and variance from the K runs, efficiency 1/(MSE x time),
  * seed 002's TTUV (time x RMSE), cost counters and noise homogeneity. The report (report.c)
  * is written from what this file keeps; nothing here calls it. */
-#include "rd_internal.h"
 #include "compare/rd_compare.h"
 
 #include <math.h>
