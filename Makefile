@@ -2,7 +2,9 @@
 # sanitizer variant under build-asan/; `make test`, `make demo`, `make bench` do what they say.
 #
 # Modules (dependencies point one way): renderer/ -> sh/ -> walk/, photonmap/ (walk/ and
-# photonmap/ are leaves; renderer/ also uses walk/ directly).
+# photonmap/ are leaves; renderer/ also uses walk/ directly). renderer/'s folders are layers
+# (docs/render-core.md, "The map"); tests/check_structure.py, run by make test, holds the code to
+# both and to the file size caps.
 # Each module is a static library; tests/test_<module>*.c are linked into one Criterion binary.
 
 BUILD    ?= build
@@ -200,11 +202,12 @@ test-tsan: deps
 #  - the tests that only spawn the command line (cli/*, memory/*, stress_big/*, and compare's
 #    page, error and Ctrl-C tests): in this run they would spawn the release binary again
 #    (PHOTONMARCH_BIN), so under ASan they only repeat the release run; the command line itself
-#    runs under ASan + UBSan in the release run's cli/malformed_scene_catalogue_under_sanitizers.
+#    runs under ASan + UBSan in the release run's cli/malformed_scene_catalogue_under_sanitizers;
+#  - structure/* (tests/check_structure.py reads the release build's objects with nm; run once).
 # Together they would take the suite past 15 minutes.
 SAN_BUILD := build-fuzz
 SAN_MAKE  := $(MAKE) BUILD=$(SAN_BUILD) SAN=fuzz CC=clang-14 CXX=clang++-14
-ASAN_FILTER := '!(guided_unbiased/each_part_alone_*|guided_unbiased/flight_sampler_chi_square_*|march/guided_and_transmittance_share_*|march/defensive_only_and_wrong_guides_*|photons/knn_radiance_converges_*|integrator/white_furnace_every_tracker|stress_big/*|cli/*|memory/*|compare/page_loads_*|compare/bad_reference_*|compare/ctrl_c_*|geom/cli_renders_shapes)'
+ASAN_FILTER := '!(guided_unbiased/each_part_alone_*|guided_unbiased/flight_sampler_chi_square_*|march/guided_and_transmittance_share_*|march/defensive_only_and_wrong_guides_*|photons/knn_radiance_converges_*|integrator/white_furnace_every_tracker|stress_big/*|cli/*|memory/*|compare/page_loads_*|compare/bad_reference_*|compare/ctrl_c_*|geom/cli_renders_shapes|structure/*)'
 LSAN_SUPP := $(SAN_BUILD)/lsan.supp
 SAN_ENV := ASAN_OPTIONS=halt_on_error=1:detect_leaks=1:allocator_may_return_null=1 \
            UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1:suppressions=$(CURDIR)/fuzz/ubsan.supp \

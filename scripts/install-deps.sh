@@ -13,6 +13,7 @@ PACKAGES=(
   libopenvdb-dev libtbb-dev    # .vdb volumes
   libcriterion-dev             # test framework
   gnuplot-nox                  # charts in reports and benchmarks
+  python3                      # tests/check_structure.py (the code's dependency rules, make test)
   chromium                     # headless check of the compare report page (make test)
   clang-14 libclang-rt-14-dev  # make fuzz: clang with libFuzzer and its ASan/UBSan runtimes
   libomp-14-dev                # OpenMP for the clang-built fuzz targets
