@@ -197,7 +197,7 @@ int rd_march_build_pdf(const rd_render_ctx *ctx, placement place, const march_sc
 
 static double phase_cb(double cos_theta, void *user) { return rd_hg_eval(*(const double *)user, cos_theta); }
 
-/* Largest k the scene allows (guide.k, scene.c). */
+/* Largest k the scene allows (guide.k, load/settings.c). */
 #define MAX_GATHER 4096
 
 /* sigma_s L_s(x, w) from the k nearest photons (THEORY.md §3, pm_map_radiance):

@@ -1,0 +1,198 @@
+/* settings.c: the scene's "settings" (method, sample counts, free-path engine), "photons",
+ * "guide" and "march" sections, each with its defaults when the section or a field is absent.
+ * settings.method is checked against the method table (integrators/rd_method.h). */
+#include "rd_internal.h"
+#include "integrators/rd_method.h"
+#include "load/rd_load.h"
+
+#include <cJSON.h>
+#include <stdio.h>
+#include <string.h>
+
+/* ---- settings ------------------------------------------------------------------------------ */
+rd_status ld_parse_settings(ld_ctx *c, const cJSON *j, rd_settings *s)
+{
+    s->spp = 16;
+    s->time_limit = 0;
+    s->seed = 1;
+    s->max_depth = 64;
+    s->rr_depth = 3;
+    snprintf(s->method, sizeof s->method, "delta");
+    s->tracker = RD_FP_AUTO;
+    s->transmittance = RD_TR_AUTO;
+    s->track_b = 1.0;
+    s->track_m = 1.0;
+    s->track_step = 0.0;
+    if (!j) return RD_OK;
+    const char *path = "settings";
+    LD_TRY(ld_need_object(c, j, path));
+    static const char *const keys[] = {"spp", "time", "seed", "max_depth", "rr_depth", "method",
+                                       "tracker", "transmittance", "b", "m", "step", NULL};
+    LD_TRY(ld_check_keys(c, j, path, keys));
+    long long v;
+    LD_TRY(ld_get_int(c, j, path, "spp", 0, 16, 1, 1 << 24, &v));
+    s->spp = (int)v;
+    s->spp_given = cJSON_GetObjectItemCaseSensitive(j, "spp") != NULL;
+    LD_TRY(ld_get_num(c, j, path, "time", 0, 0, 0, 0, 1e7, 0, &s->time_limit));
+    LD_TRY(ld_get_int(c, j, path, "seed", 0, 1, 0, (1LL << 53), &v));
+    s->seed = (uint64_t)v;
+    LD_TRY(ld_get_int(c, j, path, "max_depth", 0, 64, 1, 100000, &v));
+    s->max_depth = (int)v;
+    LD_TRY(ld_get_int(c, j, path, "rr_depth", 0, 3, 0, 100000, &v));
+    s->rr_depth = (int)v;
+    const char *m;
+    LD_TRY(ld_get_str(c, j, path, "method", 0, "delta", &m));
+    if (!rd_method_find(m)) {
+        char names[256];
+        rd_methods(names, sizeof names);
+        return ld_fail(c, "settings.method", "unknown method \"%s\" (available: %s)", m, names);
+    }
+    snprintf(s->method, sizeof s->method, "%s", m);
+    /* Free-path engine (rd_freepath.h): tracker, transmittance estimator and their parameters. */
+    static const char *const trackers[] = {"auto", "woodcock", "supervoxel", "weighted", "decomposition", "raymarch", NULL};
+    static const char *const trans[] = {"auto", "ratio-global", "ratio", "residual", "exact", "raymarch", NULL};
+    LD_TRY(ld_get_enum(c, j, path, "tracker", 0, trackers, 0, &s->tracker));
+    LD_TRY(ld_get_enum(c, j, path, "transmittance", 0, trans, 0, &s->transmittance));
+    LD_TRY(ld_get_num(c, j, path, "b", 0, 1.0, 0, 1, 100, 0, &s->track_b));
+    LD_TRY(ld_get_num(c, j, path, "m", 0, 1.0, 0, 0, 10, 0, &s->track_m));
+    LD_TRY(ld_get_num(c, j, path, "step", 0, 0.0, 0, 1, 1e9, 0, &s->track_step));
+    if (cJSON_GetObjectItemCaseSensitive(j, "b") && s->tracker != RD_FP_WEIGHTED &&
+        s->tracker != RD_FP_DECOMPOSITION)
+        return ld_fail(c, "settings.b", "only with \"tracker\": \"weighted\" or \"decomposition\"");
+    if (cJSON_GetObjectItemCaseSensitive(j, "m") && s->tracker != RD_FP_DECOMPOSITION)
+        return ld_fail(c, "settings.m", "only with \"tracker\": \"decomposition\"");
+    if (cJSON_GetObjectItemCaseSensitive(j, "step") && s->tracker != RD_FP_RAYMARCH &&
+        s->transmittance != RD_TR_RAYMARCH)
+        return ld_fail(c, "settings.step", "only with \"tracker\" or \"transmittance\": \"raymarch\"");
+    return RD_OK;
+}
+
+/* ---- photons and guide (the photon map and its SH guide grid) ------------------------------- */
+rd_status ld_parse_photons(ld_ctx *c, const cJSON *j, rd_photon_settings *p)
+{
+    p->count = 200000;
+    p->store_direct = 1;
+    p->segments = 0;
+    p->max_depth = 64;
+    p->seed = 1;
+    if (!j) return RD_OK;
+    const char *path = "photons";
+    LD_TRY(ld_need_object(c, j, path));
+    static const char *const keys[] = {"count", "store_direct", "segments", "max_depth", "seed", NULL};
+    LD_TRY(ld_check_keys(c, j, path, keys));
+    long long v;
+    LD_TRY(ld_get_int(c, j, path, "count", 0, 200000, 1, 1000000000LL, &v));
+    p->count = (size_t)v;
+    LD_TRY(ld_get_bool(c, j, path, "store_direct", 1, &p->store_direct));
+    LD_TRY(ld_get_bool(c, j, path, "segments", 0, &p->segments));
+    LD_TRY(ld_get_int(c, j, path, "max_depth", 0, 64, 1, 100000, &v));
+    p->max_depth = (int)v;
+    LD_TRY(ld_get_int(c, j, path, "seed", 0, 1, 0, (1LL << 53), &v));
+    p->seed = (uint64_t)v;
+    return RD_OK;
+}
+
+rd_status ld_parse_guide(ld_ctx *c, const cJSON *j, rd_guide_settings *g)
+{
+    memset(g, 0, sizeof *g);
+    g->bands = 8; /* calibrated on beam-vdb and cloud (docs/guided-marching.md) */
+    g->k = 64;
+    g->lambda = 1.0;
+    g->max_depth = 8;
+    g->window = 1;
+    g->distances = 1;        /* guided-unbiased (docs/guided-unbiased.md) */
+    g->distance_alpha = 0.2;
+    g->pass_floor = 0.1;
+    g->majorant_weight = 0.2;
+    g->secondary = 1;
+    g->distance_tau_max = 0.5; /* these three calibrated on hetero-forward and smoke-vdb */
+    g->directions = 1;
+    g->direction_weight = 0.25;
+    g->roulette = 1;
+    g->split_max = 2;
+    if (!j) return RD_OK;
+    const char *path = "guide";
+    LD_TRY(ld_need_object(c, j, path));
+    static const char *const keys[] = {"grid", "bake", "bands", "k", "lambda", "resolution", "min_cell", "max_depth", "window",
+                                       "distances", "distance_alpha", "pass_floor", "majorant_weight", "secondary",
+                                       "directions", "direction_weight", "roulette", "split_max", "distance_tau_max", NULL};
+    LD_TRY(ld_check_keys(c, j, path, keys));
+    static const char *const grids[] = {"uniform", "adaptive", NULL};
+    static const char *const bakes[] = {"knn", "track", NULL};
+    LD_TRY(ld_get_enum(c, j, path, "grid", 0, grids, 0, &g->adaptive));
+    LD_TRY(ld_get_enum(c, j, path, "bake", 0, bakes, 0, &g->track));
+    static const char *const windows[] = {"none", "hann", NULL};
+    LD_TRY(ld_get_enum(c, j, path, "window", 0, windows, 1, &g->window));
+    long long v;
+    LD_TRY(ld_get_int(c, j, path, "bands", 0, 8, 1, 8, &v));
+    g->bands = (int)v;
+    LD_TRY(ld_get_int(c, j, path, "k", 0, 64, 1, 4096, &v));
+    g->k = (int)v;
+    LD_TRY(ld_get_num(c, j, path, "lambda", 0, 1.0, 0, 1, 1000, 0, &g->lambda));
+    LD_TRY(ld_get_num(c, j, path, "min_cell", 0, 0.0, 0, 0, 1e9, 0, &g->min_cell));
+    LD_TRY(ld_get_int(c, j, path, "max_depth", 0, 8, 1, 20, &v));
+    g->max_depth = (int)v;
+    /* guided-unbiased: p > 0 wherever the integrand can be needs alpha > 0; both outcomes of
+     * the scatter-or-pass decision need a floor > 0 (and <= 0.5 so the two floors fit); the
+     * majorant strategy's weight is in [0, 1) so the guide keeps a share. */
+    LD_TRY(ld_get_bool(c, j, path, "distances", 1, &g->distances));
+    LD_TRY(ld_get_num(c, j, path, "distance_alpha", 0, 0.2, 0, 1, 1, 0, &g->distance_alpha));
+    LD_TRY(ld_get_num(c, j, path, "pass_floor", 0, 0.1, 0, 1, 0.5, 0, &g->pass_floor));
+    LD_TRY(ld_get_num(c, j, path, "majorant_weight", 0, 0.2, 0, 0, 1, 1, &g->majorant_weight));
+    LD_TRY(ld_get_bool(c, j, path, "secondary", 1, &g->secondary));
+    /* The phase function keeps a share 1 - direction_weight > 0 of the continuations, so a
+     * direction the guide's lobe misses is still drawn (p > 0 wherever the phase is). */
+    LD_TRY(ld_get_num(c, j, path, "distance_tau_max", 0, 0.5, 0, 1, 1e300, 0, &g->distance_tau_max));
+    LD_TRY(ld_get_bool(c, j, path, "directions", 1, &g->directions));
+    LD_TRY(ld_get_num(c, j, path, "direction_weight", 0, 0.25, 0, 0, 1, 1, &g->direction_weight));
+    LD_TRY(ld_get_bool(c, j, path, "roulette", 1, &g->roulette));
+    LD_TRY(ld_get_int(c, j, path, "split_max", 0, 2, 1, 64, &v));
+    g->split_max = (int)v;
+    const cJSON *res = cJSON_GetObjectItemCaseSensitive(j, "resolution");
+    if (res) {
+        if (!cJSON_IsArray(res) || cJSON_GetArraySize(res) != 3)
+            return ld_fail(c, "guide.resolution", "expected 3 integers in [1, 1024]");
+        for (int i = 0; i < 3; i++) {
+            const cJSON *e = cJSON_GetArrayItem(res, i);
+            if (!cJSON_IsNumber(e) || e->valuedouble != floor(e->valuedouble) || e->valuedouble < 1 ||
+                e->valuedouble > 1024)
+                return ld_fail(c, "guide.resolution", "expected 3 integers in [1, 1024]");
+            g->res[i] = e->valueint;
+        }
+        if (g->adaptive) return ld_fail(c, "guide.resolution", "only for \"grid\": \"uniform\" (the adaptive grid refines by photon density)");
+    }
+    return RD_OK;
+}
+
+/* Ray marching of the guided methods (docs/scene-format.md "march"). */
+rd_status ld_parse_march(ld_ctx *c, const cJSON *j, rd_march_settings *m)
+{
+    m->samples = 0; /* per placement, calibrated on cloud and smoke-vdb (integrator_march.c) */
+    m->min_samples = 1;
+    m->max_samples = 64;
+    m->alpha = 0.2;
+    m->ls = RD_LS_NEE_PHOTONS;
+    m->detail = 0; /* "cells": lookups mislead where the photon estimate dominates (cloud) */
+    if (!j) return RD_OK;
+    const char *path = "march";
+    LD_TRY(ld_need_object(c, j, path));
+    static const char *const keys[] = {"samples", "min_samples", "max_samples", "alpha", "ls", "detail", NULL};
+    LD_TRY(ld_check_keys(c, j, path, keys));
+    long long v;
+    LD_TRY(ld_get_int(c, j, path, "samples", 0, 0, 1, 4096, &v));
+    m->samples = (int)v;
+    LD_TRY(ld_get_int(c, j, path, "min_samples", 0, 1, 1, 4096, &v));
+    m->min_samples = (int)v;
+    LD_TRY(ld_get_int(c, j, path, "max_samples", 0, 64, 1, 4096, &v));
+    m->max_samples = (int)v;
+    if (m->max_samples < m->min_samples)
+        return ld_fail(c, "march.max_samples", "must be >= march.min_samples (%d), found %d", m->min_samples, m->max_samples);
+    LD_TRY(ld_get_num(c, j, path, "alpha", 0, 0.2, 0, 1, 1, 0, &m->alpha));
+    static const char *const ls[] = {"nee+photons", "photons", "nee", "nee+guide", NULL};
+    int k = 0;
+    LD_TRY(ld_get_enum(c, j, path, "ls", 0, ls, 0, &k));
+    m->ls = (rd_ls_kind)k;
+    static const char *const detail[] = {"cells", "lookups", NULL};
+    LD_TRY(ld_get_enum(c, j, path, "detail", 0, detail, 0, &m->detail));
+    return RD_OK;
+}
