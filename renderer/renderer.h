@@ -35,7 +35,7 @@ typedef enum {
 
 #define RD_ERRLEN 512
 
-typedef struct rd_scene rd_scene; /* opaque; see rd_internal.h */
+typedef struct rd_scene rd_scene; /* opaque; its fields: scene/rd_scene.h (internal) */
 typedef struct rd_baked rd_baked; /* a photon map and its guide grid (rd_bake); opaque */
 
 /* One `key=value` override applied to the JSON tree before validation (--set). The key is a

@@ -13,7 +13,9 @@ Rules (docs/render-core.md, "The map"):
   3. Inside renderer/, folders are layers and depend downward only, in the order of
      RENDERER_LAYERS (core/ at the bottom, cli/ at the top): an object may use symbols of its own
      folder and of the folders below it.
-  4. No library source file over 1000 lines; no internal header over 300 (the public header of
+  4. No two sources of one library share a file name (ar keeps members by name alone: an
+     incremental `ar r` would replace one with the other).
+  5. No library source file over 1000 lines; no internal header over 300 (the public header of
      each module, walk.h, photonmap.h, sh.h and renderer.h, is the module's whole contract and
      is not capped).
 Each broken rule prints one line naming the files and the symbols that tie them.
@@ -158,6 +160,23 @@ def check_layers_known(units):
     return problems
 
 
+def check_names(root):
+    problems = []
+    for mod in MODULES:
+        seen = {}
+        for dirpath, dirs, files in os.walk(os.path.join(root, mod)):
+            dirs.sort()
+            for f in sorted(files):
+                if f.endswith((".c", ".cpp")):
+                    stem = os.path.splitext(f)[0]
+                    rel = os.path.relpath(os.path.join(dirpath, f), root)
+                    if stem in seen:
+                        problems.append("%s and %s: one library, one object name (%s.o)"
+                                        % (seen[stem], rel, stem))
+                    seen.setdefault(stem, rel)
+    return problems
+
+
 def check_sizes(root):
     problems = []
     for mod in MODULES:
@@ -232,7 +251,17 @@ def self_test():
     assert len(p) == 2 and all("may not use renderer/integrators/" in x for x in p), p
     assert check_layers_known({"renderer/x.c": 0, "renderer/misc/y": 0}) and \
         not check_layers_known({"renderer/cli/main": 0})
-    print("check_structure self-test: 6 passed, 0 failed")
+    import tempfile
+    with tempfile.TemporaryDirectory() as tmp:
+        for sub in ("renderer/a", "renderer/b", "sh"):
+            os.makedirs(os.path.join(tmp, sub))
+        for f in ("renderer/a/x.c", "renderer/b/y.c", "sh/x.c"):
+            open(os.path.join(tmp, f), "w").close()
+        assert check_names(tmp) == [], check_names(tmp)
+        open(os.path.join(tmp, "renderer/b/x.cpp"), "w").close()
+        p = check_names(tmp)
+        assert len(p) == 1 and "renderer/a/x.c and renderer/b/x.cpp" in p[0], p
+    print("check_structure self-test: 8 passed, 0 failed")
     return 0
 
 
@@ -249,7 +278,7 @@ def main(argv):
         print("check_structure: %s: no object files (build first)" % build, file=sys.stderr)
         return 2
     tables = {unit_name(build, o): read_symbols(o) for o in objs}
-    problems = check_graph(tables) + check_layers_known(tables) + check_sizes(root)
+    problems = check_graph(tables) + check_layers_known(tables) + check_names(root) + check_sizes(root)
     for p in problems:
         print("check_structure: " + p)
     print("check_structure: %d objects, %d problem(s)" % (len(objs), len(problems)))

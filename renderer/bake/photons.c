@@ -161,7 +161,7 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
         if (!rd_light_sample_emission(s, &s->lights[lo], &rng, &r, &beta)) continue;
         beta = v3_scale(beta, inv_n / p_light); /* photon power: Phi_l / (N p_l) */
         acc(b->emitted, beta);
-        /* The region the photon starts in (rd_internal.h "Surfaces in the transport"). */
+        /* The region the photon starts in (rd_scene.h "Surfaces in the transport"). */
         int region = rd_scene_region_at(s, r.o), crossings = 0;
         rd_hit h, prev;
         const rd_hit *from = NULL;

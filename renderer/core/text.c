@@ -1,5 +1,5 @@
 /* text.c: a growing text buffer for the files the renderer writes as text (the compare report,
- * explain's table and gnuplot script) and writes them. Contract in rd_internal.h. */
+ * explain's table and gnuplot script) and writes them. Contract in core/rd_core.h. */
 #include "core/rd_core.h"
 
 #include <stdarg.h>

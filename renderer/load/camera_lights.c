@@ -1,6 +1,5 @@
 /* camera_lights.c: the scene's "camera" and "lights" sections, read and checked field by field
  * into rd_camera and rd_light (docs/scene-format.md). */
-#include "rd_internal.h"
 #include "load/rd_load.h"
 
 #include <cJSON.h>

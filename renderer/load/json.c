@@ -2,7 +2,6 @@
  * a JSON object, checks its type and range, fills in the default of a missing optional field,
  * and on an error writes one line naming the file and the field's path (the error context,
  * ld_ctx in rd_load.h). Also the paths of data files named by the scene. */
-#include "rd_internal.h"
 #include "load/rd_load.h"
 
 #include <cJSON.h>

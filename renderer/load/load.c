@@ -8,7 +8,6 @@
  * Unknown keys are errors, so a typo is never silently ignored. The format is documented in
  * docs/scene-format.md. */
 #include "scene/rd_geom.h"
-#include "rd_internal.h"
 #include "load/rd_load.h"
 
 #include <cJSON.h>

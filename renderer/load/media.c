@@ -1,8 +1,8 @@
 /* media.c: one entry of the scene's "media": its bounds, its density (constant, a VDB or raw
  * voxel file, or procedural noise), sigma_t, albedo and g, and its majorant structure, built
  * here once the density is known (rd_freepath.h; seed 000's cost model). */
-#include "rd_internal.h"
 #include "load/rd_load.h"
+#include "media/rd_freepath.h"
 
 #include <cJSON.h>
 #include <stdint.h>

@@ -10,7 +10,7 @@
 #ifndef RD_LOAD_H
 #define RD_LOAD_H
 
-#include "rd_internal.h"
+#include "scene/rd_scene.h"
 
 #include <cJSON.h>
 #include <stddef.h>

@@ -1,7 +1,6 @@
 /* settings.c: the scene's "settings" (method, sample counts, free-path engine), "photons",
  * "guide" and "march" sections, each with its defaults when the section or a field is absent.
  * settings.method is checked against the method table (integrators/rd_method.h). */
-#include "rd_internal.h"
 #include "integrators/rd_method.h"
 #include "load/rd_load.h"
 

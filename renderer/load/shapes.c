@@ -2,7 +2,6 @@
  * and outside) and the scene-wide "medium", which name media by name; and the check that box
  * media lie clear of the shapes (issue 14; rd_geom.h). */
 #include "scene/rd_geom.h"
-#include "rd_internal.h"
 #include "load/rd_load.h"
 
 #include <cJSON.h>
@@ -174,7 +173,7 @@ rd_status ld_parse_surfaces(ld_ctx *c, const cJSON *root, rd_scene *s)
 
 
 /* A box medium (not bound to surfaces) fills its bounds in the open region (the region of the
- * scene-wide medium: rd_internal.h "Surfaces in the transport"), so no shape that encloses
+ * scene-wide medium: rd_scene.h "Surfaces in the transport"), so no shape that encloses
  * another region may reach into it: its bounds must not overlap the bounding box of a shape
  * whose inside is not the scene-wide medium. (A room whose walls enclose the scene-wide medium
  * may hold box media.) */

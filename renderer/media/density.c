@@ -200,7 +200,7 @@ double rd_noise_fbm(const rd_noise *n, vec3 x)
  * E depends on f only; its maximum over the unit cube, found by a 61^3 grid search refined by a
  * local random search, is 1.03635 at f = (0.355, 0.481, 0.5) and its mirror images. We use 1.04
  * (tests/test_volume.c checks E on random points and the noise against the bound). The
- * constant RD_PERLIN_BOUND lives in rd_internal.h. */
+ * constant RD_PERLIN_BOUND lives in rd_medium.h. */
 
 double rd_noise_fbm_bound(const rd_noise *n)
 {

@@ -32,7 +32,7 @@ static float up_f(double v) { return v <= 0.0 ? 0.0f : (float)(v * (1.0 + 1e-6) 
 static float down_f(double v) { return v <= 0.0 ? 0.0f : (float)(v * (1.0 - 1e-6)); }
 
 /* Min and max of the voxels i0..i1 (inclusive, inside the grid) of a sparse grid, from its
- * brick map (rd_internal.h rd_bricks): a constant table cell (tile or background) by its value,
+ * brick map (rd_medium.h rd_bricks): a constant table cell (tile or background) by its value,
  * a brick the range covers whole by its stored min and max, a brick the range cuts voxel by
  * voxel. The result equals the dense scan's, but empty space costs one read per 8^3 cell. */
 static void bricks_range_bound(const rd_grid *g, const int i0[3], const int i1[3], float *mn, float *mx)

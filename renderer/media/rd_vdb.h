@@ -1,4 +1,4 @@
-/* rd_vdb.h: OpenVDB reading and writing beyond rd_internal.h's rd_vdb_load / rd_vdb_save_dense,
+/* rd_vdb.h: OpenVDB reading and writing beyond rd_medium.h's rd_vdb_load / rd_vdb_save_dense,
  * for tests and tools.
  * Internal to renderer/ (not part of the public API); implemented in vdb_io.cpp, which catches
  * every exception. */
@@ -27,7 +27,7 @@ rd_status rd_vdb_save_dense_affine(const char *path, const char *grid_name, cons
 
 /* Read the float grid `grid_name` with one storage forced: dense (every voxel of its active
  * bounding box into g->data) or sparse (the brick map), with the same transform, bounds and
- * checks as rd_vdb_load, which chooses (rd_internal.h). For the tests that compare the two. */
+ * checks as rd_vdb_load, which chooses (rd_medium.h). For the tests that compare the two. */
 rd_status rd_vdb_load_dense(const char *path, const char *grid_name, rd_grid *g, vec3 *bmin,
                             vec3 *bmax, char *err, size_t errlen);
 rd_status rd_vdb_load_sparse(const char *path, const char *grid_name, rd_grid *g, vec3 *bmin,

@@ -1,4 +1,4 @@
-// vdb_io.cpp: OpenVDB behind a plain C API (rd_internal.h, rd_vdb.h). Reads one float grid by
+// vdb_io.cpp: OpenVDB behind a plain C API (rd_medium.h, rd_vdb.h). Reads one float grid by
 // name, sparsely into a brick map (or, for comparison, into a dense array) with its
 // index-to-world transform; writes a dense array as a .vdb
 // with a scale and translation or any affine index-to-world map (for tests and the
@@ -150,7 +150,7 @@ static rd_status densify(const openvdb::FloatGrid &grid, const openvdb::CoordBBo
     return RD_OK;
 }
 
-// The sparse path (rd_internal.h rd_bricks): the brick table covers the active bounding box
+// The sparse path (rd_medium.h rd_bricks): the brick table covers the active bounding box
 // in 8^3 cells aligned with the tree's leaf nodes (OpenVDB leaves are 8^3 at multiples of 8).
 // Every leaf inside the table becomes a brick; every other cell lies inside one tile or the
 // background, so one accessor read gives its constant value. Memory: the table (a few bytes per

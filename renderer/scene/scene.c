@@ -2,7 +2,7 @@
  * accessors of renderer.h, the scene-wide queries rd_scene_radius and rd_scene_medium_bound,
  * and rd_scene_info's summary. */
 #include "scene/rd_geom.h"
-#include "rd_internal.h"
+#include "media/rd_freepath.h"
 
 #include <stdio.h>
 #include <stdlib.h>

@@ -95,7 +95,7 @@ int rd_surface_event(const rd_scene *s, const rd_hit *h, int depth, rd_surface_s
 }
 
 /* The loop from a free flight along r on, with unit throughput: returns the radiance estimate
- * of L(r.o, -r.d). `region` is where r starts (rd_internal.h "Surfaces in the transport"),
+ * of L(r.o, -r.d). `region` is where r starts (rd_scene.h "Surfaces in the transport"),
  * `phase_pdf` the pdf with which r.d was drawn (0 for the camera ray), `depth` the scattering
  * events before this flight, *budget the extra copies splitting may still add to this camera
  * sample. */
