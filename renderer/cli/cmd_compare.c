@@ -1,0 +1,211 @@
+/* cmd_compare.c: photonmarch compare, several methods at equal time or samples, K runs each,
+ * measured against a reference and written as a report folder (rd_compare_run). */
+#include "cli.h"
+
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <string.h>
+#include <unistd.h>
+
+static const char *usage_compare =
+    "usage: photonmarch compare SCENE --methods A,B[,...] [options]\n"
+    "\n"
+    "Renders SCENE with every method K times (seeds seed+1..seed+K) at equal time or equal\n"
+    "samples, measures each against a reference (docs/compare.md) and writes the report folder\n"
+    "DIR: index.html (opens from disk: A/B/reference toggle, error maps, worst-region crops,\n"
+    "metrics table, convergence plot), metrics.json, convergence.svg (gnuplot), and the EXR and\n"
+    "PNG images. Prints progress on stderr and the metrics table on stdout. Ctrl-C stops the\n"
+    "run in progress and writes the report of the runs that finished (exit 130).\n"
+    "\n"
+    "options:\n"
+    "  --methods A,B     methods to compare (listed below)\n"
+    "  --equal time|spp  what every method gets the same of (default: time)\n"
+    "  --budget X        per run: seconds with --equal time (default 10; a method's bake is\n"
+    "                    done once and its time is charged to each of its runs), samples per\n"
+    "                    pixel with --equal spp (default 64)\n"
+    "  --runs K          independent runs per method, for bias^2 and variance (default 2)\n"
+    "  --reference REF.exr   the converged image to measure against (REF-stderr.exr beside it,\n"
+    "                    if present, gives its own noise); default: rendered with delta and\n"
+    "                    cached (see --ref-spp, --cache)\n"
+    "  --ref-spp N       samples per pixel of the rendered reference (default 1024)\n"
+    "  --ref-time S      time cap of the rendered reference in seconds (default: none)\n"
+    "  --cache DIR       where the rendered reference is cached (default: .photonmarch-cache\n"
+    "                    beside the report folder), named by a hash of the scene's content and\n"
+    "                    the reference settings\n"
+    "  --no-cache        render the reference afresh and do not cache it\n"
+    "  --add LABEL=IMAGE.exr[@SECONDS]   an image from another renderer, with its render time\n"
+    "                    (repeatable); measured like the methods (no runs: no bias/variance)\n"
+    "  --seed N          base seed (default: settings.seed)\n"
+    "  --threads N       worker threads (default: all cores)\n"
+    "  -o, --output DIR  report folder (default: out/compare-<scene name>)\n"
+    "  --set KEY=VALUE   override a scene field before validation (repeatable)\n"
+    "  -q, --quiet       no progress\n"
+    "  -h, --help        this text\n";
+
+static void print_compare_help(void)
+{
+    fputs(usage_compare, stdout);
+    printf("\nmethods:\n");
+    for (int i = 0; i < rd_method_count(); i++) printf("  %-16s %s\n", rd_method_name(i), rd_method_summary(i));
+}
+
+/* Progress of a comparison: which method, which run, the run's time and the time left. */
+static void compare_progress(void *user, const rd_cmp_progress *p)
+{
+    cli_progress_state *ps = user;
+    /* Not a terminal: a line when a run starts, then at most every 10 s. */
+    if (!ps->tty) {
+        double now = cli_wall_seconds();
+        int started = p->spp_done == 0;
+        if (!started && ps->last_print > 0 && now - ps->last_print < 10.0) return;
+        ps->last_print = now;
+    }
+    const char *lead = ps->tty ? "\r" : "", *tail = ps->tty ? "      " : "\n";
+    fprintf(stderr, "%s  %s run %d/%d: %d spp, %.1f s; about %.0f s left in all%s", lead, p->label, p->run, p->runs,
+            p->spp_done, p->run_seconds, p->left_seconds, tail);
+    fflush(stderr);
+}
+
+/* Split "a,b,c" (in buf, modified) into at most max names. */
+static int split_methods(char *buf, const char **names, int max)
+{
+    int n = 0;
+    for (char *t = strtok(buf, ","); t; t = strtok(NULL, ",")) {
+        if (n == max) return -1;
+        names[n++] = t;
+    }
+    return n;
+}
+
+typedef struct {
+    cli_scene_args a;
+    char methods_buf[512];
+    const char *methods[9];
+    rd_cmp_extra extras[9];
+    char extra_buf[9][1100];
+    const char *outdir, *cache;
+    int no_cache, quiet, equal_set;
+    long seed;
+    rd_cmp_opts o;
+} compare_args;
+
+/* Parse the options into ca; 0 when fine, else the exit code (after a message). */
+static int compare_parse(compare_args *ca, int argc, char **argv)
+{
+    rd_cmp_opts *o = &ca->o;
+    double budget = -1;
+    long v;
+    for (int i = 0; i < argc; i++) {
+        const char *opt = argv[i];
+        int t = cli_take_set(&ca->a, argc, argv, &i);
+        if (t < 0) return CLI_EXIT_USAGE;
+        if (t) continue;
+        int has_val = i + 1 < argc;
+        char err[RD_ERRLEN];
+        if (!strcmp(opt, "-h") || !strcmp(opt, "--help")) { print_compare_help(); return -1; }
+        else if (!strcmp(opt, "-q") || !strcmp(opt, "--quiet")) ca->quiet = 1;
+        else if (!strcmp(opt, "--no-cache")) ca->no_cache = 1;
+        else if (!strcmp(opt, "--methods") && has_val) {
+            snprintf(ca->methods_buf, sizeof ca->methods_buf, "%s", argv[++i]);
+            o->n_methods = split_methods(ca->methods_buf, ca->methods, 8);
+            if (o->n_methods <= 0) { fprintf(stderr, "photonmarch compare: --methods %s: expected 1 to 8 names separated by commas\n", argv[i]); return CLI_EXIT_USAGE; }
+        } else if (!strcmp(opt, "--equal") && has_val) {
+            const char *e = argv[++i];
+            if (strcmp(e, "time") && strcmp(e, "spp")) { fprintf(stderr, "photonmarch compare: --equal %s: expected time or spp\n", e); return CLI_EXIT_USAGE; }
+            o->equal_spp = !strcmp(e, "spp");
+        } else if (!strcmp(opt, "--budget") && has_val) { if (!cli_parse_double(opt, argv[++i], 1e-3, 1e7, &budget)) return CLI_EXIT_USAGE; }
+        else if (!strcmp(opt, "--runs") && has_val) { if (!cli_parse_int(opt, argv[++i], 1, 64, &v)) return CLI_EXIT_USAGE; o->runs = (int)v; }
+        else if (!strcmp(opt, "--ref-spp") && has_val) { if (!cli_parse_int(opt, argv[++i], 1, 1 << 24, &v)) return CLI_EXIT_USAGE; o->ref_spp = (int)v; }
+        else if (!strcmp(opt, "--ref-time") && has_val) { if (!cli_parse_double(opt, argv[++i], 1e-3, 1e7, &o->ref_time)) return CLI_EXIT_USAGE; }
+        else if (!strcmp(opt, "--reference") && has_val) o->reference = argv[++i];
+        else if (!strcmp(opt, "--cache") && has_val) ca->cache = argv[++i];
+        else if (!strcmp(opt, "--seed") && has_val) { if (!cli_parse_int(opt, argv[++i], 0, 0x7fffffffL, &ca->seed)) return CLI_EXIT_USAGE; }
+        else if (!strcmp(opt, "--threads") && has_val) { if (!cli_parse_int(opt, argv[++i], 1, 1024, &v)) return CLI_EXIT_USAGE; o->threads = (int)v; }
+        else if ((!strcmp(opt, "-o") || !strcmp(opt, "--output")) && has_val) ca->outdir = argv[++i];
+        else if (!strcmp(opt, "--add") && has_val) {
+            if (o->n_extras >= 8) { fprintf(stderr, "photonmarch compare: --add: at most 8 images\n"); return CLI_EXIT_USAGE; }
+            int k = o->n_extras;
+            if (rd_cmp_extra_parse(argv[++i], ca->extra_buf[k], sizeof ca->extra_buf[k], &ca->extras[k], err, sizeof err)) {
+                fprintf(stderr, "photonmarch compare: %s\n", err);
+                return CLI_EXIT_USAGE;
+            }
+            o->n_extras++;
+        } else if (cli_take_positional(&ca->a, "compare", opt)) return CLI_EXIT_USAGE;
+    }
+    if (cli_need_scene(&ca->a, "compare")) return CLI_EXIT_USAGE;
+    if (o->n_methods == 0) { fprintf(stderr, "photonmarch compare: missing --methods (see photonmarch compare --help)\n"); return CLI_EXIT_USAGE; }
+    if (o->equal_spp && budget > 0 && (budget != floor(budget) || budget > (1 << 24))) {
+        fprintf(stderr, "photonmarch compare: --budget %g: with --equal spp, a whole number of samples\n", budget);
+        return CLI_EXIT_USAGE;
+    }
+    o->budget = budget > 0 ? budget : o->equal_spp ? 64 : 10;
+    o->methods = ca->methods;
+    o->extras = ca->extras;
+    return 0;
+}
+
+int cli_cmd_compare(int argc, char **argv)
+{
+    static compare_args ca; /* large buffers; one comparison per process */
+    memset(&ca, 0, sizeof ca);
+    ca.seed = -1;
+    ca.o.runs = 2;
+    ca.o.ref_spp = 1024;
+    int code = compare_parse(&ca, argc, argv);
+    if (code) return code < 0 ? 0 : code;
+    char defout[1024], cache[1100];
+    if (!ca.outdir) {
+        char name[1024];
+        cli_default_output(ca.a.scene, "", name, sizeof name); /* out/<scene name> */
+        snprintf(defout, sizeof defout, "out/compare-%.900s", name + 4);
+        ca.outdir = defout;
+    }
+    /* The reference cache: beside the report folder unless --cache says otherwise. */
+    if (!ca.cache) {
+        const char *slash = strrchr(ca.outdir, '/');
+        snprintf(cache, sizeof cache, "%.*s.photonmarch-cache", slash ? (int)(slash - ca.outdir + 1) : 0, ca.outdir);
+        ca.cache = cache;
+    }
+    ca.o.cache_dir = ca.no_cache ? NULL : ca.cache;
+
+    char err[RD_ERRLEN];
+    rd_scene *scene;
+    rd_status st = rd_scene_load(&scene, ca.a.scene, ca.a.ov, ca.a.nov, err, sizeof err);
+    if (st) return cli_report_error(st, err);
+    ca.o.seed = ca.seed >= 0 ? (uint64_t)ca.seed : rd_scene_seed(scene);
+    ca.o.cancel = cli_cancel_flag();
+    cli_progress_state ps = {0.0, isatty(2), 0.0};
+    if (!ca.quiet) {
+        ca.o.progress = compare_progress;
+        ca.o.progress_user = &ps;
+    }
+    rd_comparison *cmp = NULL;
+    cli_on_signal_stop(); /* a signal ends the run in progress; the report is written */
+    st = rd_compare_run(scene, &ca.o, &cmp, err, sizeof err);
+    if (!ca.quiet && ps.tty) fputc('\n', stderr);
+    if (st) {
+        code = cli_report_error(st, err);
+        goto out;
+    }
+    const rd_cmp_summary *sum = rd_comparison_summary(cmp);
+    if (sum->cancelled && sum->n_rows == 0) {
+        fprintf(stderr, "photonmarch compare: interrupted before any run finished; nothing written\n");
+        code = cli_exit_interrupted(cli_interrupted() ? cli_interrupted() : SIGINT);
+        goto out;
+    }
+    if ((st = rd_compare_write_report(cmp, scene, ca.outdir, err, sizeof err)) != RD_OK) {
+        code = cli_report_error(st, err);
+        goto out;
+    }
+    rd_compare_print_table(cmp, stdout);
+    printf("report %s/index.html\n", ca.outdir);
+    if (sum->cancelled) {
+        fprintf(stderr, "photonmarch compare: interrupted; the report holds the runs that finished\n");
+        code = cli_exit_interrupted(cli_interrupted() ? cli_interrupted() : SIGINT);
+    }
+out:
+    rd_comparison_free(cmp);
+    rd_scene_free(scene);
+    return code;
+}

@@ -1,0 +1,224 @@
+/* cmd_render.c: photonmarch render, one method over a scene to OUT.exr, OUT-stderr.exr, OUT.png
+ * and OUT.json (rd_render), with progress on stderr and Ctrl-C writing what it has. */
+#include "cli.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include <unistd.h>
+
+/* render -o OUT.exr writes OUT.exr, OUT-stderr.exr, OUT.png and OUT.json: none may be the scene
+ * (`render scene.json -o scene.exr` would replace it with the report). */
+static int refuse_render_outputs(const char *exr, const char *scene)
+{
+    static const char *const ext[] = {".exr", "-stderr.exr", ".png", ".json"};
+    size_t stem = strlen(exr) - 4;
+    for (int i = 0; i < 4; i++) {
+        char path[1100];
+        snprintf(path, sizeof path, "%.*s%s", (int)stem, exr, ext[i]);
+        if (cli_refuse_input_as_output("render", path, scene)) return CLI_EXIT_USAGE;
+    }
+    return 0;
+}
+
+static const char *usage_render =
+    "usage: photonmarch render SCENE [options]\n"
+    "\n"
+    "Renders SCENE (JSON, docs/scene-format.md). Writes OUT.exr (linear float RGB), OUT.png\n"
+    "(sRGB preview, scaled by 2^camera.exposure) and OUT.json (method, samples, time, counters).\n"
+    "Files are written under a temporary name and renamed, so a failed run never destroys a\n"
+    "good image. Ctrl-C or SIGTERM (or the time limit) stops before the next pixel and writes\n"
+    "what it has (exit 130 for Ctrl-C, 143 for SIGTERM); a second signal ends it at once; the\n"
+    "per-pixel sample counts are in the report.\n"
+    "\n"
+    "options:\n"
+    "  --method M        rendering method (default: settings.method, else delta); the methods\n"
+    "                    are listed below\n"
+    "  --spp N           samples per pixel (default: settings.spp)\n"
+    "  --time S          stop after S seconds, bake included (checked before every pixel,\n"
+    "                    so the budget is kept to within a pixel's work); with --spp, the\n"
+    "                    first limit reached stops the render\n"
+    "  --seed N          random seed (default: settings.seed); same seed, same image on any\n"
+    "                    number of threads\n"
+    "  --threads N       worker threads (default: all cores)\n"
+    "  -o, --output OUT.exr   output path (default: out/<scene name>.exr); also writes\n"
+    "                    OUT-stderr.exr, the per-pixel standard error of the mean\n"
+    "  --photons FILE    a photon map saved by `bake` (methods that need one; otherwise they\n"
+    "                    bake their own, cached in OUT's folder under .photonmarch-cache/,\n"
+    "                    named by a hash of everything the bake depends on)\n"
+    "  --guide FILE      a guide grid saved by `bake` (the guided method)\n"
+    "  --no-cache        bake afresh and do not write the cache\n"
+  "  --reference REF.exr    a converged image of the same size: the report records the RMSE\n"
+    "                    against it after every pass (\"convergence\")\n"
+    "  --set KEY=VALUE   override a scene field before validation, e.g. --set settings.spp=64,\n"
+    "                    --set camera.resolution=[320,240], --set media[0].g=0.9 (repeatable)\n"
+    "  -q, --quiet       no progress and no summary\n"
+    "  -h, --help        this text\n";
+
+/* render --help: the options, then the method table. */
+static void print_render_help(void)
+{
+    fputs(usage_render, stdout);
+    printf("\nmethods:\n");
+    for (int i = 0; i < rd_method_count(); i++) {
+        unsigned needs = rd_method_needs(i);
+        printf("  %-16s %s%s\n", rd_method_name(i), rd_method_summary(i),
+               needs ? " (bakes a photon map and guide first)" : "");
+    }
+}
+
+/* Progress: on a terminal one line rewritten after every pass; elsewhere (logs, batch systems)
+ * a line after the first pass and then at most every 10 s. */
+static void progress(void *user, int done, int total, double seconds)
+{
+    cli_progress_state *ps = user;
+    double eta = done > 0 ? seconds * (total - done) / done : 0.0;
+    if (ps->time_limit > 0 && ps->time_limit - seconds < eta) eta = fmax(0.0, ps->time_limit - seconds);
+    if (!ps->tty) {
+        double now = cli_wall_seconds();
+        if (ps->last_print > 0 && now - ps->last_print < 10.0) return;
+        ps->last_print = now;
+    }
+    const char *lead = ps->tty ? "\r" : "", *tail = ps->tty ? "   " : "\n";
+    if (total >= (1 << 24)) /* --time alone: no sample target */
+        fprintf(stderr, "%s  %d spp  %.1f of %.0f s%s", lead, done, seconds, ps->time_limit, tail);
+    else
+        fprintf(stderr, "%s  %d/%d spp  %.1f s elapsed, about %.0f s left%s", lead, done, total, seconds, eta, tail);
+    fflush(stderr);
+}
+
+int cli_cmd_render(int argc, char **argv)
+{
+    cli_scene_args a = {0};
+    const char *method = NULL, *outpath = NULL, *refpath = NULL, *photons_path = NULL, *guide_path = NULL;
+    long spp = -1, seed = -1, threads = 0;
+    double time_limit = -1;
+    int quiet = 0, no_cache = 0;
+    for (int i = 0; i < argc; i++) {
+        const char *o = argv[i];
+        int t = cli_take_set(&a, argc, argv, &i);
+        if (t < 0) return CLI_EXIT_USAGE;
+        if (t) continue;
+        int has_val = i + 1 < argc;
+        if (!strcmp(o, "-h") || !strcmp(o, "--help")) { print_render_help(); return 0; }
+        else if (!strcmp(o, "-q") || !strcmp(o, "--quiet")) quiet = 1;
+        else if (!strcmp(o, "--method") && has_val) method = argv[++i];
+        else if (!strcmp(o, "--reference") && has_val) refpath = argv[++i];
+        else if (!strcmp(o, "--photons") && has_val) photons_path = argv[++i];
+        else if (!strcmp(o, "--guide") && has_val) guide_path = argv[++i];
+        else if (!strcmp(o, "--no-cache")) no_cache = 1;
+        else if (!strcmp(o, "--spp") && has_val) { if (!cli_parse_int(o, argv[++i], 1, 1 << 24, &spp)) return CLI_EXIT_USAGE; }
+        else if (!strcmp(o, "--time") && has_val) { if (!cli_parse_double(o, argv[++i], 0.001, 1e7, &time_limit)) return CLI_EXIT_USAGE; }
+        else if (!strcmp(o, "--seed") && has_val) { if (!cli_parse_int(o, argv[++i], 0, 0x7fffffffL, &seed)) return CLI_EXIT_USAGE; }
+        else if (!strcmp(o, "--threads") && has_val) { if (!cli_parse_int(o, argv[++i], 1, 1024, &threads)) return CLI_EXIT_USAGE; }
+        else if ((!strcmp(o, "-o") || !strcmp(o, "--output")) && has_val) outpath = argv[++i];
+        else if (cli_take_positional(&a, "render", o)) return CLI_EXIT_USAGE;
+    }
+    if (cli_need_scene(&a, "render")) return CLI_EXIT_USAGE;
+    char defout[1024];
+    if (!outpath) {
+        cli_default_output(a.scene, ".exr", defout, sizeof defout);
+        outpath = defout;
+    }
+    size_t olen = strlen(outpath);
+    if (olen < 5 || strcmp(outpath + olen - 4, ".exr") != 0 || olen > 1000) {
+        fprintf(stderr, "photonmarch render: -o %s: expected a path ending in .exr\n", outpath);
+        return CLI_EXIT_USAGE;
+    }
+    if (refuse_render_outputs(outpath, a.scene)) return CLI_EXIT_USAGE;
+    cli_on_signal_quit(); /* nothing to save until the passes begin */
+
+    char err[RD_ERRLEN];
+    rd_scene *scene;
+    rd_status st = rd_scene_load(&scene, a.scene, a.ov, a.nov, err, sizeof err);
+    if (st) return cli_report_error(st, err);
+    rd_image ref = {0, 0, NULL, 0};
+    if (refpath && (st = rd_image_read(refpath, &ref, err, sizeof err)) != RD_OK) {
+        rd_scene_free(scene);
+        return cli_report_error(st, err);
+    }
+    rd_render_opts ro = {0};
+    ro.method = method ? method : rd_scene_method(scene);
+    ro.spp = spp > 0 ? (int)spp : rd_scene_spp(scene);
+    ro.time_limit = time_limit > 0 ? time_limit : rd_scene_time_limit(scene);
+    /* A time limit without a sample count (--time, or settings.time with no settings.spp)
+     * runs until the time is up. */
+    if (ro.time_limit > 0 && spp < 0 && (time_limit > 0 || !rd_scene_spp_given(scene))) ro.spp = 1 << 24;
+    ro.seed = seed >= 0 ? (uint64_t)seed : rd_scene_seed(scene);
+    ro.threads = (int)threads;
+    ro.cancel = cli_cancel_flag();
+    ro.reference = refpath ? &ref : NULL;
+    cli_progress_state ps = {ro.time_limit, isatty(2), 0.0};
+    if (!quiet) {
+        ro.progress = progress;
+        ro.progress_user = &ps;
+    }
+    int code = 0;
+    rd_baked *baked = NULL; /* before the first goto out, which frees it */
+    if ((st = rd_make_parent_dirs(outpath, err, sizeof err)) != RD_OK) {
+        code = cli_report_error(st, err);
+        goto out;
+    }
+    /* What the method needs baked: from --photons/--guide, the cache, or a fresh bake. */
+    unsigned needs = rd_method_needs_for(ro.method, scene);
+    if (needs) {
+        rd_bake_opts bo = {0};
+        bo.seed = -1;
+        bo.threads = (int)threads;
+        rd_bake_opts_for(&bo, needs);
+        bo.load_photons = photons_path;
+        bo.load_guide = guide_path;
+        double t0 = cli_wall_seconds();
+        st = cli_bake_beside(scene, &bo, outpath, photons_path || guide_path || no_cache, quiet, &baked, err, sizeof err);
+        if (st) {
+            code = cli_report_error(st, err);
+            goto out;
+        }
+        ro.baked = baked;
+        ro.baked_seconds = cli_wall_seconds() - t0;
+    }
+    cli_on_signal_stop(); /* from here on, a signal stops and writes what it has */
+    rd_render_result res;
+    st = rd_render(scene, &ro, &res, err, sizeof err);
+    if (ro.progress && ps.tty) fputc('\n', stderr);
+    if (refpath && st == RD_ERR_ARG) { /* the only argument rd_render checks against a file */
+        fprintf(stderr, "%s: %s\n", refpath, err);
+        code = CLI_EXIT_INPUT;
+        goto out;
+    }
+    if (st) {
+        code = cli_report_error(st, err);
+        goto out;
+    }
+    if (res.stats.spp_mean <= 0.0 && !res.stats.cancelled) {
+        fprintf(stderr, "photonmarch render: --time %g: the time ran out before any pixel was sampled (the bake took "
+                        "%.1f s); nothing written\n", ro.time_limit, res.stats.bake_seconds);
+        code = CLI_EXIT_USAGE;
+    } else if (res.stats.spp_mean <= 0.0) {
+        fprintf(stderr, "photonmarch render: interrupted before any pixel was sampled; nothing written\n");
+        code = cli_exit_interrupted(cli_interrupted());
+    } else if ((st = rd_render_write(scene, &ro, &res, outpath, err, sizeof err)) != RD_OK) {
+        code = cli_report_error(st, err);
+    } else {
+        if (!quiet) {
+            const rd_render_stats *rs = &res.stats;
+            double paths = rs->paths ? (double)rs->paths : 1.0;
+            fprintf(stderr, "%s: %.4g spp in %.2f s (%.0f paths/s, %.2f collisions/path, %.2f lookups/path)%s%s\n",
+                    ro.method, rs->spp_mean, rs->seconds, rs->seconds > 0 ? rs->paths / rs->seconds : 0.0,
+                    rs->collisions / paths, rs->lookups / paths, rs->cancelled ? " [interrupted]" : "",
+                    rs->timed_out ? " [time limit]" : "");
+            if (rs->invalid) fprintf(stderr, "warning: %llu non-finite samples were dropped\n", (unsigned long long)rs->invalid);
+            char base[1100];
+            snprintf(base, sizeof base, "%.*s", (int)(strlen(outpath) - 4), outpath);
+            printf("image  %s\nstderr %s-stderr.exr\npng    %s.png\nreport %s.json\n", outpath, base, base, base);
+        }
+        /* A signal that came after the last pixel still says so in the status. */
+        if (cli_interrupted()) code = cli_exit_interrupted(cli_interrupted());
+    }
+    rd_render_result_free(&res);
+out:
+    rd_baked_free(baked);
+    rd_image_free_pixels(&ref);
+    rd_scene_free(scene);
+    return code;
+}
