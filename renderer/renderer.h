@@ -133,6 +133,13 @@ typedef struct {
     double samples_per_ray;
     int samples_min, samples_max;
     double cells_per_ray;
+    /* Progressive photon passes (photons.progressive; 0 passes with one fixed map): passes
+     * traced, photons emitted over them, seconds spent tracing and indexing them (part of
+     * `seconds`), and the last pass's gather radius relative to the first pass's. */
+    int photon_passes;
+    uint64_t photons_traced;
+    double photon_seconds;
+    double radius_scale;
 } rd_render_stats;
 
 /* One point of the convergence curve: RMSE of the image so far against the reference. */

@@ -313,6 +313,45 @@ fail:
     return st;
 }
 
+rd_status rd_bake_photon_pass(const rd_scene *s, unsigned maps, int pass, int threads,
+                              rd_baked **out, char *err, size_t errlen)
+{
+    *out = NULL;
+    double t_start = bake_now();
+    rd_baked *b = calloc(1, sizeof *b);
+    if (!b) {
+        snprintf(err, errlen, "%s: out of memory for photon pass %d", s->path, pass);
+        return RD_ERR_NOMEM;
+    }
+    rd_bake_opts o = {0};
+    o.photons = s->photons.pass_count > 0 ? s->photons.pass_count : s->photons.count;
+    o.seed = (long long)rd_ppm_pass_seed(s->photons.seed, pass);
+    o.threads = threads;
+    char pmerr[RD_ERRLEN];
+    rd_status st = RD_OK;
+    rd_photon_stats ps;
+    /* The same two maps as rd_bake makes, from this pass's photons. */
+    if (maps & RD_NEEDS_PHOTONS) {
+        if ((st = trace_new_map(s, &o, s->photons.store_direct, 0, &b->map, &ps, err, errlen)) != RD_OK) goto fail;
+        b->stats.emitted = ps.emitted;
+        if (pm_map_build(b->map, pmerr, sizeof pmerr) != PM_OK) goto fail_build;
+    }
+    if (maps & RD_NEEDS_INDIRECT) {
+        if ((st = trace_new_map(s, &o, 0, 0, &b->indirect, &ps, err, errlen)) != RD_OK) goto fail;
+        b->stats.emitted = ps.emitted;
+        if (pm_map_build(b->indirect, pmerr, sizeof pmerr) != PM_OK) goto fail_build;
+    }
+    b->stats.seconds = bake_now() - t_start;
+    *out = b;
+    return RD_OK;
+fail_build:
+    snprintf(err, errlen, "photon map of pass %d: %s", pass, pmerr);
+    st = RD_ERR_INTERNAL;
+fail:
+    rd_baked_free(b);
+    return st;
+}
+
 /* ---- The bake cache -------------------------------------------------------------------- */
 
 rd_status rd_bake_cached(const rd_scene *s, const rd_bake_opts *o, const char *dir, rd_baked **out,

@@ -75,6 +75,21 @@ const struct pm_map *rd_baked_indirect_map(const rd_baked *b);
 const struct sh_guide *rd_baked_guide(const rd_baked *b);
 const struct sh_guide *rd_baked_indirect_guide(const rd_baked *b);
 
+/* ---- Progressive photon passes (bake/passes.c; Knaus & Zwicker 2011 with a 3-D kernel) ---- */
+/* The alpha of the radius schedule that minimises the asymptotic MSE of a 3-D kernel: 4/7
+ * (derived in passes.c). */
+#define RD_PPM_ALPHA (4.0 / 7.0)
+/* r_pass / r_1 for the schedule r_{i+1}^3 = r_i^3 (i + alpha) / (i + 1); pass >= 1. */
+double rd_ppm_radius_scale(int pass, double alpha);
+/* The photon seed of pass `pass` (>= 1): independent streams for independent passes. */
+uint64_t rd_ppm_pass_seed(uint64_t seed, int pass);
+/* The photon maps of one progressive pass: `maps` (RD_NEEDS_PHOTONS: the map of every stored
+ * collision; RD_NEEDS_INDIRECT: the map without first flights) traced with
+ * photons.pass_count (else photons.count) photons and rd_ppm_pass_seed, and indexed; no guide.
+ * *out is freed with rd_baked_free; its stats say the photons emitted and the seconds. */
+rd_status rd_bake_photon_pass(const rd_scene *s, unsigned maps, int pass, int threads,
+                              rd_baked **out, char *err, size_t errlen);
+
 /* The phase-function callback for pm_map_radiance: Henyey-Greenstein with g = *(double *)user. */
 double rd_phase_hg_cb(double cos_theta, void *user);
 

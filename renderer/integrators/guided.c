@@ -60,6 +60,7 @@ const rd_method rd_method_guided = {
     .summary = "seed 001: ray marching with samples placed by the photon-map SH guide (eq. 16-17)",
     .needs = RD_MARCH_NEEDS,
     .needs_for = needs_guided,
+    .pass_maps = rd_march_pass_maps,
     .scratch_bytes = rd_march_scratch_bytes,
     .prepare = prepare_guided,
     .release = rd_march_release,

@@ -200,46 +200,71 @@ static double phase_cb(double cos_theta, void *user) { return rd_hg_eval(*(const
 /* Largest k the scene allows (guide.k, load/settings.c). */
 #define MAX_GATHER 4096
 
-/* sigma_s L_s(x, w) from the k nearest photons (THEORY.md §3, pm_map_radiance):
- *     sum_k p(w'_k . w) dPhi_k / ((4/3) pi r^3),  r = distance to the k-th photon.
+/* sigma_s L_s(x, w) from the photons around x (THEORY.md §3, pm_map_radiance):
+ *     sum_k p(w'_k . w) dPhi_k / ((4/3) pi r^3),
+ * over the k nearest photons with r the distance to the k-th (one fixed map), or over the
+ * photons within the fixed radius r = r_fixed > 0 (a progressive pass, bake/passes.c: the radius
+ * must not depend on the pass's own photons for the passes' average to converge).
  * With shapes, a photon is used only when no surface lies between x and it: photons stored
  * behind a surface belong to another region (the dense medium inside a glass, say), and
  * gathering them by position alone would carry that region's light across the surface (a halo
  * around the shape: tests/test_surface_photon_leak.c). The sphere of radius r keeps its full
  * volume, so a sample within r of a surface is underestimated by the share of the sphere
  * beyond it (the usual boundary bias of density estimation, now on the dark side). */
-static vec3 photon_estimate(const rd_scene *s, const pm_map *map, vec3 x, vec3 w, double g, int k)
+static vec3 photon_estimate(const rd_scene *s, const pm_map *map, vec3 x, vec3 w, double g, int k,
+                            double r_fixed)
 {
     double xd[3] = {x.x, x.y, x.z};
     float wf[3] = {(float)w.x, (float)w.y, (float)w.z}, out[3];
     if (!map) return v3(0, 0, 0);
-    if (!s->geom) {
+    if (!s->geom && r_fixed <= 0.0) {
         if (pm_map_radiance(map, xd, wf, k, phase_cb, &g, out) < 0) return v3(0, 0, 0);
         return v3(out[0], out[1], out[2]);
     }
     int idx[MAX_GATHER];
     float d2[MAX_GATHER];
     if (k > MAX_GATHER) k = MAX_GATHER;
-    int n = pm_map_knn(map, xd, k, idx, d2);
-    if (n <= 0 || !(d2[n - 1] > 0.0f)) return v3(0, 0, 0);
+    int n = r_fixed > 0.0 ? pm_map_radius(map, xd, (float)r_fixed, MAX_GATHER, idx, d2)
+                          : pm_map_knn(map, xd, k, idx, d2);
+    if (n <= 0 || (r_fixed <= 0.0 && !(d2[n - 1] > 0.0f))) return v3(0, 0, 0);
     const pm_photon *ph = pm_map_photons(map);
     double o[3];
     pm_map_origin(map, o);
     vec3 sum = v3(0, 0, 0);
     for (int i = 0; i < n; i++) {
         const pm_photon *p = &ph[idx[i]];
-        vec3 q = v3(o[0] + p->pos[0], o[1] + p->pos[1], o[2] + p->pos[2]);
-        vec3 dq = v3_sub(q, x);
-        double len = v3_len(dq);
-        if (len > 0.0) {
-            ray3 r = {x, v3_scale(dq, 1.0 / len)};
-            if (rd_geom_occluded(s->geom, r, 0.0, len, NULL)) continue;
+        if (s->geom) {
+            vec3 q = v3(o[0] + p->pos[0], o[1] + p->pos[1], o[2] + p->pos[2]);
+            vec3 dq = v3_sub(q, x);
+            double len = v3_len(dq);
+            if (len > 0.0) {
+                ray3 r = {x, v3_scale(dq, 1.0 / len)};
+                if (rd_geom_occluded(s->geom, r, 0.0, len, NULL)) continue;
+            }
         }
         double cw = fmin(1.0, fmax(-1.0, p->dir[0] * w.x + p->dir[1] * w.y + p->dir[2] * w.z));
         sum = v3_madd(sum, v3(p->power[0], p->power[1], p->power[2]), rd_hg_eval(g, cw));
     }
-    double r = sqrt((double)d2[n - 1]);
+    double r = r_fixed > 0.0 ? r_fixed : sqrt((double)d2[n - 1]);
     return v3_scale(sum, 1.0 / (4.0 / 3.0 * M_PI * r * r * r));
+}
+
+/* The gather radius of the current progressive pass at x (bake/passes.c): r_1(x), the distance
+ * to the guide.k-th nearest photon of pass 1's map (the k-NN bandwidth of seed 001's fixed map),
+ * times the pass's scale. r_1 depends on pass 1's photons only, so every later pass's estimate
+ * is a fixed-kernel estimate, independent of its own photons. 0 with one fixed map (then the
+ * k-NN estimate); -1 where pass 1 has no photon at all (nothing to gather). */
+static double pass_radius(const rd_render_ctx *ctx, const pm_map *first, vec3 x)
+{
+    if (ctx->photon_pass < 1 || !first) return 0.0;
+    int k = ctx->scene->guide.k;
+    if (k > MAX_GATHER) k = MAX_GATHER;
+    int idx[MAX_GATHER];
+    float d2[MAX_GATHER];
+    double xd[3] = {x.x, x.y, x.z};
+    int n = pm_map_knn(first, xd, k, idx, d2);
+    if (n <= 0 || !(d2[n - 1] > 0.0f)) return -1.0;
+    return sqrt((double)d2[n - 1]) * ctx->radius_scale;
 }
 
 vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, vec3 x, vec3 d,
@@ -249,8 +274,10 @@ vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, v
     vec3 S = v3(0, 0, 0);
     vec3 w = v3_scale(d, -1.0);
     switch (s->march.ls) {
-    case RD_LS_PHOTONS:
-        return photon_estimate(s, ctx->photons, x, w, m->g, s->guide.k);
+    case RD_LS_PHOTONS: {
+        double r = pass_radius(ctx, ctx->photons_first, x);
+        return r < 0.0 ? v3(0, 0, 0) : photon_estimate(s, ctx->photons, x, w, m->g, s->guide.k, r);
+    }
     case RD_LS_NEE_GUIDE: {
         /* Multiple scattering read from the guide of the indirect photons: one cell lookup
          * and one SH evaluation instead of a k-NN query (smoother, coarser: the cell's
@@ -262,8 +289,10 @@ vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, v
         vec3 sigma_s = v3_scale(m->albedo, sigma_t);
         return v3_add(S, v3_mul(sigma_s, rd_nee_all(s, region, x, d, m->g, rng, c)));
     }
-    case RD_LS_NEE_PHOTONS:
-        S = photon_estimate(s, ctx->photons_indirect, x, w, m->g, s->guide.k);
+    case RD_LS_NEE_PHOTONS: {
+        double r = pass_radius(ctx, ctx->photons_indirect_first, x);
+        if (r >= 0.0) S = photon_estimate(s, ctx->photons_indirect, x, w, m->g, s->guide.k, r);
+    }
         /* add the direct light: */
         /* fall through */
     case RD_LS_NEE:
@@ -439,6 +468,16 @@ void rd_march_release(rd_render_ctx *ctx)
     free(ctx->state);
     ctx->state = NULL;
 }
+
+unsigned rd_march_pass_maps(const rd_scene *s)
+{
+    switch (s->march.ls) {
+    case RD_LS_PHOTONS: return RD_NEEDS_PHOTONS;
+    case RD_LS_NEE_PHOTONS: return RD_NEEDS_INDIRECT;
+    default: return 0u;
+    }
+}
+
 
 /* What the scene's source needs baked: the photon map (photons) or its indirect part
  * (nee+photons); the guided placement needs the guide (and so a photon map) in any case. */

@@ -57,6 +57,9 @@ void rd_march_release(rd_render_ctx *ctx);
 /* What the scene's source needs baked: the photon map (photons) or its indirect part
  * (nee+photons), and the indirect guide (nee+guide). */
 unsigned rd_march_source_needs(const rd_scene *s);
+/* The photon map a progressive pass must trace anew for the scene's source (rd_method.pass_maps):
+ * the map for march.ls = photons, the indirect map for nee+photons, none for nee and nee+guide. */
+unsigned rd_march_pass_maps(const rd_scene *s);
 /* Every bake a marcher may need (the methods' `needs`). */
 #define RD_MARCH_NEEDS (RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE)
 

@@ -41,6 +41,14 @@ typedef struct rd_render_ctx {
     const struct sh_guide *guide;   /* guide grid, when the method needs it */
     const struct sh_guide *guide_indirect; /* guide of the indirect map (march.ls nee+guide) */
     void *state;                    /* the method's own, from prepare (freed by release) */
+    /* Progressive photon passes (photons.progressive, rd_method.pass_maps): the pass whose
+     * photons `photons` / `photons_indirect` hold now (>= 1), and its gather radius relative to
+     * pass 1's (rd_ppm_radius_scale). 0 and 1 with one fixed map. The render changes both
+     * between its passes, never while a pass runs. */
+    int photon_pass;
+    double radius_scale;
+    const struct pm_map *photons_first;          /* pass 1's maps, whose k-NN radius is r_1 */
+    const struct pm_map *photons_indirect_first;
     uint64_t seed;
     int threads;
 } rd_render_ctx;
@@ -51,6 +59,10 @@ typedef struct rd_method {
     unsigned needs;        /* RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | RD_NEEDS_INDIRECT, at most */
     /* Optional: what this scene's settings need (a subset of `needs`); NULL = `needs`. */
     unsigned (*needs_for)(const rd_scene *scene);
+    /* Optional: the photon maps a progressive photon pass must trace anew for this scene
+     * (RD_NEEDS_PHOTONS, RD_NEEDS_INDIRECT; 0 = none: the method's estimate uses no map, and
+     * photons.progressive changes nothing). NULL = none. */
+    unsigned (*pass_maps)(const rd_scene *scene);
     /* Optional: per-thread scratch size for this render. */
     size_t (*scratch_bytes)(const rd_render_ctx *ctx);
     /* Optional: once per render, after the bake, before the passes (e.g. a pilot pass). */

@@ -13,6 +13,7 @@ const rd_method rd_method_transmittance = {
     .summary = "seed 001 baseline: ray marching with samples placed by sigma_t T (eq. 11)",
     .needs = RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE,
     .needs_for = rd_march_source_needs,
+    .pass_maps = rd_march_pass_maps,
     .scratch_bytes = rd_march_scratch_bytes,
     .prepare = rd_march_prepare,
     .release = rd_march_release,

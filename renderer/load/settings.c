@@ -1,6 +1,7 @@
 /* settings.c: the scene's "settings" (method, sample counts, free-path engine), "photons",
  * "guide" and "march" sections, each with its defaults when the section or a field is absent.
  * settings.method is checked against the method table (integrators/rd_method.h). */
+#include "bake/rd_photons.h"
 #include "integrators/rd_method.h"
 #include "load/rd_load.h"
 
@@ -74,10 +75,15 @@ rd_status ld_parse_photons(ld_ctx *c, const cJSON *j, rd_photon_settings *p)
     p->segments = 0;
     p->max_depth = 64;
     p->seed = 1;
+    p->progressive = 0;
+    p->pass_count = 0;
+    p->pass_spp = 1;
+    p->alpha = RD_PPM_ALPHA;
     if (!j) return RD_OK;
     const char *path = "photons";
     LD_TRY(ld_need_object(c, j, path));
-    static const char *const keys[] = {"count", "store_direct", "segments", "max_depth", "seed", NULL};
+    static const char *const keys[] = {"count", "store_direct", "segments", "max_depth", "seed",
+                                       "progressive", "pass_count", "pass_spp", "alpha", NULL};
     LD_TRY(ld_check_keys(c, j, path, keys));
     long long v;
     LD_TRY(ld_get_int(c, j, path, "count", 0, 200000, 1, 1000000000LL, &v));
@@ -88,6 +94,12 @@ rd_status ld_parse_photons(ld_ctx *c, const cJSON *j, rd_photon_settings *p)
     p->max_depth = (int)v;
     LD_TRY(ld_get_int(c, j, path, "seed", 0, 1, 0, (1LL << 53), &v));
     p->seed = (uint64_t)v;
+    LD_TRY(ld_get_bool(c, j, path, "progressive", 0, &p->progressive));
+    LD_TRY(ld_get_int(c, j, path, "pass_count", 0, 0, 0, 1000000000LL, &v));
+    p->pass_count = (size_t)v;
+    LD_TRY(ld_get_int(c, j, path, "pass_spp", 0, 1, 1, 1 << 20, &v));
+    p->pass_spp = (int)v;
+    LD_TRY(ld_get_num(c, j, path, "alpha", 0, RD_PPM_ALPHA, 0, 1, 1, 1, &p->alpha));
     return RD_OK;
 }
 

@@ -48,6 +48,18 @@ static char *report_json(const rd_scene *s, const rd_render_opts *o, const rd_re
     cJSON_AddNumberToObject(j, "lookups_per_path", st->lookups / paths);
     cJSON_AddNumberToObject(j, "paths_per_second", st->seconds > 0 ? st->paths / st->seconds : 0.0);
     cJSON_AddNumberToObject(j, "invalid_samples", (double)st->invalid);
+    if (st->photon_passes > 0) {
+        /* Progressive photon passes (docs/guided-marching.md "Progressive photon passes"). */
+        cJSON *pp = cJSON_AddObjectToObject(j, "photon_passes");
+        if (pp) {
+            cJSON_AddNumberToObject(pp, "passes", st->photon_passes);
+            cJSON_AddNumberToObject(pp, "photons", (double)st->photons_traced);
+            cJSON_AddNumberToObject(pp, "seconds", st->photon_seconds);
+            cJSON_AddNumberToObject(pp, "radius_scale", st->radius_scale);
+            cJSON_AddNumberToObject(pp, "alpha", s->photons.alpha);
+            cJSON_AddNumberToObject(pp, "spp_per_pass", s->photons.pass_spp);
+        }
+    }
     if (st->rays_marched) { /* the marching methods' per-ray statistics */
         cJSON *mr = cJSON_AddObjectToObject(j, "march");
         if (mr) {

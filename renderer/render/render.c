@@ -203,6 +203,35 @@ static rd_status attach_bake(rd_render_ctx *ctx, const rd_baked *given, int thre
     return RD_OK;
 }
 
+/* Progressive photon passes (bake/passes.c): trace pass `pass`'s photon maps and hand them to
+ * ctx in place of the previous pass's (*cur, freed here unless it is pass 1's, which sets every
+ * later pass's radius and lives until the render ends). The guide stays the first bake's. */
+static rd_status photon_pass(rd_render_ctx *ctx, unsigned maps, int pass, rd_baked **cur,
+                             const rd_baked *first, rd_render_stats *rs, char *err, size_t errlen)
+{
+    const rd_scene *s = ctx->scene;
+    rd_baked *next = NULL;
+    rd_status st = rd_bake_photon_pass(s, maps, pass, ctx->threads, &next, err, errlen);
+    if (st != RD_OK) return st;
+    if (pass == 1) {
+        ctx->photons_first = rd_baked_map(next);
+        ctx->photons_indirect_first = rd_baked_indirect_map(next);
+    } else if (*cur != first) {
+        rd_baked_free(*cur);
+    }
+    *cur = next;
+    if (maps & RD_NEEDS_PHOTONS) ctx->photons = rd_baked_map(next);
+    if (maps & RD_NEEDS_INDIRECT) ctx->photons_indirect = rd_baked_indirect_map(next);
+    ctx->photon_pass = pass;
+    ctx->radius_scale = rd_ppm_radius_scale(pass, s->photons.alpha);
+    const rd_bake_stats *bs = rd_baked_stats(next);
+    rs->photon_passes = pass;
+    rs->photons_traced += bs->emitted;
+    rs->photon_seconds += bs->seconds;
+    rs->radius_scale = ctx->radius_scale;
+    return RD_OK;
+}
+
 rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result *res,
                     char *err, size_t errlen)
 {
@@ -232,8 +261,23 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
     rd_baked *own = NULL;
     rd_status st = attach_bake(&ctx, o->baked, o->threads, &own, err, errlen);
     if (st != RD_OK) return st;
+    /* Progressive photon passes: pass 1's maps are traced here (the bake's own maps serve its
+     * guide); the passes go on between render passes, pass i for samples
+     * [(i - 1) photons.pass_spp, i photons.pass_spp) of every pixel, so an image does not
+     * depend on how the render's passes fall in time. */
+    unsigned pass_maps = s->photons.progressive && m->pass_maps ? m->pass_maps(s) : 0u;
+    rd_baked *pass_bake = NULL, *first_bake = NULL;
+    ctx.radius_scale = 1.0;
+    if (pass_maps) {
+        if ((st = photon_pass(&ctx, pass_maps, 1, &pass_bake, NULL, &res->stats, err, errlen)) != RD_OK) {
+            rd_baked_free(own);
+            return st;
+        }
+        first_bake = pass_bake;
+    }
     res->stats.bake_seconds = now_seconds() - t_start;
     if (m->prepare && (st = m->prepare(&ctx, err, errlen)) != RD_OK) {
+        rd_baked_free(first_bake);
         rd_baked_free(own);
         return st;
     }
@@ -270,6 +314,15 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         if (o->cancel && *o->cancel) { res->stats.cancelled = 1; break; }
         if (deadline > 0 && now_seconds() >= deadline) { res->stats.timed_out = 1; break; }
         int n = pass < o->spp - done ? pass : o->spp - done;
+        if (pass_maps) {
+            /* Samples [done, done + n) stay within one photon pass. */
+            int ip = done / s->photons.pass_spp + 1;
+            if (ip != ctx.photon_pass &&
+                (st = photon_pass(&ctx, pass_maps, ip, &pass_bake, first_bake, &res->stats, err, errlen)) != RD_OK)
+                goto done;
+            if (n > ip * s->photons.pass_spp - done) n = ip * s->photons.pass_spp - done;
+            if (deadline > 0 && now_seconds() >= deadline) { res->stats.timed_out = 1; break; }
+        }
         double t0 = now_seconds();
         int cut = render_pass(&ctx, th, &f, done, done + n, deadline, o->cancel, &invalid);
         double t1 = now_seconds(), elapsed = t1 - t_start;
@@ -332,6 +385,8 @@ done:
     for (int i = 0; th && i < ctx.threads; i++) free(th[i].scratch);
     free(th);
     if (m->release) m->release(&ctx);
+    if (pass_bake != first_bake) rd_baked_free(pass_bake);
+    rd_baked_free(first_bake);
     rd_baked_free(own);
     return st;
 }

@@ -35,6 +35,15 @@ typedef struct {
     int segments;        /* also store path segments (needed by the track-length bake) */
     int max_depth;
     uint64_t seed;
+    /* Progressive photon mapping (Knaus & Zwicker 2011, for volumes; docs/guided-marching.md
+     * "Progressive photon passes"): the marchers' photon estimate then gathers, for the samples
+     * of pass i, a fresh batch of photons within a radius that shrinks as
+     * r_{i+1}^3 = r_i^3 (i + alpha) / (i + 1), so the image converges to the right answer. */
+    int progressive;     /* 0 (default): one fixed map (seed 001) */
+    size_t pass_count;   /* photons emitted per pass (0: count) */
+    int pass_spp;        /* samples per pixel rendered with each pass's photons, >= 1 */
+    double alpha;        /* the schedule's alpha in (0, 1); 4/7 minimises the asymptotic MSE of
+                          * a 3-D kernel (bake/passes.c derives it) */
 } rd_photon_settings;
 
 /* Guide-grid settings (scene key "guide"). */
