@@ -213,13 +213,12 @@ SAN_ENV := ASAN_OPTIONS=halt_on_error=1:detect_leaks=1:allocator_may_return_null
            UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1:suppressions=$(CURDIR)/fuzz/ubsan.supp \
            LSAN_OPTIONS=suppressions=$(LSAN_SUPP):print_suppressions=0
 # Scheduling within -j2 (make test's MAKEFLAGS): a recursive make can only take a second job slot
-# when its parent frees one, so the two builds are not simply two sub-makes side by side (the
-# one that ends first would leave its core idle). renderer/media/vdb_io.cpp (OpenVDB's templates) is the
-# longest compile by far (about 110 s of CPU under clang's sanitizers, 60 s at -O2): the
-# sanitizer build's C++ shims start at once on one core while the release build runs on the
-# other (taking both once the shims are done: it is listed first, so it runs in this make's own
-# slot and the shims' slot goes back to the shared pool); then the rest of the sanitizer build
-# has both.
+# when its parent frees one, so the two builds are not simply two sub-makes side by side (the one
+# that ends first would leave its core idle). renderer/media/vdb_io.cpp (OpenVDB's templates) is
+# the longest compile by far (about 110 s of CPU under clang's sanitizers, 60 s at -O2): the
+# sanitizer build's C++ shims start at once on one core while the release build runs on the other
+# (taking both once the shims are done: it is listed first, so it runs in this make's own slot and
+# the shims' slot goes back to the shared pool); then the rest of the sanitizer build has both.
 CXX_OBJ := $(call obj,$(filter renderer/media/vdb_io.cpp,$(RD_CXX)) $(filter-out renderer/media/vdb_io.cpp,$(RD_CXX)) $(PM_CXX))
 .PHONY: test-build test-build-release test-build-san test-build-san-shims
 test-build: test-build-san

@@ -386,8 +386,8 @@ static rd_majorant *build_majorant(const rd_medium *m, rd_maj_kind kind, int res
     return rd_majorant_build(m->bmin, m->bmax, m->sigma_t_scale, m->sigma_maj, rd_medium_box_bound, m, &o, NULL, 0);
 }
 
-/* The scene loader's default t_rewind / t_iter (renderer/scene.c): 0.3 for grids, 0.3/octaves
- * for noise, 1 for constants. */
+/* The scene loader's default t_rewind / t_iter (renderer/load/media.c): 0.3 for grids,
+ * 0.3/octaves for noise, 1 for constants. */
 static double scene_default_rewind(const rd_medium *m)
 {
     return m->kind == RD_DENSITY_GRID ? 0.3 : m->kind == RD_DENSITY_NOISE ? 0.3 / m->noise.octaves : 1.0;
@@ -558,7 +558,7 @@ static int run_set(const rd_medium *m, int nrays, int reps, double rm_step, cons
 
 /* The estimators `settings.transmittance` offers, in the order of the tables. `exact` is the
  * closed form on constant and trilinear-grid media and falls back to residual ratio tracking on
- * noise (renderer/freepath.c), so on noise it is timed as what it runs. */
+ * noise (renderer/media/freepath.c), so on noise it is timed as what it runs. */
 enum { NTR = 4 };
 static const rd_tr_kind tr_kinds[NTR] = {RD_TR_RATIO_GLOBAL, RD_TR_RATIO, RD_TR_RESIDUAL, RD_TR_EXACT};
 static const char *tr_names[NTR] = {"ratio-global (ratio tracking, global majorant)", "ratio (ratio tracking, super-voxels)",

@@ -6,7 +6,7 @@
  *   isect-random    rd_scene_intersect on random rays: origin uniform in the media bounds,
  *                   direction uniform on the sphere
  *   region-at       rd_scene_region_at at those random origins (the region query every camera
- *                   sample and every photon makes: two or three ray queries, tracking.c)
+ *                   sample and every photon makes: two or three ray queries, scene/queries.c)
  *   flight-camera   rd_sample_free_path of a camera ray in the camera's region, clipped at its
  *                   first surface (the first flight of a delta path)
  *   tr-camera       rd_transmittance over the same interval (a shadow ray's medium part)

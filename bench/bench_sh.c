@@ -185,7 +185,7 @@ static void print_header(const char *title)
 
 /* ---- Seed 001 comparison: photon list -> kd-tree -> guide with the medium's extinction ---- */
 
-/* sigma_t of the scene's medium at x [1/m], as renderer/bake.c gives it to the bake. */
+/* sigma_t of the scene's medium at x [1/m], as renderer/bake/bake.c gives it to the bake. */
 static double scene_sigma_t(const double x[3], void *user)
 {
     const rd_medium *m = rd_scene_medium_at_point(user, v3(x[0], x[1], x[2]));

@@ -1,8 +1,8 @@
 /* renderer.h: the public API of photonmarch's renderer module.
  *
  * Loads and validates a JSON scene (docs/scene-format.md), renders it with one of the methods,
- * writes images, and describes the scene. The command line (renderer/main.c) is a thin layer
- * over this header.
+ * writes images, and describes the scene. The command line (renderer/cli/) is a thin layer over
+ * this header.
  *
  * Errors: every fallible function returns rd_status and, when `err` is non-NULL, writes one
  * line naming the file and the JSON path ("fog.json: media[0].albedo: expected 3 numbers in
@@ -64,8 +64,8 @@ double rd_scene_exposure(const rd_scene *scene); /* camera.exposure, for the PNG
 int rd_scene_spp_given(const rd_scene *scene);    /* 1 when settings.spp is in the file */
 
 /* ---- Methods ----------------------------------------------------------------------------- *
- * The render methods form one table (renderer/methods.c); --help, settings.method, the
- * report and rd_render all read it. */
+ * The render methods form one table (renderer/integrators/methods.c); --help, settings.method,
+ * the report and rd_render all read it. */
 /* What a method needs baked: a photon map, its guide grid, and the photon map of the photons
  * stored without their first flight (multiple scattering only, beside next-event estimation). */
 enum { RD_NEEDS_PHOTONS = 1, RD_NEEDS_GUIDE = 2, RD_NEEDS_INDIRECT = 4, RD_NEEDS_INDIRECT_GUIDE = 8 };

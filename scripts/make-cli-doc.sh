@@ -21,7 +21,7 @@ chmod 644 "$tmp"
 mv "$tmp" "$out"
 echo "make-cli-doc: wrote $out from $BIN --help" >&2
 
-# Every option literal of main.c ("--name" as a C string) must appear in the page.
+# Every option literal of renderer/cli/*.c ("--name" as a C string) must appear in the page.
 missing=0
 for opt in $(grep -oh '"--[a-z][a-z-]*"' renderer/cli/*.c | tr -d '"' | sort -u); do
     if ! grep -q -- "$opt" "$out"; then

@@ -167,8 +167,8 @@ static void w_floats(wstream *w, const float *x, size_t n)
 }
 
 /* The temporary name of `path` for this process: "dir/name.ext" -> "dir/.name.tmp<pid>.ext",
- * the scheme of the renderer's outputs (renderer/output.c): in the same folder, so the rename
- * is atomic, and hidden, so a bake killed mid-write leaves no visible file. `out` holds
+ * the scheme of the renderer's outputs (renderer/core/files.c): in the same folder, so the
+ * rename is atomic, and hidden, so a bake killed mid-write leaves no visible file. `out` holds
  * strlen(path) + 32 bytes (a dot, ".tmp" and at most 20 digits are added). */
 static void temp_name(const char *path, char *out, size_t n)
 {

@@ -356,7 +356,7 @@ void sh_eval_rgb(int bands, const float *coeffs, const float *y, float out[3])
     /* Eight independent partial sums per channel: the serial sum is one dependency chain of
      * L^2 additions (IEEE order forbids the compiler to split it), the eight lanes are what
      * the vectoriser turns into two SIMD accumulators. The guided methods call this for every
-     * guide cell a ray crosses (renderer/guide_pdf.c). */
+     * guide cell a ray crosses (renderer/integrators/guide_pdf.c). */
     const int n = bands * bands;
     for (int c = 0; c < SH_CHANNELS; c++) {
         const float *cc = coeffs + (size_t)c * n;

@@ -1,4 +1,4 @@
-/* Trackers and transmittance estimators of the free-path engine (renderer/freepath.c).
+/* Trackers and transmittance estimators of the free-path engine (renderer/media/freepath.c).
  *
  * Every unbiased tracker (Woodcock, super-voxel grid with constant and tri-linear bounds, octree,
  * weighted delta tracking with b < 1, = 1, > 1, weighted decomposition tracking) must reproduce

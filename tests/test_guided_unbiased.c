@@ -1,5 +1,5 @@
-/* guided-unbiased (renderer/integrator_gu.c): the path tracer of `delta` with guided free
- * flights, against answers it did not compute:
+/* guided-unbiased (renderer/integrators/guided_unbiased.c): the path tracer of `delta` with
+ * guided free flights, against answers it did not compute:
  *  - its images equal delta's in expectation on heterogeneous, anisotropic, multiple-scattering
  *    scenes (g = 0.9 and g = -0.5; spot, environment, sphere and directional lights), with the
  *    scene's own guide, with a guide baked with the light elsewhere, and with an empty guide
@@ -290,10 +290,10 @@ Test(guided_unbiased, flight_sampler_chi_square_against_its_pdf, .timeout = 900)
      * vertex ends the path but still reports its t) lit from the side by a spot, with an
      * environment behind (so the flight can pass): the outcome of rd_gu_flight (pass, or the
      * distance bin of t) against the probabilities P_pass and the mass of q over each bin
-     * (rd_gu_flight_cdf, integrator_gu.c eq. 2-3). Bins with an expected count below 5 are
-     * pooled (DESIGN.md convention 9); the bound is the 1e-5 quantile. Two rays: a camera ray,
-     * and a secondary one whose light behind is MIS-weighted; with the default majorant weight
-     * and with the guide strategy alone. */
+     * (rd_gu_flight_cdf, integrators/guided_unbiased.c eq. 2-3). Bins with an expected count
+     * below 5 are pooled (DESIGN.md convention 9); the bound is the 1e-5 quantile. Two rays: a
+     * camera ray, and a secondary one whose light behind is MIS-weighted; with the default
+     * majorant weight and with the guide strategy alone. */
     chi_square_flights("", 77);
     chi_square_flights(",\"majorant_weight\":0", 78);
 }
@@ -363,15 +363,15 @@ Test(guided_unbiased, scene_keys_are_validated)
 }
 
 
-/* The guide's incident-light lobe (integrator_gu.c guide_lobe) points where the light comes
- * from: a point light in a homogeneous forward-scattering medium sends the photons radially, so
- * the lobe's mean at points around it must point back at the light. The lobe is the product
- * with the phase function's lobe about the arrival direction d, so d is taken toward the light
- * too (both factors then agree; a sign mistake in the light's factor, kappa_L about 20 against
- * the phase's 5, would turn the product away). The bound: the mean direction of
- * single-scattered photons is exactly radial, and multiple scattering at albedo 0.5 and optical
- * radius 1 keeps it within a few degrees; 0.9 (26 degrees) catches a sign or axis mistake
- * (those give cosines near -1 or near 0). */
+/* The guide's incident-light lobe (integrators/guided_unbiased.c guide_lobe) points where the
+ * light comes from: a point light in a homogeneous forward-scattering medium sends the photons
+ * radially, so the lobe's mean at points around it must point back at the light. The lobe is
+ * the product with the phase function's lobe about the arrival direction d, so d is taken
+ * toward the light too (both factors then agree; a sign mistake in the light's factor, kappa_L
+ * about 20 against the phase's 5, would turn the product away). The bound: the mean direction
+ * of single-scattered photons is exactly radial, and multiple scattering at albedo 0.5 and
+ * optical radius 1 keeps it within a few degrees; 0.9 (26 degrees) catches a sign or axis
+ * mistake (those give cosines near -1 or near 0). */
 Test(guided_unbiased, guide_lobe_points_at_the_light, .timeout = 300)
 {
     rd_scene *s = rt_scene("gu_lobe.json",

@@ -50,7 +50,7 @@ typedef struct {
 } line_ctx;
 
 /* sigma_t T(t0, t) p(d . wi) Li T(x, light) for a spot light, per unit albedo and unit
- * intensity: Li = falloff(-wi . axis) / r^2 (pbrt-v4 SpotLight, renderer/lights.c). */
+ * intensity: Li = falloff(-wi . axis) / r^2 (pbrt-v4 SpotLight, renderer/scene/lights.c). */
 static double spot_integrand(double t, const void *p)
 {
     const line_ctx *c = p;

@@ -1,4 +1,4 @@
-/* Majorant structures (renderer/majorant.c; seeds 000 and 003):
+/* Majorant structures (renderer/media/majorant.c; seeds 000 and 003):
  *  - the 3D-DDA visits exactly the cells a brute-force slab test finds, with the same lengths;
  *  - the octree walk gives, at every point, the majorant of the leaf a brute-force descent finds;
  *  - the stored bounds (constant, tri-linear, octree leaves) bound the density on random points

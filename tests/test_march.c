@@ -1,4 +1,4 @@
-/* Guided ray marching and its baselines (renderer/integrator_march.c) against independent
+/* Guided ray marching and its baselines (renderer/integrators/march.c) against independent
  * estimators of the same image:
  *  - with single scattering and direct light only (max_depth 1, march.ls = nee), guided,
  *    uniform, transmittance and delta agree (their estimators are all unbiased for it);
@@ -173,7 +173,7 @@ Test(march, explain_agrees_with_the_renderer_on_one_ray, .timeout = 300)
 
 Test(march, each_placement_takes_its_own_default_samples_per_ray, .timeout = 120)
 {
-    /* Without march.samples each placement takes its calibrated N_mean (integrator_march.c,
+    /* Without march.samples each placement takes its calibrated N_mean (integrators/march.c,
      * march_default_samples: guided 2, transmittance 4, uniform 8). The render with the key
      * absent must equal, sample for sample, the render with that N given explicitly (same
      * seed, same image, same samples per ray); uniform and transmittance take exactly N per

@@ -173,7 +173,7 @@ Test(phase, sphere_light_cone_sampling_chi_square)
     cr_expect(chi2 < crit, "chi2 %.1f >= %.1f", chi2, crit);
 }
 
-/* ---- Guided directions (integrator_gu.c): the von Mises-Fisher lobe and the mixture ---------- */
+/* ---- Guided directions (transport/directions.c): the von Mises-Fisher lobe and the mixture --- */
 
 /* P(mu.w <= c) for the vMF: (e^{kappa (c - 1)} - e^{-2 kappa}) / (1 - e^{-2 kappa}). */
 static double vmf_cdf(double kappa, double c)

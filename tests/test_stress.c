@@ -1,8 +1,8 @@
-/* Extreme media (issue 13): every render method (the method table, renderer/methods.c) on
- * scenes at the edges of what the scene format accepts. Each render must finish (the test's
- * .timeout is the hang detector), give only finite pixels and drop no non-finite sample
- * (rd_render_stats.invalid == 0). Where the answer is known in closed form the image is checked
- * against it:
+/* Extreme media (issue 13): every render method (the method table,
+ * renderer/integrators/methods.c) on scenes at the edges of what the scene format accepts. Each
+ * render must finish (the test's .timeout is the hang detector), give only finite pixels and
+ * drop no non-finite sample (rd_render_stats.invalid == 0). Where the answer is known in closed
+ * form the image is checked against it:
  *  - transmittance through a homogeneous absorbing box (albedo 0) in front of an environment
  *    light of radiance E, seen by an orthographic camera straight through it: every pixel is
  *    E exp(-sigma_t d) (Beer-Lambert, THEORY.md §1);
@@ -261,7 +261,7 @@ static const char *bin(void)
 
 /* Upper bound of the peak resident memory of `render` for w x h pixels:
  *  - the film: sums and sums of squares in double (2 x 3 x 8 = 48 bytes) and a sample count
- *    (4 bytes) per pixel (renderer/render.c film_alloc);
+ *    (4 bytes) per pixel (renderer/render/render.c film_alloc);
  *  - the result: mean and standard-error images, 3 floats each (24 bytes);
  *  - writing: OpenImageIO may copy each float image once while encoding the EXR (12 bytes, at
  *    most one image at a time) and the PNG preview is 3 bytes per pixel;

@@ -1,6 +1,6 @@
-/* The transport with surfaces (issue 14 step 2: integrator_delta.c, integrator_march.c,
- * integrator_gu.c, photons.c) judged on whole images against independent estimators of the
- * same image:
+/* The transport with surfaces (issue 14 step 2: transport/path.c, integrators/march.c,
+ * integrators/guided_unbiased.c, bake/photons.c) judged on whole images against independent
+ * estimators of the same image:
  *  1. an `interface` cube around a bound medium renders the box medium's image (delta, the
  *     guided marcher with ls = nee; and with a scene-wide medium outside it), and the photon
  *     tracer absorbs the same power;
@@ -390,7 +390,7 @@ Test(surface_images, marchers_equal_delta_single_scattering_through_a_glass_sphe
 
 /* At max_depth 2 delta cannot scatter behind the glass (in, out, scatter would be event 3), so
  * its image there is the environment seen through the glass; the marchers must not march
- * in-scattering on that segment either (integrator_march.c march_radiance: a segment behind
+ * in-scattering on that segment either (integrators/march.c rd_march_radiance: a segment behind
  * k surface events scatters as event k + 1). Before that rule the marchers added single
  * scattering there: z -122 / -57. */
 Test(surface_images, marcher_max_depth_counts_in_scattering_like_delta, .timeout = 300)

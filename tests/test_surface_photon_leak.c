@@ -4,13 +4,13 @@
  * before that one (it was written on branch h-s, based on 7eb0778, to show the defect; on main
  * at 9d5ccc8 with this file added it passes).
  *
- * The defect: integrator_march.c photon_estimate() took the k nearest photons of the map by
- * position alone (pm_map_radiance), whatever region (medium behind the surfaces) they were
- * stored in. Beside a shape holding a dense medium, a marching sample in the thin medium
- * outside gathered the dense medium's photons from inside (stored at its collision density,
- * 100 times the outside's here), and the image showed a bright halo around the shape. Found by
- * bench/bench_fig5.sh (docs/benchmarks.md, "Surfaces (issue 14)": the marchers' error maps on
- * exp1-point.json have a crescent outside the blob's silhouette).
+ * The defect: integrator_march.c (now integrators/march.c) photon_estimate() took the k nearest
+ * photons of the map by position alone (pm_map_radiance), whatever region (medium behind the
+ * surfaces) they were stored in. Beside a shape holding a dense medium, a marching sample in
+ * the thin medium outside gathered the dense medium's photons from inside (stored at its
+ * collision density, 100 times the outside's here), and the image showed a bright halo around
+ * the shape. Found by bench/bench_fig5.sh (docs/benchmarks.md, "Surfaces (issue 14)": the
+ * marchers' error maps on exp1-point.json have a crescent outside the blob's silhouette).
  *
  * The scene makes every method see the same light: an `interface` sphere (no refraction, so
  * shadow rays cross it and `delta` is unbiased for everything), dense medium inside, thin

@@ -464,9 +464,9 @@ Test(surfaces, region_at_nested_shapes_and_behind_lights)
     char so[512], si[512], json[4096];
     box_shape(so, sizeof so, "outer", v3(-4, -4, -4), v3(4, 4, 4), "{\"type\":\"interface\"}", "\"outer\"", "\"wide\"");
     box_shape(si, sizeof si, "inner", v3(-1, -1, -1), v3(1, 1, 1), "{\"type\":\"dielectric\",\"ior\":1.4}", "\"inner\"", "\"outer\"");
-    /* The region query casts its ray along a fixed direction (tracking.c); the lights sit across
-     * several directions from the probe points so that some probe ray meets them whatever the
-     * direction: probes are placed on both sides of each light along each axis and diagonal. */
+    /* The region query casts its ray along a fixed direction (scene/queries.c); the lights sit
+     * across several directions from the probe points so that some probe ray meets them whatever
+     * the direction: probes are placed on both sides of each light along each axis and diagonal. */
     snprintf(json, sizeof json,
              "{\"camera\":{\"position\":[0,0,9],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
              "\"media\":[{\"name\":\"inner\",\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},\"density\":1,\"sigma_t\":3},"
@@ -511,7 +511,7 @@ Test(surfaces, region_at_nested_shapes_and_behind_lights)
                     cr_expect_eq(rd_scene_region_at(s, x), lreg[l], "light %d, offset (%d,%d,%d): region %d", l, dx, dy, dz,
                                  rd_scene_region_at(s, x));
                 }
-    /* And the point exactly behind a light along the query direction (tracking.c's ray). */
+    /* And the point exactly behind a light along the query direction (scene/queries.c's ray). */
     vec3 qd = v3_norm(v3(0.5316, 0.6124, 0.5851));
     for (int l = 0; l < 2; l++) {
         vec3 x = v3_sub(lc[l], v3_scale(qd, 2.0 * lr[l]));

@@ -70,9 +70,9 @@ Test(volume, truncated_and_wrong_vdb_files_are_rejected, .timeout = 60)
 
 Test(volume, noise_stays_within_its_majorant_bound)
 {
-    /* rd_noise_fbm_bound uses |noise| <= 1.04 per octave (see medium.c). Check the envelope
-     * E(f) = sum_c w_c (largest two |f - c|) on 200000 random points, and the noise itself
-     * (several seeds) on 200000 points; a bound that a single sample beats is wrong. */
+    /* rd_noise_fbm_bound uses |noise| <= 1.04 per octave (see media/density.c). Check the envelope
+     * E(f) = sum_c w_c (largest two |f - c|) on 200000 random points, and the noise itself (several
+     * seeds) on 200000 points; a bound that a single sample beats is wrong. */
     pcg32 rng = pcg32_seed(8, 8, 8);
     double emax = 0, nmax = 0;
     for (int i = 0; i < 200000; i++) {

@@ -24,7 +24,7 @@ static int refuse_bake_outputs(const char *prefix, const char *scene)
     return 0;
 }
 
-static const char *usage_bake =
+static const char *const usage_bake =
     "usage: photonmarch bake SCENE [options]\n"
     "\n"
     "Traces the scene's volume photon map (scene key \"photons\"), builds its FLANN kd-tree, bakes\n"

@@ -8,7 +8,7 @@
 #include <string.h>
 #include <unistd.h>
 
-static const char *usage_compare =
+static const char *const usage_compare =
     "usage: photonmarch compare SCENE --methods A,B[,...] [options]\n"
     "\n"
     "Renders SCENE with every method K times (seeds seed+1..seed+K) at equal time or equal\n"
@@ -147,7 +147,7 @@ static int compare_parse(compare_args *ca, int argc, char **argv)
 
 int cli_cmd_compare(int argc, char **argv)
 {
-    static compare_args ca; /* large buffers; one comparison per process */
+    compare_args ca; /* 44 KB, most of it the --set and --add buffers */
     memset(&ca, 0, sizeof ca);
     ca.seed = -1;
     ca.o.runs = 2;

@@ -4,9 +4,10 @@
 
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
-static const char *usage_explain =
+static const char *const usage_explain =
     "usage: photonmarch explain SCENE --pixel X,Y [options]\n"
     "\n"
     "Lays open the camera ray through the centre of pixel (X, Y) (0,0 = top left) for the ray\n"
@@ -48,14 +49,14 @@ static void print_explain(const rd_explain_result *e)
                e->var_se[k], e->I > 0 ? 100.0 * sqrt(e->var[k]) / e->I : 0.0);
 }
 
-/* explain: camera rays laid open (rd_explain). */
-int cli_cmd_explain(int argc, char **argv)
+enum { MAX_PIXELS = 4096 }; /* --pixel options per run */
+
+/* explain with room for MAX_PIXELS pixels in pxs. */
+static int explain_run(int argc, char **argv, long (*pxs)[2])
 {
     cli_scene_args a = {0};
     const char *prefix = NULL;
     long seed = -1, threads = 0, points = 2000;
-    enum { MAX_PIXELS = 4096 };
-    static long pxs[MAX_PIXELS][2];
     int npx = 0;
     int quiet = 0, no_cache = 0;
     for (int i = 0; i < argc; i++) {
@@ -167,5 +168,18 @@ out:
     rd_explain_result_free(&e);
     rd_baked_free(baked);
     rd_scene_free(scene);
+    return code;
+}
+
+/* explain: camera rays laid open (rd_explain). */
+int cli_cmd_explain(int argc, char **argv)
+{
+    long (*pxs)[2] = malloc(MAX_PIXELS * sizeof *pxs); /* 64 KB: on the heap, not the stack */
+    if (!pxs) {
+        fprintf(stderr, "photonmarch explain: out of memory\n");
+        return CLI_EXIT_INTERNAL;
+    }
+    int code = explain_run(argc, argv, pxs);
+    free(pxs);
     return code;
 }

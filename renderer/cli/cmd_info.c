@@ -4,7 +4,7 @@
 #include <stdio.h>
 #include <string.h>
 
-static const char *usage_info =
+static const char *const usage_info =
     "usage: photonmarch info SCENE [--set KEY=VALUE ...]\n"
     "\n"
     "Loads and validates SCENE and describes it: camera, media (kind, bounds, density range,\n"

@@ -21,7 +21,7 @@ static int refuse_render_outputs(const char *exr, const char *scene)
     return 0;
 }
 
-static const char *usage_render =
+static const char *const usage_render =
     "usage: photonmarch render SCENE [options]\n"
     "\n"
     "Renders SCENE (JSON, docs/scene-format.md). Writes OUT.exr (linear float RGB), OUT.png\n"

@@ -5,7 +5,7 @@
 #include <stdio.h>
 #include <string.h>
 
-static const char *usage_voxelize =
+static const char *const usage_voxelize =
     "usage: photonmarch voxelize SCENE -o OUT.vdb|OUT.raw [options]\n"
     "\n"
     "Samples the density of one medium at voxel centres over its bounds and writes it as an\n"

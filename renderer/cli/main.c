@@ -7,7 +7,7 @@
 #include <stdio.h>
 #include <string.h>
 
-static const char *usage_main =
+static const char *const usage_main =
     "photonmarch: a renderer for participating media (volume photon map guided ray marching\n"
     "and unbiased delta tracking).\n"
     "\n"

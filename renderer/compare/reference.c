@@ -60,7 +60,7 @@ static uint64_t hash_d(uint64_t h, double v) { return fnv1a(h, &v, sizeof v); }
 static uint64_t hash_v(uint64_t h, vec3 v) { return hash_d(hash_d(hash_d(h, v.x), v.y), v.z); }
 
 /* The cache key of the rendered reference: the scene's bake key (its JSON after overrides
- * without camera and render-only settings, plus every grid's voxels: scene.c bake_key), the
+ * without camera and render-only settings, plus every grid's voxels: load/load.c bake_key), the
  * camera and the path settings it left out, and the reference's own settings. */
 static uint64_t reference_key(const rd_scene *s, int spp, double time_cap, uint64_t seed)
 {

@@ -155,7 +155,7 @@ static inline vec3 rd_sample_sphere(double u1, double u2)
     return v3(r * cos(phi), r * sin(phi), z);
 }
 
-/* ---- von Mises-Fisher lobe (guided directions, integrator_gu.c) ---------------------------- *
+/* ---- von Mises-Fisher lobe (guided directions: transport/directions.c) --------------------- *
  * p(w) = kappa / (2 pi (1 - e^{-2 kappa})) e^{kappa (mu.w - 1)} on the unit sphere, mean
  * direction mu (unit), concentration kappa >= 0 (0: uniform). Both forms are the numerically
  * stable ones of W. Jakob, "Numerically stable sampling of the von Mises Fisher distribution

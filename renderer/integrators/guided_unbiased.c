@@ -1,5 +1,5 @@
-/* integrator_gu.c: `guided-unbiased`, the unbiased path tracer of integrator_delta.c with its
- * free flights guided by the photon-map SH guide (issue 10; docs/guided-unbiased.md).
+/* guided_unbiased.c: `guided-unbiased`, the unbiased path tracer of `delta` (transport/path.c)
+ * with its free flights guided by the photon-map SH guide (issue 10; docs/guided-unbiased.md).
  *
  * A flight from the path vertex o along d over [0, t_light] meets the media in [t0, t1] (the
  * media bounds, clipped before the nearest sphere light). The RTE along it (THEORY.md §1;
@@ -13,12 +13,12 @@
  *   guide     (weight 1 - w): scatters with probability P_g = S~ / (S~ + B~), the guide's own
  *             estimate of the scattered part S~ = I_ray (the integral of the histogram
  *             h(t) = T~(t0,t) f_j, f_j = sigma_s L_s toward -d of the cell: seed 001 eq. 16,
- *             renderer/guide_pdf.c) against the passed part B~ = T~(t0,t1) L_behind, held in
+ *             integrators/guide_pdf.c) against the passed part B~ = T~(t0,t1) L_behind, held in
  *             [floor, 1 - floor] (guide.pass_floor); t from the defensive mixture
  *                 p_g(t) = (1 - alpha) h(t) / I_ray + alpha / (t1 - t0)    (guide.distance_alpha);
  *   majorant  (weight w = guide.majorant_weight): delta tracking's first tentative collision,
  *             P_m = 1 - T_maj(t0,t1), p_m(t) = sigma_maj(t) T_maj(t0,t) / P_m (the majorant
- *             walk of the free-path engine, renderer/freepath.c). sigma_maj >= sigma_t, so
+ *             walk of the free-path engine, media/freepath.c). sigma_maj >= sigma_t, so
  *             however wrong the guide, the joint density below stays >= w sigma_maj T_maj.
  * L_behind is known exactly (the light or environment beyond, MIS-weighted as the path loop
  * will weight it: rd_flight_behind); when it is 0 both strategies always scatter (passing can

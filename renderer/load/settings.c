@@ -178,7 +178,7 @@ rd_status ld_parse_guide(ld_ctx *c, const cJSON *j, rd_guide_settings *g)
 /* Ray marching of the guided methods (docs/scene-format.md "march"). */
 rd_status ld_parse_march(ld_ctx *c, const cJSON *j, rd_march_settings *m)
 {
-    m->samples = 0; /* per placement, calibrated on cloud and smoke-vdb (integrator_march.c) */
+    m->samples = 0; /* per placement, calibrated on cloud and smoke-vdb (integrators/march.c) */
     m->min_samples = 1;
     m->max_samples = 64;
     m->alpha = 0.2;

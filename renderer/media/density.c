@@ -1,4 +1,4 @@
-/* medium.c: density fields of the media (constant, voxel grid, procedural noise), ray-box
+/* density.c: density fields of the media (constant, voxel grid, procedural noise), ray-box
  * clipping, and the raw volume reader. */
 #include "media/rd_medium.h"
 #include "walk.h"

@@ -319,9 +319,9 @@ static void fill_dense(openvdb::FloatGrid &grid, const float *data, int nx, int 
                 if (data[q] != 0.0f) acc.setValue(openvdb::Coord(i, j, k), data[q]);
 }
 
-// "dir/name.vdb" -> "dir/.name.tmp<pid>.vdb", the scheme of every output (renderer/output.c,
-// image_io.cpp): in the same folder (so the rename is atomic) and hidden (a leading dot), so a
-// process killed mid-write leaves no visible file.
+// "dir/name.vdb" -> "dir/.name.tmp<pid>.vdb", the scheme of every output (core/files.c,
+// core/image_io.cpp): in the same folder (so the rename is atomic) and hidden (a leading dot),
+// so a process killed mid-write leaves no visible file.
 static std::string temp_name(const std::string &path)
 {
     size_t slash = path.find_last_of('/');

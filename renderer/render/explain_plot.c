@@ -1,4 +1,4 @@
-/* explain_io.c: the files of `photonmarch explain` (renderer.h rd_explain_write): the dense
+/* explain_plot.c: the files of `photonmarch explain` (renderer.h rd_explain_write): the dense
  * table as CSV, the scalars and sample positions as JSON (cJSON), and a gnuplot script that
  * draws the picture; gnuplot itself is run by rd_explain_plot. */
 #include "core/rd_core.h"

@@ -1,5 +1,5 @@
-/* render.c: the camera, the film, and progressive rendering of any method in the table over
- * tiles with OpenMP.
+/* render.c: the film, and progressive rendering of any method in the table over tiles with
+ * OpenMP (camera rays from scene/camera.c).
  *
  * Determinism (DESIGN.md convention 6): the random numbers of sample i of pixel p are keyed by
  * (p, i, dimension, seed) (rd_sampler); the first two dimensions place the sample in the pixel,

@@ -80,7 +80,7 @@ typedef enum { RD_LS_NEE_PHOTONS, RD_LS_PHOTONS, RD_LS_NEE, RD_LS_NEE_GUIDE } rd
 typedef struct {
     int samples;         /* N_mean: samples per ray (uniform and transmittance: every ray);
                           * 0 (key absent): each placement's own calibrated default
-                          * (integrator_march.c, march_default_samples) */
+                          * (integrators/march.c, march_default_samples) */
     int min_samples;     /* guided: N_min >= 1 */
     int max_samples;     /* guided: N_max */
     double alpha;        /* defensive weight of the mixture, in (0, 1] */
