@@ -75,6 +75,8 @@ static const bad_case catalogue[] = {
     {"media_not_array.json", "media: expected an array, found an object"},
     {"negative_intensity.json", "lights[0].intensity: expected a number or 3 numbers"},
     {"unknown_method.json", "settings.method: unknown method \"magic\""},
+    {"ppm_alpha_one.json", "photons.alpha: must be in (0, 1), found 1"},
+    {"ppm_pass_spp_zero.json", "photons.pass_spp: must be in [1, 1048576], found 0"},
     {"majorant_unknown_type.json", "media[0].majorant.type: unknown value \"kdtree\" (expected one of: auto, none, grid, octree)"},
     {"majorant_unknown_key.json", "media[0].majorant.resoluton: unknown key (allowed: type, resolution, bound, fail, max_level"},
     {"majorant_resolution_not_grid.json", "media[0].majorant.resolution: only with \"type\": \"grid\""},
