@@ -24,7 +24,9 @@
  *    runs' mean image is smaller.
  * The light stands beside the view (the pixels see its fluence at 0.35-1.6 m), where the kernel's
  * bias is second order; a pixel ray through the light's singularity would add a heavy tail.
- * Measured here (12 runs): G(64)/G(4) = 0.21, the balanced rate (64/4)^(-4/7) = 0.205.
+ * Measured here (12 runs): G(64)/G(4) = 0.30 +- 0.04, G(16)/G(4) = 0.58 +- 0.08; the balanced
+ * asymptotic rate (N/4)^(-4/7) gives 0.205 and 0.45 (the runs are not yet asymptotic: most of
+ * G(64) is the bias^2 still left, whose rate is the balanced one only in the limit).
  * Each G is a mean over R = 12 independent runs (photon seeds 1..12, render seeds 1..12); the
  * bounds are taken 4 standard errors of those means wide (each side), so a correct estimator
  * fails them with probability well under 1e-4. */
@@ -169,12 +171,16 @@ Test(progressive, radius_schedule_and_pass_seeds)
     /* r_i^3 ~ i^(alpha - 1): the ratio over a decade tends to 10^(alpha - 1). */
     double r1k = rd_ppm_radius_scale(1000, a), r10k = rd_ppm_radius_scale(10000, a);
     cr_assert_float_eq(pow(r10k / r1k, 3.0), pow(10.0, a - 1.0), 1e-3);
-    uint64_t seen[64];
-    for (int i = 1; i <= 64; i++) {
-        seen[i - 1] = rd_ppm_pass_seed(7, i);
-        for (int j = 0; j < i - 1; j++) cr_assert_neq(seen[i - 1], seen[j], "passes %d and %d share a seed", i, j + 1);
-        cr_assert(seen[i - 1] < (1ULL << 53), "a photon seed fits the scene's range");
-    }
+    /* Every (render seed, pass) its own photon stream. */
+    uint64_t seen[4 * 64];
+    int n = 0;
+    for (uint64_t rs = 0; rs < 4; rs++)
+        for (int i = 1; i <= 64; i++) {
+            uint64_t v = rd_ppm_pass_seed(7, rs, i);
+            for (int j = 0; j < n; j++) cr_assert_neq(v, seen[j], "render seed %d, pass %d: a seed seen before", (int)rs, i);
+            cr_assert(v < (1ULL << 53), "a photon seed fits the scene's range");
+            seen[n++] = v;
+        }
 }
 
 Test(progressive, squared_gap_falls_and_beats_the_fixed_map, .timeout = 600)

@@ -313,8 +313,8 @@ fail:
     return st;
 }
 
-rd_status rd_bake_photon_pass(const rd_scene *s, unsigned maps, int pass, int threads,
-                              rd_baked **out, char *err, size_t errlen)
+rd_status rd_bake_photon_pass(const rd_scene *s, unsigned maps, int pass, uint64_t render_seed,
+                              int threads, rd_baked **out, char *err, size_t errlen)
 {
     *out = NULL;
     double t_start = bake_now();
@@ -325,7 +325,7 @@ rd_status rd_bake_photon_pass(const rd_scene *s, unsigned maps, int pass, int th
     }
     rd_bake_opts o = {0};
     o.photons = s->photons.pass_count > 0 ? s->photons.pass_count : s->photons.count;
-    o.seed = (long long)rd_ppm_pass_seed(s->photons.seed, pass);
+    o.seed = (long long)rd_ppm_pass_seed(s->photons.seed, render_seed, pass);
     o.threads = threads;
     char pmerr[RD_ERRLEN];
     rd_status st = RD_OK;

@@ -26,12 +26,19 @@ double rd_ppm_radius_scale(int pass, double alpha)
     return exp(log_v / 3.0);
 }
 
-uint64_t rd_ppm_pass_seed(uint64_t seed, int pass)
+/* SplitMix64's finaliser (Steele, Lea & Flood 2014). */
+static uint64_t mix64(uint64_t z)
 {
-    /* SplitMix64 of (seed, pass): each pass's photons an independent stream (the photon
-     * tracer keys photon k of a batch by (seed, k)). */
-    uint64_t z = seed + 0x9e3779b97f4a7c15ULL * (uint64_t)(pass + 1);
     z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
     z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return (z ^ (z >> 31)) & ((1ULL << 53) - 1);
+    return z ^ (z >> 31);
+}
+
+uint64_t rd_ppm_pass_seed(uint64_t photon_seed, uint64_t render_seed, int pass)
+{
+    /* Each (photons.seed, render seed, pass) its own photon stream (the photon tracer keys
+     * photon k of a batch by (seed, k)): the passes of one render are independent, and so are
+     * two renders with different seeds (compare's runs), as their camera samples are. */
+    uint64_t z = mix64(photon_seed + 0x9e3779b97f4a7c15ULL * (mix64(render_seed) + 1));
+    return mix64(z + 0x9e3779b97f4a7c15ULL * (uint64_t)(pass + 1)) & ((1ULL << 53) - 1);
 }

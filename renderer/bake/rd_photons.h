@@ -81,14 +81,16 @@ const struct sh_guide *rd_baked_indirect_guide(const rd_baked *b);
 #define RD_PPM_ALPHA (4.0 / 7.0)
 /* r_pass / r_1 for the schedule r_{i+1}^3 = r_i^3 (i + alpha) / (i + 1); pass >= 1. */
 double rd_ppm_radius_scale(int pass, double alpha);
-/* The photon seed of pass `pass` (>= 1): independent streams for independent passes. */
-uint64_t rd_ppm_pass_seed(uint64_t seed, int pass);
+/* The photon seed of pass `pass` (>= 1) of a render with seed `render_seed`: independent
+ * streams for independent passes and for renders with different seeds. */
+uint64_t rd_ppm_pass_seed(uint64_t photon_seed, uint64_t render_seed, int pass);
 /* The photon maps of one progressive pass: `maps` (RD_NEEDS_PHOTONS: the map of every stored
  * collision; RD_NEEDS_INDIRECT: the map without first flights) traced with
- * photons.pass_count (else photons.count) photons and rd_ppm_pass_seed, and indexed; no guide.
- * *out is freed with rd_baked_free; its stats say the photons emitted and the seconds. */
-rd_status rd_bake_photon_pass(const rd_scene *s, unsigned maps, int pass, int threads,
-                              rd_baked **out, char *err, size_t errlen);
+ * photons.pass_count (else photons.count) photons and rd_ppm_pass_seed(photons.seed,
+ * render_seed, pass), and indexed; no guide. *out is freed with rd_baked_free; its stats say
+ * the photons emitted and the seconds. */
+rd_status rd_bake_photon_pass(const rd_scene *s, unsigned maps, int pass, uint64_t render_seed,
+                              int threads, rd_baked **out, char *err, size_t errlen);
 
 /* The phase-function callback for pm_map_radiance: Henyey-Greenstein with g = *(double *)user. */
 double rd_phase_hg_cb(double cos_theta, void *user);

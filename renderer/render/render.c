@@ -211,7 +211,7 @@ static rd_status photon_pass(rd_render_ctx *ctx, unsigned maps, int pass, rd_bak
 {
     const rd_scene *s = ctx->scene;
     rd_baked *next = NULL;
-    rd_status st = rd_bake_photon_pass(s, maps, pass, ctx->threads, &next, err, errlen);
+    rd_status st = rd_bake_photon_pass(s, maps, pass, ctx->seed, ctx->threads, &next, err, errlen);
     if (st != RD_OK) return st;
     if (pass == 1) {
         ctx->photons_first = rd_baked_map(next);
