@@ -243,6 +243,26 @@ Test(geom, generated_meshes_are_closed)
     }
 }
 
+/* The flat meshes (no vertex normals): a cube and a wall with a window, a closed genus-1 slab. */
+Test(geom, generated_flat_meshes_are_closed)
+{
+    static const char *const files[] = {"scenes/data/box.obj", "scenes/data/window-wall.obj"};
+    static const size_t tris[] = {12, 32};
+    /* [-1,1]^3, and the same slab less the hole 0.5 x 0.4 x 2 */
+    static const double volume[] = {8.0, 8.0 - 0.5 * 0.4 * 2.0};
+    for (int i = 0; i < 2; i++) {
+        rd_mesh m;
+        char err[RD_ERRLEN];
+        cr_assert(rd_mesh_load(files[i], NULL, &m, err, sizeof err) == RD_OK, "%s (run from the repository root)", err);
+        cr_expect_eq(m.n_triangles, tris[i], "%s: %zu triangles", files[i], m.n_triangles);
+        cr_expect(m.closed, "%s: %zu open edges", files[i], m.open_edges);
+        cr_expect(!m.flipped, "%s: written inward", files[i]);
+        cr_expect(m.normals == NULL, "%s: vertex normals on a flat mesh", files[i]);
+        cr_expect(fabs(m.volume - volume[i]) < 1e-5, "%s: volume %g, expected %g", files[i], m.volume, volume[i]);
+        rd_mesh_free(&m);
+    }
+}
+
 /* ---- scene keys ---------------------------------------------------------------------------- */
 #define FOG "{\"name\":\"fog\",\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},\"density\":1,\"sigma_t\":2}"
 #define ROOM "{\"name\":\"room\",\"bounds\":{\"min\":[-5,-5,-5],\"max\":[5,5,5]},\"density\":1,\"sigma_t\":0.1}"

@@ -12,6 +12,15 @@
  *                                            ((1 + 0.45 cos 3t) cos 2t, (1 + 0.45 cos 3t) sin 2t,
  *                                            0.45 sin 3t), tube radius 0.14, RINGS rings of SIDES
  *                                            vertices
+ *   make-meshes box OUT.obj                  the cube [-1,1]^3, 12 flat triangles (no vertex
+ *                                            normals): a floor or a block when scaled
+ *   make-meshes wall X0 X1 Y0 Y1 OUT.obj     the slab [-1,1]^2 x [-1,1] (x, y, then z the
+ *                                            thickness) with a rectangular hole through it,
+ *                                            [X0,X1] x [Y0,Y1] strictly inside (-1,1)^2: a wall
+ *                                            with a window, 32 flat triangles. Each face of the
+ *                                            slab is a ring of 4 trapezoids between the outer
+ *                                            and the hole's corners, so no edge has a T-junction
+ *                                            and the mesh is closed (genus 1)
  *
  * Deterministic (no random numbers): the same arguments write the same bytes. Used by
  * scripts/make-meshes.sh; `make tools` builds it. */
@@ -157,17 +166,69 @@ static void knot_tube(mesh *m, int rings, int sides)
         }
 }
 
-static int write_obj(const mesh *m, const char *path, const char *what)
+/* A flat quad a-b-c-d (a convex polygon in that order) as two triangles, wound so that its
+ * normal points along `out` (the solid's outside). */
+static void quad(mesh *m, int a, int b, int c, int d, v3 out)
+{
+    v3 n = cross(sub(m->p[b], m->p[a]), sub(m->p[c], m->p[a]));
+    if (dot(n, out) > 0)
+        tri(m, a, b, c), tri(m, a, c, d);
+    else
+        tri(m, a, c, b), tri(m, a, d, c);
+}
+
+static void box(mesh *m)
+{
+    for (int i = 0; i < 8; i++) vert(m, mk(i & 1 ? 1 : -1, i & 2 ? 1 : -1, i & 4 ? 1 : -1));
+    /* Faces x = -1, +1; y = -1, +1; z = -1, +1: corners in order around each face. */
+    quad(m, 0, 2, 6, 4, mk(-1, 0, 0)), quad(m, 1, 3, 7, 5, mk(1, 0, 0));
+    quad(m, 0, 1, 5, 4, mk(0, -1, 0)), quad(m, 2, 3, 7, 6, mk(0, 1, 0));
+    quad(m, 0, 1, 3, 2, mk(0, 0, -1)), quad(m, 4, 5, 7, 6, mk(0, 0, 1));
+}
+
+static void wall(mesh *m, double x0, double x1, double y0, double y1)
+{
+    /* Outer corners O_i and hole corners H_i, counter-clockwise seen from +z, on both faces
+     * (f = 0: z = +1, f = 1: z = -1). */
+    const double ox[4] = {-1, 1, 1, -1}, oy[4] = {-1, -1, 1, 1};
+    const double hx[4] = {x0, x1, x1, x0}, hy[4] = {y0, y0, y1, y1};
+    int O[2][4], H[2][4];
+    for (int f = 0; f < 2; f++)
+        for (int i = 0; i < 4; i++) {
+            double z = f ? -1 : 1;
+            O[f][i] = vert(m, mk(ox[i], oy[i], z));
+            H[f][i] = vert(m, mk(hx[i], hy[i], z));
+        }
+    v3 hc = mk(0.5 * (x0 + x1), 0.5 * (y0 + y1), 0);
+    for (int i = 0; i < 4; i++) {
+        int j = (i + 1) % 4;
+        /* The two faces: trapezoid O_i O_j H_j H_i, outward +z and -z. */
+        quad(m, O[0][i], O[0][j], H[0][j], H[0][i], mk(0, 0, 1));
+        quad(m, O[1][i], O[1][j], H[1][j], H[1][i], mk(0, 0, -1));
+        /* Outer side i: outward away from the slab's centre. */
+        v3 mid = scl(add(m->p[O[0][i]], m->p[O[0][j]]), 0.5);
+        quad(m, O[0][i], O[0][j], O[1][j], O[1][i], mk(mid.x, mid.y, 0));
+        /* Hole side i: outward (away from the solid) is toward the hole's centre. */
+        v3 hm = scl(add(m->p[H[0][i]], m->p[H[0][j]]), 0.5);
+        quad(m, H[0][i], H[0][j], H[1][j], H[1][i], sub(hc, mk(hm.x, hm.y, 0)));
+    }
+}
+
+static int write_obj(const mesh *m, const char *path, const char *what, int flat)
 {
     FILE *f = fopen(path, "w");
     if (!f) { perror(path); return 1; }
     fprintf(f, "# %s, written by tools/make-meshes.c (scripts/make-meshes.sh)\n", what);
     fprintf(f, "# %d vertices, %d triangles, counter-clockwise seen from outside\n", m->nv, m->nt);
     for (int i = 0; i < m->nv; i++) fprintf(f, "v %.7g %.7g %.7g\n", m->p[i].x, m->p[i].y, m->p[i].z);
-    for (int i = 0; i < m->nv; i++) fprintf(f, "vn %.6f %.6f %.6f\n", m->n[i].x, m->n[i].y, m->n[i].z);
-    for (int i = 0; i < m->nt; i++) {
-        int a = m->t[3 * i] + 1, b = m->t[3 * i + 1] + 1, c = m->t[3 * i + 2] + 1;
-        fprintf(f, "f %d//%d %d//%d %d//%d\n", a, a, b, b, c, c);
+    if (flat) /* no vertex normals: the renderer shades with the faces' own */
+        for (int i = 0; i < m->nt; i++) fprintf(f, "f %d %d %d\n", m->t[3 * i] + 1, m->t[3 * i + 1] + 1, m->t[3 * i + 2] + 1);
+    else {
+        for (int i = 0; i < m->nv; i++) fprintf(f, "vn %.6f %.6f %.6f\n", m->n[i].x, m->n[i].y, m->n[i].z);
+        for (int i = 0; i < m->nt; i++) {
+            int a = m->t[3 * i] + 1, b = m->t[3 * i + 1] + 1, c = m->t[3 * i + 2] + 1;
+            fprintf(f, "f %d//%d %d//%d %d//%d\n", a, a, b, b, c, c);
+        }
     }
     if (fclose(f) != 0) { perror(path); return 1; }
     return 0;
@@ -176,7 +237,8 @@ static int write_obj(const mesh *m, const char *path, const char *what)
 static int usage(void)
 {
     fprintf(stderr, "usage: make-meshes icosphere LEVEL OUT.obj | displaced LEVEL OUT.obj | knot RINGS SIDES OUT.obj\n"
-                    "  LEVEL in [0, 7]; RINGS in [3, 4096], SIDES in [3, 256]\n");
+                    "       | box OUT.obj | wall X0 X1 Y0 Y1 OUT.obj\n"
+                    "  LEVEL in [0, 7]; RINGS in [3, 4096], SIDES in [3, 256]; -1 < X0 < X1 < 1, -1 < Y0 < Y1 < 1\n");
     return 2;
 }
 
@@ -201,14 +263,25 @@ int main(int argc, char **argv)
             for (int i = 0; i < m.nv; i++) m.n[i] = m.p[i];
             snprintf(what, sizeof what, "unit icosphere, level %d", level);
         }
-        return write_obj(&m, argv[3], what);
+        return write_obj(&m, argv[3], what, 0);
     }
     if (argc == 5 && strcmp(argv[1], "knot") == 0) {
         int rings = atoi(argv[2]), sides = atoi(argv[3]);
         if (rings < 3 || rings > 4096 || sides < 3 || sides > 256) return usage();
         knot_tube(&m, rings, sides);
         snprintf(what, sizeof what, "(2,3) torus knot tube, %d rings of %d", rings, sides);
-        return write_obj(&m, argv[4], what);
+        return write_obj(&m, argv[4], what, 0);
+    }
+    if (argc == 3 && strcmp(argv[1], "box") == 0) {
+        box(&m);
+        return write_obj(&m, argv[2], "cube [-1,1]^3, flat", 1);
+    }
+    if (argc == 7 && strcmp(argv[1], "wall") == 0) {
+        double x0 = atof(argv[2]), x1 = atof(argv[3]), y0 = atof(argv[4]), y1 = atof(argv[5]);
+        if (!(-1 < x0 && x0 < x1 && x1 < 1 && -1 < y0 && y0 < y1 && y1 < 1)) return usage();
+        wall(&m, x0, x1, y0, y1);
+        snprintf(what, sizeof what, "slab [-1,1]^3 with the hole [%g,%g] x [%g,%g] through z, flat", x0, x1, y0, y1);
+        return write_obj(&m, argv[6], what, 1);
     }
     return usage();
 }
