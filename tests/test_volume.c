@@ -1,6 +1,7 @@
 /* Volume data: OpenVDB grids are read with their transform honoured (also a rotated one),
  * broken .vdb files are rejected with a message, the procedural noise equals Perlin's 2002
- * formula and respects the bound its majorant uses, and `voxelize` writes raw and VDB grids
+ * formula and respects the bound its majorant uses (and the early-exit accept test that relies
+ * on that bound answers as the full density does), and `voxelize` writes raw and VDB grids
  * that give back the same density.
  * Light transport through volumes: two media along one ray (single scattering against
  * quadrature, background against exp(-tau1 - tau2)) and an orthographic camera (its rays, and
@@ -190,6 +191,39 @@ Test(volume, noise_equals_perlins_formula)
         }
     }
     cr_expect(checked == 300000);
+}
+
+Test(volume, early_exit_accept_test_equals_the_full_density)
+{
+    /* rd_medium_sigma_above stops adding octaves once their bound decides thr < sigma; its
+     * answer must be the full evaluation's for every threshold, also thresholds within a few
+     * ulps of sigma (where no early exit is allowed) and at 0. Media: the default scene's
+     * smoke, and noise with other gains, octaves, a gain of 0 and 1, and a large amplitude. */
+    const double gains[] = {0.5, 0.8, 0.0, 1.0, 0.3};
+    const int octaves[] = {5, 7, 3, 2, 1};
+    const double amps[] = {3.0, 1.0, 2.0, 0.5, 40.0};
+    pcg32 rng = pcg32_seed(21, 2, 0);
+    long early_checked = 0;
+    for (int c = 0; c < 5; c++) {
+        rd_medium m = {.bmin = v3(-1.4, -1, -1), .bmax = v3(1.4, 1, 1), .kind = RD_DENSITY_NOISE, .sigma_t_scale = 2};
+        m.noise = (rd_noise){.octaves = octaves[c], .frequency = 2.2, .gain = gains[c], .lacunarity = 2.0,
+                             .amplitude = amps[c], .seed = 7 + c, .shape = c == 4 ? RD_SHAPE_NONE : RD_SHAPE_ELLIPSOID,
+                             .center = v3(0, 0, 0), .radii = v3(1.4, 1, 1), .edge = 0.6};
+        rd_noise_init_perm(&m.noise);
+        for (int i = 0; i < 40000; i++) {
+            vec3 x = v3(3.0 * pcg32_uniform(&rng) - 1.5, 2.2 * pcg32_uniform(&rng) - 1.1, 2.2 * pcg32_uniform(&rng) - 1.1);
+            double sig = rd_medium_density(&m, x) * m.sigma_t_scale;
+            double thr[6] = {pcg32_uniform(&rng) * 2.0 * sig, pcg32_uniform(&rng) * 20.0, sig, nextafter(sig, 0.0),
+                             nextafter(sig, INFINITY), 0.0};
+            for (int k = 0; k < 6; k++) {
+                int want = thr[k] < sig, got = rd_medium_sigma_above(&m, x, m.sigma_t_scale, thr[k]);
+                cr_assert(got == want, "medium %d at (%.17g, %.17g, %.17g): thr %a, sigma %a: %d, full %d", c, x.x,
+                          x.y, x.z, thr[k], sig, got, want);
+                early_checked++;
+            }
+        }
+    }
+    cr_expect(early_checked == 5 * 40000 * 6);
 }
 
 /* ---- Two media along one ray ------------------------------------------------------------- */

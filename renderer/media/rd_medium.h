@@ -155,6 +155,10 @@ double rd_noise_fbm_bound(const rd_noise *n);         /* provable bound of |fbm|
 void rd_noise_init_perm(rd_noise *n);
 double rd_grid_lookup(const rd_grid *g, vec3 x);      /* trilinear, world coordinates */
 double rd_medium_density(const rd_medium *m, vec3 x); /* 0 outside bounds */
+/* Whether thr < rd_medium_density(m, x) * scale, with the same answer as evaluating that in
+ * full, but for noise adding octaves only until their bound decides it (a tracker's accept test,
+ * u sigma_maj < sigma_t(x), usually needs fewer than all octaves). */
+int rd_medium_sigma_above(const rd_medium *m, vec3 x, double scale, double thr);
 static inline double rd_medium_sigma_t(const rd_medium *m, vec3 x)
 {
     return rd_medium_density(m, x) * m->sigma_t_scale;
