@@ -280,10 +280,10 @@ static int noise_sigma_above(const rd_medium *m, vec3 x, double scale, double th
     for (int o = 0; o + 1 < n->octaves; o++) {
         rest -= fabs(amp) * RD_PERLIN_BOUND; /* the octaves after o */
         fbm_step(n, q, &sum, &amp, &f);
-        double r = fmax(rest, 0.0) + slack;
+        double r = (rest > 0.0 ? rest : 0.0) + slack;
         double d0 = noise_density(n, s, sum - r) * scale, d1 = noise_density(n, s, sum + r) * scale;
-        if (thr < fmin(d0, d1)) return 1;
-        if (!(thr < fmax(d0, d1))) return 0;
+        if (thr < (d0 < d1 ? d0 : d1)) return 1;   /* (no NaN here: noise_density gives 0 for one) */
+        if (!(thr < (d0 < d1 ? d1 : d0))) return 0;
     }
     if (n->octaves > 0) fbm_step(n, q, &sum, &amp, &f);
     return thr < noise_density(n, s, sum) * scale;

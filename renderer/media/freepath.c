@@ -96,7 +96,8 @@ static inline int walk(const rd_fp_medium *fm, const rd_majorant *maj, ray3 r, d
     while (go_on && rd_majorant_next(&it, &g)) {
         if (fm->segments) (*fm->segments)++;
         if (!(g.t1 > g.t0)) continue;
-        for (int d = 0; d < 4; d++) g.c[d] *= b;
+        if (b != 1.0) /* (multiplying by 1 changes nothing: skipped) */
+            for (int d = 0; d < 4; d++) g.c[d] *= b;
         double sc = residual ? fmax(0.0, fmin(g.sigma_min, g.cubic ? INFINITY : g.c[0])) : 0.0;
         g.c[0] -= sc;
         pt.sigma_c = sc;
@@ -250,6 +251,16 @@ static rd_fp_event track(const rd_fp_params *p, const rd_fp_medium *fm, const rd
     return ts.ev;
 }
 
+/* track() for the default tracker, with the walk and its callback written out in one function
+ * (the same steps; the compiler can inline on_analog into the walk's loop). */
+static rd_fp_event track_analog(const rd_fp_medium *fm, ray3 r, double t0, double t1, pcg32 *rng,
+                                rd_track_counters *c)
+{
+    track_state ts = {NULL, fm, r, rng, c, {0, t1, 1.0}, 1.0};
+    walk(fm, fm->maj, r, t0, t1, 1.0, 0, rng, c, on_analog, &ts, NULL);
+    return ts.ev;
+}
+
 rd_fp_event rd_fp_sample(const rd_fp_params *p, const rd_fp_medium *fm, ray3 r, double t0,
                          double t1, pcg32 *rng, rd_track_counters *c)
 {
@@ -260,7 +271,7 @@ rd_fp_event rd_fp_sample(const rd_fp_params *p, const rd_fp_medium *fm, ray3 r, 
     case RD_FP_RAYMARCH: return march(p, fm, r, t0, t1, rng, c);
     case RD_FP_AUTO:
     case RD_FP_SUPERVOXEL:
-    default: return track(p, fm, fm->maj, on_analog, 1.0, r, t0, t1, rng, c);
+    default: return track_analog(fm, r, t0, t1, rng, c);
     }
 }
 
