@@ -11,8 +11,9 @@
 #   wall       the whole command (scene load with its majorant build, files written)
 #   cpu        user + system seconds of the whole command (steadier than wall on a loaded
 #              machine; on an idle one wall is about cpu / threads)
-# and, with two or more binaries, each one's median trace+idx and wall over the first's, and the
-# per-run ratio of trace+idx (run k against run k: the same load).
+# and, with two or more binaries, how much faster each one is than the first: the median over
+# the runs of the ratio run k of the first / run k of this one (the two ran back to back, so
+# under about the same load), for trace+idx, wall and cpu, with trace+idx's ratio of every run.
 #
 #   bench/bench_bake.sh BIN [BIN2 ...]    environment: RUNS (3), PHOTONS (1000000),
 #                                         THREADS (2), SCENE (scenes/default.json),
@@ -75,9 +76,9 @@ if [ $# -ge 2 ]; then
         paste -d' ' <(printf '%s' "${rows[$first]}") <(printf '%s' "${rows[$b]}") | awk -v a="$first" -v b="$b" '
             function med(x, n,   i, j, t) { for (i = 2; i <= n; i++) { t = x[i]; for (j = i - 1; j >= 1 && x[j] > t; j--) x[j + 1] = x[j]; x[j + 1] = t }
                                               return n % 2 ? x[(n + 1) / 2] : (x[n / 2] + x[n / 2 + 1]) / 2 }
-            NF == 10 { n++; ta[n] = $1 + $2; tb[n] = $6 + $7; wa[n] = $4; wb[n] = $9; ca[n] = $5; cb[n] = $10
-                       per = per sprintf("%s%.2f", n > 1 ? ", " : "", ($1 + $2) / ($6 + $7)) }
-            END { printf "%s against %s: trace+idx %.2fx faster (medians; per run: %s), wall %.2fx, cpu %.2fx\n",
-                         b, a, med(ta, n) / med(tb, n), per, med(wa, n) / med(wb, n), med(ca, n) / med(cb, n) }'
+            NF == 10 { n++; rt[n] = ($1 + $2) / ($6 + $7); rw[n] = $4 / $9; rc[n] = $5 / $10
+                       per = per sprintf("%s%.2f", n > 1 ? ", " : "", rt[n]) }
+            END { printf "%s against %s: trace+idx %.2fx faster (median of the per-run ratios: %s), wall %.2fx, cpu %.2fx\n",
+                         b, a, med(rt, n), per, med(rw, n), med(rc, n) }'
     done
 fi

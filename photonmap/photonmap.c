@@ -268,8 +268,9 @@ static unsigned spread3(unsigned a)
 /* map->perm: the photons in Morton (Z-curve) order of their cell on a 2^PM_ORDER_BITS grid per
  * axis over their bounds, by one counting sort (stable, so a cell keeps index order; the order
  * is a function of the positions alone). FLANN's build partitions the points through an index
- * array; fed in this order its passes touch nearby memory (bench/bench_photons.c: the build of
- * 1.7e6 photons took 2.3x less time). Returns 0 when out of memory. */
+ * array; fed in this order its passes touch nearby memory (the build of default.json's 1.7e6
+ * photons took 2.3x less CPU, sort included: docs/benchmarks.md, issue 21). Returns 0 when out
+ * of memory. */
 static int spatial_order(pm_map *map)
 {
     size_t n = map->nph, cells = (size_t)1 << (3 * PM_ORDER_BITS);

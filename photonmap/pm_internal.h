@@ -34,8 +34,9 @@
 #endif
 
 /* Bits per axis of the grid whose Morton order the kd-tree build takes the photons in
- * (photonmap.c spatial_order): 64^3 cells. bench/bench_photons.c on 1.7e6 photons: 4 bits
- * already gave most of the gain, 6 to 10 bits the same build time. */
+ * (photonmap.c spatial_order): 64^3 cells. On the 1.7e6 photons of default.json (docs/
+ * benchmarks.md, issue 21): 4 bits already gave most of the gain, 6 to 10 bits the least
+ * sort + build time. */
 #define PM_ORDER_BITS 6
 
 /* ---- The photon map ------------------------------------------------------------------------ */
