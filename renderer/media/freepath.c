@@ -251,16 +251,6 @@ static rd_fp_event track(const rd_fp_params *p, const rd_fp_medium *fm, const rd
     return ts.ev;
 }
 
-/* track() for the default tracker, with the walk and its callback written out in one function
- * (the same steps; the compiler can inline on_analog into the walk's loop). */
-static rd_fp_event track_analog(const rd_fp_medium *fm, ray3 r, double t0, double t1, pcg32 *rng,
-                                rd_track_counters *c)
-{
-    track_state ts = {NULL, fm, r, rng, c, {0, t1, 1.0}, 1.0};
-    walk(fm, fm->maj, r, t0, t1, 1.0, 0, rng, c, on_analog, &ts, NULL);
-    return ts.ev;
-}
-
 rd_fp_event rd_fp_sample(const rd_fp_params *p, const rd_fp_medium *fm, ray3 r, double t0,
                          double t1, pcg32 *rng, rd_track_counters *c)
 {
@@ -271,7 +261,7 @@ rd_fp_event rd_fp_sample(const rd_fp_params *p, const rd_fp_medium *fm, ray3 r, 
     case RD_FP_RAYMARCH: return march(p, fm, r, t0, t1, rng, c);
     case RD_FP_AUTO:
     case RD_FP_SUPERVOXEL:
-    default: return track_analog(fm, r, t0, t1, rng, c);
+    default: return track(p, fm, fm->maj, on_analog, 1.0, r, t0, t1, rng, c);
     }
 }
 
