@@ -1,8 +1,14 @@
 /* bench_photons: photon tracing rate on the example scenes (issue 4): photons emitted per
  * second with 1 and 2 threads, stored photons per emitted photon, FLANN index build time and
  * memory per photon. Medians of repeated runs taken in one process. Not a test.
+ * First, the cost of the noise density that tracing in default.json spends most of its lookups
+ * on (issue 21): one fBm evaluation with the gradient table (rd_noise_fbm) against Perlin's
+ * 2002 branches on the hash (a copy below), and the tracker's accept test with the early exit
+ * (rd_medium_sigma_above) against the full density, interleaved, medians of 5.
  *
- *   build/bench/bench_photons [--quick] [--json FILE]
+ *   build/bench/bench_photons [--quick] [--noise-only] [--json FILE]
+ * bench/bench_bake.sh times the whole `photonmarch bake` (trace, index, guide) of one or more
+ * builds against each other.
  */
 #include "bake/rd_photons.h"
 
@@ -10,6 +16,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 static int cmp_d(const void *a, const void *b)
 {
@@ -17,14 +24,112 @@ static int cmp_d(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+/* Perlin's improved noise with grad() as he wrote it (Perlin 2002): the formula before the
+ * gradient table (tests/test_volume.c checks that both give the same doubles). */
+static double grad_2002(int h, double x, double y, double z)
+{
+    h &= 15;
+    double u = h < 8 ? x : y;
+    double v = h < 4 ? y : (h == 12 || h == 14 ? x : z);
+    return ((h & 1) ? -u : u) + ((h & 2) ? -v : v);
+}
+static double lerp_2002(double t, double a, double b) { return a + t * (b - a); }
+static double noise_2002(const rd_noise *n, vec3 p)
+{
+    double fx = floor(p.x), fy = floor(p.y), fz = floor(p.z);
+    int X = (int)((long long)fx & 255), Y = (int)((long long)fy & 255), Z = (int)((long long)fz & 255);
+    double x = p.x - fx, y = p.y - fy, z = p.z - fz;
+    double u = rd_perlin_fade(x), v = rd_perlin_fade(y), w = rd_perlin_fade(z);
+    const uint8_t *P = n->perm;
+    int A = P[X] + Y, AA = P[A] + Z, AB = P[A + 1] + Z;
+    int B = P[X + 1] + Y, BA = P[B] + Z, BB = P[B + 1] + Z;
+    return lerp_2002(w,
+        lerp_2002(v, lerp_2002(u, grad_2002(P[AA], x, y, z), grad_2002(P[BA], x - 1, y, z)),
+                  lerp_2002(u, grad_2002(P[AB], x, y - 1, z), grad_2002(P[BB], x - 1, y - 1, z))),
+        lerp_2002(v, lerp_2002(u, grad_2002(P[AA + 1], x, y, z - 1), grad_2002(P[BA + 1], x - 1, y, z - 1)),
+                  lerp_2002(u, grad_2002(P[AB + 1], x, y - 1, z - 1), grad_2002(P[BB + 1], x - 1, y - 1, z - 1))));
+}
+static double fbm_2002(const rd_noise *n, vec3 x)
+{
+    double sum = 0.0, amp = 1.0, f = n->frequency;
+    vec3 q = v3_sub(x, n->center);
+    for (int o = 0; o < n->octaves; o++) {
+        sum += amp * noise_2002(n, v3_scale(q, f));
+        amp *= n->gain;
+        f *= n->lacunarity;
+    }
+    return sum;
+}
+
+/* ns per call of four evaluations at the same NP points of the medium's bounds: fBm by the
+ * table and by the 2002 formula; sigma_t compared with u sigma_maj (u uniform, the global
+ * majorant) by the early exit and by the full density. Interleaved, median of 5. */
+static void bench_noise(const rd_medium *m, int quick)
+{
+    enum { NP = 1 << 18 };
+    const int reps = 5, calls = quick ? 2 : 8;
+    vec3 *x = malloc(NP * sizeof *x);
+    double *thr = malloc(NP * sizeof *thr), t[4][5], sink = 0.0;
+    if (!x || !thr) { free(x); free(thr); return; }
+    pcg32 g = pcg32_seed(21, 1, 0);
+    for (int i = 0; i < NP; i++) {
+        x[i] = v3(m->bmin.x + (m->bmax.x - m->bmin.x) * pcg32_uniform(&g),
+                  m->bmin.y + (m->bmax.y - m->bmin.y) * pcg32_uniform(&g),
+                  m->bmin.z + (m->bmax.z - m->bmin.z) * pcg32_uniform(&g));
+        thr[i] = pcg32_uniform(&g) * m->sigma_maj;
+    }
+    for (int r = 0; r < reps; r++)
+        for (int v = 0; v < 4; v++) {
+            double t0 = now_s();
+            for (int c = 0; c < calls; c++)
+                for (int i = 0; i < NP; i++) {
+                    if (v == 0) sink += rd_noise_fbm(&m->noise, x[i]);
+                    else if (v == 1) sink += fbm_2002(&m->noise, x[i]);
+                    else if (v == 2) sink += rd_medium_sigma_above(m, x[i], m->sigma_t_scale, thr[i]);
+                    else sink += thr[i] < rd_medium_density(m, x[i]) * m->sigma_t_scale;
+                }
+            t[v][r] = (now_s() - t0) / ((double)calls * NP) * 1e9;
+        }
+    for (int v = 0; v < 4; v++) qsort(t[v], reps, sizeof t[v][0], cmp_d);
+    printf("noise (scenes/default.json's medium, %d octaves; %d points x %d, median of %d, ns per call):\n",
+           m->noise.octaves, NP, calls, reps);
+    printf("| evaluation | ns/call | min-max |\n|---|---:|---|\n");
+    const char *what[4] = {"fBm, gradient table (rd_noise_fbm)", "fBm, Perlin 2002 branches",
+                           "accept test u sigma_maj < sigma_t, early exit (rd_medium_sigma_above)",
+                           "accept test by the full density"};
+    for (int v = 0; v < 4; v++) printf("| %s | %.1f | %.1f-%.1f |\n", what[v], t[v][reps / 2], t[v][0], t[v][reps - 1]);
+    printf("(checksum %g)\n\n", sink);
+    free(x);
+    free(thr);
+}
+
 int main(int argc, char **argv)
 {
-    int quick = 0;
+    int quick = 0, noise_only = 0;
     const char *json = NULL;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--quick")) quick = 1;
+        else if (!strcmp(argv[i], "--noise-only")) noise_only = 1;
         else if (!strcmp(argv[i], "--json") && i + 1 < argc) json = argv[++i];
-        else { fprintf(stderr, "usage: bench_photons [--quick] [--json FILE]\n"); return 1; }
+        else { fprintf(stderr, "usage: bench_photons [--quick] [--noise-only] [--json FILE]\n"); return 1; }
+    }
+    {
+        char err[RD_ERRLEN];
+        rd_scene *s;
+        if (rd_scene_load(&s, "scenes/default.json", NULL, 0, err, sizeof err) != RD_OK) {
+            fprintf(stderr, "%s\n", err);
+            return 1;
+        }
+        bench_noise(&s->media[0], quick);
+        rd_scene_free(s);
+        if (noise_only) return 0;
     }
     const char *scenes[] = {"scenes/default.json", "scenes/cloud.json", "scenes/homogeneous.json"};
     const size_t counts[] = {100000, 1000000};

@@ -33,6 +33,12 @@
 #define PM_LEAF_MAX_SIZE 16
 #endif
 
+/* Bits per axis of the grid whose Morton order the kd-tree build takes the photons in
+ * (photonmap.c spatial_order): 64^3 cells. On the 1.7e6 photons of default.json (docs/
+ * benchmarks.md, issue 21): 4 bits already gave most of the gain, 6 to 10 bits the least
+ * sort + build time. */
+#define PM_ORDER_BITS 6
+
 /* ---- The photon map ------------------------------------------------------------------------ */
 
 struct pm_map {
@@ -43,7 +49,10 @@ struct pm_map {
     size_t nseg, capseg;
     float lo[3], hi[3]; /* bounds of photon positions; zeros while nph == 0 */
     int built;          /* 1 after pm_map_build, back to 0 after any photon add */
-    float *xyz;         /* nph x 3 positions handed to FLANN; lives as long as index */
+    float *xyz;         /* nph x 3 positions handed to FLANN, row j = photon perm[j]; lives
+                         * as long as index */
+    int *perm;          /* nph: FLANN's row j is photon perm[j] (a spatial order, see
+                         * pm_map_build); lives as long as index */
     flann_index_t index; /* NULL when not built or when the map has no photons */
     size_t index_bytes;  /* approximate memory of index + xyz */
     double build_seconds;
@@ -68,6 +77,14 @@ int pmi_check_segment(const pm_segment *s, char *why, size_t whylen);
 void pmi_grow_bounds(pm_map *map, const pm_photon *ph, size_t n);
 
 /* ---- Small helpers -------------------------------------------------------------------------- */
+
+/* FLANN's row numbers in fi[0..n) to photon indices, in place (-1, an empty slot, stays). */
+static inline void pmi_rows_to_photons(const pm_map *map, int *fi, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        if (fi[i] >= 0)
+            fi[i] = map->perm[fi[i]];
+}
 
 static inline int pmi_finite3(const float v[3])
 {

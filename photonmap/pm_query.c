@@ -15,6 +15,9 @@
  *    a slightly enlarged radius search and sorted (first_within). With random positions this
  *    fallback runs for about 1.5 PM_TIE_REL k of the queries (0.8% at k = 256, measured);
  *    with duplicate photons it is what makes the answer independent of the tree.
+ *  - Row numbers. FLANN's rows are the photons in a spatial order (pm_map_build); every row
+ *    number FLANN returns is turned into the photon's index (pmi_rows_to_photons) before any
+ *    sorting or tie test, so the answers are in photon indices as before.
  *  - Coordinates. FLANN indexes the stored float positions, which are offsets from the map's
  *    origin (double). A query point arrives in world coordinates as double; to_local()
  *    subtracts the origin in double and rounds once to float, so a scene 1e5 m from the world
@@ -113,6 +116,7 @@ static int collect_within(const pm_map *map, const float x[3], float t, pm_hit *
         if (got >= 0) {
             if (got > c)
                 got = c;
+            pmi_rows_to_photons(map, fi, (size_t)got);
             n = 0;
             for (int i = 0; i < got; i++) {
                 if (fi[i] >= 0 && fd[i] <= t) {
@@ -240,8 +244,10 @@ static int knn_local(const pm_map *map, const float x[3], int k, int *idx, float
     struct FLANNParameters p = pmi_flann_params(0);
     float q[3] = {x[0], x[1], x[2]};
     int r = -1;
-    if (pm_flann_knn(map->index, q, 1, s.fi, s.fd, kq, &p, NULL) == 0)
+    if (pm_flann_knn(map->index, q, 1, s.fi, s.fd, kq, &p, NULL) == 0) {
+        pmi_rows_to_photons(map, s.fi, (size_t)kq);
         r = finish_knn(map, x, want, s.fi, s.fd, kq, idx, dist2);
+    }
     scratch_put(&s);
     return r;
 }
@@ -283,6 +289,7 @@ int pm_map_radius(const pm_map *map, const double world[3], float r, int max, in
     int c = pm_flann_radius(map->index, q, s.fi, s.fd, cap, tie_slack(r2), &p, NULL);
     if (c >= 0) {
         int n = c < cap ? c : cap;
+        pmi_rows_to_photons(map, s.fi, (size_t)n);
         sort_pairs(s.fi, s.fd, n);
         int within = 0; /* photons with dist2 <= r^2 (inclusive), a prefix after sorting */
         while (within < n && s.fd[within] <= r2)
@@ -376,6 +383,7 @@ pm_status pm_map_knn_batch(const pm_map *map, const double *queries, size_t nq, 
                 failed = fault.nomem ? 1 : 2;
                 continue;
             }
+            pmi_rows_to_photons(map, fi, nb * (size_t)kq);
             for (size_t j = 0; j < nb; j++) {
                 size_t row = q0 + j;
                 int *oi = idx + row * ks;

@@ -450,12 +450,13 @@ Test(memory, flann_index_without_memory_is_an_error)
     char err[256];
     cr_assert(pm_map_add_photons(map, ph, N, err, sizeof err) == PM_OK, "%s", err);
     free(ph);
-    /* Room for pm_map_build's own copy of the positions (12 bytes each) and 8 MiB more; FLANN's
-     * reordered copy of the points alone needs another 12 bytes each (24 MB). */
+    /* Room for pm_map_build's own copy of the positions and its row-to-photon table (12 + 4
+     * bytes each; the scratch of its spatial order is freed before the copy is made) and 8 MiB
+     * more; FLANN's reordered copy of the points alone needs another 12 bytes each (24 MB). */
     struct rlimit old, lim;
     cr_assert(getrlimit(RLIMIT_AS, &old) == 0);
     lim = old;
-    lim.rlim_cur = (rlim_t)(vm_size_kib() + (12L * N) / 1024 + 8 * 1024) * 1024;
+    lim.rlim_cur = (rlim_t)(vm_size_kib() + (16L * N) / 1024 + 8 * 1024) * 1024;
     cr_assert(setrlimit(RLIMIT_AS, &lim) == 0);
     pm_status st = pm_map_build(map, err, sizeof err);
     cr_assert(setrlimit(RLIMIT_AS, &old) == 0);

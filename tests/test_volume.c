@@ -1,6 +1,8 @@
 /* Volume data: OpenVDB grids are read with their transform honoured (also a rotated one),
- * broken .vdb files are rejected with a message, the procedural noise respects the bound its
- * majorant uses, and `voxelize` writes raw and VDB grids that give back the same density.
+ * broken .vdb files are rejected with a message, the procedural noise equals Perlin's 2002
+ * formula and respects the bound its majorant uses (and the early-exit accept test that relies
+ * on that bound answers as the full density does), and `voxelize` writes raw and VDB grids
+ * that give back the same density.
  * Light transport through volumes: two media along one ray (single scattering against
  * quadrature, background against exp(-tau1 - tau2)) and an orthographic camera (its rays, and
  * a slab seen through it). Monte Carlo estimates come from rt_delta_mc or rd_render with fixed
@@ -102,6 +104,126 @@ Test(volume, noise_stays_within_its_majorant_bound)
     cr_expect(nmax <= 1.04 && nmax > 0.5, "noise maximum %.5f", nmax);
     rd_noise n5 = {.octaves = 5, .gain = 0.5};
     cr_expect(fabs(rd_noise_fbm_bound(&n5) - 1.04 * (1 + 0.5 + 0.25 + 0.125 + 0.0625)) < 1e-12);
+}
+
+/* Perlin's improved noise exactly as he wrote it (Perlin 2002: grad() by branches on h), the
+ * formula rd_perlin_grad's table replaced; the reference of the test below. */
+static double perlin_grad_2002(int h, double x, double y, double z)
+{
+    h &= 15;
+    double u = h < 8 ? x : y;
+    double v = h < 4 ? y : (h == 12 || h == 14 ? x : z);
+    return ((h & 1) ? -u : u) + ((h & 2) ? -v : v);
+}
+
+static double lerp_2002(double t, double a, double b) { return a + t * (b - a); }
+
+static double perlin_noise_2002(const rd_noise *n, vec3 p)
+{
+    double fx = floor(p.x), fy = floor(p.y), fz = floor(p.z);
+    int X = (int)((long long)fx & 255), Y = (int)((long long)fy & 255), Z = (int)((long long)fz & 255);
+    double x = p.x - fx, y = p.y - fy, z = p.z - fz;
+    double u = rd_perlin_fade(x), v = rd_perlin_fade(y), w = rd_perlin_fade(z);
+    const uint8_t *P = n->perm;
+    int A = P[X] + Y, AA = P[A] + Z, AB = P[A + 1] + Z;
+    int B = P[X + 1] + Y, BA = P[B] + Z, BB = P[B + 1] + Z;
+    return lerp_2002(w,
+        lerp_2002(v, lerp_2002(u, perlin_grad_2002(P[AA], x, y, z), perlin_grad_2002(P[BA], x - 1, y, z)),
+                  lerp_2002(u, perlin_grad_2002(P[AB], x, y - 1, z), perlin_grad_2002(P[BB], x - 1, y - 1, z))),
+        lerp_2002(v, lerp_2002(u, perlin_grad_2002(P[AA + 1], x, y, z - 1), perlin_grad_2002(P[BA + 1], x - 1, y, z - 1)),
+                  lerp_2002(u, perlin_grad_2002(P[AB + 1], x, y - 1, z - 1), perlin_grad_2002(P[BB + 1], x - 1, y - 1, z - 1))));
+}
+
+Test(volume, noise_equals_perlins_formula)
+{
+    /* rd_perlin_grad reads a table instead of branching (rd_medium.h). Its products are exact,
+     * so every gradient term, the noise, the fBm and the density must equal the 2002 formula's
+     * as doubles (==: equal values; an exact zero may differ in sign, which 1 + a fbm erases),
+     * and the density bit for bit. Points: random in a wide box (negative coordinates, lattice
+     * indices past 255), some on lattice planes (a fractional coordinate exactly 0). */
+    pcg32 rng = pcg32_seed(21, 1, 0);
+    for (int h = 0; h < 256; h++)
+        for (int i = 0; i < 64; i++) {
+            double x = 4 * pcg32_uniform(&rng) - 2, y = 4 * pcg32_uniform(&rng) - 2, z = 4 * pcg32_uniform(&rng) - 2;
+            if (i == 0) x = y = z = 0.0;
+            if (i == 1) x = 0.0;
+            double a = rd_perlin_grad(h, x, y, z), b = perlin_grad_2002(h, x, y, z), g[3];
+            cr_assert(a == b, "grad h %d at (%.17g, %.17g, %.17g): %.17g vs %.17g", h, x, y, z, a, b);
+            rd_perlin_grad_vec(h, g);
+            cr_assert(g[0] * x + g[1] * y + g[2] * z == b, "grad_vec h %d", h);
+        }
+    long checked = 0;
+    for (uint32_t seed = 1; seed <= 3; seed++) {
+        rd_medium m = {.bmin = v3(-300, -300, -300), .bmax = v3(300, 300, 300), .kind = RD_DENSITY_NOISE,
+                       .sigma_t_scale = 1};
+        rd_noise *n = &m.noise;
+        *n = (rd_noise){.octaves = 6, .frequency = 1.7, .gain = 0.55, .lacunarity = 2.1, .amplitude = 2.5,
+                        .seed = seed, .shape = seed == 2 ? RD_SHAPE_ELLIPSOID : RD_SHAPE_NONE,
+                        .center = v3(0.3, -0.2, 0.1), .radii = v3(300, 300, 300), .edge = 0.5};
+        rd_noise_init_perm(n);
+        for (int i = 0; i < 100000; i++) {
+            vec3 x = v3(600 * pcg32_uniform(&rng) - 300, 600 * pcg32_uniform(&rng) - 300,
+                        600 * pcg32_uniform(&rng) - 300);
+            if (i % 5 == 1) x.x = floor(x.x);
+            if (i % 7 == 2) x = v3(floor(x.x), floor(x.y), floor(x.z));
+            double a = rd_noise_eval(n, x), b = perlin_noise_2002(n, x);
+            cr_assert(a == b, "noise at (%.17g, %.17g, %.17g): %.17g vs %.17g", x.x, x.y, x.z, a, b);
+            double fa = rd_noise_fbm(n, x), fb = 0.0, amp = 1.0, f = n->frequency;
+            vec3 q = v3_sub(x, n->center);
+            for (int o = 0; o < n->octaves; o++) {
+                fb += amp * perlin_noise_2002(n, v3_scale(q, f));
+                amp *= n->gain;
+                f *= n->lacunarity;
+            }
+            cr_assert(fa == fb, "fbm at (%.17g, %.17g, %.17g): %.17g vs %.17g", x.x, x.y, x.z, fa, fb);
+            double da = rd_medium_density(&m, x), d = 1.0 + n->amplitude * fb, db = 0.0;
+            if (n->shape == RD_SHAPE_NONE) db = d > 0.0 ? d : 0.0;
+            else {
+                vec3 e = v3_sub(x, n->center);
+                double r = sqrt((e.x * e.x) / (n->radii.x * n->radii.x) + (e.y * e.y) / (n->radii.y * n->radii.y) +
+                                (e.z * e.z) / (n->radii.z * n->radii.z));
+                double s = rd_shape_of_r(n->edge, r);
+                db = s <= 0.0 ? 0.0 : d > 0.0 ? s * d : 0.0;
+            }
+            cr_assert(memcmp(&da, &db, sizeof da) == 0, "density at (%.17g, %.17g, %.17g): %a vs %a", x.x, x.y,
+                      x.z, da, db);
+            checked++;
+        }
+    }
+    cr_expect(checked == 300000);
+}
+
+Test(volume, early_exit_accept_test_equals_the_full_density)
+{
+    /* rd_medium_sigma_above stops adding octaves once their bound decides thr < sigma; its
+     * answer must be the full evaluation's for every threshold, also thresholds within a few
+     * ulps of sigma (where no early exit is allowed) and at 0. Media: the default scene's
+     * smoke, and noise with other gains, octaves, a gain of 0 and 1, and a large amplitude. */
+    const double gains[] = {0.5, 0.8, 0.0, 1.0, 0.3};
+    const int octaves[] = {5, 7, 3, 2, 1};
+    const double amps[] = {3.0, 1.0, 2.0, 0.5, 40.0};
+    pcg32 rng = pcg32_seed(21, 2, 0);
+    long early_checked = 0;
+    for (int c = 0; c < 5; c++) {
+        rd_medium m = {.bmin = v3(-1.4, -1, -1), .bmax = v3(1.4, 1, 1), .kind = RD_DENSITY_NOISE, .sigma_t_scale = 2};
+        m.noise = (rd_noise){.octaves = octaves[c], .frequency = 2.2, .gain = gains[c], .lacunarity = 2.0,
+                             .amplitude = amps[c], .seed = 7 + c, .shape = c == 4 ? RD_SHAPE_NONE : RD_SHAPE_ELLIPSOID,
+                             .center = v3(0, 0, 0), .radii = v3(1.4, 1, 1), .edge = 0.6};
+        rd_noise_init_perm(&m.noise);
+        for (int i = 0; i < 40000; i++) {
+            vec3 x = v3(3.0 * pcg32_uniform(&rng) - 1.5, 2.2 * pcg32_uniform(&rng) - 1.1, 2.2 * pcg32_uniform(&rng) - 1.1);
+            double sig = rd_medium_density(&m, x) * m.sigma_t_scale;
+            double thr[6] = {pcg32_uniform(&rng) * 2.0 * sig, pcg32_uniform(&rng) * 20.0, sig, nextafter(sig, 0.0),
+                             nextafter(sig, INFINITY), 0.0};
+            for (int k = 0; k < 6; k++) {
+                int want = thr[k] < sig, got = rd_medium_sigma_above(&m, x, m.sigma_t_scale, thr[k]);
+                cr_assert(got == want, "medium %d at (%.17g, %.17g, %.17g): thr %a, sigma %a: %d, full %d", c, x.x,
+                          x.y, x.z, thr[k], sig, got, want);
+                early_checked++;
+            }
+        }
+    }
+    cr_expect(early_checked == 5 * 40000 * 6);
 }
 
 /* ---- Two media along one ray ------------------------------------------------------------- */

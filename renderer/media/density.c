@@ -181,15 +181,21 @@ double rd_noise_eval(const rd_noise *n, vec3 p)
                      lerp(u, rd_perlin_grad(P[AB + 1], x, y - 1, z - 1), rd_perlin_grad(P[BB + 1], x - 1, y - 1, z - 1))));
 }
 
+/* One octave of the fBm sum in the order rd_noise_fbm adds them: sum += amp noise(f q), then
+ * the next amplitude and frequency. rd_medium_sigma_above repeats the same steps, so its final
+ * sum is rd_noise_fbm's to the bit. */
+static inline void fbm_step(const rd_noise *n, vec3 q, double *sum, double *amp, double *f)
+{
+    *sum += *amp * rd_noise_eval(n, v3_scale(q, *f));
+    *amp *= n->gain;
+    *f *= n->lacunarity;
+}
+
 double rd_noise_fbm(const rd_noise *n, vec3 x)
 {
     double sum = 0.0, amp = 1.0, f = n->frequency;
     vec3 q = v3_sub(x, n->center);
-    for (int o = 0; o < n->octaves; o++) {
-        sum += amp * rd_noise_eval(n, v3_scale(q, f));
-        amp *= n->gain;
-        f *= n->lacunarity;
-    }
+    for (int o = 0; o < n->octaves; o++) fbm_step(n, q, &sum, &amp, &f);
     return sum;
 }
 
@@ -221,21 +227,70 @@ static double shape_eval(const rd_noise *n, vec3 x)
     return rd_shape_of_r(n->edge, r);
 }
 
+static inline int outside_bounds(const rd_medium *m, vec3 x)
+{
+    return x.x < m->bmin.x || x.y < m->bmin.y || x.z < m->bmin.z || x.x > m->bmax.x ||
+           x.y > m->bmax.y || x.z > m->bmax.z;
+}
+
+/* The noise density from the shape value s > 0 and an fBm value (seed 003 §4.2, rd_medium.h). */
+static inline double noise_density(const rd_noise *n, double s, double fbm)
+{
+    double d = 1.0 + n->amplitude * fbm;
+    return d > 0.0 ? s * d : 0.0;
+}
+
 double rd_medium_density(const rd_medium *m, vec3 x)
 {
-    if (x.x < m->bmin.x || x.y < m->bmin.y || x.z < m->bmin.z || x.x > m->bmax.x ||
-        x.y > m->bmax.y || x.z > m->bmax.z)
-        return 0.0;
+    if (outside_bounds(m, x)) return 0.0;
     switch (m->kind) {
     case RD_DENSITY_CONSTANT: return m->constant;
     case RD_DENSITY_GRID: return rd_grid_lookup(&m->grid, x);
     case RD_DENSITY_NOISE: {
         double s = shape_eval(&m->noise, x);
         if (s <= 0.0) return 0.0;
-        double d = 1.0 + m->noise.amplitude * rd_noise_fbm(&m->noise, x);
-        return d > 0.0 ? s * d : 0.0;
+        return noise_density(&m->noise, s, rd_noise_fbm(&m->noise, x));
     }
     }
     return 0.0;
 }
 
+/* Octave by octave with an early exit: after octave o the octaves not yet added sum to at most
+ * R_o = sum_{o' > o} |amp_o'| RD_PERLIN_BOUND in magnitude (the bound rd_noise_fbm_bound uses,
+ * derived above), so the final fBm lies in [sum - R_o, sum + R_o], and, the density being
+ * monotone in the fBm (non-decreasing for amplitude >= 0, and rounding is monotone), sigma lies
+ * between the densities of those two ends times scale. When thr is below the low end or not
+ * below the high end, the answer is known; otherwise the next octave is added. R_o is widened
+ * by 1e-9 of the whole bound, many orders above the rounding of the partial sums (about 16
+ * ulps of the bound), so the early answer is always the full evaluation's. The final
+ * comparison uses the same sum, in the same order, as rd_medium_density. */
+static int noise_sigma_above(const rd_medium *m, vec3 x, double scale, double thr)
+{
+    const rd_noise *n = &m->noise;
+    double s = shape_eval(n, x);
+    if (s <= 0.0) return thr < 0.0 * scale;
+    double rest = 0.0, a = 1.0;
+    for (int o = 0; o < n->octaves; o++) {
+        rest += fabs(a) * RD_PERLIN_BOUND;
+        a *= n->gain;
+    }
+    const double slack = 1e-9 * rest;
+    double sum = 0.0, amp = 1.0, f = n->frequency;
+    vec3 q = v3_sub(x, n->center);
+    for (int o = 0; o + 1 < n->octaves; o++) {
+        rest -= fabs(amp) * RD_PERLIN_BOUND; /* the octaves after o */
+        fbm_step(n, q, &sum, &amp, &f);
+        double r = (rest > 0.0 ? rest : 0.0) + slack;
+        double d0 = noise_density(n, s, sum - r) * scale, d1 = noise_density(n, s, sum + r) * scale;
+        if (thr < (d0 < d1 ? d0 : d1)) return 1;   /* (no NaN here: noise_density gives 0 for one) */
+        if (!(thr < (d0 < d1 ? d1 : d0))) return 0;
+    }
+    if (n->octaves > 0) fbm_step(n, q, &sum, &amp, &f);
+    return thr < noise_density(n, s, sum) * scale;
+}
+
+int rd_medium_sigma_above(const rd_medium *m, vec3 x, double scale, double thr)
+{
+    if (m->kind == RD_DENSITY_NOISE && !outside_bounds(m, x)) return noise_sigma_above(m, x, scale, thr);
+    return thr < rd_medium_density(m, x) * scale;
+}

@@ -30,12 +30,17 @@ const char *rd_tr_name(rd_tr_kind k)
 }
 
 static double medium_density_cb(const void *ctx, vec3 x) { return rd_medium_density(ctx, x); }
+static int medium_above_cb(const void *ctx, vec3 x, double scale, double thr)
+{
+    return rd_medium_sigma_above(ctx, x, scale, thr);
+}
 
 rd_fp_medium rd_fp_view(const rd_medium *m)
 {
     rd_fp_medium v;
     memset(&v, 0, sizeof v);
     v.density = medium_density_cb;
+    v.above = medium_above_cb;
     v.ctx = m;
     v.sigma_t_scale = m->sigma_t_scale;
     v.sigma_global = m->sigma_maj;
@@ -52,6 +57,15 @@ static inline double sigma_at(const rd_fp_medium *fm, ray3 r, double t, rd_track
 {
     c->lookups++;
     return fm->density(fm->ctx, ray_at(r, t)) * fm->sigma_t_scale;
+}
+
+/* thr < sigma_t at ray_at(r, t), decided by the medium's early-exit test when it has one (one
+ * lookup either way). */
+static inline int sigma_above(const rd_fp_medium *fm, ray3 r, double t, double thr, rd_track_counters *c)
+{
+    if (!fm->above) return thr < sigma_at(fm, r, t, c);
+    c->lookups++;
+    return fm->above(fm->ctx, ray_at(r, t), fm->sigma_t_scale, thr);
 }
 
 static double default_step(const rd_fp_params *p, const rd_fp_medium *fm)
@@ -82,7 +96,8 @@ static inline int walk(const rd_fp_medium *fm, const rd_majorant *maj, ray3 r, d
     while (go_on && rd_majorant_next(&it, &g)) {
         if (fm->segments) (*fm->segments)++;
         if (!(g.t1 > g.t0)) continue;
-        for (int d = 0; d < 4; d++) g.c[d] *= b;
+        if (b != 1.0) /* (multiplying by 1 changes nothing: skipped) */
+            for (int d = 0; d < 4; d++) g.c[d] *= b;
         double sc = residual ? fmax(0.0, fmin(g.sigma_min, g.cubic ? INFINITY : g.c[0])) : 0.0;
         g.c[0] -= sc;
         pt.sigma_c = sc;
@@ -130,7 +145,9 @@ typedef struct {
 static int on_analog(void *user, const rd_walk_point *pt)
 {
     track_state *ts = user;
-    if (pcg32_uniform(ts->rng) * pt->mu < sigma_at(ts->fm, ts->r, pt->t, ts->c)) {
+    /* Only the comparison is needed, not sigma_t itself: noise media answer it from the first
+     * octaves when those decide it (rd_medium_sigma_above), with the same answer. */
+    if (sigma_above(ts->fm, ts->r, pt->t, pcg32_uniform(ts->rng) * pt->mu, ts->c)) {
         ts->ev.hit = 1;
         ts->ev.t = pt->t;
         return 0;

@@ -199,6 +199,9 @@ const char *rd_tr_name(rd_tr_kind k);
 /* A medium as the trackers see it: density callback, scale, majorants. Built per call. */
 typedef struct {
     double (*density)(const void *ctx, vec3 x); /* density (not yet scaled) */
+    /* optional (NULL: compare with density): thr < density(x) * scale, the same answer as the
+     * full evaluation, perhaps from less work (rd_medium_sigma_above) */
+    int (*above)(const void *ctx, vec3 x, double scale, double thr);
     const void *ctx;
     double sigma_t_scale;
     double sigma_global;      /* global majorant (1/m), read at track time */
