@@ -75,6 +75,9 @@ static uint64_t reference_key(const rd_scene *s, int spp, double time_cap, uint6
     h = fnv1a(h, &s->settings.tracker, sizeof s->settings.tracker);
     h = fnv1a(h, &s->settings.transmittance, sizeof s->settings.transmittance);
     h = hash_d(hash_d(hash_d(h, s->settings.track_b), s->settings.track_m), s->settings.track_step);
+    /* delta's strategies change the reference's noise, not its expectation; keyed all the same */
+    h = fnv1a(h, &s->settings.equiangular, sizeof s->settings.equiangular);
+    h = hash_d(h, s->settings.thin_bias);
     return h;
 }
 

@@ -235,7 +235,8 @@ static uint64_t bake_key(const cJSON *root, const rd_scene *s)
     for (int i = 0; cJSON_IsObject(gd) && guide_render_only[i]; i++)
         cJSON_DeleteItemFromObjectCaseSensitive(gd, guide_render_only[i]);
     cJSON *set = cJSON_GetObjectItemCaseSensitive(copy, "settings");
-    static const char *const render_only[] = {"spp", "time", "seed", "method", "max_depth", "rr_depth", NULL};
+    static const char *const render_only[] = {"spp", "time", "seed", "method", "max_depth", "rr_depth",
+                                              "equiangular", "thin_bias", NULL};
     for (int i = 0; set && render_only[i]; i++) cJSON_DeleteItemFromObjectCaseSensitive(set, render_only[i]);
     char *text = cJSON_PrintUnformatted(copy);
     cJSON_Delete(copy);

@@ -10,6 +10,33 @@
 #include <string.h>
 
 /* ---- settings ------------------------------------------------------------------------------ */
+
+/* `delta`'s thin-media strategies (docs/free-path.md): settings.equiangular is true, false or
+ * "camera"; settings.thin_bias is false or a number in (0, 1) (1 would never pass: biased wherever a
+ * pass-through is worth something), and needs an analog delta tracker
+ * (it replaces the tracker's flight: weighted trackers bring weights of their own). */
+static rd_status parse_strategies(ld_ctx *c, const cJSON *j, rd_settings *s)
+{
+    const cJSON *e = cJSON_GetObjectItemCaseSensitive(j, "equiangular");
+    if (e) {
+        if (cJSON_IsBool(e)) s->equiangular = cJSON_IsTrue(e) ? RD_EQ_ALL : RD_EQ_OFF;
+        else if (cJSON_IsString(e) && strcmp(e->valuestring, "camera") == 0) s->equiangular = RD_EQ_CAMERA;
+        else if (cJSON_IsString(e))
+            return ld_fail(c, "settings.equiangular", "expected true, false or \"camera\", found \"%s\"", e->valuestring);
+        else return ld_fail(c, "settings.equiangular", "expected true, false or \"camera\", found %s", ld_type_name(e));
+    }
+    const cJSON *b = cJSON_GetObjectItemCaseSensitive(j, "thin_bias");
+    if (b) {
+        if (cJSON_IsFalse(b)) s->thin_bias = 0.0;
+        else if (!cJSON_IsNumber(b)) return ld_fail(c, "settings.thin_bias", "expected false or a number in (0, 1), found %s", ld_type_name(b));
+        else if (!(b->valuedouble > 0.0 && b->valuedouble < 1.0))
+            return ld_fail(c, "settings.thin_bias", "expected false or a number in (0, 1), found %g", b->valuedouble);
+        else s->thin_bias = b->valuedouble;
+        if (s->thin_bias > 0.0 && s->tracker != RD_FP_AUTO && s->tracker != RD_FP_SUPERVOXEL && s->tracker != RD_FP_WOODCOCK)
+            return ld_fail(c, "settings.thin_bias", "only with \"tracker\": \"auto\", \"supervoxel\" or \"woodcock\" (it replaces the tracker's flight)");
+    }
+    return RD_OK;
+}
 rd_status ld_parse_settings(ld_ctx *c, const cJSON *j, rd_settings *s)
 {
     s->spp = 16;
@@ -23,11 +50,14 @@ rd_status ld_parse_settings(ld_ctx *c, const cJSON *j, rd_settings *s)
     s->track_b = 1.0;
     s->track_m = 1.0;
     s->track_step = 0.0;
+    s->equiangular = RD_EQ_OFF;
+    s->thin_bias = 0.0;
     if (!j) return RD_OK;
     const char *path = "settings";
     LD_TRY(ld_need_object(c, j, path));
     static const char *const keys[] = {"spp", "time", "seed", "max_depth", "rr_depth", "method",
-                                       "tracker", "transmittance", "b", "m", "step", NULL};
+                                       "tracker", "transmittance", "b", "m", "step", "equiangular", "thin_bias",
+                                       NULL};
     LD_TRY(ld_check_keys(c, j, path, keys));
     long long v;
     LD_TRY(ld_get_int(c, j, path, "spp", 0, 16, 1, 1 << 24, &v));
@@ -64,6 +94,7 @@ rd_status ld_parse_settings(ld_ctx *c, const cJSON *j, rd_settings *s)
     if (cJSON_GetObjectItemCaseSensitive(j, "step") && s->tracker != RD_FP_RAYMARCH &&
         s->transmittance != RD_TR_RAYMARCH)
         return ld_fail(c, "settings.step", "only with \"tracker\" or \"transmittance\": \"raymarch\"");
+    LD_TRY(parse_strategies(c, j, s));
     return RD_OK;
 }
 

@@ -117,6 +117,62 @@ double rd_light_pdf(const rd_light *l, vec3 x, vec3 w)
     return 1.0 / (2.0 * M_PI * cone_one_minus_cos(r2, dc2, &sin2_max));
 }
 
+/* The spot's cone along a line: x(t) = o + t d is lit when f(t) = a.(x - p) > c |x - p|, a the
+ * axis, p the apex, c = cos_outer >= 0. Squaring, f^2 - c^2 |x - p|^2 = A t^2 + B t + C with
+ *   A = (a.d)^2 - c^2,  B = 2 ((a.d)(a.q) - c^2 (d.q)),  C = (a.q)^2 - c^2 q.q,  q = o - p,
+ * whose roots and the root of f (the apex plane) split the line into pieces on which the
+ * condition is constant: each piece is tested at its midpoint with the unsquared condition,
+ * and the lit pieces (one interval: the cone is convex) are kept. */
+int rd_light_lit_range(const rd_light *l, ray3 r, double *t0, double *t1)
+{
+    if (!(*t1 > *t0)) return 0;
+    if (l->kind != RD_LIGHT_SPOT) return 1;
+    vec3 q = v3_sub(r.o, l->pos), a = l->dir;
+    double c = fmax(0.0, l->cos_outer), ad = v3_dot(a, r.d), aq = v3_dot(a, q);
+    double A = ad * ad - c * c, B = 2.0 * (ad * aq - c * c * v3_dot(r.d, q)), C = aq * aq - c * c * v3_dot(q, q);
+    double cut[5];
+    int n = 0;
+    cut[n++] = *t0;
+    double scale = fmax(fabs(A), fmax(fabs(B), fabs(C)));
+    if (fabs(A) > 1e-12 * scale) {
+        double disc = B * B - 4.0 * A * C;
+        if (disc >= 0.0) {
+            /* the stable pair of roots (Numerical Recipes §5.6) */
+            double sq = sqrt(disc), k = -0.5 * (B + (B >= 0.0 ? sq : -sq));
+            if (k != 0.0) cut[n++] = k / A, cut[n++] = C / k;
+            else cut[n++] = 0.0;
+        }
+    } else if (B != 0.0) {
+        cut[n++] = -C / B;
+    }
+    if (ad != 0.0) cut[n++] = -aq / ad;
+    /* sort the cuts, keep those inside (t0, t1), close with t1 */
+    for (int i = 1; i < n; i++)
+        for (int k = i; k > 0 && cut[k - 1] > cut[k]; k--) {
+            double tmp = cut[k];
+            cut[k] = cut[k - 1];
+            cut[k - 1] = tmp;
+        }
+    double lo = INFINITY, hi = -INFINITY, prev = *t0;
+    for (int i = 0; i <= n; i++) {
+        double next = i < n ? cut[i] : *t1;
+        if (!(next > prev)) continue;
+        if (next > *t1) next = *t1;
+        double m = 0.5 * (prev + next);
+        vec3 x = v3_add(q, v3_scale(r.d, m));
+        if (v3_dot(a, x) > c * v3_len(x)) {
+            lo = fmin(lo, prev);
+            hi = fmax(hi, next);
+        }
+        prev = next;
+        if (prev >= *t1) break;
+    }
+    if (!(hi > lo)) return 0;
+    *t0 = lo;
+    *t1 = hi;
+    return 1;
+}
+
 /* Distance to the sphere light along a ray, for paths that hit it. */
 double rd_light_hit(const rd_light *l, ray3 r)
 {

@@ -25,7 +25,15 @@ typedef struct {
     /* Free-path engine (rd_freepath.h): rd_fp_kind / rd_tr_kind values and their parameters. */
     int tracker, transmittance;
     double track_b, track_m, track_step;
+    /* `delta`'s strategies for thin media and small lights (docs/free-path.md "Equiangular
+     * sampling" and "Thin-media probability biasing"): */
+    int equiangular;     /* rd_equiangular_mode: an equiangular distance sample toward a point
+                          * or spot light per flight, MIS with delta tracking's collision */
+    double thin_bias;    /* 0: off; in (0, 1): the least probability that a flight of `delta`
+                          * has a tentative collision (flights whose pass-through is worth
+                          * exactly 0 are forced: 1) */
 } rd_settings;
+typedef enum { RD_EQ_OFF, RD_EQ_ALL, RD_EQ_CAMERA } rd_equiangular_mode;
 
 /* Photon tracing settings (scene key "photons", docs/scene-format.md). */
 typedef struct {

@@ -80,15 +80,32 @@ static vec3 nee_light(const rd_scene *s, int i, double pick_pmf, const nee_site 
     return v3_scale(v3_mul(ls.contrib, f), p * T * w / (pick_pmf > 0.0 ? pick_pmf : 1.0));
 }
 
-static vec3 nee_one(const rd_scene *s, const nee_site *v, pcg32 *rng, rd_track_counters *c)
+static vec3 nee_one(const rd_scene *s, const nee_site *v, pcg32 *rng, rd_track_counters *c,
+                    int *light)
 {
     double pmf;
     int i = rd_light_sampler_pick(&s->light_sampler, pcg32_uniform(rng), &pmf);
     if (i < 0 || !(pmf > 0.0)) {
         pcg32_uniform(rng), pcg32_uniform(rng); /* keep the stream's use fixed */
+        if (light) *light = -1;
         return v3(0, 0, 0);
     }
+    if (light) *light = i;
     return nee_light(s, i, pmf, v, rng, c);
+}
+
+vec3 rd_nee_pick(const rd_scene *s, int region, vec3 x, vec3 d, double g, pcg32 *rng,
+                 rd_track_counters *c, int *light)
+{
+    nee_site v = {.x = x, .d = d, .region = region, .g = g, .mx = NULL, .surf = NULL};
+    return nee_one(s, &v, rng, c, light);
+}
+
+vec3 rd_nee_light(const rd_scene *s, int region, vec3 x, vec3 d, double g, int i, pcg32 *rng,
+                  rd_track_counters *c)
+{
+    nee_site v = {.x = x, .d = d, .region = region, .g = g, .mx = NULL, .surf = NULL};
+    return nee_light(s, i, 0.0, &v, rng, c);
 }
 
 vec3 rd_nee(const rd_scene *s, int region, vec3 x, vec3 d, double g, pcg32 *rng,
@@ -101,7 +118,7 @@ vec3 rd_nee_mix(const rd_scene *s, int region, vec3 x, vec3 d, double g, const r
                 pcg32 *rng, rd_track_counters *c)
 {
     nee_site v = {.x = x, .d = d, .region = region, .g = g, .mx = mx, .surf = NULL};
-    return nee_one(s, &v, rng, c);
+    return nee_one(s, &v, rng, c, NULL);
 }
 
 vec3 rd_nee_surface(const rd_scene *s, const rd_hit *h, vec3 d, pcg32 *rng,
@@ -109,7 +126,7 @@ vec3 rd_nee_surface(const rd_scene *s, const rd_hit *h, vec3 d, pcg32 *rng,
 {
     /* The light is looked for on the side d arrived from (a diffuse surface is opaque). */
     nee_site v = {.x = h->p, .d = d, .region = h->medium_from, .g = 0.0, .mx = NULL, .surf = h};
-    return nee_one(s, &v, rng, c);
+    return nee_one(s, &v, rng, c, NULL);
 }
 
 vec3 rd_nee_all(const rd_scene *s, int region, vec3 x, vec3 d, double g, pcg32 *rng,

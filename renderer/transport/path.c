@@ -54,11 +54,32 @@ rd_flight rd_flight_delta(const rd_scene *s, const rd_flight_in *in, pcg32 *rng,
     return f;
 }
 
+double rd_thin_bias_q(const rd_scene *s, const rd_flight_in *in)
+{
+    if (!(s->settings.thin_bias > 0.0)) return 0.0;
+    if (in->hit_shape < 0) {
+        vec3 b = rd_flight_behind(s, in);
+        if (b.x == 0.0 && b.y == 0.0 && b.z == 0.0) return 1.0;
+    }
+    return s->settings.thin_bias;
+}
+
+/* `delta`'s flight: delta tracking, or with settings.thin_bias its biased form (tracking.c
+ * derives the weights; the vertex weight is the albedo times the chain's weight W, as for
+ * the weighted trackers). */
 static rd_flight delta_flight(const rd_flight_sampler *fs, const rd_scene *s,
                               const rd_flight_in *in, pcg32 *rng, rd_track_counters *c)
 {
     (void)fs;
-    return rd_flight_delta(s, in, rng, c);
+    double q = rd_thin_bias_q(s, in);
+    if (!(q > 0.0)) return rd_flight_delta(s, in, rng, c);
+    rd_collision col = rd_sample_free_path_thin(s, in->region, in->r, in->t_light, q, rng, c);
+    rd_flight f;
+    f.kind = col.hit ? RD_FLIGHT_SCATTER : RD_FLIGHT_PASS;
+    f.t = col.t;
+    f.medium = col.medium;
+    f.weight = col.hit ? v3_scale(col.medium->albedo, col.weight) : v3(col.weight, col.weight, col.weight);
+    return f;
 }
 
 int rd_surface_event(const rd_scene *s, const rd_hit *h, int depth, rd_surface_step *st,
@@ -144,6 +165,16 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
             in.hit_shape = hit.shape;
         }
         rd_flight f = fs->sample(fs, s, &in, rng, c);
+        /* settings.equiangular: `delta`'s second strategy for the single scattering from point
+         * and spot lights along this flight (transport/equiangular.c), with the throughput up
+         * to the flight; the collision's next-event estimate below takes the other weight. */
+        int eq = 0;
+        rd_eq_flight ef;
+        if (fs->delta && s->settings.equiangular != RD_EQ_OFF && depth + 1 <= s->settings.max_depth &&
+            (s->settings.equiangular == RD_EQ_ALL || depth == 0)) {
+            eq = rd_eq_flight_init(s, r, region, in.t_light, rd_thin_bias_q(s, &in), &ef);
+            if (eq) L = v3_add(L, v3_mul(beta, rd_eq_nee(s, &ef, rng, c)));
+        }
         if (f.kind == RD_FLIGHT_END) break;
         beta = v3_mul(beta, f.weight);
         if (f.kind == RD_FLIGHT_PASS && in.hit_shape < 0) {
@@ -205,7 +236,13 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
             r.d = wo;
             continue;
         }
-        L = v3_add(L, v3_mul(beta, rd_nee(s, region, x, r.d, m->g, rng, c)));
+        if (eq) {
+            int j;
+            vec3 Ln = rd_nee_pick(s, region, x, r.d, m->g, rng, c, &j);
+            L = v3_add(L, v3_mul(beta, v3_scale(Ln, rd_eq_weight(s, &ef, f.t, j))));
+        } else {
+            L = v3_add(L, v3_mul(beta, rd_nee(s, region, x, r.d, m->g, rng, c)));
+        }
 
         /* Russian roulette on the throughput. Weighted trackers with non-bounding majorants
          * can make weights negative: survive with the largest magnitude, not the largest value. */
@@ -235,14 +272,14 @@ vec3 rd_path_radiance(const rd_scene *s, ray3 r, const rd_flight_sampler *fs, pc
 vec3 rd_delta_continue(const rd_scene *s, ray3 r, int region, double pdf, int depth,
                        int camera_chain, pcg32 *rng, rd_track_counters *c)
 {
-    const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL};
+    const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL, .delta = 1};
     int budget = 0;
     return trace(s, r, region, pdf, depth, camera_chain, &fs, rng, c, &budget);
 }
 
 vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c)
 {
-    const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL};
+    const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL, .delta = 1};
     return rd_path_radiance(s, r, &fs, rng, c);
 }
 

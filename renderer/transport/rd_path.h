@@ -12,7 +12,9 @@ extern "C" {
 
 /* Radiance arriving at the camera along r with the `delta` method: unbiased volumetric path
  * tracing (delta tracking, next-event estimation with ratio tracking, HG sampling, Russian
- * roulette, multiple importance sampling for area and environment lights). */
+ * roulette, multiple importance sampling for area and environment lights), with the scene's
+ * settings.equiangular (an equiangular sample toward a point or spot light per flight, MIS with
+ * the collision's next-event estimate) and settings.thin_bias (rd_sample_free_path_thin). */
 vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c);
 
 /* ---- The unbiased path loop and its free-flight samplers (transport/path.c) ------------- *
@@ -73,6 +75,9 @@ typedef struct rd_flight_sampler {
     void (*vertex)(const struct rd_flight_sampler *fs, const rd_scene *s, const rd_vertex_in *v,
                    pcg32 *rng, rd_vertex_out *out);
     void *user;               /* the sampler's own (per call of the path loop) */
+    int delta;                /* 1: the flights are `delta`'s (delta tracking, with
+                               * settings.thin_bias), so the loop may add settings.equiangular's
+                               * strategy, whose MIS weights assume delta tracking's density */
 } rd_flight_sampler;
 /* Extra copies splitting may add to one camera sample's path tree (a bound on its cost). */
 #define RD_SPLIT_BUDGET 32
@@ -107,6 +112,11 @@ vec3 rd_delta_continue(const rd_scene *s, ray3 r, int region, double pdf, int de
 /* Delta tracking's flight (rd_sample_free_path with the scene's tracker). */
 rd_flight rd_flight_delta(const rd_scene *s, const rd_flight_in *in, pcg32 *rng,
                           rd_track_counters *c);
+/* The thin-media bias q of `delta`'s flight `in` (rd_sample_free_path_thin): 0 with
+ * settings.thin_bias off; 1 (a forced collision) when a pass-through is worth exactly 0 (no
+ * surface ends the flight and rd_flight_behind is 0: nothing is lost by never passing); else
+ * settings.thin_bias. */
+double rd_thin_bias_q(const rd_scene *s, const rd_flight_in *in);
 /* Radiance a pass-through receives: the hit sphere light or the environment, MIS-weighted
  * against the light sampling of rd_nee when in->phase_pdf > 0, plus the background for a
  * camera chain that hits no light; 0 when the flight ends at a surface (in->hit_shape >= 0:

@@ -1,7 +1,8 @@
 /* rd_transport.h: carrying light through the scene, the pieces every method shares: free
- * flights and transmittance across the scene's regions and surfaces (transport/tracking.c),
- * next-event estimation with MIS (transport/nee.c) and the scattering-direction mixture
- * (transport/directions.c). Internal to renderer/ (tests include it). */
+ * flights and transmittance across the scene's regions and surfaces (transport/tracking.c, with
+ * thin-media probability biasing), next-event estimation with MIS (transport/nee.c), the
+ * scattering-direction mixture (transport/directions.c) and equiangular sampling toward point
+ * and spot lights (transport/equiangular.c). Internal to renderer/ (tests include it). */
 #ifndef RD_TRANSPORT_H
 #define RD_TRANSPORT_H
 
@@ -27,6 +28,19 @@ int rd_media_intervals(const rd_scene *s, int region, ray3 r, double tmin, doubl
  * weight (1 except for the weighted trackers). */
 rd_collision rd_sample_free_path(const rd_scene *s, int region, ray3 r, double tmax, pcg32 *rng,
                                  rd_track_counters *c);
+
+/* Thin-media probability biasing of delta tracking (Villemin, Wrenninge & Fong 2018; derived in
+ * transport/tracking.c and docs/free-path.md): the flight of rd_sample_free_path (analog delta
+ * tracking over the media's majorants) with the probability that a tentative collision falls in
+ * what is left of the flight raised to at least q (0 < q <= 1; 1 forces one), the outcomes
+ * reweighted by true / biased probability in the returned weight. Unbiased for any q. */
+rd_collision rd_sample_free_path_thin(const rd_scene *s, int region, ray3 r, double tmax, double q,
+                                      pcg32 *rng, rd_track_counters *c);
+/* Majorant optical depth along r from the first interval's start to t (t = INFINITY: all of
+ * them) over the intervals iv[0..n) of rd_media_intervals, each medium's majorant structure
+ * (`global`: its global majorant). *sigma (may be NULL) gets sigma_maj at t, 0 outside the
+ * intervals. Deterministic: no random numbers. */
+double rd_majorant_depth(const rd_interval *iv, int n, ray3 r, double t, int global, double *sigma);
 
 /* Transmittance estimate along r over [t0, t1] within `region` (no surface in between: the
  * caller clips; rd_shadow_transmittance crosses surfaces) with the estimator of
@@ -79,6 +93,55 @@ vec3 rd_nee_mix(const rd_scene *s, int region, vec3 x, vec3 d, double g, const r
  * BSDF sampling. Multiply by the path weight. */
 vec3 rd_nee_surface(const rd_scene *s, const rd_hit *h, vec3 d, pcg32 *rng,
                     rd_track_counters *c);
+
+/* rd_nee that also reports the light it chose (*light; -1 for none), for a MIS weight the
+ * caller applies (same random numbers as rd_nee). */
+vec3 rd_nee_pick(const rd_scene *s, int region, vec3 x, vec3 d, double g, pcg32 *rng,
+                 rd_track_counters *c, int *light);
+/* One sample of light i from medium point x (phase g toward it, unbiased shadow
+ * transmittance), neither divided by a choice probability nor MIS-weighted: for a point or spot
+ * light, the direct radiance p I f / r^2 T scattered toward -d. */
+vec3 rd_nee_light(const rd_scene *s, int region, vec3 x, vec3 d, double g, int i, pcg32 *rng,
+                  rd_track_counters *c);
+
+/* ---- Equiangular sampling (Kulla & Fajardo 2012; transport/equiangular.c) ----------------- *
+ * Distances t in [a, b] along r (r.d unit) toward a point c, with density proportional to
+ * 1 / |x(t) - c|^2: with Delta = (c - o).d and D the distance from c to the line,
+ * theta(t) = atan((t - Delta) / D) is uniform:
+ *     t = Delta + D tan(theta_a + u (theta_b - theta_a)),
+ *     pdf(t) = D / ((theta_b - theta_a) (D^2 + (t - Delta)^2)).                              */
+typedef struct {
+    double a, b, delta, D, th_a, th_b;
+} rd_equiangular;
+/* Returns 0 when [a, b] is empty or not finite. D is held above a tiny floor (a light on the
+ * line itself has an infinite integrand there anyway). */
+int rd_equiangular_init(rd_equiangular *eq, vec3 c, ray3 r, double a, double b);
+double rd_equiangular_sample(const rd_equiangular *eq, double u, double *pdf);
+double rd_equiangular_pdf(const rd_equiangular *eq, double t); /* 0 outside [a, b] */
+
+/* `delta`'s equiangular strategy for one flight (settings.equiangular): the flight's media
+ * intervals, the choice probabilities of the point and spot lights, and the scale of the
+ * majorant density standing for delta tracking's collision density in the MIS weights (the
+ * derivation is in transport/equiangular.c and docs/free-path.md). */
+typedef struct {
+    ray3 r;
+    int region;
+    rd_interval iv[RD_MAX_INTERVALS];
+    int n;
+    double ps_pmf;   /* sum of rd_nee's choice probabilities over the point and spot lights */
+    double dscale;   /* the tracking pdf's proxy is dscale sigma_maj(t) T_maj(0,t) */
+} rd_eq_flight;
+/* Set up the flight along r in `region` over [0, t_light] whose delta tracking runs with thin
+ * bias q (0: none; rd_sample_free_path_thin). Returns 0 when there is nothing to sample (no
+ * medium on the way, no point or spot light). */
+int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, double q,
+                      rd_eq_flight *ef);
+/* The equiangular strategy's MIS-weighted estimate of the single scattering from point and spot
+ * lights along the flight, for unit throughput. */
+vec3 rd_eq_nee(const rd_scene *s, const rd_eq_flight *ef, pcg32 *rng, rd_track_counters *c);
+/* The MIS weight of next-event estimation toward light `light` at delta tracking's collision
+ * at distance t of the flight (1 for a light that equiangular sampling never chooses). */
+double rd_eq_weight(const rd_scene *s, const rd_eq_flight *ef, double t, int light);
 
 /* Direct light at x with no path to share it with (the ray marchers): one sample of every
  * light, summed, no MIS weight (nothing else estimates the direct part, so a weight < 1 would

@@ -131,3 +131,127 @@ double rd_shadow_transmittance(const rd_scene *s, int region, ray3 r, double dis
     }
     return T;
 }
+
+/* ---- The majorant along a flight, across its media ------------------------------------------- */
+
+/* Iterator over the majorant segments of every interval of a flight, in order (each medium's
+ * structure, or its global majorant when `global`). */
+typedef struct {
+    const rd_interval *iv;
+    int n, i, started, global;
+    ray3 r;
+    rd_maj_iter it;
+} flight_iter;
+
+static int flight_next(flight_iter *k, rd_maj_seg *g)
+{
+    while (k->i < k->n) {
+        if (!k->started) {
+            const rd_medium *m = k->iv[k->i].m;
+            double smin = fmin(m->density_min * m->sigma_t_scale, m->sigma_maj);
+            k->it = rd_majorant_iter(k->global ? NULL : m->majorant, k->r, k->iv[k->i].t0, k->iv[k->i].t1,
+                                     m->sigma_maj, smin);
+            k->started = 1;
+        }
+        while (rd_majorant_next(&k->it, g))
+            if (g->t1 > g->t0) return 1;
+        k->i++;
+        k->started = 0;
+    }
+    return 0;
+}
+
+double rd_majorant_depth(const rd_interval *iv, int n, ray3 r, double t, int global, double *sigma)
+{
+    flight_iter k = {iv, n, 0, 0, global, r, {0}};
+    rd_maj_seg g;
+    double tau = 0.0;
+    if (sigma) *sigma = 0.0;
+    while (flight_next(&k, &g)) {
+        if (g.t0 >= t) break;
+        if (t <= g.t1) {
+            double s = (t - g.t0) / (g.t1 - g.t0);
+            tau += rd_seg_tau(&g, 0.0, s);
+            if (sigma) *sigma = fmax(0.0, rd_seg_sigma(&g, s));
+            break;
+        }
+        tau += rd_seg_tau(&g, 0.0, 1.0);
+    }
+    return tau;
+}
+
+/* Thin-media probability biasing (Villemin, Wrenninge & Fong, JCGT 7(3) 2018, "probability
+ * biasing", in the form derived here for delta tracking over majorant segments).
+ *
+ * Delta tracking is a Markov chain over tentative collisions: from distance t_k with majorant
+ * optical depth tau_k left in the flight, the next tentative collision falls inside the flight
+ * with probability P_k = 1 - exp(-tau_k), at majorant depth tau* from t_k with the truncated
+ * exponential density exp(-tau*) / P_k on [0, tau_k]; otherwise the flight passes. A tentative
+ * collision at t is real with probability sigma_t(t) / sigma_maj(t) (the path scatters), else
+ * null (the chain goes on from t).
+ *
+ * The biased chain changes only the first of these choices: inside with P'_k = max(P_k, q),
+ * passing with 1 - P'_k, the conditional density of tau* and the real/null choice unchanged.
+ * Every sampled history keeps its probability under the true chain up to the factors changed,
+ * so the importance weight of a history is the product of true over biased probability of the
+ * choices it made:
+ *     inside: P_k / P'_k (<= 1),        pass: (1 - P_k) / (1 - P'_k) = T_maj(t_k, end) / (1 - P'_k),
+ * and E'[W F] = E[F] for any quantity F the path computes from the history: unbiased for any
+ * q in (0, 1] wherever P'_k < 1 or the pass is worth nothing (q = 1 forces a collision: the
+ * caller gives 1 only when a pass-through contributes exactly 0). When P_k >= q (a thick
+ * flight) the step is delta tracking's own, weight 1. Every weight is <= 1 but the pass's,
+ * which is <= 1 / (1 - q): the thin flight's light gets q / P_k times as many samples as delta
+ * tracking gives it, and what lies behind pays at most 1 / (1 - q) in weight. Biasing the
+ * rest of the flight again after each null collision keeps the boost when the majorant is
+ * loose (a null first collision would otherwise fall back to delta tracking's odds). */
+rd_collision rd_sample_free_path_thin(const rd_scene *s, int region, ray3 r, double tmax, double q,
+                                      pcg32 *rng, rd_track_counters *c)
+{
+    interval iv[MAX_IV];
+    int n = rd_media_intervals(s, region, r, 0.0, tmax, iv);
+    rd_collision col = {0, tmax, NULL, 1.0};
+    if (n == 0) return col;
+    int global = s->settings.tracker == RD_FP_WOODCOCK;
+    double tau_left = rd_majorant_depth(iv, n, r, INFINITY, global, NULL);
+    flight_iter k = {iv, n, 0, 0, global, r, {0}};
+    rd_maj_seg g;
+    int have = 0;
+    double s0 = 0.0;
+    for (;;) {
+        double P = -expm1(-tau_left);
+        if (!(P > 0.0)) return col; /* nothing left to collide with: pass, weight unchanged */
+        double Pb = fmax(P, q);
+        if (pcg32_uniform(rng) >= Pb) { /* pass (never when Pb = 1) */
+            col.weight *= exp(-tau_left) / (1.0 - Pb);
+            return col;
+        }
+        col.weight *= P / Pb;
+        /* tau* from exp(-tau) / P on [0, tau_left] by inversion: 1 - exp(-tau*) = u P */
+        double tau = -log1p(-pcg32_uniform(rng) * P);
+        tau_left -= tau;
+        /* walk the majorant segments forward to depth tau* */
+        for (;;) {
+            if (!have) {
+                if (!flight_next(&k, &g)) return col; /* round-off at the very end: pass */
+                have = 1;
+                s0 = 0.0;
+            }
+            double rest = rd_seg_tau(&g, s0, 1.0);
+            if (rest > tau) break;
+            tau -= rest;
+            have = 0;
+        }
+        double sn = rd_seg_solve(&g, s0, tau);
+        s0 = sn;
+        double t = g.t0 + sn * (g.t1 - g.t0), smaj = rd_seg_sigma(&g, sn);
+        const rd_medium *m = iv[k.i].m;
+        c->collisions++;
+        c->lookups++;
+        if (pcg32_uniform(rng) * smaj < rd_medium_sigma_t(m, ray_at(r, t))) {
+            col.hit = 1;
+            col.t = t;
+            col.medium = m;
+            return col;
+        }
+    }
+}

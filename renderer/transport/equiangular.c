@@ -1,0 +1,168 @@
+/* equiangular.c: `delta`'s equiangular strategy for single scattering from point and spot
+ * lights (Kulla & Fajardo 2012, "Importance Sampling Techniques for Path Tracing in
+ * Participating Media"; THEORY.md §8), combined with the next-event estimation at delta
+ * tracking's collisions by multiple importance sampling, as Cycles and Arnold combine it with
+ * their distance sampling. settings.equiangular; docs/free-path.md has the same derivation.
+ *
+ * The integrand. Along a flight x(t) = o + t d, t in [0, t_end] (one region, no surface in
+ * between), the light of point or spot light j scattered once toward -d is
+ *     I_j = integral T(0,t) sigma_s(t) L_j(t) dt,   L_j(t) = p(d . w_j) I_j f_j / r_j^2 T(x(t), j),
+ * and the path loop's estimate of the flight's direct light is the sum over the lights.
+ *
+ * Strategy d (delta tracking, what `delta` always did): the collision t has density
+ * sigma_t(t) T(0,t) (any tracker of rd_sample_free_path; weighted ones and thin bias carry a
+ * weight W with E[W g(t)] = integral sigma_t T g for every g); next-event estimation there
+ * chooses light j with probability P_j (rd_nee, by power) and returns L_j / P_j; the flight
+ * weight holds the albedo sigma_s / sigma_t. So E[albedo W L_j / P_j w_d(t,j) 1{j chosen}] =
+ * integral T sigma_s L_j w_d(t,j) dt.
+ *
+ * Strategy e (equiangular, added): choose one point or spot light j with probability
+ * Q_j = P_j / sum_{point, spot} P_k, draw t from the equiangular pdf e_j(t) over the media of
+ * the flight (the span from the first medium's entry to the last one's exit, cut to the spot's
+ * cone: rd_light_lit_range), and return
+ *     sigma_s(t) T^(0,t) L^_j(t) w_e(t,j) / (Q_j e_j(t)),
+ * T^ an unbiased transmittance estimate (rd_transmittance: ratio or residual ratio tracking,
+ * or the closed form) and L^_j next-event estimation toward j (unbiased shadow transmittance),
+ * independent of each other given t. Its expectation is integral T sigma_s L_j w_e(t,j) dt.
+ *
+ * The sum of both is unbiased for every I_j whenever w_d(t,j) + w_e(t,j) = 1 at every t and j:
+ * the weights need not be the balance or power heuristic of the true densities, only
+ * deterministic functions of (flight, t, j) that sum to one (Veach 1997, §9.2.2). Delta
+ * tracking's true density sigma_t(t) T(0,t) is not known in a heterogeneous medium, and putting
+ * an estimate T^ into a weight would make the weight random and correlated with the estimate
+ * it weights: biased (a ratio of unbiased estimates is not unbiased). So the weights use a
+ * stand-in that is known exactly: the majorant's density
+ *     m(t) = s_d sigma_maj(t) T_maj(0,t),
+ * the density of delta tracking's first tentative collision, which is its collision density
+ * where the majorant is tight (and exactly sigma_t T in a homogeneous medium). s_d = P'/P, the
+ * thin-bias boost of the first tentative collision (rd_sample_free_path_thin), else 1. Then
+ *     w_e(t,j) = (Q_j e_j(t))^2 / ((Q_j e_j(t))^2 + (P_j m(t))^2),   w_d = 1 - w_e
+ * (the power heuristic, beta = 2). Both are > 0 only where their strategy can sample: e_j > 0
+ * only on the cut span, and where e_j = 0, w_d = 1; m > 0 wherever sigma_t can be > 0. A
+ * stand-in that is wrong costs variance, never bias. Lights that equiangular sampling never
+ * chooses keep w_d = 1. */
+#include "transport/rd_transport.h"
+
+/* ---- The sampler ------------------------------------------------------------------------ */
+
+int rd_equiangular_init(rd_equiangular *eq, vec3 c, ray3 r, double a, double b)
+{
+    if (!(b > a) || !isfinite(a) || !isfinite(b)) return 0;
+    vec3 oc = v3_sub(c, r.o);
+    double delta = v3_dot(oc, r.d);
+    double D = v3_len(v3_madd(oc, r.d, -delta));
+    /* A floor for a light on the line (or nearly): relative to the span and the distances */
+    double floor = 1e-12 * (fabs(a) + fabs(b) + fabs(delta)) + 1e-300;
+    if (!(D > floor)) D = floor;
+    eq->a = a;
+    eq->b = b;
+    eq->delta = delta;
+    eq->D = D;
+    eq->th_a = atan((a - delta) / D);
+    eq->th_b = atan((b - delta) / D);
+    return eq->th_b > eq->th_a;
+}
+
+double rd_equiangular_pdf(const rd_equiangular *eq, double t)
+{
+    if (!(t >= eq->a && t <= eq->b)) return 0.0;
+    double x = t - eq->delta;
+    return eq->D / ((eq->th_b - eq->th_a) * (eq->D * eq->D + x * x));
+}
+
+double rd_equiangular_sample(const rd_equiangular *eq, double u, double *pdf)
+{
+    double th = eq->th_a + u * (eq->th_b - eq->th_a);
+    double t = eq->delta + eq->D * tan(th);
+    t = fmin(eq->b, fmax(eq->a, t)); /* round-off only */
+    *pdf = rd_equiangular_pdf(eq, t);
+    return t;
+}
+
+/* ---- The strategy along a flight --------------------------------------------------------- */
+
+static int point_or_spot(const rd_light *l)
+{
+    return l->kind == RD_LIGHT_POINT || l->kind == RD_LIGHT_SPOT;
+}
+
+int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, double q,
+                      rd_eq_flight *ef)
+{
+    ef->ps_pmf = 0.0;
+    for (int i = 0; i < s->n_lights; i++)
+        if (point_or_spot(&s->lights[i])) ef->ps_pmf += s->light_sampler.pmf[i];
+    if (!(ef->ps_pmf > 0.0)) return 0;
+    ef->n = rd_media_intervals(s, region, r, 0.0, t_light, ef->iv);
+    if (ef->n == 0) return 0;
+    ef->r = r;
+    ef->region = region;
+    ef->dscale = 1.0;
+    if (q > 0.0) {
+        double P = -expm1(-rd_majorant_depth(ef->iv, ef->n, r, INFINITY, 0, NULL));
+        if (P > 0.0) ef->dscale = fmax(P, q) / P;
+    }
+    return 1;
+}
+
+/* Light j's equiangular pdf over the flight's span cut to what it lights; 0 when empty. */
+static int light_span(const rd_eq_flight *ef, const rd_light *l, rd_equiangular *eq)
+{
+    double a = ef->iv[0].t0, b = ef->iv[ef->n - 1].t1;
+    if (!rd_light_lit_range(l, ef->r, &a, &b)) return 0;
+    return rd_equiangular_init(eq, l->pos, ef->r, a, b);
+}
+
+/* The stand-in for delta tracking's collision density at t (header comment). */
+static double tracking_proxy(const rd_eq_flight *ef, double t)
+{
+    double sigma;
+    double tau = rd_majorant_depth(ef->iv, ef->n, ef->r, t, 0, &sigma);
+    return ef->dscale * sigma * exp(-tau);
+}
+
+vec3 rd_eq_nee(const rd_scene *s, const rd_eq_flight *ef, pcg32 *rng, rd_track_counters *c)
+{
+    /* Light j with probability Q_j = P_j / sum over point and spot lights of P_k */
+    double u = pcg32_uniform(rng) * ef->ps_pmf, acc = 0.0;
+    int j = -1;
+    for (int i = 0; i < s->n_lights; i++) {
+        if (!point_or_spot(&s->lights[i]) || !(s->light_sampler.pmf[i] > 0.0)) continue;
+        j = i;
+        acc += s->light_sampler.pmf[i];
+        if (u < acc) break;
+    }
+    double ut = pcg32_uniform(rng);
+    rd_equiangular eq;
+    if (j < 0 || !light_span(ef, &s->lights[j], &eq)) return v3(0, 0, 0);
+    double Pj = s->light_sampler.pmf[j], Qj = Pj / ef->ps_pmf, pdf;
+    double t = rd_equiangular_sample(&eq, ut, &pdf);
+    if (!(pdf > 0.0)) return v3(0, 0, 0);
+    /* the medium at t (the span may hold gaps between media: nothing scatters there) */
+    const rd_medium *m = NULL;
+    for (int k = 0; k < ef->n && !m; k++)
+        if (t >= ef->iv[k].t0 && t <= ef->iv[k].t1) m = ef->iv[k].m;
+    if (!m) return v3(0, 0, 0);
+    vec3 x = ray_at(ef->r, t);
+    c->lookups++;
+    double sigma_t = rd_medium_sigma_t(m, x);
+    if (!(sigma_t > 0.0)) return v3(0, 0, 0);
+    double pe = Qj * pdf, w = rd_power_heuristic(pe, Pj * tracking_proxy(ef, t));
+    if (!(w > 0.0)) return v3(0, 0, 0);
+    vec3 Lj = rd_nee_light(s, ef->region, x, ef->r.d, m->g, j, rng, c);
+    if (!(v3_maxc(Lj) > 0.0)) return v3(0, 0, 0);
+    double T = rd_transmittance(s, ef->region, ef->r, 0.0, t, rng, c);
+    if (T == 0.0) return v3(0, 0, 0);
+    return v3_scale(v3_mul(m->albedo, Lj), sigma_t * T * w / pe);
+}
+
+double rd_eq_weight(const rd_scene *s, const rd_eq_flight *ef, double t, int light)
+{
+    if (light < 0 || !point_or_spot(&s->lights[light])) return 1.0;
+    rd_equiangular eq;
+    if (!light_span(ef, &s->lights[light], &eq)) return 1.0;
+    double pdf = rd_equiangular_pdf(&eq, t);
+    if (!(pdf > 0.0)) return 1.0;
+    double Pj = s->light_sampler.pmf[light], Qj = Pj / ef->ps_pmf;
+    return rd_power_heuristic(Pj * tracking_proxy(ef, t), Qj * pdf);
+}

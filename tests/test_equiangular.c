@@ -1,0 +1,155 @@
+/* Equiangular distance sampling (Kulla & Fajardo 2012; transport/equiangular.c) and the spot
+ * cone's range along a ray (scene/lights.c, rd_light_lit_range):
+ *  - chi-square of the sampler against its pdf, the expected count of each bin integrated from
+ *    rd_equiangular_pdf by Simpson's rule (not from the sampler's own inversion), cells with an
+ *    expected count < 5 pooled (pbrt-v4 bsdfs_test), rejected at p = 1e-4 (z = 3.719);
+ *  - the test has teeth: the same samples judged against the pdf of a light 5% farther away fail;
+ *  - the pdf integrates to 1 and the sampler returns the pdf of the distance it draws;
+ *  - every point of a ray that a spot lights lies in the range rd_light_lit_range returns, and
+ *    every point well inside the range is inside the cone. */
+#include "support/rd_test.h"
+
+typedef struct {
+    vec3 c;        /* the light */
+    ray3 r;        /* r.d is normalised before use */
+    double a, b;   /* the span */
+} eq_case;
+
+static rd_equiangular eq_of(const eq_case *k)
+{
+    rd_equiangular eq;
+    ray3 r = {k->r.o, v3_norm(k->r.d)};
+    cr_assert(rd_equiangular_init(&eq, k->c, r, k->a, k->b));
+    return eq;
+}
+
+static const eq_case cases[] = {
+    {{0.2, 0.45, -0.1}, {{-0.3, 0.1, 3.0}, {0.1, 0.05, -1.0}}, 1.9, 4.2},  /* light beside the span */
+    {{0.0, 0.02, 0.0}, {{-2.0, 0.0, 0.0}, {1, 0, 0}}, 0.5, 3.5},                              /* 2 cm from the line */
+    {{5.0, 1.0, 0.0}, {{0.0, 0.0, 0.0}, {1, 0, 0}}, 0.0, 2.0},                                /* beyond the span's end */
+    {{-3.0, 4.0, 1.0}, {{0.0, 0.0, 0.0}, {0.6, 0.0, 0.8}}, 0.3, 6.0},                         /* behind the origin */
+};
+
+static double pdf_cb(double t, const void *ctx) { return rd_equiangular_pdf(ctx, t); }
+
+/* Expected fraction of samples in each of nb equal bins of [a, b], by Simpson's rule on the
+ * pdf (2000 intervals per bin: the sharpest peak here is 2 cm wide against bins of 5 cm). */
+static void expected(const rd_equiangular *eq, int nb, double *e)
+{
+    double h = (eq->b - eq->a) / nb;
+    for (int i = 0; i < nb; i++) e[i] = rt_simpson(pdf_cb, eq, eq->a + i * h, eq->a + (i + 1) * h, 2000);
+}
+
+static double chi2_of(const double *obs, const double *frac, int nb, int n, int *dof)
+{
+    double chi2 = 0, pool_o = 0, pool_e = 0;
+    *dof = -1;
+    for (int i = 0; i < nb; i++) {
+        double e = n * frac[i];
+        if (e < 5) { pool_o += obs[i]; pool_e += e; continue; }
+        chi2 += (obs[i] - e) * (obs[i] - e) / e;
+        (*dof)++;
+    }
+    if (pool_e >= 5) { chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e; (*dof)++; }
+    return chi2;
+}
+
+enum { NB = 64 };
+
+static void sample_bins(const rd_equiangular *eq, int n, uint64_t seed, double *obs)
+{
+    memset(obs, 0, NB * sizeof *obs);
+    pcg32 rng = pcg32_seed(seed, 7, 11);
+    for (int k = 0; k < n; k++) {
+        double pdf, t = rd_equiangular_sample(eq, pcg32_uniform(&rng), &pdf);
+        cr_assert(t >= eq->a && t <= eq->b, "t %g outside [%g, %g]", t, eq->a, eq->b);
+        cr_assert(pdf == rd_equiangular_pdf(eq, t), "the sampler's pdf differs from rd_equiangular_pdf");
+        int i = (int)((t - eq->a) / (eq->b - eq->a) * NB);
+        obs[i >= NB ? NB - 1 : i] += 1;
+    }
+}
+
+Test(equiangular, sampler_chi_square)
+{
+    for (size_t ci = 0; ci < sizeof cases / sizeof cases[0]; ci++) {
+        const eq_case *k = &cases[ci];
+        rd_equiangular eq = eq_of(k);
+        double frac[NB], obs[NB], total = 0;
+        expected(&eq, NB, frac);
+        for (int i = 0; i < NB; i++) total += frac[i];
+        cr_expect(fabs(total - 1.0) < 1e-6, "case %zu: the pdf integrates to %.9f", ci, total);
+        int n = 200000, dof;
+        sample_bins(&eq, n, 100 + ci, obs);
+        double chi2 = chi2_of(obs, frac, NB, n, &dof), crit = rt_chi2_quantile(dof, 3.719);
+        cr_expect(chi2 < crit, "case %zu: chi2 %.1f >= %.1f (dof %d)", ci, chi2, crit, dof);
+    }
+}
+
+Test(equiangular, chi_square_rejects_a_wrong_pdf)
+{
+    /* Samples toward the light judged against the pdf toward a point 5% farther from the line. */
+    const eq_case *k = &cases[0];
+    rd_equiangular eq = eq_of(k), wrong = eq_of(k);
+    wrong.D *= 1.05;
+    wrong.th_a = atan((wrong.a - wrong.delta) / wrong.D);
+    wrong.th_b = atan((wrong.b - wrong.delta) / wrong.D);
+    double frac[NB], obs[NB];
+    expected(&wrong, NB, frac);
+    int n = 200000, dof;
+    sample_bins(&eq, n, 5, obs);
+    double chi2 = chi2_of(obs, frac, NB, n, &dof);
+    cr_expect(chi2 > rt_chi2_quantile(dof, 3.719), "chi2 %.1f did not detect D x 1.05", chi2);
+}
+
+Test(equiangular, empty_span_is_refused)
+{
+    rd_equiangular eq;
+    ray3 r = {v3(0, 0, 0), v3(1, 0, 0)};
+    cr_expect(!rd_equiangular_init(&eq, v3(0, 1, 0), r, 2.0, 2.0));
+    cr_expect(!rd_equiangular_init(&eq, v3(0, 1, 0), r, 2.0, INFINITY));
+    /* a light on the line: the floor on D keeps the pdf finite and normalised */
+    cr_assert(rd_equiangular_init(&eq, v3(1, 0, 0), r, 0.0, 2.0));
+    double pdf, t = rd_equiangular_sample(&eq, 0.3, &pdf);
+    cr_expect(isfinite(pdf) && pdf > 0 && t >= 0 && t <= 2, "t %g pdf %g", t, pdf);
+}
+
+Test(equiangular, spot_range_holds_every_lit_point)
+{
+    rd_scene *s = rt_scene("spot.json",
+                           "{\"camera\":{\"position\":[0,0,5],\"look_at\":[0,0,0],\"resolution\":[4,4]},\"media\":[],"
+                           "\"lights\":[{\"type\":\"spot\",\"position\":[0.3,2,0.1],\"look_at\":[0,0,0],\"angle\":20,\"intensity\":1},"
+                           "{\"type\":\"spot\",\"position\":[0,0,0],\"direction\":[0,1,0],\"angle\":150,\"falloff\":10,\"intensity\":1},"
+                           "{\"type\":\"spot\",\"position\":[1,1,1],\"direction\":[1,0,0],\"angle\":180,\"intensity\":1}]}");
+    pcg32 rng = pcg32_seed(9, 9, 9);
+    int lit_rays = 0;
+    for (int li = 0; li < 3; li++) {
+        const rd_light *l = &s->lights[li];
+        for (int k = 0; k < 3000; k++) {
+            vec3 o = v3(4 * pcg32_uniform(&rng) - 2, 4 * pcg32_uniform(&rng) - 2, 4 * pcg32_uniform(&rng) - 2);
+            ray3 r = {o, rd_sample_sphere(pcg32_uniform(&rng), pcg32_uniform(&rng))};
+            double t0 = 0.0, t1 = 4.0;
+            int any = rd_light_lit_range(l, r, &t0, &t1);
+            int steps = 4000, lit = 0;
+            for (int i = 0; i <= steps; i++) {
+                double t = 4.0 * i / steps;
+                vec3 x = v3_sub(ray_at(r, t), l->pos);
+                double len = v3_len(x);
+                if (!(len > 0)) continue;
+                int inside = v3_dot(l->dir, x) / len > l->cos_outer;
+                if (inside) {
+                    lit = 1;
+                    cr_assert(any && t >= t0 - 1e-9 && t <= t1 + 1e-9,
+                              "light %d ray %d: lit point t = %g outside the range [%g, %g] (any %d)", li, k, t, t0, t1, any);
+                } else if (any && t > t0 + 1e-6 && t < t1 - 1e-6) {
+                    /* the cone is convex, so nothing unlit lies strictly between lit points */
+                    double cs = v3_dot(l->dir, x) / len;
+                    cr_assert(cs > l->cos_outer - 1e-9, "light %d ray %d: t = %g in [%g, %g] is outside the cone (cos %.9f < %.9f)",
+                              li, k, t, t0, t1, cs, l->cos_outer);
+                }
+            }
+            lit_rays += lit;
+        }
+    }
+    cr_expect(lit_rays > 300, "too few rays met a cone (%d): the test would prove little", lit_rays);
+    rd_scene_free(s);
+}
