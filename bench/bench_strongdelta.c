@@ -1,0 +1,177 @@
+/* bench_strongdelta: efficiency of `delta` with its thin-media strategies against plain `delta`
+ * at equal time (issue 21 item 4: settings.equiangular, settings.thin_bias).
+ *
+ *   bench_strongdelta SCENE --reference REF.exr [--set KEY=VAL]...
+ *                     --variant LABEL [--set KEY=VAL]... [--variant LABEL ...]...
+ *                     [--seconds S] [--runs K] [--threads N] [--seed N]
+ *
+ * Each variant is the scene with its own --set overrides (those before the first --variant
+ * apply to all, e.g. camera.resolution). Round k renders every variant once with seed + k for
+ * S seconds (rd_render with a time limit, the public API of `photonmarch render`), variants in
+ * turn, so that load from other jobs on a shared machine falls on all of them alike. Each
+ * render's error against the reference: MSE = mean over pixels and channels of (x - r)^2, less
+ * the reference's own variance (mean of REF-stderr.exr squared, when that file is beside it:
+ * E[(x - r)^2] = MSE_true + var_r for an independent r), and its efficiency 1 / (MSE x seconds)
+ * (THEORY.md §7, Veach 1997 §2.4). Printed per variant: the medians over the K rounds with
+ * min-max of seconds, samples per pixel, MSE and efficiency, and of the efficiency ratio to the
+ * first variant within the same round (the figure to quote: one round's variants share one
+ * load). The reference is yours to render, by plain `delta`, 20x longer or more:
+ *     build/photonmarch render SCENE --set ... --time 600 --seed 99 -o REF.exr
+ * Without arguments (as `make bench` runs every tool) it says so and exits 0. */
+#include "renderer.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+enum { MAXV = 8, MAXSET = 16, MAXK = 64 };
+
+typedef struct {
+    const char *label;
+    rd_override set[MAXSET];
+    int n_set;
+    rd_scene *scene;
+    double seconds[MAXK], spp[MAXK], mse[MAXK], eff[MAXK], ratio[MAXK];
+} variant;
+
+static int cmp_d(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+static void stats(const double *v, int n, double *med, double *lo, double *hi)
+{
+    double s[MAXK];
+    memcpy(s, v, (size_t)n * sizeof *s);
+    qsort(s, (size_t)n, sizeof *s, cmp_d);
+    *med = n % 2 ? s[n / 2] : 0.5 * (s[n / 2 - 1] + s[n / 2]);
+    *lo = s[0];
+    *hi = s[n - 1];
+}
+
+static int split_set(const char *arg, rd_override *o)
+{
+    const char *eq = strchr(arg, '=');
+    if (!eq || eq == arg) return 0;
+    char *key = strndup(arg, (size_t)(eq - arg));
+    o->key = key;
+    o->value = eq + 1;
+    return 1;
+}
+
+int main(int argc, char **argv)
+{
+    const char *scene = NULL, *ref_path = NULL;
+    double seconds = 10.0;
+    int runs = 4, threads = 2;
+    uint64_t seed = 1000;
+    rd_override common[MAXSET];
+    int n_common = 0, nv = 0;
+    static variant v[MAXV];
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        const char *next = i + 1 < argc ? argv[i + 1] : NULL;
+        if (!strcmp(a, "--json") || !strcmp(a, "--quick")) {
+            if (!strcmp(a, "--json")) i++;
+            continue;
+        }
+        if (!next && a[0] == '-') { fprintf(stderr, "bench_strongdelta: %s needs a value\n", a); return 1; }
+        if (!strcmp(a, "--reference")) ref_path = argv[++i];
+        else if (!strcmp(a, "--seconds")) seconds = atof(argv[++i]);
+        else if (!strcmp(a, "--runs")) runs = atoi(argv[++i]);
+        else if (!strcmp(a, "--threads")) threads = atoi(argv[++i]);
+        else if (!strcmp(a, "--seed")) seed = strtoull(argv[++i], NULL, 10);
+        else if (!strcmp(a, "--variant")) {
+            if (nv >= MAXV) { fprintf(stderr, "bench_strongdelta: at most %d variants\n", MAXV); return 1; }
+            v[nv++].label = argv[++i];
+        } else if (!strcmp(a, "--set")) {
+            rd_override o;
+            if (!split_set(argv[++i], &o)) { fprintf(stderr, "bench_strongdelta: --set KEY=VALUE\n"); return 1; }
+            if (nv == 0 && n_common < MAXSET) common[n_common++] = o;
+            else if (nv > 0 && v[nv - 1].n_set < MAXSET) v[nv - 1].set[v[nv - 1].n_set++] = o;
+        } else if (a[0] != '-' && !scene) scene = a;
+        else { fprintf(stderr, "bench_strongdelta: unknown argument %s\n", a); return 1; }
+    }
+    if (!scene) {
+        printf("bench_strongdelta: a tool for one scene and its variants (see its header); nothing to run here\n");
+        return 0;
+    }
+    if (!ref_path || nv < 1 || runs < 1 || runs > MAXK || !(seconds > 0)) {
+        fprintf(stderr, "usage: bench_strongdelta SCENE --reference REF.exr --variant LABEL [--set K=V]... [--seconds S] [--runs K]\n");
+        return 1;
+    }
+    char err[RD_ERRLEN];
+    rd_image ref, ref_se = {0};
+    if (rd_image_read(ref_path, &ref, err, sizeof err) != RD_OK) { fprintf(stderr, "bench_strongdelta: %s\n", err); return 1; }
+    char se_path[1200];
+    snprintf(se_path, sizeof se_path, "%.*s-stderr.exr", (int)(strlen(ref_path) - 4), ref_path);
+    double ref_var = 0.0;
+    int have_se = rd_image_read(se_path, &ref_se, err, sizeof err) == RD_OK && ref_se.w == ref.w && ref_se.h == ref.h;
+    size_t nvals = (size_t)ref.w * ref.h * 3;
+    if (have_se) {
+        for (size_t q = 0; q < nvals; q++) ref_var += (double)ref_se.rgb[q] * ref_se.rgb[q];
+        ref_var /= nvals;
+    }
+    for (int k = 0; k < nv; k++) {
+        rd_override ov[2 * MAXSET];
+        int n = 0;
+        for (int i = 0; i < n_common; i++) ov[n++] = common[i];
+        for (int i = 0; i < v[k].n_set; i++) ov[n++] = v[k].set[i];
+        if (rd_scene_load(&v[k].scene, scene, ov, n, err, sizeof err) != RD_OK) {
+            fprintf(stderr, "bench_strongdelta: variant %s: %s\n", v[k].label, err);
+            return 1;
+        }
+    }
+    printf("bench_strongdelta %s: %d variants, %d rounds of %g s each, %d threads, reference %s (variance %.3g%s)\n",
+           scene, nv, runs, seconds, threads, ref_path, ref_var, have_se ? "" : ", unknown: no stderr image");
+    fflush(stdout);
+    for (int r = 0; r < runs; r++) {
+        for (int k = 0; k < nv; k++) {
+            rd_render_opts o = {.method = "delta", .spp = 1 << 24, .time_limit = seconds, .seed = seed + r, .threads = threads};
+            rd_render_result res;
+            if (rd_render(v[k].scene, &o, &res, err, sizeof err) != RD_OK) {
+                fprintf(stderr, "bench_strongdelta: %s: %s\n", v[k].label, err);
+                return 1;
+            }
+            if (res.image.w != ref.w || res.image.h != ref.h) {
+                fprintf(stderr, "bench_strongdelta: the render is %dx%d, the reference %dx%d\n", res.image.w, res.image.h, ref.w, ref.h);
+                return 1;
+            }
+            double se2 = 0.0;
+            for (size_t q = 0; q < nvals; q++) {
+                double d = (double)res.image.rgb[q] - ref.rgb[q];
+                se2 += d * d;
+            }
+            double mse = se2 / nvals - ref_var;
+            v[k].seconds[r] = res.stats.seconds;
+            v[k].spp[r] = res.stats.spp_mean;
+            v[k].mse[r] = mse;
+            v[k].eff[r] = 1.0 / (mse * res.stats.seconds);
+            v[k].ratio[r] = v[k].eff[r] / v[0].eff[r];
+            fprintf(stderr, "round %d %-28s %6.2f s %8.1f spp  MSE %.4g  eff %.4g  x%.3f\n", r + 1, v[k].label,
+                    res.stats.seconds, res.stats.spp_mean, mse, v[k].eff[r], v[k].ratio[r]);
+            rd_render_result_free(&res);
+        }
+    }
+    printf("| variant | seconds | spp | MSE | efficiency | vs %s |\n|---|---|---|---|---|---|\n", v[0].label);
+    for (int k = 0; k < nv; k++) {
+        double m[5], lo[5], hi[5];
+        stats(v[k].seconds, runs, &m[0], &lo[0], &hi[0]);
+        stats(v[k].spp, runs, &m[1], &lo[1], &hi[1]);
+        stats(v[k].mse, runs, &m[2], &lo[2], &hi[2]);
+        stats(v[k].eff, runs, &m[3], &lo[3], &hi[3]);
+        stats(v[k].ratio, runs, &m[4], &lo[4], &hi[4]);
+        printf("| %s | %.2f | %.1f (%.1f-%.1f) | %.3g (%.3g-%.3g) | %.3g (%.3g-%.3g) | %.2f (%.2f-%.2f) |\n", v[k].label, m[0],
+               m[1], lo[1], hi[1], m[2], lo[2], hi[2], m[3], lo[3], hi[3], m[4], lo[4], hi[4]);
+    }
+    for (int k = 0; k < nv; k++) {
+        rd_scene_free(v[k].scene);
+        for (int i = 0; i < v[k].n_set; i++) free((char *)v[k].set[i].key);
+    }
+    for (int i = 0; i < n_common; i++) free((char *)common[i].key);
+    rd_image_free_pixels(&ref);
+    rd_image_free_pixels(&ref_se);
+    return 0;
+}
