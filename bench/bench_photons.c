@@ -3,14 +3,15 @@
  * memory per photon. Medians of repeated runs taken in one process. Not a test.
  * First, the cost of the noise density that tracing in default.json spends most of its lookups
  * on (issue 21): one fBm evaluation with the gradient table (rd_noise_fbm) against Perlin's
- * 2002 branches on the hash (a copy below), and the tracker's accept test with the early exit
- * (rd_medium_sigma_above) against the full density, interleaved, medians of 5.
+ * 2002 branches on the hash (tests/support/perlin_2002.h), and the tracker's accept test with
+ * the early exit (rd_medium_sigma_above) against the full density, interleaved, medians of 5.
  *
  *   build/bench/bench_photons [--quick] [--noise-only] [--json FILE]
  * bench/bench_bake.sh times the whole `photonmarch bake` (trace, index, guide) of one or more
  * builds against each other.
  */
 #include "bake/rd_photons.h"
+#include "../tests/support/perlin_2002.h"
 
 #include <omp.h>
 #include <stdio.h>
@@ -31,37 +32,12 @@ static double now_s(void)
     return ts.tv_sec + 1e-9 * ts.tv_nsec;
 }
 
-/* Perlin's improved noise with grad() as he wrote it (Perlin 2002): the formula before the
- * gradient table (tests/test_volume.c checks that both give the same doubles). */
-static double grad_2002(int h, double x, double y, double z)
-{
-    h &= 15;
-    double u = h < 8 ? x : y;
-    double v = h < 4 ? y : (h == 12 || h == 14 ? x : z);
-    return ((h & 1) ? -u : u) + ((h & 2) ? -v : v);
-}
-static double lerp_2002(double t, double a, double b) { return a + t * (b - a); }
-static double noise_2002(const rd_noise *n, vec3 p)
-{
-    double fx = floor(p.x), fy = floor(p.y), fz = floor(p.z);
-    int X = (int)((long long)fx & 255), Y = (int)((long long)fy & 255), Z = (int)((long long)fz & 255);
-    double x = p.x - fx, y = p.y - fy, z = p.z - fz;
-    double u = rd_perlin_fade(x), v = rd_perlin_fade(y), w = rd_perlin_fade(z);
-    const uint8_t *P = n->perm;
-    int A = P[X] + Y, AA = P[A] + Z, AB = P[A + 1] + Z;
-    int B = P[X + 1] + Y, BA = P[B] + Z, BB = P[B + 1] + Z;
-    return lerp_2002(w,
-        lerp_2002(v, lerp_2002(u, grad_2002(P[AA], x, y, z), grad_2002(P[BA], x - 1, y, z)),
-                  lerp_2002(u, grad_2002(P[AB], x, y - 1, z), grad_2002(P[BB], x - 1, y - 1, z))),
-        lerp_2002(v, lerp_2002(u, grad_2002(P[AA + 1], x, y, z - 1), grad_2002(P[BA + 1], x - 1, y, z - 1)),
-                  lerp_2002(u, grad_2002(P[AB + 1], x, y - 1, z - 1), grad_2002(P[BB + 1], x - 1, y - 1, z - 1))));
-}
 static double fbm_2002(const rd_noise *n, vec3 x)
 {
     double sum = 0.0, amp = 1.0, f = n->frequency;
     vec3 q = v3_sub(x, n->center);
     for (int o = 0; o < n->octaves; o++) {
-        sum += amp * noise_2002(n, v3_scale(q, f));
+        sum += amp * perlin_noise_2002(n, v3_scale(q, f));
         amp *= n->gain;
         f *= n->lacunarity;
     }
