@@ -38,10 +38,9 @@ vec3 rd_flight_behind(const rd_scene *s, const rd_flight_in *in)
     return L;
 }
 
-rd_flight rd_flight_delta(const rd_scene *s, const rd_flight_in *in, pcg32 *rng,
-                          rd_track_counters *c)
+/* A tracker's collision as a flight of the path loop. */
+static rd_flight flight_of(rd_collision col)
 {
-    rd_collision col = rd_sample_free_path(s, in->region, in->r, in->t_light, rng, c);
     rd_flight f;
     f.kind = col.hit ? RD_FLIGHT_SCATTER : RD_FLIGHT_PASS;
     f.t = col.t;
@@ -52,6 +51,12 @@ rd_flight rd_flight_delta(const rd_scene *s, const rd_flight_in *in, pcg32 *rng,
      * factor, 1 for delta tracking. */
     f.weight = col.hit ? v3_scale(col.medium->albedo, col.weight) : v3(col.weight, col.weight, col.weight);
     return f;
+}
+
+rd_flight rd_flight_delta(const rd_scene *s, const rd_flight_in *in, pcg32 *rng,
+                          rd_track_counters *c)
+{
+    return flight_of(rd_sample_free_path(s, in->region, in->r, in->t_light, rng, c));
 }
 
 double rd_thin_bias_q(const rd_scene *s, const rd_flight_in *in)
@@ -73,13 +78,7 @@ static rd_flight delta_flight(const rd_flight_sampler *fs, const rd_scene *s,
     (void)fs;
     double q = rd_thin_bias_q(s, in);
     if (!(q > 0.0)) return rd_flight_delta(s, in, rng, c);
-    rd_collision col = rd_sample_free_path_thin(s, in->region, in->r, in->t_light, q, rng, c);
-    rd_flight f;
-    f.kind = col.hit ? RD_FLIGHT_SCATTER : RD_FLIGHT_PASS;
-    f.t = col.t;
-    f.medium = col.medium;
-    f.weight = col.hit ? v3_scale(col.medium->albedo, col.weight) : v3(col.weight, col.weight, col.weight);
-    return f;
+    return flight_of(rd_sample_free_path_thin(s, in->region, in->r, in->t_light, q, rng, c));
 }
 
 int rd_surface_event(const rd_scene *s, const rd_hit *h, int depth, rd_surface_step *st,
