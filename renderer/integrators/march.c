@@ -245,7 +245,11 @@ static vec3 photon_estimate(const rd_scene *s, const pm_map *map, vec3 x, vec3 w
         double cw = fmin(1.0, fmax(-1.0, p->dir[0] * w.x + p->dir[1] * w.y + p->dir[2] * w.z));
         sum = v3_madd(sum, v3(p->power[0], p->power[1], p->power[2]), rd_hg_eval(g, cw));
     }
-    double r = r_fixed > 0.0 ? r_fixed : sqrt((double)d2[n - 1]);
+    /* A fixed radius that held more than MAX_GATHER photons returned only the nearest of them:
+     * the ball they fill is the one out to the farthest returned (the k-NN estimate with
+     * k = MAX_GATHER), not the whole radius, whose volume would count the missing ones as none. */
+    double r = r_fixed > 0.0 && n < MAX_GATHER ? r_fixed : sqrt((double)d2[n - 1]);
+    if (!(r > 0.0)) return v3(0, 0, 0);
     return v3_scale(sum, 1.0 / (4.0 / 3.0 * M_PI * r * r * r));
 }
 
