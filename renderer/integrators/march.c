@@ -17,7 +17,10 @@
  *
  * with T from the free-path engine's unbiased estimator, swept once along the sorted samples
  * (T(0,t_n) = T(0,t_{n-1}) T(t_{n-1},t_n), independent pieces), and S = sigma_s L_s from the
- * source chosen by guide.ls:
+ * source chosen by march.ls:
+ *   nee+paths    (the default) delta's own vertex at x: sigma_s x (next-event estimation,
+ *                rd_nee_split, + one phase-sampled path from x tracked by delta), so S is
+ *                unbiased and every placement converges to delta's image;
  *   photons      the photon-map radiance estimate alone (the seed's original),
  *   nee+photons  sigma_s x next-event estimation of every light (direct light; rd_nee_all,
  *                no MIS: no other estimator here reaches the lights) + the photon map of photons
@@ -27,7 +30,8 @@
  *   nee          sigma_s x next-event estimation only (single scattering; for tests).
  * Given S, the estimate is unbiased for every placement (the defensive mixture keeps p > 0
  * wherever the integrand can be non-zero, and every ray gets at least one sample); what the
- * placements change is the variance. The photon estimate's own bias is shared. */
+ * placements change is the variance. The photon estimates' own bias is shared; nee+paths has
+ * none. */
 #include "integrators/rd_march.h"
 #include "scene/rd_geom.h"
 #include "transport/rd_path.h"
@@ -272,7 +276,7 @@ static double pass_radius(const rd_render_ctx *ctx, const pm_map *first, vec3 x)
 }
 
 vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, vec3 x, vec3 d,
-                   double sigma_t, pcg32 *rng, rd_track_counters *c)
+                   double sigma_t, int event, double q_path, pcg32 *rng, rd_track_counters *c)
 {
     const rd_scene *s = ctx->scene;
     vec3 S = v3(0, 0, 0);
@@ -293,6 +297,23 @@ vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, v
         vec3 sigma_s = v3_scale(m->albedo, sigma_t);
         return v3_add(S, v3_mul(sigma_s, rd_nee_all(s, region, x, d, m->g, rng, c)));
     }
+    case RD_LS_NEE_PATHS: {
+        /* delta's own vertex at x: next-event estimation (rd_nee_split: every delta light,
+         * MIS with the path for lights it can hit) plus one phase-sampled path from x on,
+         * tracked by `delta` (its collisions' NEE and roulette), so S is unbiased and the
+         * marcher converges to delta's image. The path is taken with probability q_path and
+         * weighted 1/q_path (still unbiased); the HG weight p/pdf is 1. */
+        vec3 sigma_s = v3_scale(m->albedo, sigma_t);
+        vec3 Ls = rd_nee_split(s, region, x, d, m->g, rng, c);
+        if (event + 1 <= s->settings.max_depth && q_path > 0.0 &&
+            (q_path >= 1.0 || pcg32_uniform(rng) < q_path)) {
+            vec3 wo = rd_hg_sample(m->g, d, pcg32_uniform(rng), pcg32_uniform(rng));
+            ray3 next = {x, wo};
+            vec3 Li = rd_delta_continue(s, next, region, rd_hg_eval(m->g, v3_dot(d, wo)), event, 0, rng, c);
+            Ls = v3_madd(Ls, Li, q_path >= 1.0 ? 1.0 : 1.0 / q_path);
+        }
+        return v3_mul(sigma_s, Ls);
+    }
     case RD_LS_NEE_PHOTONS: {
         double r = pass_radius(ctx, ctx->photons_indirect_first, x);
         if (r >= 0.0) S = photon_estimate(s, ctx->photons_indirect, x, w, m->g, s->guide.k, r);
@@ -312,19 +333,22 @@ vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, v
 /* One straight segment of the camera ray: r in `region` up to t_end (the next surface or light,
  * or INFINITY), marched over the part inside the scene bounds with N samples of `place`
  * stratified by the offset u. Returns the in-scattered estimate; *T_out gets the unbiased
- * transmittance estimate T(0, t_end). `scatter` 0: the transmittance alone (the segment lies
- * behind settings.max_depth surface events, where `delta` scatters no more either). */
+ * transmittance estimate T(0, t_end), or 0 when `need_T` is 0 (what lies behind the segment
+ * is black: the rest of T would multiply nothing, so it is not tracked). `event` is the
+ * scattering event a sample here would be
+ * (the surface events before the segment + 1); past settings.max_depth the segment gives the
+ * transmittance alone, as `delta` scatters no more there either. */
 static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int region,
-                          double t_end, placement place, double u, int scatter, pcg32 *rng,
-                          double *T_out)
+                          double t_end, placement place, double u, int event, int need_T,
+                          pcg32 *rng, double *T_out)
 {
     const rd_scene *s = ctx->scene;
     rd_track_counters *c = &th->counters;
     double t0, t1;
     *T_out = 1.0;
     if (!medium_span(s, r, t_end, &t0, &t1)) return v3(0, 0, 0);
-    if (!scatter) {
-        *T_out = rd_transmittance(s, region, r, t0, t1, rng, c);
+    if (event > s->settings.max_depth) {
+        *T_out = need_T ? rd_transmittance(s, region, r, t0, t1, rng, c) : 0.0;
         return v3(0, 0, 0);
     }
     march_scratch ms;
@@ -337,6 +361,7 @@ static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int r
     th->ray_samples += (uint64_t)N;
     th->cells += (uint64_t)pdf.n;
     rd_guide_pdf_sample_stratified(&pdf, N, u, ms.t, ms.p);
+    double q_path = s->march.paths; /* nee+paths: the chance of a path from each sample */
     vec3 L = v3(0, 0, 0);
     double T = 1.0, tp = t0;
     for (int n = 0; n < N && T != 0.0; n++) {
@@ -348,11 +373,11 @@ static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int r
         double sigma_t = rd_medium_sigma_t(m, x);
         c->lookups++;
         if (sigma_t <= 0.0) continue;
-        vec3 S = rd_march_source(ctx, m, region, x, r.d, sigma_t, rng, c);
+        vec3 S = rd_march_source(ctx, m, region, x, r.d, sigma_t, event, q_path, rng, c);
         L = v3_madd(L, S, T / (N * ms.p[n]));
     }
-    if (T != 0.0) T *= rd_transmittance(s, region, r, tp, t1, rng, c);
-    *T_out = T;
+    if (T != 0.0 && need_T) T *= rd_transmittance(s, region, r, tp, t1, rng, c);
+    *T_out = need_T ? T : 0.0;
     return L;
 }
 
@@ -370,8 +395,9 @@ vec3 rd_march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampl
         /* No shapes: one segment, up to the nearest sphere light. */
         double t_light;
         int hit_light = rd_scene_hit_light(s, r, INFINITY, -1, &t_light);
-        vec3 L = march_segment(ctx, th, r, s->fill_medium, t_light, place, u, 1, &rng, &T);
-        return v3_madd(L, behind(s, hit_light), T);
+        vec3 Lb = behind(s, hit_light);
+        vec3 L = march_segment(ctx, th, r, s->fill_medium, t_light, place, u, 1, v3_maxc(Lb) > 0.0, &rng, &T);
+        return v3_madd(L, Lb, T);
     }
     /* With shapes: each straight segment of the camera's specular chain is marched in its
      * region (docs/surfaces.md). At a dielectric one branch is followed, chosen with its
@@ -387,8 +413,9 @@ vec3 rd_march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampl
         int got = rd_scene_intersect(s, r, INFINITY, from, &h);
         /* In-scattering on a segment behind `depth` surface events is event depth + 1, as in
          * delta's path loop (settings.max_depth bounds both alike). */
-        int scatter = depth + 1 <= s->settings.max_depth;
-        vec3 Ls = march_segment(ctx, th, r, region, got ? h.t : INFINITY, place, u, scatter, &rng, &T);
+        /* T of the segment matters when a surface follows it or something bright lies behind. */
+        int need_T = (got && h.light < 0) || v3_maxc(behind(s, got ? h.light : -1)) > 0.0;
+        vec3 Ls = march_segment(ctx, th, r, region, got ? h.t : INFINITY, place, u, depth + 1, need_T, &rng, &T);
         L = v3_add(L, v3_mul(beta, Ls));
         beta = v3_scale(beta, T);
         if (!got || h.light >= 0) {

@@ -43,9 +43,11 @@ void rd_march_build_guided(const rd_render_ctx *ctx, const march_scratch *ms, in
 int rd_march_build_pdf(const rd_render_ctx *ctx, placement place, const march_scratch *ms,
                        int region, ray3 r, double t0, double t1, rd_guide_pdf *pdf,
                        rd_track_counters *c);
-/* The in-scattered radiance source S = sigma_s L_s at x toward -d, from march.ls. */
+/* The in-scattered radiance source S = sigma_s L_s at x toward -d, from march.ls; `event` is
+ * the scattering event x would be (1 on the camera's first segment): nee+paths's path from x
+ * counts its events on from there, as delta's does, and is taken with probability q_path. */
 vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, vec3 x, vec3 d,
-                     double sigma_t, pcg32 *rng, rd_track_counters *c);
+                     double sigma_t, int event, double q_path, pcg32 *rng, rd_track_counters *c);
 /* Radiance along camera ray r with the samples of `place` (the estimator of THEORY.md §6). */
 vec3 rd_march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp,
                        placement place);

@@ -45,6 +45,12 @@ typedef struct {
 
 /* Sample light `l` from x with two uniforms; returns 0 when it contributes nothing. */
 int rd_light_sample_li(const rd_light *l, vec3 x, double u1, double u2, rd_light_sample *s);
+/* 1 for a light a sampled ray can hit (sphere, environment: pdf > 0 for some direction),
+ * 0 for a delta light (point, spot, directional), which only next-event estimation finds. */
+static inline int rd_light_hittable(const rd_light *l)
+{
+    return l->kind == RD_LIGHT_SPHERE || l->kind == RD_LIGHT_ENVIRONMENT;
+}
 /* Solid-angle pdf that rd_light_sample_li gives direction w from x (area lights only). */
 double rd_light_pdf(const rd_light *l, vec3 x, vec3 w);
 /* Spot light angular falloff in [0, 1] at cos_theta from its axis (smoothstep over the edge). */

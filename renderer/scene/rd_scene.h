@@ -84,7 +84,7 @@ typedef struct {
 } rd_guide_settings;
 
 /* Ray-marching settings of the guided methods (scene key "march", docs/scene-format.md). */
-typedef enum { RD_LS_NEE_PHOTONS, RD_LS_PHOTONS, RD_LS_NEE, RD_LS_NEE_GUIDE } rd_ls_kind;
+typedef enum { RD_LS_NEE_PHOTONS, RD_LS_PHOTONS, RD_LS_NEE, RD_LS_NEE_GUIDE, RD_LS_NEE_PATHS } rd_ls_kind;
 typedef struct {
     int samples;         /* N_mean: samples per ray (uniform and transmittance: every ray);
                           * 0 (key absent): each placement's own calibrated default
@@ -93,6 +93,8 @@ typedef struct {
     int max_samples;     /* guided: N_max */
     double alpha;        /* defensive weight of the mixture, in (0, 1] */
     rd_ls_kind ls;       /* source of sigma_s L_s at a sample */
+    double paths;        /* nee+paths: the probability, in (0, 1], that a sample continues
+                          * its path (weight 1 / paths) */
     int detail;          /* guided: 1 scales each cell's f_j by sigma_t(t) / sigma_j from lookups
                           * along the ray; 0 (default) uses the cells alone (seed 001 eq. 16) */
 } rd_march_settings;

@@ -129,6 +129,23 @@ vec3 rd_nee_surface(const rd_scene *s, const rd_hit *h, vec3 d, pcg32 *rng,
     return nee_one(s, &v, rng, c, NULL);
 }
 
+vec3 rd_nee_split(const rd_scene *s, int region, vec3 x, vec3 d, double g, pcg32 *rng,
+                  rd_track_counters *c)
+{
+    nee_site v = {.x = x, .d = d, .region = region, .g = g, .mx = NULL, .surf = NULL};
+    vec3 L = v3(0, 0, 0);
+    for (int i = 0; i < s->n_lights; i++)
+        if (!rd_light_hittable(&s->lights[i])) L = v3_add(L, nee_light(s, i, 0.0, &v, rng, c));
+    /* The lights a path can hit: delta's own pick (pmf_i), so that its power-heuristic weight
+     * pairs with the one rd_flight_behind gives the path that hits light i. A pick of a delta
+     * light adds nothing here (that light was summed above). */
+    double pmf;
+    int i = rd_light_sampler_pick(&s->light_sampler, pcg32_uniform(rng), &pmf);
+    if (i >= 0 && pmf > 0.0 && rd_light_hittable(&s->lights[i]))
+        L = v3_add(L, nee_light(s, i, pmf, &v, rng, c));
+    return L;
+}
+
 vec3 rd_nee_all(const rd_scene *s, int region, vec3 x, vec3 d, double g, pcg32 *rng,
                 rd_track_counters *c)
 {

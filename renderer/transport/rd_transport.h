@@ -143,6 +143,15 @@ vec3 rd_eq_nee(const rd_scene *s, const rd_eq_flight *ef, pcg32 *rng, rd_track_c
  * at distance t of the flight (1 for a light that equiangular sampling never chooses). */
 double rd_eq_weight(const rd_scene *s, const rd_eq_flight *ef, double t, int light);
 
+/* Direct light at x where a phase-sampled path from x goes on (the marchers' nee+paths source):
+ * every light a path cannot hit (point, spot, directional) once with weight 1, and delta's
+ * own pick among all lights (pmf_i) kept when it is a light a path can hit (sphere,
+ * environment), with the power heuristic against phase sampling. The path from x then
+ * counts the light it hits with the matching weight (rd_flight_behind), so the two sum to
+ * the direct light exactly once (Veach 1997 §9.2). */
+vec3 rd_nee_split(const rd_scene *s, int region, vec3 x, vec3 d, double g, pcg32 *rng,
+                  rd_track_counters *c);
+
 /* Direct light at x with no path to share it with (the ray marchers): one sample of every
  * light, summed, no MIS weight (nothing else estimates the direct part, so a weight < 1 would
  * lose light from sphere and environment lights). A light that gives nothing at x (outside a
