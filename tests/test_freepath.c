@@ -12,7 +12,7 @@
 
 #include <stdio.h>
 
-static rd_scene *grid_scene(const char *majorant)
+static rd_scene *grid_scene_st(const char *majorant, double sigma_t)
 {
     enum { NX = 7, NY = 5, NZ = 6 };
     float vox[NX * NY * NZ];
@@ -27,11 +27,13 @@ static rd_scene *grid_scene(const char *majorant)
     snprintf(json, sizeof json,
              "{\"camera\":{\"position\":[0,0,5],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
              "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
-             "\"density\":{\"type\":\"raw\",\"file\":\"fgrid.raw\",\"dims\":[7,5,6]},\"sigma_t\":1.5,"
+             "\"density\":{\"type\":\"raw\",\"file\":\"fgrid.raw\",\"dims\":[7,5,6]},\"sigma_t\":%g,"
              "\"majorant\":%s}]}",
-             majorant);
+             sigma_t, majorant);
     return rt_scene("fgrid.json", json);
 }
+
+static rd_scene *grid_scene(const char *majorant) { return grid_scene_st(majorant, 1.5); }
 
 typedef struct {
     const char *name;
@@ -178,6 +180,50 @@ Test(freepath, transmittance_estimators_are_unbiased)
         p.step = 1e-3;
         pcg32 rng = pcg32_seed(1, 2, 3);
         cr_expect(fabs(rd_fp_transmittance(&p, &fm, r, t0, t1, &rng, &c) - exact) < 1e-2);
+    }
+    rd_scene_free(s);
+}
+
+Test(freepath, ratio_tracking_roulette_keeps_the_mean_through_a_thick_medium)
+{
+    /* sigma_t 8 x the grid's density: optical depth 5-9 along these rays, so every ratio
+     * estimator's running estimate falls below the roulette's threshold (0.05, on_ratio) and
+     * is killed or scaled up on the way. The mean must stay exp(-tau) (5 standard errors of
+     * 50000 estimates), some estimates must have been ended by the roulette (a ratio product
+     * reaches 0 otherwise only where the density meets its bound exactly), and none may exceed
+     * 1 (a survivor is at most 0.05 / 0.25). */
+    rd_scene *s = grid_scene_st("{\"type\":\"grid\",\"resolution\":4,\"bound\":\"trilinear\"}", 8.0);
+    const rd_medium *m = &s->media[0];
+    rd_fp_medium fm = rd_fp_view(m);
+    const rd_tr_kind kinds[] = {RD_TR_RATIO_GLOBAL, RD_TR_RATIO, RD_TR_RESIDUAL};
+    for (int q = 0; q < 2; q++) {
+        ray3 r = {v3(-2.0, -0.4 + 0.5 * q, 0.2), v3_norm(v3(1.0, 0.05, 0.1 * q))};
+        double t0, t1;
+        cr_assert(rd_box_intersect(m->bmin, m->bmax, r, 0, INFINITY, &t0, &t1));
+        rd_track_counters c = {0};
+        double tau = rd_grid_optical_depth(&m->grid, r, t0, t1, &c) * m->sigma_t_scale, exact = exp(-tau);
+        cr_assert(tau > 3.0, "the ray is too thin for the test: tau %.3f", tau);
+        rd_fp_params p;
+        rd_fp_params_default(&p);
+        for (int k = 0; k < 3; k++) {
+            p.transmittance = kinds[k];
+            double sum = 0, sum2 = 0, Tmax = 0;
+            int n = 50000, zeros = 0;
+            for (int i = 0; i < n; i++) {
+                pcg32 rng = pcg32_seed(40 + q, i, 9 + k);
+                double T = rd_fp_transmittance(&p, &fm, r, t0, t1, &rng, &c);
+                sum += T;
+                sum2 += T * T;
+                zeros += T == 0.0;
+                Tmax = fmax(Tmax, T);
+            }
+            double mean = sum / n, se = sqrt(fmax(0, sum2 / n - mean * mean) / n);
+            cr_log_info("%s, tau %.3f: %.6g vs %.6g (se %.2g), %d of %d ended by the roulette", rd_tr_name(kinds[k]),
+                        tau, mean, exact, se, zeros, n);
+            cr_expect(fabs(mean - exact) < 5 * se, "%s: %.6g vs %.6g (se %.2g)", rd_tr_name(kinds[k]), mean, exact, se);
+            cr_expect(zeros > n / 10, "%s: the roulette ended only %d of %d estimates", rd_tr_name(kinds[k]), zeros, n);
+            cr_expect(Tmax <= 1.0, "%s: an estimate of %.3g", rd_tr_name(kinds[k]), Tmax);
+        }
     }
     rd_scene_free(s);
 }

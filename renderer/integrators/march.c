@@ -366,6 +366,10 @@ static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int r
     double T = 1.0, tp = t0;
     for (int n = 0; n < N && T != 0.0; n++) {
         T *= rd_transmittance(s, region, r, tp, ms.t[n], rng, c); /* T(0, t_n), one sweep */
+        /* Roulette on the ray's T (rd_tr_roulette): samples whose light reaches the camera at
+         * under 5% are mostly skipped, the rest weighted up; killing it ends the ray, as the
+         * samples beyond would be rouletted alike. */
+        T *= rd_tr_roulette(T, rng);
         tp = ms.t[n];
         vec3 x = ray_at(r, ms.t[n]);
         const rd_medium *m = rd_scene_medium_at(s, region, x);

@@ -73,6 +73,17 @@ static double default_step(const rd_fp_params *p, const rd_fp_medium *fm)
     return p->step > 0.0 ? p->step : v3_len(v3_sub(fm->bmax, fm->bmin)) / 512.0;
 }
 
+/* The transmittance roulette: pbrt-v4's constants (VolPathIntegrator::SampleLd, threshold
+ * 0.05, termination probability 0.75), not tuned here. */
+#define TR_RR_T 0.05
+#define TR_RR_Q 0.75
+
+double rd_tr_roulette(double T, pcg32 *rng)
+{
+    if (!(fabs(T) < TR_RR_T) || T == 0.0) return 1.0;
+    return pcg32_uniform(rng) < TR_RR_Q ? 0.0 : 1.0 / (1.0 - TR_RR_Q);
+}
+
 /* ---- The majorant walk ------------------------------------------------------------------ */
 
 /* Seed 003 §3.3 SuperVoxelTraversal generalised (pbrt-v4 SampleT_maj): draw tau* = -ln(1-u),
@@ -108,6 +119,7 @@ static inline int walk(const rd_fp_medium *fm, const rd_majorant *maj, ray3 r, d
             double s = rd_seg_solve(&g, s0, tau);
             pt.t = g.t0 + s * (g.t1 - g.t0);
             pt.mu = rd_seg_sigma(&g, s);
+            pt.tau_c = tc + sc * (pt.t - g.t0);
             c->collisions++;
             if (!fn(user, &pt)) {
                 tc += sc * (pt.t - g.t0);
@@ -274,6 +286,9 @@ static int on_ratio(void *user, const rd_walk_point *pt)
 {
     track_state *ts = user;
     ts->T *= 1.0 - (sigma_at(ts->fm, ts->r, pt->t, ts->c) - pt->sigma_c) / pt->mu;
+    /* The roulette (rd_tr_roulette) on the estimate so far, ratio product x exp(-control
+     * depth): a ray deep in a dense medium stops early, the expectation unchanged. */
+    ts->T *= rd_tr_roulette(pt->tau_c > 0.0 ? ts->T * exp(-pt->tau_c) : ts->T, ts->rng);
     return ts->T != 0.0;
 }
 

@@ -150,6 +150,12 @@ void rd_trilinear_cubic(const double v[8], const double E[3], const double O[3],
  * total area `plane_area`, in a box of surface S: N = (sum 4 k_j |E_j| + 2 plane_area) / S. */
 double rd_cost_eq14(const double *k, const double *vol, int n, double plane_area, double S);
 
+/* Russian roulette for a transmittance estimate T (Arvo and Kirk 1990; pbrt-v4's form): 1
+ * while |T| >= 0.05; below, 0 with probability 0.75 and 4 otherwise. Multiplying an estimate
+ * by it keeps its expectation and ends most walks whose light would count for little: ratio
+ * tracking applies it at every tentative collision, the marchers to a camera ray's T. */
+double rd_tr_roulette(double T, pcg32 *rng);
+
 /* ---- The majorant walk (DESIGN.md convention 7; pbrt-v4 SampleT_maj) ---------------------- *
  * The one loop under every unbiased tracker and transmittance estimator (freepath.c): tentative
  * collisions are drawn along the majorant iterator with density mu(t) = b sigma_maj(t) - sigma_c,
@@ -159,6 +165,8 @@ typedef struct {
     double t;               /* distance of the tentative collision along the ray */
     double mu;              /* sampling density there: b sigma_maj(t) - sigma_c [1/m] */
     double sigma_c;         /* control extinction subtracted (residual walks), else 0 [1/m] */
+    double tau_c;           /* control optical depth from the walk's start to t (residual
+                             * walks), else 0 */
     const rd_maj_seg *seg;  /* the current segment; its c[] already scaled by b, minus sigma_c */
 } rd_walk_point;
 /* Return 1 to go on walking, 0 to stop. */
