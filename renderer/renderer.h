@@ -111,6 +111,11 @@ typedef struct {
     /* Optional converged image of the same size: the RMSE of the running mean against it is
      * recorded after every pass (rd_render_result.curve). Borrowed. */
     const rd_image *reference;
+    /* Index of every pixel's first sample (default 0): the render takes samples
+     * [first_sample, first_sample + spp), so a render of N samples followed by one of M more
+     * with first_sample = N and the same seed are together the render of N + M samples (the
+     * random numbers are keyed by the sample index). compare extends its reference this way. */
+    int first_sample;
 } rd_render_opts;
 
 typedef struct {
