@@ -200,14 +200,14 @@ test-tsan: deps
 #    answer, checked in the release run); the code they run is exercised under ASan by the
 #    shorter tests of the same modules and by the fuzz targets;
 #  - the tests that only spawn the command line (cli/*, memory/*, stress_big/*, and compare's
-#    page, error and Ctrl-C tests): in this run they would spawn the release binary again
+#    page, error and Ctrl-C tests, compare_cli/*): in this run they would spawn the release binary again
 #    (PHOTONMARCH_BIN), so under ASan they only repeat the release run; the command line itself
 #    runs under ASan + UBSan in the release run's cli/malformed_scene_catalogue_under_sanitizers;
 #  - structure/* (tests/check_structure.py reads the release build's objects with nm; run once).
 # Together they would take the suite past 15 minutes.
 SAN_BUILD := build-fuzz
 SAN_MAKE  := $(MAKE) BUILD=$(SAN_BUILD) SAN=fuzz CC=clang-14 CXX=clang++-14
-ASAN_FILTER := '!(guided_unbiased/each_part_alone_*|guided_unbiased/flight_sampler_chi_square_*|march/guided_and_transmittance_share_*|march/defensive_only_and_wrong_guides_*|photons/knn_radiance_converges_*|integrator/white_furnace_every_tracker|stress_big/*|cli/*|memory/*|compare/page_loads_*|compare/bad_reference_*|compare/ctrl_c_*|geom/cli_renders_shapes|structure/*|progressive/squared_gap_*)'
+ASAN_FILTER := '!(guided_unbiased/each_part_alone_*|guided_unbiased/flight_sampler_chi_square_*|march/guided_and_transmittance_share_*|march/defensive_only_and_wrong_guides_*|photons/knn_radiance_converges_*|integrator/white_furnace_every_tracker|stress_big/*|cli/*|memory/*|compare/page_loads_*|compare/bad_reference_*|compare/ctrl_c_*|compare_cli/*|geom/cli_renders_shapes|structure/*|progressive/squared_gap_*)'
 LSAN_SUPP := $(SAN_BUILD)/lsan.supp
 SAN_ENV := ASAN_OPTIONS=halt_on_error=1:detect_leaks=1:allocator_may_return_null=1 \
            UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1:suppressions=$(CURDIR)/fuzz/ubsan.supp \

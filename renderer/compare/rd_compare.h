@@ -5,8 +5,9 @@
  *   metrics.c      the metrics of THEORY.md §7 on images (public: rd_cmp_errors_of, ...)
  *   reference.c    the images read from files, checked to match the scene: the reference
  *                  (given, cached or rendered by delta) and the --add images
- *   runs.c         the comparison: the bakes, the K runs per method, the rows of metrics
- *                  (rd_compare_run, rd_comparison_summary, rd_comparison_free)
+ *   runs.c         the comparison: the bakes, the K runs per method, the rows of metrics,
+ *                  the default reference's rule (rd_compare_run, rd_comparison_summary,
+ *                  rd_comparison_free)
  *   report_page.c  the text of the report's index.html
  *   report.c       the report folder (images, error maps, crops, convergence plot,
  *                  metrics.json, index.html) and the metrics table on stdout; it reads the
@@ -53,6 +54,8 @@ struct rd_comparison {
     const rd_image **row_img; /* [n_rows]: the image shown for each row (a method's first run) */
     rd_cmp_summary sum;
     double planned_seconds; /* seconds the runs not yet started will take (progress) */
+    uint64_t ref_key;     /* the rendered reference's cache key ... */
+    char ref_base[1200];  /* ... and its cache path without extension ("": not cached) */
 };
 
 /* The worst region of the report's crops: the square of side s at (x, y), in pixels. */
@@ -84,6 +87,12 @@ static inline int cmp_double(const void *a, const void *b)
  * opts.reference, else the cache (opts.cache_dir), else rendered by delta and cached.
  * Cancelled while rendering: RD_OK with c->sum.cancelled = 1 and no reference. */
 rd_status rd_cmp_reference_get(rd_comparison *c, const rd_scene *s, char *err, size_t errlen);
+/* 1 when opts ask for the default reference (none given, neither --ref-spp nor --ref-time). */
+int rd_cmp_reference_is_auto(const rd_cmp_opts *o);
+/* Render `more` samples per pixel of the default reference's stream onto c->ref (the samples
+ * after those it has, merged as one render would have them) and save it in the cache again.
+ * Ctrl-C: the reference stays as it was, c->sum.cancelled = 1. */
+rd_status rd_cmp_reference_extend(rd_comparison *c, const rd_scene *s, int more, char *err, size_t errlen);
 /* The --add images into c->extra_img, each checked to have the scene's size. */
 rd_status rd_cmp_extras_load(rd_comparison *c, char *err, size_t errlen);
 

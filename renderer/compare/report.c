@@ -353,6 +353,17 @@ static rd_status write_json(const rd_comparison *c, const rd_scene *s, const cha
     json_num(ref, "seconds", S->ref_rendered ? S->ref_seconds : NAN);
     json_num(ref, "variance", S->ref_var);
     cJSON_AddBoolToObject(ref, "too_noisy", S->ref_too_noisy);
+    /* How the reference was decided (docs/compare.md): "rule" (the default: until its variance
+     * is at most variance_limit of the best MSE, within cap_seconds), "spp", "time",
+     * "spp+time" (--ref-spp / --ref-time) or "given". */
+    cJSON_AddStringToObject(ref, "decided_by", !S->ref_rendered ? "given" : S->ref_auto ? "rule"
+                                               : o->ref_spp > 0 && o->ref_time > 0 ? "spp+time"
+                                               : o->ref_spp > 0 ? "spp" : "time");
+    json_num(ref, "variance_share", S->ref_share);
+    cJSON_AddNumberToObject(ref, "variance_limit", RD_CMP_REF_SHARE);
+    cJSON_AddNumberToObject(ref, "extended", S->ref_extended);
+    json_num(ref, "cap_seconds", S->ref_auto ? S->ref_cap_seconds : NAN);
+    cJSON_AddBoolToObject(ref, "capped", S->ref_capped);
     cJSON *em = cJSON_AddObjectToObject(j, "error_map");
     cJSON_AddStringToObject(em, "quantity", "|L(x) - L(r)| / (L(r) + 0.01), L = luminance");
     cJSON_AddNumberToObject(em, "scale_max", scale);
@@ -413,6 +424,9 @@ void rd_compare_print_table(const rd_comparison *c, FILE *out)
     }
     const rd_cmp_summary *S = &c->sum;
     fprintf(out, "reference: %s", S->ref_source);
-    if (isfinite(S->ref_var)) fprintf(out, " (variance %.3g)", S->ref_var);
+    if (S->ref_rendered) fprintf(out, " (delta, %.6g spp, %.1f s%s)", S->ref_spp, S->ref_seconds,
+                                 S->ref_extended ? ", extended after the runs" : "");
+    if (isfinite(S->ref_var)) fprintf(out, "; variance %.3g", S->ref_var);
+    if (isfinite(S->ref_share)) fprintf(out, " = %.0f%% of the best MSE", 100.0 * S->ref_share);
     fprintf(out, "%s\n", S->ref_too_noisy ? "; TOO NOISY to rank the methods (see the report)" : "");
 }
