@@ -457,6 +457,22 @@ typedef struct rd_comparison rd_comparison; /* the runs' images, curves and rows
  * best_mse - ref_var stays and the variance falls as 1/spp, with 10% to spare. */
 double rd_cmp_ref_spp_needed(double spp, double ref_var, double best_mse);
 
+/* The summary in words (docs/compare.md, "The summary"). The baseline is `delta` when it is
+ * one of the rows, else the first method's row (-1: no rows). The winner is the row of the
+ * highest efficiency (methods, and added images with a time), -1 when fewer than two rows have
+ * one or the reference is too noisy to rank them. */
+int rd_cmp_baseline(const rd_cmp_summary *S);
+int rd_cmp_winner(const rd_cmp_summary *S);
+/* Share of one run's own error that is bias: max(bias2, 0) / (max(bias2, 0) + variance), in
+ * [0, 1]; NaN when unknown (an added image). */
+double rd_cmp_bias_share(const rd_cmp_row *r);
+/* Row i's sentence, relative to the baseline, e.g. "guided: 1.4x delta's efficiency; 68% of
+ * its error is bias"; the baseline's own: "delta: the baseline; 3% of its error is bias". */
+void rd_cmp_sentence(const rd_cmp_summary *S, int i, char *buf, size_t n);
+/* Who won and by how much, e.g. "winner: guided, 1.4x delta's efficiency", or why none: "not
+ * ranked: the reference is too noisy ...". Empty with fewer than two rows. */
+void rd_cmp_verdict(const rd_cmp_summary *S, char *buf, size_t n);
+
 /* Check the options and load or render the reference (errors name the file: a reference of
  * the wrong size is RD_ERR_FORMAT, a missing one RD_ERR_IO; an --add image likewise), then run
  * every method K times and compute the rows. Cancelled: RD_OK with summary.cancelled = 1. */

@@ -1,8 +1,10 @@
-/* `photonmarch compare`'s default reference (issue 24; docs/compare.md): rendered until its
- * variance is at most a tenth of the best method's MSE (a cached one too noisy for the runs is
- * extended, to the very render of that many samples; at its cap it is not called rankable), and
- * --ref-time alone deciding the reference (no samples-per-pixel cap). */
+/* `photonmarch compare`'s first impression (issue 24; docs/compare.md): the default reference's
+ * rule (rendered until its variance is at most a tenth of the best method's MSE; a cached one
+ * too noisy for the runs is extended, to the very render of that many samples), --ref-time
+ * alone deciding the reference, and the summary in words (the bias share on constructed rows
+ * and on synthetic runs of known bias and variance, the sentences in the table and the page). */
 #include "support/rd_test.h"
+#include "support/test_rng.h"
 #include "compare/rd_compare.h"
 
 #include <cJSON.h>
@@ -144,6 +146,10 @@ Test(compare_rule, a_reference_at_its_cap_is_not_called_rankable, .timeout = 60)
     S = rd_comparison_summary(c);
     cr_expect(S->ref_spp <= 16 && S->ref_extended == 0, "the cap let it grow to %g spp", S->ref_spp);
     cr_expect(S->ref_too_noisy && S->ref_capped, "a 10-spp reference against 64-spp runs is too noisy (share %g)", S->ref_share);
+    cr_expect(rd_cmp_winner(S) < 0, "and nothing is ranked");
+    char line[512];
+    rd_cmp_verdict(S, line, sizeof line);
+    cr_expect(line[0] == 0, "one row: no verdict line (%s)", line);
     rd_comparison_free(c);
     rd_scene_free(s);
 }
@@ -169,6 +175,147 @@ Test(compare_rule, ref_time_alone_decides_and_ref_spp_still_caps, .timeout = 60)
     cr_assert(rd_compare_run(s, &o, &c, err, sizeof err) == RD_OK, "%s", err);
     S = rd_comparison_summary(c);
     cr_expect(S->ref_spp == 8 && S->ref_seconds < 100, "%g spp, %g s", S->ref_spp, S->ref_seconds);
+    rd_comparison_free(c);
+    rd_scene_free(s);
+}
+
+/* ---- The summary in words ------------------------------------------------------------------ */
+
+static rd_cmp_row row(const char *label, double eff, double bias2, double var)
+{
+    rd_cmp_row r = {0};
+    snprintf(r.label, sizeof r.label, "%s", label);
+    r.runs = 2;
+    r.seconds = 10;
+    r.efficiency = eff;
+    r.split.bias2 = bias2;
+    r.split.variance = var;
+    r.err.mse = 1.0 / (eff * r.seconds);
+    r.err.rmse = sqrt(r.err.mse);
+    return r;
+}
+
+Test(compare_summary, sentences_on_constructed_rows)
+{
+    /* guided first, delta second: delta is the baseline all the same. */
+    rd_cmp_row rows[4] = {row("guided", 140, 6.8e-5, 3.2e-5), row("delta", 100, 1e-6, 9e-6),
+                          row("uniform", 20, -2e-6, 5e-5), row("pbrt", NAN, NAN, NAN)};
+    rd_cmp_summary S = {.rows = rows, .n_rows = 3, .ref_var = 1e-7, .ref_share = 0.01};
+    char line[512];
+    cr_expect(rd_cmp_baseline(&S) == 1);
+    cr_expect(rd_cmp_winner(&S) == 0);
+    cr_expect_float_eq(rd_cmp_bias_share(&rows[0]), 0.68, 1e-12);
+    rd_cmp_sentence(&S, 0, line, sizeof line);
+    cr_expect_str_eq(line, "guided: 1.4x delta's efficiency; 68% of its error is bias");
+    rd_cmp_sentence(&S, 1, line, sizeof line);
+    cr_expect_str_eq(line, "delta: the baseline; 10% of its error is bias");
+    /* A negative bias^2 (noise around none) is no bias. */
+    rd_cmp_sentence(&S, 2, line, sizeof line);
+    cr_expect_str_eq(line, "uniform: 0.2x delta's efficiency; 0% of its error is bias");
+    rd_cmp_verdict(&S, line, sizeof line);
+    cr_expect_str_eq(line, "winner: guided, 1.4x delta's efficiency");
+
+    /* The baseline wins: by how much over the next best. */
+    rows[0].efficiency = 50;
+    rd_cmp_verdict(&S, line, sizeof line);
+    cr_expect_str_eq(line, "winner: delta, 2.0x the efficiency of the next best (guided)");
+
+    /* No delta: the first method is the baseline. An added image without its time has no
+     * efficiency: its RMSE instead, and no bias share. */
+    snprintf(rows[1].label, sizeof rows[1].label, "transmittance");
+    rows[3].is_extra = 1;
+    rows[3].err.rmse = 2 * rows[0].err.rmse;
+    S.n_rows = 4;
+    cr_expect(rd_cmp_baseline(&S) == 0);
+    rd_cmp_sentence(&S, 1, line, sizeof line);
+    cr_expect_str_eq(line, "transmittance: 2.0x guided's efficiency; 10% of its error is bias");
+    rd_cmp_sentence(&S, 3, line, sizeof line);
+    cr_expect_str_eq(line, "pbrt: no time given, so no efficiency; RMSE 2.0x guided's; bias and variance unknown (one image)");
+
+    /* Too noisy: nothing is ranked, and the verdict says why. */
+    S.ref_too_noisy = 1;
+    S.ref_share = 0.3;
+    cr_expect(rd_cmp_winner(&S) == -1);
+    rd_cmp_verdict(&S, line, sizeof line);
+    cr_expect(strstr(line, "not ranked: the reference is too noisy (its variance is 30% of the best MSE") == line, "%s", line);
+}
+
+/* Synthetic runs x_k = r + b + sigma z: the split's bias share is b^2 / (b^2 + sigma^2) within
+ * five standard errors (delta method on the split's two estimators, whose standard errors are
+ * those of test_compare.c's split test), and the sentence prints that share. */
+Test(compare_summary, bias_share_of_runs_with_a_known_bias)
+{
+    enum { W = 64, H = 64, K = 8 };
+    const double b = 0.1, sigma = 0.2, n = W * H * 3;
+    rd_image r = {W, H, malloc(sizeof(float) * W * H * 3), 0}, runs[K];
+    for (int i = 0; i < W * H * 3; i++) r.rgb[i] = (float)(0.5 + 0.4 * sin(0.01 * i));
+    rng g = rng_new(24);
+    for (int j = 0; j < K; j++) {
+        runs[j] = (rd_image){W, H, malloc(sizeof(float) * W * H * 3), 0};
+        for (int i = 0; i < W * H * 3; i++) runs[j].rgb[i] = (float)(r.rgb[i] + b + sigma * rng_normal(&g));
+    }
+    rd_cmp_row rw[2] = {row("guided", 2, 0, 0), row("delta", 1, 0, 1)};
+    cr_assert(rd_cmp_split_of(runs, K, &r, NULL, &rw[0].split, NULL, 0) == RD_OK);
+    double B = b * b, V = sigma * sigma, s2k = V / K;
+    double se_B = sqrt((2 * s2k * s2k + 4 * B * s2k + 2 * V * V / ((K - 1.0) * K * K)) / n);
+    double se_V = V * sqrt(2.0 / ((K - 1) * n));
+    double se_share = sqrt(V * V * se_B * se_B + B * B * se_V * se_V) / ((B + V) * (B + V));
+    double share = rd_cmp_bias_share(&rw[0]);
+    cr_expect(fabs(share - B / (B + V)) < 5 * se_share, "bias share %g, expected %g +- %g", share, B / (B + V), 5 * se_share);
+    rd_cmp_summary S = {.rows = rw, .n_rows = 2};
+    char line[256], want[64];
+    rd_cmp_sentence(&S, 0, line, sizeof line);
+    snprintf(want, sizeof want, "; %.0f%% of its error is bias", 100 * share);
+    cr_expect(strstr(line, want) != NULL, "%s", line);
+    for (int j = 0; j < K; j++) rd_image_free_pixels(&runs[j]);
+    rd_image_free_pixels(&r);
+}
+
+/* The table on stdout and the page's header carry the same sentences. */
+Test(compare_summary, table_and_page_say_it, .timeout = 120)
+{
+    rd_scene *s = rt_scene("say.json", small_scene_json);
+    static const char *const two[] = {"guided", "delta"};
+    rd_cmp_opts o = {.methods = two, .n_methods = 2, .equal_spp = 1, .budget = 4, .runs = 2, .seed = 5,
+                     .threads = 2, .ref_spp = 64};
+    char err[RD_ERRLEN];
+    rd_comparison *c = NULL;
+    cr_assert(rd_compare_run(s, &o, &c, err, sizeof err) == RD_OK, "%s", err);
+    const char *dir = rt_tmp_path("say-report");
+    cr_assert(rd_compare_write_report(c, s, dir, err, sizeof err) == RD_OK, "%s", err);
+    static char table[1 << 14], page[1 << 18];
+    FILE *f = fmemopen(table, sizeof table - 1, "w");
+    rd_compare_print_table(c, f);
+    fclose(f);
+    char path[512];
+    snprintf(path, sizeof path, "%s/index.html", dir);
+    f = fopen(path, "r");
+    cr_assert(f != NULL);
+    page[fread(page, 1, sizeof page - 1, f)] = 0;
+    fclose(f);
+    const rd_cmp_summary *S = rd_comparison_summary(c);
+    char line[512];
+    for (int i = 0; i < S->n_rows; i++) {
+        rd_cmp_sentence(S, i, line, sizeof line);
+        cr_expect(strstr(table, line) != NULL, "not in the table: %s\n%s", line, table);
+        cr_expect(strstr(page, line) != NULL, "not in the page: %s", line);
+    }
+    rd_cmp_sentence(S, 0, line, sizeof line);
+    cr_expect(strstr(line, "guided: ") == line && strstr(line, "x delta's efficiency; ") && strstr(line, "% of its error is bias"), "%s", line);
+    rd_cmp_verdict(S, line, sizeof line);
+    cr_expect(line[0] && strstr(table, line) && strstr(page, line), "verdict: %s", line);
+    snprintf(path, sizeof path, "%s/metrics.json", dir);
+    f = fopen(path, "r");
+    page[fread(page, 1, sizeof page - 1, f)] = 0;
+    fclose(f);
+    cJSON *j = cJSON_Parse(page);
+    cJSON *sm = cJSON_GetObjectItemCaseSensitive(j, "summary");
+    cr_expect_str_eq(cJSON_GetObjectItemCaseSensitive(sm, "baseline")->valuestring, "delta");
+    cr_expect_str_eq(cJSON_GetObjectItemCaseSensitive(sm, "verdict")->valuestring, line);
+    cJSON *ref = cJSON_GetObjectItemCaseSensitive(j, "reference");
+    cr_expect_str_eq(cJSON_GetObjectItemCaseSensitive(ref, "decided_by")->valuestring, "spp");
+    cr_expect(cJSON_IsBool(cJSON_GetObjectItemCaseSensitive(ref, "too_noisy")), "the old fields stay");
+    cJSON_Delete(j);
     rd_comparison_free(c);
     rd_scene_free(s);
 }
@@ -210,4 +357,5 @@ Test(compare_cli, ref_time_alone_is_not_capped, .timeout = 60)
     cr_expect(secs >= 2.0, "--ref-time 2 stopped at %g s (%g spp)", secs, spp);
     cr_expect_str_eq(cJSON_GetObjectItemCaseSensitive(ref, "decided_by")->valuestring, "time");
     cJSON_Delete(j);
+    cr_expect(strstr(out, "delta: the baseline; ") != NULL, "the summary on stdout: %s", out);
 }

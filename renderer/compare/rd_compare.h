@@ -8,6 +8,7 @@
  *   runs.c         the comparison: the bakes, the K runs per method, the rows of metrics,
  *                  the default reference's rule (rd_compare_run, rd_comparison_summary,
  *                  rd_comparison_free)
+ *   summary.c      the summary in words: baseline, winner, one sentence per row
  *   report_page.c  the text of the report's index.html
  *   report.c       the report folder (images, error maps, crops, convergence plot,
  *                  metrics.json, index.html) and the metrics table on stdout; it reads the

@@ -285,7 +285,7 @@ static const cmp_method *method_of(const rd_comparison *c, const char *label)
     return NULL;
 }
 
-static cJSON *json_row(const rd_comparison *c, const rd_cmp_row *r)
+static cJSON *json_row(const rd_comparison *c, const rd_cmp_row *r, int i)
 {
     cJSON *o = cJSON_CreateObject();
     char name[128];
@@ -312,6 +312,13 @@ static cJSON *json_row(const rd_comparison *c, const rd_cmp_row *r)
     json_num(pp, "lookups", r->lookups_pp);
     json_num(pp, "shadow_rays", r->shadow_rays_pp);
     json_num(o, "homogeneity", r->homogeneity);
+    /* The summary's numbers (summary.c): efficiency over the baseline's, share of bias. */
+    int b = rd_cmp_baseline(&c->sum);
+    json_num(o, "efficiency_vs_baseline", b >= 0 ? r->efficiency / c->rows[b].efficiency : NAN);
+    json_num(o, "bias_share", rd_cmp_bias_share(r));
+    char line[256];
+    rd_cmp_sentence(&c->sum, i, line, sizeof line);
+    cJSON_AddStringToObject(o, "summary", line);
     cJSON *im = cJSON_AddObjectToObject(o, "images");
     static const char *const kinds[][2] = {{"exr", "%s.exr"}, {"png", "%s.png"}, {"error", "%s-error.png"}, {"crop", "%s-crop.png"}};
     for (int k = 0; k < 4; k++) {
@@ -372,7 +379,21 @@ static rd_status write_json(const rd_comparison *c, const rd_scene *s, const cha
     cJSON_AddNumberToObject(cr, "y", b.y);
     cJSON_AddNumberToObject(cr, "size", b.s);
     cJSON *rows = cJSON_AddArrayToObject(j, "methods");
-    for (int i = 0; i < S->n_rows; i++) cJSON_AddItemToArray(rows, json_row(c, &c->rows[i]));
+    for (int i = 0; i < S->n_rows; i++) cJSON_AddItemToArray(rows, json_row(c, &c->rows[i], i));
+    cJSON *sm = cJSON_AddObjectToObject(j, "summary");
+    int base = rd_cmp_baseline(S), w = rd_cmp_winner(S);
+    if (base >= 0) cJSON_AddStringToObject(sm, "baseline", c->rows[base].label);
+    else cJSON_AddNullToObject(sm, "baseline");
+    if (w >= 0) cJSON_AddStringToObject(sm, "winner", c->rows[w].label);
+    else cJSON_AddNullToObject(sm, "winner");
+    char line[512];
+    rd_cmp_verdict(S, line, sizeof line);
+    cJSON_AddStringToObject(sm, "verdict", line);
+    cJSON *lines = cJSON_AddArrayToObject(sm, "lines");
+    for (int i = 0; i < S->n_rows; i++) {
+        rd_cmp_sentence(S, i, line, sizeof line);
+        cJSON_AddItemToArray(lines, cJSON_CreateString(line));
+    }
     char *text = cJSON_Print(j);
     cJSON_Delete(j);
     if (!text) return fail(err, errlen, RD_ERR_NOMEM, "%s: out of memory", "metrics.json");
@@ -429,4 +450,12 @@ void rd_compare_print_table(const rd_comparison *c, FILE *out)
     if (isfinite(S->ref_var)) fprintf(out, "; variance %.3g", S->ref_var);
     if (isfinite(S->ref_share)) fprintf(out, " = %.0f%% of the best MSE", 100.0 * S->ref_share);
     fprintf(out, "%s\n", S->ref_too_noisy ? "; TOO NOISY to rank the methods (see the report)" : "");
+    /* The summary in words (summary.c). */
+    char line[512];
+    rd_cmp_verdict(S, line, sizeof line);
+    if (line[0]) fprintf(out, "%s\n", line);
+    for (int i = 0; i < S->n_rows; i++) {
+        rd_cmp_sentence(S, i, line, sizeof line);
+        fprintf(out, "  %s\n", line);
+    }
 }

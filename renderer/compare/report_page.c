@@ -87,6 +87,28 @@ static const char *page_js =
     "show(0);\n"
     "window.addEventListener('load', () => { if (location.hash === '#selftest') selftest(); });\n";
 
+/* The summary in words (summary.c): who won and by how much, and a sentence per row. */
+static void page_summary(rd_text *b, const rd_comparison *c)
+{
+    const rd_cmp_summary *S = &c->sum;
+    char line[512];
+    rd_cmp_verdict(S, line, sizeof line);
+    rd_text_printf(b, "<section id=summary>\n");
+    if (line[0]) {
+        rd_text_printf(b, "<p><b>");
+        sb_escape(b, line);
+        rd_text_printf(b, "</b></p>\n");
+    }
+    rd_text_printf(b, "<ul>\n");
+    for (int i = 0; i < S->n_rows; i++) {
+        rd_cmp_sentence(S, i, line, sizeof line);
+        rd_text_printf(b, "<li>");
+        sb_escape(b, line);
+        rd_text_printf(b, "</li>\n");
+    }
+    rd_text_printf(b, "</ul>\n</section>\n");
+}
+
 static void page_head(rd_text *b, const rd_comparison *c, const rd_scene *s)
 {
     const rd_cmp_opts *o = &c->opts;
@@ -95,7 +117,9 @@ static void page_head(rd_text *b, const rd_comparison *c, const rd_scene *s)
     sb_escape(b, s->path);
     rd_text_printf(b, "</title>\n<style>\n%s</style></head><body>\n<h1>photonmarch compare: ", page_css);
     sb_escape(b, s->path);
-    rd_text_printf(b, "</h1>\n<p>%dx%d pixels; equal %s: %g %s per run; %d run%s per method (seeds %llu..%llu); "
+    rd_text_printf(b, "</h1>\n");
+    page_summary(b, c);
+    rd_text_printf(b, "<p>%dx%d pixels; equal %s: %g %s per run; %d run%s per method (seeds %llu..%llu); "
                  "bake time charged to every run of a method that needs it.</p>\n",
               c->w, c->h, o->equal_spp ? "samples" : "time", o->budget, o->equal_spp ? "spp" : "s", o->runs,
               o->runs > 1 ? "s" : "", (unsigned long long)RUN_SEED(o->seed, 0), (unsigned long long)RUN_SEED(o->seed, o->runs - 1));
