@@ -1,8 +1,9 @@
 /* `photonmarch compare`'s first impression (issue 24; docs/compare.md): the default reference's
  * rule (rendered until its variance is at most a tenth of the best method's MSE; a cached one
  * too noisy for the runs is extended, to the very render of that many samples), --ref-time
- * alone deciding the reference, and the summary in words (the bias share on constructed rows
- * and on synthetic runs of known bias and variance, the sentences in the table and the page). */
+ * alone deciding the reference, the summary in words (the bias share on constructed rows and on
+ * synthetic runs of known bias and variance, the sentences in the table and the page), and the
+ * --add labels that would overwrite the report's own files refused. */
 #include "support/rd_test.h"
 #include "support/test_rng.h"
 #include "compare/rd_compare.h"
@@ -320,6 +321,47 @@ Test(compare_summary, table_and_page_say_it, .timeout = 120)
     rd_scene_free(s);
 }
 
+/* ---- --add labels ------------------------------------------------------------------------- */
+
+Test(compare_rule, add_labels_that_would_overwrite_report_files_are_refused)
+{
+    rd_scene *s = rt_scene("add.json", small_scene_json);
+    static const char *const two[] = {"guided", "delta"};
+    /* label, and what the one-line error must name */
+    static const char *const bad[][2] = {
+        {"reference", "reference.exr"},          {"delta", "a method's name"},
+        {"uniform", "a method's name"},          {"reference-stderr", "reference-stderr.exr"},
+        {"reference-crop", "reference-crop.png"}, {"colorbar", "colorbar.png"},
+        {"delta-error", "delta-error.png"},      {"guided-crop", "guided-crop.png"},
+        {"other", "other.exr"}, /* the second of two "other"s */
+        {"other-crop", "other-crop.png"},        {NULL, NULL}};
+    char err[RD_ERRLEN], want[128];
+    for (int i = 0; bad[i][0]; i++) {
+        rd_cmp_extra ex[2] = {{"other", "x.exr", 0}, {bad[i][0], "x.exr", 0}};
+        rd_cmp_opts o = {.methods = two, .n_methods = 2, .equal_spp = 1, .budget = 1, .runs = 1, .extras = ex,
+                         .n_extras = 2, .ref_spp = 1};
+        rd_comparison *c = NULL;
+        cr_expect(rd_compare_run(s, &o, &c, err, sizeof err) == RD_ERR_ARG, "--add %s was accepted", bad[i][0]);
+        snprintf(want, sizeof want, "--add %s: ", bad[i][0]);
+        cr_expect(strstr(err, want) == err && strstr(err, bad[i][1]) && !strchr(err, '\n'), "%s", err);
+        rd_comparison_free(c);
+    }
+    /* Labels that write files of their own are fine (checked up to the missing image). */
+    static const char *const good[] = {"pbrt", "reference-old", "delta2", "index", "metrics", "curve", NULL};
+    for (int i = 0; good[i]; i++) {
+        char path[300];
+        snprintf(path, sizeof path, "%s/missing.exr", rt_tmpdir());
+        rd_cmp_extra ex = {good[i], path, 0};
+        rd_cmp_opts o = {.methods = two, .n_methods = 2, .equal_spp = 1, .budget = 1, .runs = 1, .extras = &ex,
+                         .n_extras = 1, .ref_spp = 1};
+        rd_comparison *c = NULL;
+        rd_status st = rd_compare_run(s, &o, &c, err, sizeof err);
+        cr_expect(st == RD_ERR_IO || st == RD_ERR_FORMAT, "--add %s: %d, %s", good[i], st, err);
+        cr_expect(strstr(err, "missing.exr") != NULL, "%s", err);
+    }
+    rd_scene_free(s);
+}
+
 /* ---- The command line ---------------------------------------------------------------------- */
 
 static const char *bin_or_fail(void)
@@ -327,6 +369,32 @@ static const char *bin_or_fail(void)
     const char *bin = getenv("PHOTONMARCH_BIN");
     cr_assert(bin != NULL, "PHOTONMARCH_BIN is not set (run through make test)");
     return bin;
+}
+
+Test(compare_cli, add_label_collision_is_a_usage_error, .timeout = 60)
+{
+    const char *bin = bin_or_fail();
+    char scene[256], good[256], add[300], err[RD_ERRLEN];
+    snprintf(scene, sizeof scene, "%s/cli.json", rt_tmpdir());
+    rt_write_file(scene, small_scene_json, strlen(small_scene_json));
+    static float px[24 * 16 * 3];
+    rd_image im = {24, 16, px, 0};
+    snprintf(good, sizeof good, "%s/good.exr", rt_tmpdir());
+    cr_assert(rd_image_write_exr(good, &im, err, sizeof err) == RD_OK, "%s", err);
+    static const char *const labels[] = {"reference", "delta", "delta-error", NULL};
+    for (int i = 0; labels[i]; i++) {
+        snprintf(add, sizeof add, "%s=%s@2", labels[i], good);
+        char *argv[] = {(char *)bin, "compare", scene, "--methods", "delta", "--reference", good, "--add", add,
+                        "-o", (char *)rt_tmp_path("cli-report"), "-q", NULL};
+        static char out[4096], e[4096];
+        int code = rt_run(argv, out, sizeof out, e, sizeof e, 0);
+        char want[64];
+        snprintf(want, sizeof want, "--add %s: ", labels[i]);
+        cr_expect(code == 1, "--add %s: exit %d (expected 1, a usage error): %s", labels[i], code, e);
+        cr_expect(strstr(e, want) != NULL && strchr(e, '\n') == e + strlen(e) - 1, "one line naming it: %s", e);
+    }
+    struct stat st;
+    cr_expect(stat(rt_tmp_path("cli-report"), &st) != 0, "a refused comparison wrote a report folder");
 }
 
 /* The issue's case: --ref-time alone was capped by the default --ref-spp (1024 spp in 17 s of

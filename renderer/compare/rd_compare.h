@@ -59,6 +59,12 @@ struct rd_comparison {
     char ref_base[1200];  /* ... and its cache path without extension ("": not cached) */
 };
 
+/* The report's file names (report.c writes them; a --add label that would overwrite one is
+ * refused, reference.c): per row, each pattern with the row's label; once, the fixed ones. */
+enum { ROW_EXR, ROW_PNG, ROW_ERROR, ROW_CROP, ROW_CURVE, ROW_FILES };
+extern const char *const rd_cmp_row_file[ROW_FILES];
+extern const char *const rd_cmp_fixed_file[]; /* NULL-terminated */
+
 /* The worst region of the report's crops: the square of side s at (x, y), in pixels. */
 typedef struct { int x, y, s; } crop_box;
 
@@ -94,6 +100,10 @@ int rd_cmp_reference_is_auto(const rd_cmp_opts *o);
  * after those it has, merged as one render would have them) and save it in the cache again.
  * Ctrl-C: the reference stays as it was, c->sum.cancelled = 1. */
 rd_status rd_cmp_reference_extend(rd_comparison *c, const rd_scene *s, int more, char *err, size_t errlen);
+/* Whether a --add label's files (LABEL.exr, ...) would be one of the report's other files:
+ * those of the reference and the page, and those of the labels in names[0..n) (the methods
+ * and the images before it). 0 when free, else 1 with the file named in file[0..filen). */
+int rd_cmp_label_clash(const char *label, const char *const *names, int n, char *file, size_t filen);
 /* The --add images into c->extra_img, each checked to have the scene's size. */
 rd_status rd_cmp_extras_load(rd_comparison *c, char *err, size_t errlen);
 

@@ -392,6 +392,29 @@ rd_status rd_cmp_extra_parse(const char *arg, char *buf, size_t bufn, rd_cmp_ext
     return RD_OK;
 }
 
+/* The report's files (rd_compare.h): report.c names its files with these, and a label whose
+ * files would be one of them is refused before anything runs. */
+const char *const rd_cmp_row_file[ROW_FILES] = {"%s.exr", "%s.png", "%s-error.png", "%s-crop.png", "curve-%s.dat"};
+const char *const rd_cmp_fixed_file[] = {"index.html", "metrics.json", "convergence.svg", "convergence.gp",
+                                         "colorbar.png", "reference.exr", "reference.png", "reference-crop.png",
+                                         "reference-stderr.exr", NULL};
+
+int rd_cmp_label_clash(const char *label, const char *const *names, int n, char *file, size_t filen)
+{
+    char mine[ROW_FILES][128], other[128];
+    for (int k = 0; k < ROW_FILES; k++) snprintf(mine[k], sizeof mine[k], rd_cmp_row_file[k], label);
+    for (int k = 0; k < ROW_FILES; k++) {
+        for (int f = 0; rd_cmp_fixed_file[f]; f++)
+            if (!strcmp(mine[k], rd_cmp_fixed_file[f])) return snprintf(file, filen, "%s", mine[k]), 1;
+        for (int i = 0; i < n; i++)
+            for (int j = 0; j < ROW_FILES; j++) {
+                snprintf(other, sizeof other, rd_cmp_row_file[j], names[i]);
+                if (!strcmp(mine[k], other)) return snprintf(file, filen, "%s", mine[k]), 1;
+            }
+    }
+    return 0;
+}
+
 /* The --add images, read and checked before anything long runs. */
 rd_status rd_cmp_extras_load(rd_comparison *c, char *err, size_t errlen)
 {

@@ -166,13 +166,13 @@ static rd_status write_images(const rd_comparison *c, const char *dir, double sc
     for (int i = 0; i < c->sum.n_rows; i++) {
         const char *l = c->rows[i].label;
         const rd_image *x = c->row_img[i];
-        snprintf(name, sizeof name, "%s.exr", l);
+        snprintf(name, sizeof name, rd_cmp_row_file[ROW_EXR], l);
         if ((st = write_exr_at(dir, name, x, err, errlen))) return st;
-        snprintf(name, sizeof name, "%s.png", l);
+        snprintf(name, sizeof name, rd_cmp_row_file[ROW_PNG], l);
         if ((st = write_png_at(dir, name, x, c->exposure, err, errlen))) return st;
-        snprintf(name, sizeof name, "%s-error.png", l);
+        snprintf(name, sizeof name, rd_cmp_row_file[ROW_ERROR], l);
         if ((st = write_error_map(c, x, dir, name, scale, err, errlen))) return st;
-        snprintf(name, sizeof name, "%s-crop.png", l);
+        snprintf(name, sizeof name, rd_cmp_row_file[ROW_CROP], l);
         if ((st = write_crop(c, x, b, dir, name, err, errlen))) return st;
     }
     return RD_OK;
@@ -218,7 +218,7 @@ static rd_status write_curves(const rd_comparison *c, const char *dir, char *err
             }
         }
         char name[128];
-        snprintf(name, sizeof name, "curve-%s.dat", r->label);
+        snprintf(name, sizeof name, rd_cmp_row_file[ROW_CURVE], r->label);
         rd_status st = write_buffer_at(dir, name, &b, err, errlen);
         if (st) return st;
     }
@@ -320,10 +320,10 @@ static cJSON *json_row(const rd_comparison *c, const rd_cmp_row *r, int i)
     rd_cmp_sentence(&c->sum, i, line, sizeof line);
     cJSON_AddStringToObject(o, "summary", line);
     cJSON *im = cJSON_AddObjectToObject(o, "images");
-    static const char *const kinds[][2] = {{"exr", "%s.exr"}, {"png", "%s.png"}, {"error", "%s-error.png"}, {"crop", "%s-crop.png"}};
+    static const char *const kinds[] = {"exr", "png", "error", "crop"}; /* ROW_EXR .. ROW_CROP */
     for (int k = 0; k < 4; k++) {
-        snprintf(name, sizeof name, kinds[k][1], r->label);
-        cJSON_AddStringToObject(im, kinds[k][0], name);
+        snprintf(name, sizeof name, rd_cmp_row_file[k], r->label);
+        cJSON_AddStringToObject(im, kinds[k], name);
     }
     cJSON *curve = cJSON_AddArrayToObject(o, "curve");
     const cmp_method *m = r->is_extra ? NULL : method_of(c, r->label);

@@ -274,12 +274,25 @@ static rd_status check_opts(const rd_cmp_opts *o, char *err, size_t errlen)
     if (o->runs < 1 || o->runs > 64) return fail(err, errlen, RD_ERR_ARG, "%s: runs must be in [1, 64]", "--runs");
     if (!(o->budget > 0) || (o->equal_spp && (o->budget < 1 || o->budget > (1 << 24))))
         return fail(err, errlen, RD_ERR_ARG, "%s: must be > 0 (seconds), or in [1, 16777216] samples with --equal spp", "--budget");
+    /* Labels name the report's files and the summary's rows: a method's name is refused (the
+     * summary's baseline is the row named delta), and so is a label whose files would overwrite
+     * the reference's, the page's, a method's or an earlier image's. */
+    const char *taken[2 * RD_CMP_MAX_METHODS];
+    int nt = 0;
+    for (int j = 0; j < o->n_methods; j++) taken[nt++] = o->methods[j];
     for (int i = 0; i < o->n_extras; i++) {
-        /* Labels name the report's files: they must differ from each other and the methods. */
-        int clash = !strcmp(o->extras[i].label, "reference");
-        for (int j = 0; j < o->n_methods; j++) clash |= !strcmp(o->extras[i].label, o->methods[j]);
-        for (int j = 0; j < i; j++) clash |= !strcmp(o->extras[i].label, o->extras[j].label);
-        if (clash) return fail(err, errlen, RD_ERR_ARG, "--add %s: the label is taken (a method, another image or \"reference\")", o->extras[i].label);
+        const char *l = o->extras[i].label;
+        char file[160];
+        for (int j = 0; j < rd_method_count(); j++)
+            if (!strcmp(l, rd_method_name(j))) {
+                snprintf(err, errlen, "--add %s: the label is a method's name; give the image another", l);
+                return RD_ERR_ARG;
+            }
+        if (rd_cmp_label_clash(l, taken, nt, file, sizeof file)) {
+            snprintf(err, errlen, "--add %s: the label would overwrite the report's %s; give the image another", l, file);
+            return RD_ERR_ARG;
+        }
+        taken[nt++] = l;
     }
     return RD_OK;
 }
