@@ -75,19 +75,37 @@ BENCH_SRC := $(wildcard bench/*.c)
 BENCH_BIN := $(patsubst bench/%.c,$(BUILD)/bench/%,$(BENCH_SRC))
 
 .SECONDARY: $(patsubst bench/%.c,$(BUILD)/bench/%.o,$(BENCH_SRC))
-.PHONY: all deps asan test test-walk test-pm test-sh test-rd demo bench clean fuzz fuzz-build test-tsan
+.PHONY: all deps check-deps check-test-deps asan test test-walk test-pm test-sh test-rd demo bench clean fuzz fuzz-build test-tsan
 all: $(BIN)
 
 deps:
 	@bash scripts/install-deps.sh
 
-$(BUILD)/%.o: %.c
+# Before the first compile, one header of each library the build needs (the Debian packages of
+# scripts/install-deps.sh; Criterion's for the tests): on a machine without them `make` says in
+# one line what to run instead of stopping at the first compiler error. `make demo`, `make test`
+# and the other targets that depend on `deps` install them first and build in a sub-make, whose
+# check then passes. DEPS_CHECK=0 skips it (headers elsewhere than /usr/include).
+DEP_HEADERS      := flann/flann.h lz4.h OpenImageIO/imageio.h cjson/cJSON.h embree3/rtcore.h \
+                    assimp/cimport.h openvdb/openvdb.h tbb/tbb.h
+TEST_DEP_HEADERS := criterion/criterion.h
+DEPS_CHECK       ?= 1
+missing_headers = $(if $(filter 1,$(DEPS_CHECK)),$(patsubst /usr/include/%,%,$(filter-out $(wildcard $(addprefix /usr/include/,$(1))),$(addprefix /usr/include/,$(1)))))
+DEPS_MISSING      := $(call missing_headers,$(DEP_HEADERS))
+TEST_DEPS_MISSING := $(call missing_headers,$(TEST_DEP_HEADERS))
+check-deps:
+	$(if $(DEPS_MISSING),$(error the build needs $(DEPS_MISSING) (not in /usr/include): run 'bash scripts/install-deps.sh' first, or 'make demo' / 'make test', which run it))
+check-test-deps: check-deps
+	$(if $(TEST_DEPS_MISSING),$(error the tests need $(TEST_DEPS_MISSING) (not in /usr/include): run 'bash scripts/install-deps.sh' first, or 'make test', which runs it))
+
+$(BUILD)/%.o: %.c | check-deps
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) -c $< -o $@
 
-$(BUILD)/%.o: %.cpp
+$(BUILD)/%.o: %.cpp | check-deps
 	@mkdir -p $(dir $@)
 	$(CXX) $(CXXFLAGS) -c $< -o $@
+$(call obj,$(wildcard tests/*.c) $(TEST_SUP)): | check-test-deps
 
 $(LIB_WK): $(WK_OBJ)
 	@mkdir -p $(dir $@)
@@ -200,14 +218,14 @@ test-tsan: deps
 #    answer, checked in the release run); the code they run is exercised under ASan by the
 #    shorter tests of the same modules and by the fuzz targets;
 #  - the tests that only spawn the command line (cli/*, memory/*, stress_big/*, and compare's
-#    page, error and Ctrl-C tests): in this run they would spawn the release binary again
+#    page, error and Ctrl-C tests, compare_cli/*): in this run they would spawn the release binary again
 #    (PHOTONMARCH_BIN), so under ASan they only repeat the release run; the command line itself
 #    runs under ASan + UBSan in the release run's cli/malformed_scene_catalogue_under_sanitizers;
 #  - structure/* (tests/check_structure.py reads the release build's objects with nm; run once).
 # Together they would take the suite past 15 minutes.
 SAN_BUILD := build-fuzz
 SAN_MAKE  := $(MAKE) BUILD=$(SAN_BUILD) SAN=fuzz CC=clang-14 CXX=clang++-14
-ASAN_FILTER := '!(guided_unbiased/each_part_alone_*|guided_unbiased/flight_sampler_chi_square_*|march/guided_and_transmittance_share_*|march/defensive_only_and_wrong_guides_*|photons/knn_radiance_converges_*|integrator/white_furnace_every_tracker|stress_big/*|cli/*|memory/*|compare/page_loads_*|compare/bad_reference_*|compare/ctrl_c_*|geom/cli_renders_shapes|structure/*|progressive/squared_gap_*)'
+ASAN_FILTER := '!(guided_unbiased/each_part_alone_*|guided_unbiased/flight_sampler_chi_square_*|march/guided_and_transmittance_share_*|march/defensive_only_and_wrong_guides_*|photons/knn_radiance_converges_*|integrator/white_furnace_every_tracker|stress_big/*|cli/*|memory/*|compare/page_loads_*|compare/bad_reference_*|compare/ctrl_c_*|compare_cli/*|geom/cli_renders_shapes|structure/*|progressive/squared_gap_*)'
 LSAN_SUPP := $(SAN_BUILD)/lsan.supp
 SAN_ENV := ASAN_OPTIONS=halt_on_error=1:detect_leaks=1:allocator_may_return_null=1 \
            UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1:suppressions=$(CURDIR)/fuzz/ubsan.supp \
@@ -240,13 +258,18 @@ test: deps
 	FUZZ_FRESH=1 bash fuzz/run.sh $(SAN_BUILD) $(FUZZ_TEST_SECONDS) $(FUZZ_TARGETS) || status=1; \
 	echo "== done ($$(date +%T))"; exit $$status
 
-test-walk: deps $(BUILD)/tests/run_wk
+# Each installs the dependencies, then builds in a sub-make (so the build starts after them).
+test-walk: deps
+	$(MAKE) $(BUILD)/tests/run_wk
 	$(BUILD)/tests/run_wk $(CRITERION_FLAGS)
-test-pm: deps $(BUILD)/tests/run_pm
+test-pm: deps
+	$(MAKE) $(BUILD)/tests/run_pm
 	$(BUILD)/tests/run_pm $(CRITERION_FLAGS)
-test-sh: deps $(BUILD)/tests/run_sh
+test-sh: deps
+	$(MAKE) $(BUILD)/tests/run_sh
 	$(BUILD)/tests/run_sh $(CRITERION_FLAGS)
-test-rd: deps $(BIN) $(BUILD)/tests/run_rd
+test-rd: deps
+	$(MAKE) $(BIN) $(BUILD)/tests/run_rd
 	PHOTONMARCH_BIN=$(BIN) $(BUILD)/tests/run_rd $(CRITERION_FLAGS)
 
 demo: deps

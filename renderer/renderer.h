@@ -111,6 +111,11 @@ typedef struct {
     /* Optional converged image of the same size: the RMSE of the running mean against it is
      * recorded after every pass (rd_render_result.curve). Borrowed. */
     const rd_image *reference;
+    /* Index of every pixel's first sample (default 0): the render takes samples
+     * [first_sample, first_sample + spp), so a render of N samples followed by one of M more
+     * with first_sample = N and the same seed are together the render of N + M samples (the
+     * random numbers are keyed by the sample index). compare extends its reference this way. */
+    int first_sample;
 } rd_render_opts;
 
 typedef struct {
@@ -382,8 +387,15 @@ typedef struct {
     int threads;         /* 0 = all */
     const char *reference; /* REF.exr (REF-stderr.exr beside it is read when present), or NULL:
                               rendered by delta and cached */
-    int ref_spp;         /* the rendered reference: samples per pixel ... */
-    double ref_time;     /* ... and time cap in seconds (<= 0: none) */
+    /* The rendered reference. Neither given (both <= 0): the default, rendered until its
+     * variance is at most RD_CMP_REF_SHARE of the smallest method MSE (rd_cmp_ref_spp_needed:
+     * RD_CMP_REF_FIRST x a run's budget before the runs, more after them if the rule asks),
+     * within ref_max_seconds in all. Either given: one render of that many samples per pixel
+     * and/or seconds (the first limit reached stops it), never extended. */
+    int ref_spp;         /* samples per pixel (<= 0: not given) */
+    double ref_time;     /* seconds (<= 0: not given) */
+    double ref_max_seconds; /* the default reference's cap in seconds (<= 0: RD_CMP_REF_CAP
+                               times the longest mean run of a method) */
     const char *cache_dir; /* where the rendered reference is cached; NULL: no cache */
     const rd_cmp_extra *extras;
     int n_extras;
@@ -417,11 +429,49 @@ typedef struct {
     int ref_rendered;       /* 1 rendered now, 2 taken from the cache, 0 given */
     double ref_spp, ref_seconds;
     double ref_var;         /* mean of the reference's stderr^2; NaN when unknown */
-    int ref_too_noisy;      /* ref_var > a quarter of the smallest method MSE (docs/compare.md) */
+    int ref_too_noisy;      /* ref_var > RD_CMP_REF_SHARE x the smallest method MSE: the
+                               methods are not ranked (docs/compare.md) */
     int cancelled;          /* Ctrl-C: the rows hold what finished */
+    int ref_auto;           /* 1: the default reference (rendered until the rule holds) */
+    int ref_extended;       /* times the default reference was extended after the runs */
+    int ref_capped;         /* 1: the default reference stopped at its cap, rule unmet */
+    double ref_cap_seconds; /* that cap (NaN unless ref_auto) */
+    double ref_share;       /* ref_var / the smallest method MSE (NaN when unknown) */
 } rd_cmp_summary;
 
 typedef struct rd_comparison rd_comparison; /* the runs' images, curves and rows; opaque */
+
+/* The default reference's rule (docs/compare.md, "The reference"): it is good enough to rank
+ * the methods when its variance (mean stderr^2) is at most RD_CMP_REF_SHARE of the smallest
+ * MSE of a method (the MSEs as measured: each includes the reference's variance). Its first
+ * part, before the runs, is RD_CMP_REF_FIRST times one run's budget (seconds, or samples per
+ * pixel at equal spp: what the rule asks when delta is one of the methods); it is extended
+ * after the runs up to RD_CMP_REF_CAP times the longest run. The same share decides
+ * ref_too_noisy for every reference, given or rendered. */
+#define RD_CMP_REF_SHARE 0.1
+#define RD_CMP_REF_FIRST 10.0
+#define RD_CMP_REF_CAP 50.0
+/* Samples per pixel a reference of `spp` samples and variance ref_var needs for the rule
+ * against the smallest method MSE best_mse: spp when it holds (or ref_var is unknown), else
+ * spp x ref_var / v, v the variance that meets it once the best method's own error
+ * best_mse - ref_var stays and the variance falls as 1/spp, with 10% to spare. */
+double rd_cmp_ref_spp_needed(double spp, double ref_var, double best_mse);
+
+/* The summary in words (docs/compare.md, "The summary"). The baseline is `delta` when it is
+ * one of the rows, else the first method's row (-1: no rows). The winner is the row of the
+ * highest efficiency (methods, and added images with a time), -1 when fewer than two rows have
+ * one or the reference is too noisy to rank them. */
+int rd_cmp_baseline(const rd_cmp_summary *S);
+int rd_cmp_winner(const rd_cmp_summary *S);
+/* Share of one run's own error that is bias: max(bias2, 0) / (max(bias2, 0) + variance), in
+ * [0, 1]; NaN when unknown (an added image). */
+double rd_cmp_bias_share(const rd_cmp_row *r);
+/* Row i's sentence, relative to the baseline, e.g. "guided: 1.4x delta's efficiency; 68% of
+ * its error is bias"; the baseline's own: "delta: the baseline; 3% of its error is bias". */
+void rd_cmp_sentence(const rd_cmp_summary *S, int i, char *buf, size_t n);
+/* Who won and by how much, e.g. "winner: guided, 1.4x delta's efficiency", or why none: "not
+ * ranked: the reference is too noisy ...". Empty with fewer than two rows. */
+void rd_cmp_verdict(const rd_cmp_summary *S, char *buf, size_t n);
 
 /* Check the options and load or render the reference (errors name the file: a reference of
  * the wrong size is RD_ERR_FORMAT, a missing one RD_ERR_IO; an --add image likewise), then run

@@ -15,8 +15,10 @@ static const char *const usage_compare =
     "samples, measures each against a reference (docs/compare.md) and writes the report folder\n"
     "DIR: index.html (opens from disk: A/B/reference toggle, error maps, worst-region crops,\n"
     "metrics table, convergence plot), metrics.json, convergence.svg (gnuplot), and the EXR and\n"
-    "PNG images. Prints progress on stderr and the metrics table on stdout. Ctrl-C stops the\n"
-    "run in progress and writes the report of the runs that finished (exit 130).\n"
+    "PNG images. Prints progress on stderr, and on stdout the metrics table and the summary in\n"
+    "words: the winner by efficiency 1/(MSE x time), and per method its efficiency relative to\n"
+    "delta's (else the first method's) and the share of its error that is bias. Ctrl-C stops\n"
+    "the run in progress and writes the report of the runs that finished (exit 130).\n"
     "\n"
     "options:\n"
     "  --methods A,B     methods to compare (listed below)\n"
@@ -27,15 +29,21 @@ static const char *const usage_compare =
     "  --runs K          independent runs per method, for bias^2 and variance (default 2)\n"
     "  --reference REF.exr   the converged image to measure against (REF-stderr.exr beside it,\n"
     "                    if present, gives its own noise); default: rendered with delta and\n"
-    "                    cached (see --ref-spp, --cache)\n"
-    "  --ref-spp N       samples per pixel of the rendered reference (default 1024)\n"
-    "  --ref-time S      time cap of the rendered reference in seconds (default: none)\n"
+    "                    cached, until its variance is at most a tenth of the best method's\n"
+    "                    MSE (10x a run's budget before the runs, more after them if a method\n"
+    "                    is better than delta; at most 50x the longest run), so the methods\n"
+    "                    can be ranked\n"
+    "  --ref-spp N       instead, a reference of N samples per pixel (with --ref-time: the\n"
+    "                    first limit reached stops it)\n"
+    "  --ref-time S      instead, a reference of S seconds (alone: time decides, no spp cap)\n"
     "  --cache DIR       where the rendered reference is cached (default: .photonmarch-cache\n"
     "                    beside the report folder), named by a hash of the scene's content and\n"
-    "                    the reference settings\n"
+    "                    what decides the reference (the default one is extended in place)\n"
     "  --no-cache        render the reference afresh and do not cache it\n"
     "  --add LABEL=IMAGE.exr[@SECONDS]   an image from another renderer, with its render time\n"
-    "                    (repeatable); measured like the methods (no runs: no bias/variance)\n"
+    "                    (repeatable); measured like the methods (no runs: no bias/variance);\n"
+    "                    LABEL may not be a method's name nor name one of the report's files\n"
+    "                    (reference, colorbar, METHOD-error, ...)\n"
     "  --seed N          base seed (default: settings.seed)\n"
     "  --threads N       worker threads (default: all cores)\n"
     "  -o, --output DIR  report folder (default: out/compare-<scene name>)\n"
@@ -151,7 +159,6 @@ int cli_cmd_compare(int argc, char **argv)
     memset(&ca, 0, sizeof ca);
     ca.seed = -1;
     ca.o.runs = 2;
-    ca.o.ref_spp = 1024;
     int code = compare_parse(&ca, argc, argv);
     if (code) return code < 0 ? 0 : code;
     char defout[1024], cache[1100];

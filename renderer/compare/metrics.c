@@ -88,3 +88,17 @@ double rd_cmp_homogeneity(const rd_image *x, const rd_image *r)
     free(e);
     return h;
 }
+
+/* The default reference's rule (renderer.h; docs/compare.md). With v(N) = ref_var spp / N the
+ * reference's variance at N samples per pixel and m = best_mse - ref_var the best method's own
+ * error, the rule v(N) <= share (m + v(N)) holds for v(N) <= share / (1 - share) m. */
+double rd_cmp_ref_spp_needed(double spp, double ref_var, double best_mse)
+{
+    const double share = RD_CMP_REF_SHARE;
+    if (!(ref_var > share * best_mse) || !(best_mse > 0)) return spp;
+    /* When the reference's variance is nearly all of the best MSE, m is not measurable yet:
+     * it is taken as at least a thousandth of best_mse, so the aim is far and the cap decides. */
+    double m = fmax(best_mse - ref_var, 1e-3 * best_mse);
+    double v = share / (1.0 - share) * m;
+    return fmin(ceil(1.1 * spp * ref_var / v), (double)(1 << 24));
+}

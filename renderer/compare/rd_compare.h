@@ -5,8 +5,10 @@
  *   metrics.c      the metrics of THEORY.md §7 on images (public: rd_cmp_errors_of, ...)
  *   reference.c    the images read from files, checked to match the scene: the reference
  *                  (given, cached or rendered by delta) and the --add images
- *   runs.c         the comparison: the bakes, the K runs per method, the rows of metrics
- *                  (rd_compare_run, rd_comparison_summary, rd_comparison_free)
+ *   runs.c         the comparison: the bakes, the K runs per method, the rows of metrics,
+ *                  the default reference's rule (rd_compare_run, rd_comparison_summary,
+ *                  rd_comparison_free)
+ *   summary.c      the summary in words: baseline, winner, one sentence per row
  *   report_page.c  the text of the report's index.html
  *   report.c       the report folder (images, error maps, crops, convergence plot,
  *                  metrics.json, index.html) and the metrics table on stdout; it reads the
@@ -53,7 +55,15 @@ struct rd_comparison {
     const rd_image **row_img; /* [n_rows]: the image shown for each row (a method's first run) */
     rd_cmp_summary sum;
     double planned_seconds; /* seconds the runs not yet started will take (progress) */
+    uint64_t ref_key;     /* the rendered reference's cache key ... */
+    char ref_base[1200];  /* ... and its cache path without extension ("": not cached) */
 };
+
+/* The report's file names (report.c writes them; a --add label that would overwrite one is
+ * refused, reference.c): per row, each pattern with the row's label; once, the fixed ones. */
+enum { ROW_EXR, ROW_PNG, ROW_ERROR, ROW_CROP, ROW_CURVE, ROW_FILES };
+extern const char *const rd_cmp_row_file[ROW_FILES];
+extern const char *const rd_cmp_fixed_file[]; /* NULL-terminated */
 
 /* The worst region of the report's crops: the square of side s at (x, y), in pixels. */
 typedef struct { int x, y, s; } crop_box;
@@ -84,6 +94,16 @@ static inline int cmp_double(const void *a, const void *b)
  * opts.reference, else the cache (opts.cache_dir), else rendered by delta and cached.
  * Cancelled while rendering: RD_OK with c->sum.cancelled = 1 and no reference. */
 rd_status rd_cmp_reference_get(rd_comparison *c, const rd_scene *s, char *err, size_t errlen);
+/* 1 when opts ask for the default reference (none given, neither --ref-spp nor --ref-time). */
+int rd_cmp_reference_is_auto(const rd_cmp_opts *o);
+/* Render `more` samples per pixel of the default reference's stream onto c->ref (the samples
+ * after those it has, merged as one render would have them) and save it in the cache again.
+ * Ctrl-C: the reference stays as it was, c->sum.cancelled = 1. */
+rd_status rd_cmp_reference_extend(rd_comparison *c, const rd_scene *s, int more, char *err, size_t errlen);
+/* Whether a --add label's files (LABEL.exr, ...) would be one of the report's other files:
+ * those of the reference and the page, and those of the labels in names[0..n) (the methods
+ * and the images before it). 0 when free, else 1 with the file named in file[0..filen). */
+int rd_cmp_label_clash(const char *label, const char *const *names, int n, char *file, size_t filen);
 /* The --add images into c->extra_img, each checked to have the scene's size. */
 rd_status rd_cmp_extras_load(rd_comparison *c, char *err, size_t errlen);
 

@@ -61,10 +61,16 @@ static uint64_t hash_v(uint64_t h, vec3 v) { return hash_d(hash_d(hash_d(h, v.x)
 
 /* The cache key of the rendered reference: the scene's bake key (its JSON after overrides
  * without camera and render-only settings, plus every grid's voxels: load/load.c bake_key), the
- * camera and the path settings it left out, and the reference's own settings. */
-static uint64_t reference_key(const rd_scene *s, int spp, double time_cap, uint64_t seed)
+ * camera and the path settings it left out, and what decides the reference's samples. A fixed
+ * reference (--ref-spp and/or --ref-time) is keyed by its spp and time cap. The default one is
+ * keyed by neither: it is the first N samples per pixel of one stream (delta, the reference's
+ * seed, sample indices 0, 1, 2, ...), N recorded beside it, so a cached one of N samples is
+ * extended by rendering samples N, N + 1, ... (rd_render_opts.first_sample) and saved again
+ * under the same key: the same key always names a prefix of the same stream. */
+static uint64_t reference_key(const rd_scene *s, int auto_ref, int spp, double time_cap, uint64_t seed)
 {
-    uint64_t h = fnv1a(0xcbf29ce484222325ULL, "photonmarch reference v1", 24);
+    uint64_t h = auto_ref ? fnv1a(0xcbf29ce484222325ULL, "photonmarch reference v2 stream", 31)
+                          : fnv1a(0xcbf29ce484222325ULL, "photonmarch reference v2 fixed", 30);
     h = fnv1a(h, &s->bake_key, sizeof s->bake_key);
     const rd_camera *c = &s->camera;
     int ints[6] = {(int)c->kind, c->width, c->height, s->settings.max_depth, s->settings.rr_depth, spp};
@@ -100,6 +106,7 @@ static int reference_from_cache(rd_comparison *c, const char *base, uint64_t key
     if (!strstr(text, want) || !ps || !pt) return 0;
     spp = atof(ps + 7);
     secs = atof(pt + 11);
+    if (!(spp >= 1) || !(secs >= 0)) return 0;
     snprintf(path, sizeof path, "%.1000s.exr", base);
     if (read_matching(path, "cache", c->w, c->h, &c->ref, msg, sizeof msg)) return 0;
     snprintf(path, sizeof path, "%.1000s-stderr.exr", base);
@@ -113,48 +120,17 @@ static int reference_from_cache(rd_comparison *c, const char *base, uint64_t key
     return 1;
 }
 
-static void reference_progress(void *user, int done, int total, double seconds)
+/* Save the reference in the cache (c->ref_base); a failed save is not an error: the
+ * comparison goes on, and ref_source says the reference was not cached. */
+static void reference_save(rd_comparison *c)
 {
-    rd_comparison *c = user;
-    const rd_cmp_opts *o = &c->opts;
-    rd_cmp_progress p = {"reference", 1, 1, done, seconds, o->ref_time > 0 ? o->ref_time : total, 0.0};
-    double eta = done > 0 ? seconds * (total - done) / done : 0.0;
-    if (o->ref_time > 0) eta = fmin(eta, fmax(0.0, o->ref_time - seconds));
-    p.left_seconds = eta + c->planned_seconds;
-    if (o->progress) o->progress(o->progress_user, &p);
-}
-
-/* Render the reference with delta (unbiased) and save it in the cache (a failed save is not an
- * error: the comparison goes on, and says so in ref_source). */
-static rd_status reference_render(rd_comparison *c, const rd_scene *s, const char *base,
-                                  uint64_t key, char *err, size_t errlen)
-{
-    const rd_cmp_opts *o = &c->opts;
-    rd_render_opts ro = {.method = "delta", .spp = o->ref_spp, .time_limit = o->ref_time,
-                         .seed = REF_SEED(o->seed), .threads = o->threads, .cancel = o->cancel,
-                         .progress = reference_progress, .progress_user = c};
-    reference_progress(c, 0, o->ref_spp, 0.0);
-    rd_render_result res;
-    rd_status st = rd_render(s, &ro, &res, err, errlen);
-    if (st) return st;
-    if (res.stats.cancelled || res.stats.spp < 1) {
-        rd_render_result_free(&res);
-        c->sum.cancelled = 1;
-        return RD_OK;
-    }
-    c->ref = res.image;
-    c->ref_se = res.stderr_img;
-    res.image.rgb = res.stderr_img.rgb = NULL;
-    c->sum.ref_spp = res.stats.spp_mean;
-    c->sum.ref_seconds = res.stats.seconds;
-    c->sum.ref_rendered = 1;
-    rd_render_result_free(&res);
     snprintf(c->sum.ref_source, sizeof c->sum.ref_source, "rendered now (not cached)");
-    if (!base) return RD_OK;
+    if (!c->ref_base[0]) return;
+    const char *base = c->ref_base;
     char path[1200], msg[RD_ERRLEN], meta[256];
     snprintf(path, sizeof path, "%.1000s.exr", base);
-    int n = snprintf(meta, sizeof meta, "{\"key\": \"%016llx\", \"method\": \"delta\", \"spp\": %.6g, \"seconds\": %.6g}\n",
-                     (unsigned long long)key, c->sum.ref_spp, c->sum.ref_seconds);
+    int n = snprintf(meta, sizeof meta, "{\"key\": \"%016llx\", \"method\": \"delta\", \"spp\": %.10g, \"seconds\": %.6g}\n",
+                     (unsigned long long)c->ref_key, c->sum.ref_spp, c->sum.ref_seconds);
     if (rd_make_parent_dirs(path, msg, sizeof msg) == RD_OK && rd_image_write_exr(path, &c->ref, msg, sizeof msg) == RD_OK) {
         snprintf(path, sizeof path, "%.1000s-stderr.exr", base);
         if (rd_image_write_exr(path, &c->ref_se, msg, sizeof msg) == RD_OK) {
@@ -163,6 +139,150 @@ static rd_status reference_render(rd_comparison *c, const rd_scene *s, const cha
                 snprintf(c->sum.ref_source, sizeof c->sum.ref_source, "%.1000s.exr", base);
         }
     }
+}
+
+/* Progress of the reference's render: samples done in all (earlier parts included), the
+ * samples aimed at and, with a time aim, the seconds. */
+typedef struct {
+    rd_comparison *c;
+    int spp_before;       /* samples per pixel the reference had before this render */
+    int spp_aim;          /* samples per pixel it is to have in all */
+    double secs_before, secs_aim; /* seconds it had; seconds it is to have (0: no time aim) */
+} ref_progress_ctx;
+
+static void reference_progress(void *user, int done, int total, double seconds)
+{
+    (void)total;
+    ref_progress_ctx *r = user;
+    rd_comparison *c = r->c;
+    const rd_cmp_opts *o = &c->opts;
+    int spp = r->spp_before + done;
+    double secs = r->secs_before + seconds;
+    rd_cmp_progress p = {"reference", 1, 1, spp, secs, r->secs_aim > 0 ? r->secs_aim : r->spp_aim, 0.0};
+    double eta = done > 0 ? seconds * (r->spp_aim - spp) / done : 0.0;
+    if (r->secs_aim > 0) eta = done > 0 ? fmax(0.0, r->secs_aim - secs) : r->secs_aim - secs;
+    p.left_seconds = fmax(0.0, eta) + c->planned_seconds;
+    if (o->progress) o->progress(o->progress_user, &p);
+}
+
+/* One render of the reference's stream: delta, samples [first, first + spp) of every pixel,
+ * at most time_limit seconds (<= 0: none). *res is the caller's to free. A render cut short by
+ * Ctrl-C is returned with res->stats.cancelled. */
+static rd_status reference_part(rd_comparison *c, const rd_scene *s, int first, int spp, double time_limit,
+                                ref_progress_ctx *pc, rd_render_result *res, char *err, size_t errlen)
+{
+    const rd_cmp_opts *o = &c->opts;
+    rd_render_opts ro = {.method = "delta", .spp = spp, .time_limit = time_limit, .seed = REF_SEED(o->seed),
+                         .threads = o->threads, .cancel = o->cancel, .progress = reference_progress,
+                         .progress_user = pc, .first_sample = first};
+    reference_progress(pc, 0, spp, 0.0);
+    return rd_render(s, &ro, res, err, errlen);
+}
+
+/* Merge a render of n2 more samples per pixel (mean m2, standard error se2) into the reference
+ * of n samples (c->ref, c->ref_se), per value as one film of all n + n2 samples would have
+ * them: each part's sum of squared deviations M = s^2 (n - 1), s^2 = n se^2, and the pooled
+ * M = M_a + M_b + (m_b - m_a)^2 n_a n_b / (n_a + n_b) (Chan, Golub & LeVeque 1979, the
+ * pairwise update; no cancellation), mean (n_a m_a + n_b m_b) / (n_a + n_b), se = sqrt(M /
+ * (N - 1) / N). The result is the render of n + n2 samples to float rounding
+ * (rd_render_opts.first_sample). Pixels that dropped a non-finite sample
+ * (rd_render_stats.invalid, normally 0) are counted as if they had not. */
+static void reference_merge(rd_comparison *c, double n, const rd_image *m2, const rd_image *se2, double n2)
+{
+    size_t nv = (size_t)c->w * c->h * 3;
+    double N = n + n2;
+    for (size_t i = 0; i < nv; i++) {
+        double a = c->ref.rgb[i], b = m2->rgb[i];
+        double Ma = (double)c->ref_se.rgb[i] * c->ref_se.rgb[i] * n * (n - 1);
+        double Mb = (double)se2->rgb[i] * se2->rgb[i] * n2 * (n2 - 1);
+        double d = b - a;
+        double M = Ma + Mb + d * d * n * n2 / N;
+        c->ref.rgb[i] = (float)((n * a + n2 * b) / N);
+        c->ref_se.rgb[i] = (float)(N > 1 ? sqrt(M / (N - 1) / N) : 0.0);
+    }
+}
+
+/* Take a finished part into the reference: the first part becomes it, later ones (whole
+ * passes) are merged. A fixed reference's one part may end within a pass (its time limit):
+ * its spp is then the mean over pixels. */
+static void reference_take(rd_comparison *c, rd_render_result *res)
+{
+    if (!c->ref.rgb) {
+        c->ref = res->image;
+        c->ref_se = res->stderr_img;
+        res->image.rgb = res->stderr_img.rgb = NULL;
+        c->sum.ref_spp = res->stats.timed_out ? res->stats.spp_mean : res->stats.spp;
+    } else {
+        reference_merge(c, c->sum.ref_spp, &res->image, &res->stderr_img, res->stats.spp);
+        c->sum.ref_spp += res->stats.spp;
+    }
+    c->sum.ref_seconds += res->stats.seconds;
+}
+
+/* Render `more` samples per pixel of the default reference's stream onto the reference (none
+ * yet: from sample 0), in parts of whole passes so every pixel has the same count (the render
+ * of a part is never cut by a time limit). With secs_aim > 0 the parts are sized to end near
+ * that many seconds in all instead, from the rate measured so far: the first part 1 spp, each
+ * next at most 3x the samples so far and, while more than 2 s are left, half of what is left
+ * (so a change of speed under load overshoots the aim by a part of a second or two, not by a
+ * third). Ctrl-C: the part cut short is dropped, c->sum.cancelled. */
+static rd_status reference_grow(rd_comparison *c, const rd_scene *s, int more, double secs_aim, char *err,
+                                size_t errlen)
+{
+    int have = c->ref.rgb ? (int)c->sum.ref_spp : 0;
+    double secs0 = c->sum.ref_seconds;
+    ref_progress_ctx pc = {c, have, have + more, secs0, secs_aim};
+    int left = more;
+    while (!c->sum.cancelled) {
+        int spp_now = c->ref.rgb ? (int)c->sum.ref_spp : 0;
+        int n;
+        if (secs_aim > 0) {
+            double rate = spp_now > have ? (c->sum.ref_seconds - secs0) / (spp_now - have) : 0.0;
+            if (spp_now > have && rate > 0) {
+                double want = (secs_aim - c->sum.ref_seconds) / rate;
+                if (want < 0.5) break;
+                if (want * rate > 2.0) want = 0.5 * want;
+                n = (int)fmax(1.0, fmin(want + 0.5, fmin(3.0 * (spp_now - have + 1), (1 << 24) - spp_now)));
+            } else n = 1;
+            pc.spp_aim = spp_now + n;
+        } else {
+            if (left <= 0) break;
+            n = left;
+        }
+        pc.spp_before = spp_now;
+        pc.secs_before = c->sum.ref_seconds;
+        rd_render_result res;
+        rd_status st = reference_part(c, s, spp_now, n, 0.0, &pc, &res, err, errlen);
+        if (st) return st;
+        if (res.stats.cancelled || res.stats.spp < n) {
+            rd_render_result_free(&res);
+            c->sum.cancelled = 1;
+            break;
+        }
+        reference_take(c, &res);
+        rd_render_result_free(&res);
+        left -= n;
+    }
+    return RD_OK;
+}
+
+/* A fixed reference: delta with --ref-spp samples per pixel (none given: no cap) and
+ * --ref-time seconds at most (none given: no limit); one render, never extended. */
+static rd_status reference_fixed(rd_comparison *c, const rd_scene *s, char *err, size_t errlen)
+{
+    const rd_cmp_opts *o = &c->opts;
+    int spp = o->ref_spp > 0 ? o->ref_spp : 1 << 24;
+    ref_progress_ctx pc = {c, 0, spp, 0.0, o->ref_time > 0 ? o->ref_time : 0.0};
+    rd_render_result res;
+    rd_status st = reference_part(c, s, 0, spp, o->ref_time, &pc, &res, err, errlen);
+    if (st) return st;
+    if (res.stats.cancelled || res.stats.spp < 1) {
+        rd_render_result_free(&res);
+        c->sum.cancelled = 1;
+        return RD_OK;
+    }
+    reference_take(c, &res);
+    rd_render_result_free(&res);
     return RD_OK;
 }
 
@@ -187,21 +307,59 @@ static rd_status reference_given(rd_comparison *c, char *err, size_t errlen)
     return RD_OK;
 }
 
+int rd_cmp_reference_is_auto(const rd_cmp_opts *o)
+{
+    return !o->reference && o->ref_spp <= 0 && o->ref_time <= 0;
+}
+
 /* The reference: given, else cached, else rendered (rd_compare.h). */
 rd_status rd_cmp_reference_get(rd_comparison *c, const rd_scene *s, char *err, size_t errlen)
 {
     const rd_cmp_opts *o = &c->opts;
     if (o->reference) return reference_given(c, err, errlen);
-    uint64_t key = reference_key(s, o->ref_spp, o->ref_time, REF_SEED(o->seed));
-    char base[1200];
+    int auto_ref = rd_cmp_reference_is_auto(o);
+    c->ref_key = reference_key(s, auto_ref, auto_ref ? 0 : o->ref_spp, auto_ref ? 0.0 : o->ref_time, REF_SEED(o->seed));
+    c->ref_base[0] = 0;
     if (o->cache_dir) {
-        snprintf(base, sizeof base, "%.900s/reference-%016llx", o->cache_dir, (unsigned long long)key);
-        if (reference_from_cache(c, base, key)) {
+        snprintf(c->ref_base, sizeof c->ref_base, "%.900s/reference-%016llx", o->cache_dir, (unsigned long long)c->ref_key);
+        if (reference_from_cache(c, c->ref_base, c->ref_key)) {
             c->sum.ref_rendered = 2;
             return RD_OK;
         }
     }
-    return reference_render(c, s, o->cache_dir ? base : NULL, key, err, errlen);
+    rd_status st;
+    if (auto_ref) {
+        /* The first part, before the runs: RD_CMP_REF_FIRST times one run's budget (seconds,
+         * or samples per pixel at equal spp), what the rule needs when delta is among the
+         * methods; the rest, if the rule asks for it, after the runs (rd_cmp_reference_extend). */
+        if (o->equal_spp) st = reference_grow(c, s, (int)fmin(RD_CMP_REF_FIRST * o->budget, 1 << 24), 0.0, err, errlen);
+        else st = reference_grow(c, s, 0, RD_CMP_REF_FIRST * o->budget, err, errlen);
+    } else {
+        st = reference_fixed(c, s, err, errlen);
+    }
+    if (st) return st;
+    if (c->sum.cancelled || !c->ref.rgb) {
+        /* Ctrl-C while rendering it: no comparison, nothing cached. */
+        c->sum.cancelled = 1;
+        rd_image_free_pixels(&c->ref);
+        rd_image_free_pixels(&c->ref_se);
+        return RD_OK;
+    }
+    c->sum.ref_rendered = 1;
+    reference_save(c);
+    return RD_OK;
+}
+
+/* More samples on the default reference after the runs, then saved again (rd_compare.h). */
+rd_status rd_cmp_reference_extend(rd_comparison *c, const rd_scene *s, int more, char *err, size_t errlen)
+{
+    if (more < 1 || !c->ref.rgb) return RD_OK;
+    double had = c->sum.ref_spp;
+    rd_status st = reference_grow(c, s, more, 0.0, err, errlen);
+    if (st || c->sum.ref_spp == had) return st; /* Ctrl-C: the reference as it was */
+    c->sum.ref_extended++;
+    reference_save(c);
+    return RD_OK;
 }
 
 /* ---- Images from elsewhere: --add LABEL=IMAGE.exr[@SECONDS] --------------------------------- */
@@ -232,6 +390,29 @@ rd_status rd_cmp_extra_parse(const char *arg, char *buf, size_t bufn, rd_cmp_ext
         if (!(isalnum((unsigned char)*c) || *c == '-' || *c == '_' || *c == '.'))
             return fail(err, errlen, RD_ERR_ARG, "--add %s: the label may have letters, digits, '-', '_' and '.' only", arg);
     return RD_OK;
+}
+
+/* The report's files (rd_compare.h): report.c names its files with these, and a label whose
+ * files would be one of them is refused before anything runs. */
+const char *const rd_cmp_row_file[ROW_FILES] = {"%s.exr", "%s.png", "%s-error.png", "%s-crop.png", "curve-%s.dat"};
+const char *const rd_cmp_fixed_file[] = {"index.html", "metrics.json", "convergence.svg", "convergence.gp",
+                                         "colorbar.png", "reference.exr", "reference.png", "reference-crop.png",
+                                         "reference-stderr.exr", NULL};
+
+int rd_cmp_label_clash(const char *label, const char *const *names, int n, char *file, size_t filen)
+{
+    char mine[ROW_FILES][128], other[128];
+    for (int k = 0; k < ROW_FILES; k++) snprintf(mine[k], sizeof mine[k], rd_cmp_row_file[k], label);
+    for (int k = 0; k < ROW_FILES; k++) {
+        for (int f = 0; rd_cmp_fixed_file[f]; f++)
+            if (!strcmp(mine[k], rd_cmp_fixed_file[f])) return snprintf(file, filen, "%s", mine[k]), 1;
+        for (int i = 0; i < n; i++)
+            for (int j = 0; j < ROW_FILES; j++) {
+                snprintf(other, sizeof other, rd_cmp_row_file[j], names[i]);
+                if (!strcmp(mine[k], other)) return snprintf(file, filen, "%s", mine[k]), 1;
+            }
+    }
+    return 0;
 }
 
 /* The --add images, read and checked before anything long runs. */

@@ -166,13 +166,13 @@ static rd_status write_images(const rd_comparison *c, const char *dir, double sc
     for (int i = 0; i < c->sum.n_rows; i++) {
         const char *l = c->rows[i].label;
         const rd_image *x = c->row_img[i];
-        snprintf(name, sizeof name, "%s.exr", l);
+        snprintf(name, sizeof name, rd_cmp_row_file[ROW_EXR], l);
         if ((st = write_exr_at(dir, name, x, err, errlen))) return st;
-        snprintf(name, sizeof name, "%s.png", l);
+        snprintf(name, sizeof name, rd_cmp_row_file[ROW_PNG], l);
         if ((st = write_png_at(dir, name, x, c->exposure, err, errlen))) return st;
-        snprintf(name, sizeof name, "%s-error.png", l);
+        snprintf(name, sizeof name, rd_cmp_row_file[ROW_ERROR], l);
         if ((st = write_error_map(c, x, dir, name, scale, err, errlen))) return st;
-        snprintf(name, sizeof name, "%s-crop.png", l);
+        snprintf(name, sizeof name, rd_cmp_row_file[ROW_CROP], l);
         if ((st = write_crop(c, x, b, dir, name, err, errlen))) return st;
     }
     return RD_OK;
@@ -218,7 +218,7 @@ static rd_status write_curves(const rd_comparison *c, const char *dir, char *err
             }
         }
         char name[128];
-        snprintf(name, sizeof name, "curve-%s.dat", r->label);
+        snprintf(name, sizeof name, rd_cmp_row_file[ROW_CURVE], r->label);
         rd_status st = write_buffer_at(dir, name, &b, err, errlen);
         if (st) return st;
     }
@@ -285,7 +285,7 @@ static const cmp_method *method_of(const rd_comparison *c, const char *label)
     return NULL;
 }
 
-static cJSON *json_row(const rd_comparison *c, const rd_cmp_row *r)
+static cJSON *json_row(const rd_comparison *c, const rd_cmp_row *r, int i)
 {
     cJSON *o = cJSON_CreateObject();
     char name[128];
@@ -312,11 +312,18 @@ static cJSON *json_row(const rd_comparison *c, const rd_cmp_row *r)
     json_num(pp, "lookups", r->lookups_pp);
     json_num(pp, "shadow_rays", r->shadow_rays_pp);
     json_num(o, "homogeneity", r->homogeneity);
+    /* The summary's numbers (summary.c): efficiency over the baseline's, share of bias. */
+    int b = rd_cmp_baseline(&c->sum);
+    json_num(o, "efficiency_vs_baseline", b >= 0 ? r->efficiency / c->rows[b].efficiency : NAN);
+    json_num(o, "bias_share", rd_cmp_bias_share(r));
+    char line[256];
+    rd_cmp_sentence(&c->sum, i, line, sizeof line);
+    cJSON_AddStringToObject(o, "summary", line);
     cJSON *im = cJSON_AddObjectToObject(o, "images");
-    static const char *const kinds[][2] = {{"exr", "%s.exr"}, {"png", "%s.png"}, {"error", "%s-error.png"}, {"crop", "%s-crop.png"}};
+    static const char *const kinds[] = {"exr", "png", "error", "crop"}; /* ROW_EXR .. ROW_CROP */
     for (int k = 0; k < 4; k++) {
-        snprintf(name, sizeof name, kinds[k][1], r->label);
-        cJSON_AddStringToObject(im, kinds[k][0], name);
+        snprintf(name, sizeof name, rd_cmp_row_file[k], r->label);
+        cJSON_AddStringToObject(im, kinds[k], name);
     }
     cJSON *curve = cJSON_AddArrayToObject(o, "curve");
     const cmp_method *m = r->is_extra ? NULL : method_of(c, r->label);
@@ -353,6 +360,17 @@ static rd_status write_json(const rd_comparison *c, const rd_scene *s, const cha
     json_num(ref, "seconds", S->ref_rendered ? S->ref_seconds : NAN);
     json_num(ref, "variance", S->ref_var);
     cJSON_AddBoolToObject(ref, "too_noisy", S->ref_too_noisy);
+    /* How the reference was decided (docs/compare.md): "rule" (the default: until its variance
+     * is at most variance_limit of the best MSE, within cap_seconds), "spp", "time",
+     * "spp+time" (--ref-spp / --ref-time) or "given". */
+    cJSON_AddStringToObject(ref, "decided_by", !S->ref_rendered ? "given" : S->ref_auto ? "rule"
+                                               : o->ref_spp > 0 && o->ref_time > 0 ? "spp+time"
+                                               : o->ref_spp > 0 ? "spp" : "time");
+    json_num(ref, "variance_share", S->ref_share);
+    cJSON_AddNumberToObject(ref, "variance_limit", RD_CMP_REF_SHARE);
+    cJSON_AddNumberToObject(ref, "extended", S->ref_extended);
+    json_num(ref, "cap_seconds", S->ref_auto ? S->ref_cap_seconds : NAN);
+    cJSON_AddBoolToObject(ref, "capped", S->ref_capped);
     cJSON *em = cJSON_AddObjectToObject(j, "error_map");
     cJSON_AddStringToObject(em, "quantity", "|L(x) - L(r)| / (L(r) + 0.01), L = luminance");
     cJSON_AddNumberToObject(em, "scale_max", scale);
@@ -361,7 +379,21 @@ static rd_status write_json(const rd_comparison *c, const rd_scene *s, const cha
     cJSON_AddNumberToObject(cr, "y", b.y);
     cJSON_AddNumberToObject(cr, "size", b.s);
     cJSON *rows = cJSON_AddArrayToObject(j, "methods");
-    for (int i = 0; i < S->n_rows; i++) cJSON_AddItemToArray(rows, json_row(c, &c->rows[i]));
+    for (int i = 0; i < S->n_rows; i++) cJSON_AddItemToArray(rows, json_row(c, &c->rows[i], i));
+    cJSON *sm = cJSON_AddObjectToObject(j, "summary");
+    int base = rd_cmp_baseline(S), w = rd_cmp_winner(S);
+    if (base >= 0) cJSON_AddStringToObject(sm, "baseline", c->rows[base].label);
+    else cJSON_AddNullToObject(sm, "baseline");
+    if (w >= 0) cJSON_AddStringToObject(sm, "winner", c->rows[w].label);
+    else cJSON_AddNullToObject(sm, "winner");
+    char line[512];
+    rd_cmp_verdict(S, line, sizeof line);
+    cJSON_AddStringToObject(sm, "verdict", line);
+    cJSON *lines = cJSON_AddArrayToObject(sm, "lines");
+    for (int i = 0; i < S->n_rows; i++) {
+        rd_cmp_sentence(S, i, line, sizeof line);
+        cJSON_AddItemToArray(lines, cJSON_CreateString(line));
+    }
     char *text = cJSON_Print(j);
     cJSON_Delete(j);
     if (!text) return fail(err, errlen, RD_ERR_NOMEM, "%s: out of memory", "metrics.json");
@@ -413,6 +445,17 @@ void rd_compare_print_table(const rd_comparison *c, FILE *out)
     }
     const rd_cmp_summary *S = &c->sum;
     fprintf(out, "reference: %s", S->ref_source);
-    if (isfinite(S->ref_var)) fprintf(out, " (variance %.3g)", S->ref_var);
+    if (S->ref_rendered) fprintf(out, " (delta, %.6g spp, %.1f s%s)", S->ref_spp, S->ref_seconds,
+                                 S->ref_extended ? ", extended after the runs" : "");
+    if (isfinite(S->ref_var)) fprintf(out, "; variance %.3g", S->ref_var);
+    if (isfinite(S->ref_share)) fprintf(out, " = %.0f%% of the best MSE", 100.0 * S->ref_share);
     fprintf(out, "%s\n", S->ref_too_noisy ? "; TOO NOISY to rank the methods (see the report)" : "");
+    /* The summary in words (summary.c). */
+    char line[512];
+    rd_cmp_verdict(S, line, sizeof line);
+    if (line[0]) fprintf(out, "%s\n", line);
+    for (int i = 0; i < S->n_rows; i++) {
+        rd_cmp_sentence(S, i, line, sizeof line);
+        fprintf(out, "  %s\n", line);
+    }
 }

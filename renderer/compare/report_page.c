@@ -87,6 +87,28 @@ static const char *page_js =
     "show(0);\n"
     "window.addEventListener('load', () => { if (location.hash === '#selftest') selftest(); });\n";
 
+/* The summary in words (summary.c): who won and by how much, and a sentence per row. */
+static void page_summary(rd_text *b, const rd_comparison *c)
+{
+    const rd_cmp_summary *S = &c->sum;
+    char line[512];
+    rd_cmp_verdict(S, line, sizeof line);
+    rd_text_printf(b, "<section id=summary>\n");
+    if (line[0]) {
+        rd_text_printf(b, "<p><b>");
+        sb_escape(b, line);
+        rd_text_printf(b, "</b></p>\n");
+    }
+    rd_text_printf(b, "<ul>\n");
+    for (int i = 0; i < S->n_rows; i++) {
+        rd_cmp_sentence(S, i, line, sizeof line);
+        rd_text_printf(b, "<li>");
+        sb_escape(b, line);
+        rd_text_printf(b, "</li>\n");
+    }
+    rd_text_printf(b, "</ul>\n</section>\n");
+}
+
 static void page_head(rd_text *b, const rd_comparison *c, const rd_scene *s)
 {
     const rd_cmp_opts *o = &c->opts;
@@ -95,19 +117,32 @@ static void page_head(rd_text *b, const rd_comparison *c, const rd_scene *s)
     sb_escape(b, s->path);
     rd_text_printf(b, "</title>\n<style>\n%s</style></head><body>\n<h1>photonmarch compare: ", page_css);
     sb_escape(b, s->path);
-    rd_text_printf(b, "</h1>\n<p>%dx%d pixels; equal %s: %g %s per run; %d run%s per method (seeds %llu..%llu); "
+    rd_text_printf(b, "</h1>\n");
+    page_summary(b, c);
+    rd_text_printf(b, "<p>%dx%d pixels; equal %s: %g %s per run; %d run%s per method (seeds %llu..%llu); "
                  "bake time charged to every run of a method that needs it.</p>\n",
               c->w, c->h, o->equal_spp ? "samples" : "time", o->budget, o->equal_spp ? "spp" : "s", o->runs,
               o->runs > 1 ? "s" : "", (unsigned long long)RUN_SEED(o->seed, 0), (unsigned long long)RUN_SEED(o->seed, o->runs - 1));
     rd_text_printf(b, "<p>Reference: ");
     sb_escape(b, S->ref_source);
-    if (S->ref_rendered) rd_text_printf(b, " (delta, %.4g spp, %.1f s%s)", S->ref_spp, S->ref_seconds, S->ref_rendered == 2 ? ", from the cache" : "");
-    if (isfinite(S->ref_var)) rd_text_printf(b, "; its own variance (mean stderr&sup2;) %.3g.</p>\n", S->ref_var);
-    else rd_text_printf(b, "; its own standard error is unknown (no -stderr.exr beside it), so its noise is not accounted for.</p>\n");
+    if (S->ref_rendered) rd_text_printf(b, " (delta, %.6g spp, %.1f s%s%s)", S->ref_spp, S->ref_seconds,
+                                        S->ref_rendered == 2 ? ", from the cache" : "",
+                                        S->ref_extended ? ", extended after the runs" : "");
+    if (S->ref_auto)
+        rd_text_printf(b, ", rendered until its variance is at most %.0f%% of the best method's MSE (at most %.0f s)",
+                       100.0 * RD_CMP_REF_SHARE, S->ref_cap_seconds);
+    if (isfinite(S->ref_var)) {
+        rd_text_printf(b, "; its own variance (mean stderr&sup2;) %.3g", S->ref_var);
+        if (isfinite(S->ref_share)) rd_text_printf(b, ", %.0f%% of the best MSE", 100.0 * S->ref_share);
+        rd_text_printf(b, ".</p>\n");
+    } else {
+        rd_text_printf(b, "; its own standard error is unknown (no -stderr.exr beside it), so its noise is not accounted for.</p>\n");
+    }
     if (S->ref_too_noisy)
-        rd_text_printf(b, "<p class=warn><b>The reference is too noisy to rank the methods:</b> its variance (%.3g) is more than a "
-                     "quarter of the best method's MSE, so every MSE below is dominated by it. Render it longer "
-                     "(--ref-spp) or pass a better one (--reference).</p>\n", S->ref_var);
+        rd_text_printf(b, "<p class=warn><b>The reference is too noisy to rank the methods:</b> its variance (%.3g) is more than "
+                     "%.0f%% of the best method's MSE: it makes up more than that share of the MSEs below and pulls their ratios toward 1. "
+                     "Render it longer (--ref-time S) or pass a better one (--reference).</p>\n", S->ref_var,
+                     100.0 * RD_CMP_REF_SHARE);
     if (S->cancelled) rd_text_printf(b, "<p class=warn>Interrupted: this report holds the runs that finished.</p>\n");
 }
 

@@ -212,9 +212,49 @@ static void make_rows(rd_comparison *c)
     }
     c->sum.rows = c->rows;
     c->sum.n_rows = n;
-    /* The reference's variance adds to every measured MSE: above a quarter of the best
-     * method's MSE it hides the differences between methods (docs/compare.md). */
-    c->sum.ref_too_noisy = isfinite(c->sum.ref_var) && n > 0 && c->sum.ref_var > 0.25 * min_mse;
+    /* The reference's variance adds to every measured MSE: above a tenth of the best method's
+     * MSE it hides the differences between methods (docs/compare.md). */
+    c->sum.ref_share = isfinite(c->sum.ref_var) && isfinite(min_mse) && min_mse > 0 ? c->sum.ref_var / min_mse : NAN;
+    c->sum.ref_too_noisy = isfinite(c->sum.ref_var) && isfinite(min_mse) && c->sum.ref_var > RD_CMP_REF_SHARE * min_mse;
+}
+
+/* The smallest MSE of a method's row (NaN when none). */
+static double best_method_mse(const rd_comparison *c)
+{
+    double best = NAN;
+    for (int i = 0; i < c->sum.n_rows; i++)
+        if (!c->rows[i].is_extra && !(c->rows[i].err.mse >= best)) best = c->rows[i].err.mse;
+    return best;
+}
+
+/* The default reference's rule after the runs (rd_cmp_ref_spp_needed): while its variance is
+ * above RD_CMP_REF_SHARE of the best method's MSE, render the samples the rule asks for (within
+ * the cap: ref_max_seconds, else RD_CMP_REF_CAP x the longest mean run), merge them, and measure
+ * the rows again. A few rounds at most: each aims 10% past the rule, so one is the rule. */
+static rd_status reference_settle(rd_comparison *c, const rd_scene *s, char *err, size_t errlen)
+{
+    double longest = 0.0;
+    for (int i = 0; i < c->sum.n_rows; i++)
+        if (!c->rows[i].is_extra) longest = fmax(longest, c->rows[i].seconds);
+    double cap = c->opts.ref_max_seconds > 0 ? c->opts.ref_max_seconds : RD_CMP_REF_CAP * longest;
+    c->sum.ref_cap_seconds = cap;
+    for (int round = 0; round < 4 && !c->sum.cancelled; round++) {
+        double spp = c->sum.ref_spp;
+        double need = rd_cmp_ref_spp_needed(spp, c->sum.ref_var, best_method_mse(c));
+        if (!(need > spp)) return RD_OK;
+        /* Seconds per sample per pixel so far: the cap in samples. */
+        double rate = c->sum.ref_seconds / spp;
+        double room = rate > 0 ? (cap - c->sum.ref_seconds) / rate : need - spp;
+        double more = fmin(need - spp, fmin(floor(room), (double)(1 << 24) - spp));
+        if (more < need - spp) c->sum.ref_capped = 1;
+        if (more < 1) return RD_OK;
+        rd_status st = rd_cmp_reference_extend(c, s, (int)more, err, errlen);
+        if (st) return st;
+        c->sum.ref_var = image_mean_sq(&c->ref_se);
+        make_rows(c);
+        if (c->sum.ref_capped) return RD_OK;
+    }
+    return RD_OK;
 }
 
 /* ---- The comparison ------------------------------------------------------------------------ */
@@ -234,13 +274,25 @@ static rd_status check_opts(const rd_cmp_opts *o, char *err, size_t errlen)
     if (o->runs < 1 || o->runs > 64) return fail(err, errlen, RD_ERR_ARG, "%s: runs must be in [1, 64]", "--runs");
     if (!(o->budget > 0) || (o->equal_spp && (o->budget < 1 || o->budget > (1 << 24))))
         return fail(err, errlen, RD_ERR_ARG, "%s: must be > 0 (seconds), or in [1, 16777216] samples with --equal spp", "--budget");
-    if (!o->reference && o->ref_spp < 1) return fail(err, errlen, RD_ERR_ARG, "%s: must be >= 1", "--ref-spp");
+    /* Labels name the report's files and the summary's rows: a method's name is refused (the
+     * summary's baseline is the row named delta), and so is a label whose files would overwrite
+     * the reference's, the page's, a method's or an earlier image's. */
+    const char *taken[2 * RD_CMP_MAX_METHODS];
+    int nt = 0;
+    for (int j = 0; j < o->n_methods; j++) taken[nt++] = o->methods[j];
     for (int i = 0; i < o->n_extras; i++) {
-        /* Labels name the report's files: they must differ from each other and the methods. */
-        int clash = !strcmp(o->extras[i].label, "reference");
-        for (int j = 0; j < o->n_methods; j++) clash |= !strcmp(o->extras[i].label, o->methods[j]);
-        for (int j = 0; j < i; j++) clash |= !strcmp(o->extras[i].label, o->extras[j].label);
-        if (clash) return fail(err, errlen, RD_ERR_ARG, "--add %s: the label is taken (a method, another image or \"reference\")", o->extras[i].label);
+        const char *l = o->extras[i].label;
+        char file[160];
+        for (int j = 0; j < rd_method_count(); j++)
+            if (!strcmp(l, rd_method_name(j))) {
+                snprintf(err, errlen, "--add %s: the label is a method's name; give the image another", l);
+                return RD_ERR_ARG;
+            }
+        if (rd_cmp_label_clash(l, taken, nt, file, sizeof file)) {
+            snprintf(err, errlen, "--add %s: the label would overwrite the report's %s; give the image another", l, file);
+            return RD_ERR_ARG;
+        }
+        taken[nt++] = l;
     }
     return RD_OK;
 }
@@ -296,6 +348,8 @@ rd_status rd_compare_run(const rd_scene *scene, const rd_cmp_opts *opts, rd_comp
     c->h = rd_scene_height(scene);
     c->exposure = rd_scene_exposure(scene);
     c->sum.ref_var = NAN;
+    c->sum.ref_share = NAN;
+    c->sum.ref_cap_seconds = NAN;
     if ((st = alloc_methods(c)) != RD_OK) {
         fail(err, errlen, st, "%s: out of memory", "compare");
         goto bad;
@@ -308,6 +362,9 @@ rd_status rd_compare_run(const rd_scene *scene, const rd_cmp_opts *opts, rd_comp
         if (c->ref_se.rgb) c->sum.ref_var = image_mean_sq(&c->ref_se);
         if ((st = run_all(c, scene, err, errlen)) != RD_OK) goto bad;
         make_rows(c);
+        c->sum.ref_auto = rd_cmp_reference_is_auto(opts);
+        c->planned_seconds = 0.0;
+        if (c->sum.ref_auto && c->sum.n_rows && (st = reference_settle(c, scene, err, errlen)) != RD_OK) goto bad;
     }
     *out = c;
     return RD_OK;

@@ -16,6 +16,7 @@
 #include "core/rd_core.h"
 #include "integrators/rd_method.h"
 
+#include <limits.h>
 #include <omp.h>
 #include <stdlib.h>
 #include <string.h>
@@ -244,6 +245,9 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         return RD_ERR_ARG;
     }
     if (o->spp < 1) return fail(err, errlen, RD_ERR_ARG, "--spp: must be >= 1");
+    if (o->first_sample < 0 || o->first_sample > INT_MAX - o->spp)
+        return fail(err, errlen, RD_ERR_ARG, "first sample: must be >= 0, and first sample + spp within an int");
+    const int s0 = o->first_sample; /* samples [s0, s0 + spp) of every pixel */
     int w = s->camera.width, h = s->camera.height;
     if (o->reference && (o->reference->w != w || o->reference->h != h || !o->reference->rgb)) {
         snprintf(err, errlen, "reference image: %dx%d, but the render is %dx%d", o->reference->w,
@@ -316,15 +320,15 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         int n = pass < o->spp - done ? pass : o->spp - done;
         if (pass_maps) {
             /* Samples [done, done + n) stay within one photon pass. */
-            int ip = done / s->photons.pass_spp + 1;
+            int ip = (s0 + done) / s->photons.pass_spp + 1;
             if (ip != ctx.photon_pass &&
                 (st = photon_pass(&ctx, pass_maps, ip, &pass_bake, first_bake, &res->stats, err, errlen)) != RD_OK)
                 goto done;
-            if (n > ip * s->photons.pass_spp - done) n = ip * s->photons.pass_spp - done;
+            if (n > ip * s->photons.pass_spp - (s0 + done)) n = ip * s->photons.pass_spp - (s0 + done);
             if (deadline > 0 && now_seconds() >= deadline) { res->stats.timed_out = 1; break; }
         }
         double t0 = now_seconds();
-        int cut = render_pass(&ctx, th, &f, done, done + n, deadline, o->cancel, &invalid);
+        int cut = render_pass(&ctx, th, &f, s0 + done, s0 + done + n, deadline, o->cancel, &invalid);
         double t1 = now_seconds(), elapsed = t1 - t_start;
         if (!cut) done += n;
         if (o->progress) o->progress(o->progress_user, done, o->spp, elapsed);
