@@ -132,7 +132,8 @@ static rd_status reference_render(rd_comparison *c, const rd_scene *s, const cha
     const rd_cmp_opts *o = &c->opts;
     rd_render_opts ro = {.method = "delta", .spp = o->ref_spp, .time_limit = o->ref_time,
                          .seed = REF_SEED(o->seed), .threads = o->threads, .cancel = o->cancel,
-                         .progress = reference_progress, .progress_user = c};
+                         .progress = reference_progress, .progress_user = c,
+                         .clock = o->clock, .clock_user = o->clock_user};
     reference_progress(c, 0, o->ref_spp, 0.0);
     rd_render_result res;
     rd_status st = rd_render(s, &ro, &res, err, errlen);
