@@ -10,6 +10,7 @@
 #include <criterion/criterion.h>
 #include <fcntl.h>
 #include <signal.h>
+#include <stdatomic.h>
 #include <time.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -174,6 +175,36 @@ static inline double rt_chi2_quantile(int dof, double z)
     double k = dof, a = 2.0 / (9.0 * k);
     double c = 1.0 - a + z * sqrt(a);
     return k * c * c * c;
+}
+
+/* ---- Clocks for rd_render_opts.clock and rd_cmp_opts.clock -------------------------------
+ * The timing tests keep and read time on these, not on the wall clock, so that what they check
+ * does not depend on how loaded the machine is. */
+
+/* A virtual clock: its k-th reading (k = 0, 1, ...) is k dt, whatever the time. A render's time
+ * on it is the number of clock readings it made: one before every pixel it starts (the time
+ * limit's check) and a few of its own (set-up, each pass's start and end, the report). Atomic:
+ * the render's threads read it at once. dt a power of two keeps k dt exact. */
+typedef struct {
+    atomic_llong n; /* readings so far */
+    double dt;
+} rt_ticks;
+
+static inline double rt_ticks_read(void *user)
+{
+    rt_ticks *t = user;
+    return t->dt * (double)atomic_fetch_add(&t->n, 1);
+}
+
+/* CPU seconds of the calling thread. A render on one thread runs on its caller (OpenMP runs a
+ * team of one on the calling thread), so on this clock its time limit counts its own work only:
+ * the time the machine gives other processes does not count. */
+static inline double rt_thread_cpu_seconds(void *user)
+{
+    (void)user;
+    struct timespec ts;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return ts.tv_sec + 1e-9 * ts.tv_nsec;
 }
 
 /* ---- Child processes that the tests signal (test_cli.c, test_compare.c) ---------------- */
