@@ -286,7 +286,7 @@ Test(compare, page_loads_in_headless_chromium_and_toggles, .timeout = 180)
     rd_scene_free(s);
     static char out[1 << 16], errb[1 << 16];
     char *argv[] = {"/bin/bash", "tests/compare_page.sh", dir, shot, NULL};
-    int code = rt_run(argv, out, sizeof out, errb, sizeof errb, 0);
+    int code = rt_run(argv, out, sizeof out, errb, sizeof errb, NULL);
     cr_expect(code == 0, "tests/compare_page.sh exit %d:\n%s\n%s", code, out, errb);
     cr_expect(strstr(out, "SELFTEST PASS") != NULL, "%s", out);
     cr_expect(strstr(out, "toggle guided.png -&gt; delta.png ok") != NULL, "the toggle did not switch: %s", out);
@@ -306,7 +306,7 @@ static const char *bin_or_fail(void)
 static void expect_input_error(char *const argv[], const char *expect)
 {
     static char out[1 << 14], err[1 << 14];
-    int code = rt_run(argv, out, sizeof out, err, sizeof err, 0);
+    int code = rt_run(argv, out, sizeof out, err, sizeof err, NULL);
     cr_expect(code == 2, "exit %d (expected 2): %s", code, err);
     cr_expect(strstr(err, expect) != NULL, "expected \"%s\" in: %s", expect, err);
     const char *nl = strchr(err, '\n');
@@ -359,10 +359,10 @@ Test(compare, bad_reference_and_bad_add_give_one_line_errors_naming_the_file, .t
     /* A malformed --add or an unknown method is a usage error (exit 1). */
     static char out[4096], e2[4096];
     char *a6[] = {(char *)bin, "compare", scene, "--methods", "delta", "--add", "nolabel.exr", NULL};
-    cr_expect(rt_run(a6, out, sizeof out, e2, sizeof e2, 0) == 1, "%s", e2);
+    cr_expect(rt_run(a6, out, sizeof out, e2, sizeof e2, NULL) == 1, "%s", e2);
     cr_expect(strstr(e2, "--add nolabel.exr: expected LABEL=IMAGE.exr[@SECONDS]") != NULL, "%s", e2);
     char *a7[] = {(char *)bin, "compare", scene, "--methods", "delta,magic", "-o", dir, "--reference", good, NULL};
-    cr_expect(rt_run(a7, out, sizeof out, e2, sizeof e2, 0) == 1, "%s", e2);
+    cr_expect(rt_run(a7, out, sizeof out, e2, sizeof e2, NULL) == 1, "%s", e2);
     cr_expect(strstr(e2, "unknown method \"magic\"") != NULL, "%s", e2);
     struct stat st;
     cr_expect(stat(dir, &st) != 0, "a failed comparison wrote a report folder");

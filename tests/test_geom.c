@@ -371,12 +371,12 @@ Test(geom, cli_renders_shapes, .timeout = 300)
          * a pass (equal time is compare's own test, on a virtual clock). */
         char *argv_c[] = {(char *)bin, (char *)cmds[i], (char *)p, "--methods", "delta,guided", "--equal", "spp",
                           "--budget", "2", "--ref-spp", "16", "--runs", "2", "-o", dst, NULL};
-        int code = rt_run(i == 2 ? argv_c : argv_r, out, sizeof out, err, sizeof err, 0);
+        int code = rt_run(i == 2 ? argv_c : argv_r, out, sizeof out, err, sizeof err, NULL);
         cr_expect(code == 0, "%s: exit %d, stderr %s", cmds[i], code, err);
     }
     char out[8192], err[4096];
     char *argv_i[] = {(char *)bin, "info", (char *)p, NULL};
-    cr_expect(rt_run(argv_i, out, sizeof out, err, sizeof err, 0) == 0, "info: %s", err);
+    cr_expect(rt_run(argv_i, out, sizeof out, err, sizeof err, NULL) == 0, "info: %s", err);
     cr_expect(strstr(out, "shapes     1") != NULL, "%s", out);
 }
 

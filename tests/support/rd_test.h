@@ -15,6 +15,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -69,9 +70,14 @@ static inline rd_scene *rt_scene(const char *name, const char *json)
 }
 
 /* Run `argv` (argv[0] is the program path) with stdout/stderr captured into the given buffers;
- * returns the exit status, or 1000 + signal number when it died of a signal. */
+ * returns the exit status, or 1000 + signal number when it died of a signal. When cpu_seconds is
+ * not NULL it gets the child's CPU time (user + system, from wait4): what a test measures of a
+ * child's cost, since the wall time depends on the machine's load. Every child runs under a CPU
+ * limit (RT_CHILD_CPU_LIMIT seconds; SIGXCPU past it, returned as 1000 + SIGXCPU), so a child
+ * that spins for ever ends the test instead of hanging it. */
+#define RT_CHILD_CPU_LIMIT 600
 static inline int rt_run(char *const argv[], char *out, size_t outlen, char *errbuf, size_t errlen,
-                         int sigint_after_ms)
+                         double *cpu_seconds)
 {
     char fo[256], fe[256];
     snprintf(fo, sizeof fo, "%s/stdout.XXXXXX", rt_tmpdir());
@@ -87,15 +93,16 @@ static inline int rt_run(char *const argv[], char *out, size_t outlen, char *err
         dup2(nul, 0);
         setenv("ASAN_OPTIONS", "exitcode=86:detect_leaks=1", 1);
         setenv("UBSAN_OPTIONS", "halt_on_error=1:exitcode=87:print_stacktrace=1", 1);
+        struct rlimit cpu = {RT_CHILD_CPU_LIMIT, RT_CHILD_CPU_LIMIT};
+        setrlimit(RLIMIT_CPU, &cpu);
         execv(argv[0], argv);
         _exit(127);
     }
-    if (sigint_after_ms > 0) {
-        usleep((useconds_t)sigint_after_ms * 1000);
-        kill(pid, SIGINT);
-    }
     int status;
-    waitpid(pid, &status, 0);
+    struct rusage ru;
+    cr_assert(wait4(pid, &status, 0, &ru) == pid);
+    if (cpu_seconds)
+        *cpu_seconds = ru.ru_utime.tv_sec + 1e-6 * ru.ru_utime.tv_usec + ru.ru_stime.tv_sec + 1e-6 * ru.ru_stime.tv_usec;
     FILE *f;
     if (out && (f = fdopen(ofd, "r"))) {
         rewind(f);
