@@ -199,6 +199,7 @@ Test(render, convergence_curve_against_a_reference, .timeout = 120)
     for (size_t i = 0; i < n; i++) se += (r.image.rgb[i] - ref.image.rgb[i]) * (double)(r.image.rgb[i] - ref.image.rgb[i]);
     double rmse = sqrt(se / n), last = r.curve[r.n_curve - 1].rmse;
     cr_expect(fabs(last - rmse) <= 1e-5 * rmse, "curve %.9g vs image %.9g", last, rmse);
+    rd_render_result_free(&r);
     /* A reference of another size is refused before rendering. */
     rd_image small = {4, 4, ref.image.rgb, 0};
     o.reference = &small;
