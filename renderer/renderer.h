@@ -90,11 +90,22 @@ typedef struct {
 
 void rd_image_free_pixels(rd_image *img);
 
+/* A time source: seconds from any fixed origin, never decreasing, callable from several threads
+ * at once. Renders and comparisons read every time they keep or report (time_limit, the bake's
+ * charge, the seconds in the report and the convergence curve) on one such clock; NULL means
+ * rd_clock_monotonic, wall time. Another clock gives a budget in CPU seconds, or a test its own
+ * virtual time. (The bake's own statistics, rd_bake_stats.seconds, stay wall time.) */
+typedef double (*rd_clock_fn)(void *user);
+double rd_clock_monotonic(void *user); /* CLOCK_MONOTONIC in seconds; user is ignored */
+
 typedef struct {
     const char *method;  /* a name from the method table */
     int spp;             /* samples per pixel to reach (>= 1) */
-    double time_limit;   /* seconds; > 0 stops when the time is up (checked between pixels, so
-                            the budget is kept to within a pixel's work); spp still caps */
+    double time_limit;   /* seconds; > 0 stops when the time is up (checked before every pixel:
+                            no pixel starts at or after the deadline, so the budget is kept to
+                            within a pixel's work and the film's resolve); spp still caps */
+    rd_clock_fn clock;   /* the clock of time_limit, baked_seconds and the reported seconds; */
+    void *clock_user;    /* NULL: rd_clock_monotonic. clock_user is passed to it */
     uint64_t seed;
     int threads;         /* 0 = OpenMP default */
     /* Polled between pixels: when it becomes non-zero the render stops and rd_render returns
@@ -119,7 +130,7 @@ typedef struct {
 } rd_render_opts;
 
 typedef struct {
-    double seconds;          /* wall time of the render, bake included */
+    double seconds;          /* time of the render on its clock (wall time), bake included */
     double bake_seconds;     /* of which baking the photon map and guide */
     int spp;                 /* samples per pixel completed by every pixel */
     double spp_mean;         /* samples per pixel on average (a stopped pass leaves some behind) */
@@ -403,6 +414,8 @@ typedef struct {
                                    finished is kept */
     void (*progress)(void *user, const rd_cmp_progress *p);
     void *progress_user;
+    rd_clock_fn clock;   /* the clock of the budget, the bake's charge and every time reported */
+    void *clock_user;    /* (rd_render_opts.clock); NULL: rd_clock_monotonic */
 } rd_cmp_opts;
 
 /* One row of the comparison: a method (its K runs) or an added image. Absent values are NaN. */

@@ -232,25 +232,39 @@ Test(compare, two_methods_two_runs_write_a_complete_report, .timeout = 120)
     rd_scene_free(s);
 }
 
+/* Equal time: every run renders until its budget, its share of the bake included, and stops
+ * at the first pixel past it. On a virtual clock (rt_ticks: each reading advances it by dt, so
+ * the load cannot move it): the budget is 1024 readings, two passes and a part of the 384 pixels
+ * (a reading costs a pixel whatever its samples, so a longer budget would let the passes, sized
+ * by the time they took, grow without end); a render reads the clock once before each pixel,
+ * and after its deadline only each thread's
+ * stopping reading, the pass's end and the report's come (rd_render's own test counts them
+ * exactly: render/time_limit_*, which also checks that the bake charged to a run counts against
+ * its limit). The bake is timed on the same clock (two readings: one tick). */
 Test(compare, equal_time_runs_use_the_budget_and_charge_the_bake, .timeout = 120)
 {
     rd_scene *s = rt_scene("cmpt.json", small_scene_json);
     char err[RD_ERRLEN];
+    rt_ticks clk = {.dt = 1.0 / 1024};
     rd_cmp_opts o = small_opts(NULL);
     o.equal_spp = 0;
     o.budget = 1.0;
     o.runs = 1;
+    o.clock = rt_ticks_read;
+    o.clock_user = &clk;
     rd_comparison *c = NULL;
     cr_assert(rd_compare_run(s, &o, &c, err, sizeof err) == RD_OK, "%s", err);
     const rd_cmp_summary *S = rd_comparison_summary(c);
     cr_assert(S->n_rows == 2);
     for (int i = 0; i < 2; i++) {
-        /* The render runs until its deadline (a pass never starts past it, so the run ends
-         * at or after the budget, the bake included). */
-        cr_expect(S->rows[i].seconds >= 1.0, "%s used %g s of 1", S->rows[i].label, S->rows[i].seconds);
-        cr_expect(!S->rows[i].split_from_runs && S->rows[i].split.variance > 0, "one run: variance from the stderr image");
+        const rd_cmp_row *r = &S->rows[i];
+        cr_expect(r->seconds >= o.budget && r->seconds <= o.budget + (o.threads + 2) * clk.dt,
+                  "%s: %.9g s for a budget of %g (the clock's step %g)", r->label, r->seconds, o.budget, clk.dt);
+        cr_expect(r->spp > 1, "%s: %g spp", r->label, r->spp);
+        cr_expect(!r->split_from_runs && r->split.variance > 0, "one run: variance from the stderr image");
     }
-    cr_expect(S->rows[0].bake_seconds > 0 && S->rows[0].bake_seconds < S->rows[0].seconds);
+    cr_expect(S->rows[0].bake_seconds == clk.dt && S->rows[1].bake_seconds == 0, "guided's bake is timed on the "
+              "comparison's clock: %g s", S->rows[0].bake_seconds);
     rd_comparison_free(c);
     rd_scene_free(s);
 }
@@ -272,7 +286,7 @@ Test(compare, page_loads_in_headless_chromium_and_toggles, .timeout = 180)
     rd_scene_free(s);
     static char out[1 << 16], errb[1 << 16];
     char *argv[] = {"/bin/bash", "tests/compare_page.sh", dir, shot, NULL};
-    int code = rt_run(argv, out, sizeof out, errb, sizeof errb, 0);
+    int code = rt_run(argv, out, sizeof out, errb, sizeof errb, NULL);
     cr_expect(code == 0, "tests/compare_page.sh exit %d:\n%s\n%s", code, out, errb);
     cr_expect(strstr(out, "SELFTEST PASS") != NULL, "%s", out);
     cr_expect(strstr(out, "toggle guided.png -&gt; delta.png ok") != NULL, "the toggle did not switch: %s", out);
@@ -292,7 +306,7 @@ static const char *bin_or_fail(void)
 static void expect_input_error(char *const argv[], const char *expect)
 {
     static char out[1 << 14], err[1 << 14];
-    int code = rt_run(argv, out, sizeof out, err, sizeof err, 0);
+    int code = rt_run(argv, out, sizeof out, err, sizeof err, NULL);
     cr_expect(code == 2, "exit %d (expected 2): %s", code, err);
     cr_expect(strstr(err, expect) != NULL, "expected \"%s\" in: %s", expect, err);
     const char *nl = strchr(err, '\n');
@@ -345,10 +359,10 @@ Test(compare, bad_reference_and_bad_add_give_one_line_errors_naming_the_file, .t
     /* A malformed --add or an unknown method is a usage error (exit 1). */
     static char out[4096], e2[4096];
     char *a6[] = {(char *)bin, "compare", scene, "--methods", "delta", "--add", "nolabel.exr", NULL};
-    cr_expect(rt_run(a6, out, sizeof out, e2, sizeof e2, 0) == 1, "%s", e2);
+    cr_expect(rt_run(a6, out, sizeof out, e2, sizeof e2, NULL) == 1, "%s", e2);
     cr_expect(strstr(e2, "--add nolabel.exr: expected LABEL=IMAGE.exr[@SECONDS]") != NULL, "%s", e2);
     char *a7[] = {(char *)bin, "compare", scene, "--methods", "delta,magic", "-o", dir, "--reference", good, NULL};
-    cr_expect(rt_run(a7, out, sizeof out, e2, sizeof e2, 0) == 1, "%s", e2);
+    cr_expect(rt_run(a7, out, sizeof out, e2, sizeof e2, NULL) == 1, "%s", e2);
     cr_expect(strstr(e2, "unknown method \"magic\"") != NULL, "%s", e2);
     struct stat st;
     cr_expect(stat(dir, &st) != 0, "a failed comparison wrote a report folder");

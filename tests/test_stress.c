@@ -280,7 +280,7 @@ static long render_rss(const char *scene, const char *method, const char *spp, c
     char o[8192], e[8192];
     char *argv[] = {(char *)bin(), "render", (char *)scene, "--method", (char *)method, "--spp",
                     (char *)spp, "--threads", "2", "-q", "-o", (char *)out, "--set", (char *)set, NULL};
-    int code = rt_run(argv, o, sizeof o, e, sizeof e, 0);
+    int code = rt_run(argv, o, sizeof o, e, sizeof e, NULL);
     cr_assert(code == 0, "%s %s: exit %d: %s", scene, method, code, e);
     struct rusage ru;
     cr_assert(getrusage(RUSAGE_CHILDREN, &ru) == 0);
@@ -370,7 +370,7 @@ static int run_limited(long kib, const char *args, char *err, size_t errlen)
     char cmd[2048], o[4096];
     snprintf(cmd, sizeof cmd, "ulimit -v %ld; exec '%s' %s", kib, bin(), args);
     char *argv[] = {"/bin/bash", "-c", cmd, NULL};
-    return rt_run(argv, o, sizeof o, err, errlen, 0);
+    return rt_run(argv, o, sizeof o, err, errlen, NULL);
 }
 
 /* One line (a single newline, at the end). */

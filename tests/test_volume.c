@@ -377,7 +377,7 @@ static void voxelize(const char *bin, const char *scene, const char *out, int di
 {
     char so[4096], se[4096];
     char *argv[] = {(char *)bin, "voxelize", (char *)scene, "--res", "32", "-o", (char *)out, NULL};
-    int code = rt_run(argv, so, sizeof so, se, sizeof se, 0);
+    int code = rt_run(argv, so, sizeof so, se, sizeof se, NULL);
     cr_assert(code == 0, "voxelize %s: exit %d: %s", out, code, se);
     const char *p = strstr(so, ": ");
     cr_assert(p && sscanf(p + 2, "%dx%dx%d", &dims[0], &dims[1], &dims[2]) == 3, "no dims in: %s", so);

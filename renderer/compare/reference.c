@@ -174,7 +174,8 @@ static rd_status reference_part(rd_comparison *c, const rd_scene *s, int first, 
     const rd_cmp_opts *o = &c->opts;
     rd_render_opts ro = {.method = "delta", .spp = spp, .time_limit = time_limit, .seed = REF_SEED(o->seed),
                          .threads = o->threads, .cancel = o->cancel, .progress = reference_progress,
-                         .progress_user = pc, .first_sample = first};
+                         .progress_user = pc, .first_sample = first, .clock = o->clock,
+                         .clock_user = o->clock_user};
     reference_progress(pc, 0, spp, 0.0);
     return rd_render(s, &ro, res, err, errlen);
 }

@@ -13,16 +13,14 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 /* At most this many methods, and this many --add images. */
 #define RD_CMP_MAX_METHODS 8
 
-static double now_seconds(void)
+/* The comparison's clock (rd_cmp_opts.clock). */
+static double now_seconds(const rd_cmp_opts *o)
 {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec + 1e-9 * ts.tv_nsec;
+    return o->clock ? o->clock(o->clock_user) : rd_clock_monotonic(NULL);
 }
 
 /* Mean of stderr^2 over every value: the variance the reference adds to every measured MSE. */
@@ -52,10 +50,10 @@ static rd_status bake_for(rd_comparison *c, const rd_scene *s, int mi, char *err
         }
     rd_bake_opts bo = {.seed = -1, .threads = c->opts.threads};
     rd_bake_opts_for(&bo, needs);
-    double t0 = now_seconds();
+    double t0 = now_seconds(&c->opts);
     rd_status st = rd_bake(s, &bo, &m->baked, err, errlen);
     if (st) return st;
-    m->bake_seconds = now_seconds() - t0;
+    m->bake_seconds = now_seconds(&c->opts) - t0;
     m->needs = needs;
     m->owns_baked = 1;
     return RD_OK;
@@ -99,10 +97,11 @@ static rd_status run_one(rd_comparison *c, const rd_scene *s, int mi, int run, c
 {
     const rd_cmp_opts *o = &c->opts;
     cmp_method *m = &c->m[mi];
-    run_ctx rc = {c, mi, run, now_seconds()};
+    run_ctx rc = {c, mi, run, now_seconds(o)};
     rd_render_opts ro = {.method = m->name, .seed = RUN_SEED(o->seed, run), .threads = o->threads,
                          .cancel = o->cancel, .progress = run_progress, .progress_user = &rc,
-                         .baked = m->baked, .baked_seconds = m->bake_seconds, .reference = &c->ref};
+                         .baked = m->baked, .baked_seconds = m->bake_seconds, .reference = &c->ref,
+                         .clock = o->clock, .clock_user = o->clock_user};
     /* Equal time: the budget is the run's wall time, its share of the bake included; equal
      * spp: every method renders `budget` samples per pixel. */
     ro.spp = o->equal_spp ? (int)o->budget : 1 << 24;

@@ -34,11 +34,23 @@ void rd_render_result_free(rd_render_result *res)
     res->n_curve = 0;
 }
 
-static double now_seconds(void)
+double rd_clock_monotonic(void *user)
 {
+    (void)user;
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+/* The render's clock (rd_render_opts.clock): every time it keeps or reports is read here. */
+typedef struct {
+    rd_clock_fn fn;
+    void *user;
+} rclock;
+
+static double now_seconds(const rclock *c)
+{
+    return c->fn(c->user);
 }
 
 /* ---- Film ---------------------------------------------------------------------------------- */
@@ -106,15 +118,16 @@ static void film_resolve(const film *f, float *mean, float *stderr_rgb)
 
 /* ---- Passes -------------------------------------------------------------------------------- */
 
-static int should_stop(double deadline, const volatile int *cancel)
+static int should_stop(double deadline, const volatile int *cancel, const rclock *clk)
 {
-    return (cancel && *cancel) || (deadline > 0.0 && now_seconds() >= deadline);
+    return (cancel && *cancel) || (deadline < INFINITY && now_seconds(clk) >= deadline);
 }
 
 /* Render samples [s0, s1) of every pixel into the film; returns 1 when the deadline or the
- * cancel flag cut the pass short. */
+ * cancel flag cut the pass short. Each thread reads the clock before each of its pixels and
+ * stops at the first reading at or past the deadline. */
 static int render_pass(const rd_render_ctx *ctx, rd_thread *th, film *f, int s0, int s1,
-                       double deadline, const volatile int *cancel, uint64_t *invalid)
+                       double deadline, const volatile int *cancel, const rclock *clk, uint64_t *invalid)
 {
     const rd_camera *cam = &ctx->scene->camera;
     const rd_method *m = ctx->method;
@@ -127,7 +140,7 @@ static int render_pass(const rd_render_ctx *ctx, rd_thread *th, film *f, int s0,
         int x0 = (tile % tiles_x) * TILE, y0 = (tile / tiles_x) * TILE;
         for (int y = y0; y < y0 + TILE && y < cam->height; y++)
             for (int x = x0; x < x0 + TILE && x < cam->width; x++) {
-                if (stopped || should_stop(deadline, cancel)) { stopped = 1; continue; }
+                if (stopped || should_stop(deadline, cancel, clk)) { stopped = 1; continue; }
                 uint64_t pix = (uint64_t)y * cam->width + x;
                 double *acc = &f->sum[3 * pix], *acc2 = &f->sum2[3 * pix];
                 for (int i = s0; i < s1; i++) {
@@ -255,8 +268,9 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         return RD_ERR_ARG;
     }
     /* The caller's bake (o->baked_seconds) counts as if it had happened inside this call. */
-    double t_start = now_seconds() - (o->baked ? fmax(0.0, o->baked_seconds) : 0.0);
-    double deadline = o->time_limit > 0 ? t_start + o->time_limit : 0.0;
+    const rclock clk_ = {o->clock ? o->clock : rd_clock_monotonic, o->clock_user}, *clk = &clk_;
+    double t_start = now_seconds(clk) - (o->baked ? fmax(0.0, o->baked_seconds) : 0.0);
+    double deadline = o->time_limit > 0 ? t_start + o->time_limit : INFINITY; /* a clock may read 0 */
     rd_render_ctx ctx = {.scene = s, .method = m, .seed = o->seed,
                          .threads = o->threads > 0 ? o->threads : omp_get_max_threads()};
     res->stats.threads = ctx.threads;
@@ -279,13 +293,13 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         }
         first_bake = pass_bake;
     }
-    res->stats.bake_seconds = now_seconds() - t_start;
+    res->stats.bake_seconds = now_seconds(clk) - t_start;
     if (m->prepare && (st = m->prepare(&ctx, err, errlen)) != RD_OK) {
         rd_baked_free(first_bake);
         rd_baked_free(own);
         return st;
     }
-    res->stats.prepare_seconds = now_seconds() - t_start - res->stats.bake_seconds;
+    res->stats.prepare_seconds = now_seconds(clk) - t_start - res->stats.bake_seconds;
 
     /* Per-thread contexts with the method's scratch, and the film. */
     size_t scratch = m->scratch_bytes ? m->scratch_bytes(&ctx) : 0;
@@ -316,7 +330,7 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
     int done = 0, pass = 1, curve_cap = 0;
     while (done < o->spp) {
         if (o->cancel && *o->cancel) { res->stats.cancelled = 1; break; }
-        if (deadline > 0 && now_seconds() >= deadline) { res->stats.timed_out = 1; break; }
+        if (deadline < INFINITY && now_seconds(clk) >= deadline) { res->stats.timed_out = 1; break; }
         int n = pass < o->spp - done ? pass : o->spp - done;
         if (pass_maps) {
             /* Samples [done, done + n) stay within one photon pass. */
@@ -325,11 +339,11 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
                 (st = photon_pass(&ctx, pass_maps, ip, &pass_bake, first_bake, &res->stats, err, errlen)) != RD_OK)
                 goto done;
             if (n > ip * s->photons.pass_spp - (s0 + done)) n = ip * s->photons.pass_spp - (s0 + done);
-            if (deadline > 0 && now_seconds() >= deadline) { res->stats.timed_out = 1; break; }
+            if (deadline < INFINITY && now_seconds(clk) >= deadline) { res->stats.timed_out = 1; break; }
         }
-        double t0 = now_seconds();
-        int cut = render_pass(&ctx, th, &f, s0 + done, s0 + done + n, deadline, o->cancel, &invalid);
-        double t1 = now_seconds(), elapsed = t1 - t_start;
+        double t0 = now_seconds(clk);
+        int cut = render_pass(&ctx, th, &f, s0 + done, s0 + done + n, deadline, o->cancel, clk, &invalid);
+        double t1 = now_seconds(clk), elapsed = t1 - t_start;
         if (!cut) done += n;
         if (o->progress) o->progress(o->progress_user, done, o->spp, elapsed);
         if (o->reference) {
@@ -347,7 +361,7 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         }
         double per = (t1 - t0) / n; /* seconds per sample per pixel */
         double budget = 1.0;
-        if (deadline > 0) budget = fmin(budget, deadline - t1);
+        if (deadline < INFINITY) budget = fmin(budget, deadline - t1);
         /* clamp in double before converting: budget/per can exceed INT_MAX */
         double next = per > 0 ? budget / per : 2.0 * pass;
         next = fmax(1.0, fmin(next, 4.0 * pass));
@@ -382,7 +396,7 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         rs->samples_per_ray = (double)samples / rs->rays_marched;
         rs->cells_per_ray = (double)cells / rs->rays_marched;
     }
-    rs->seconds = now_seconds() - t_start;
+    rs->seconds = now_seconds(clk) - t_start;
 done:
     if (st != RD_OK) rd_render_result_free(res);
     film_free(&f);

@@ -10,10 +10,12 @@
 #include <criterion/criterion.h>
 #include <fcntl.h>
 #include <signal.h>
+#include <stdatomic.h>
 #include <time.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -68,9 +70,14 @@ static inline rd_scene *rt_scene(const char *name, const char *json)
 }
 
 /* Run `argv` (argv[0] is the program path) with stdout/stderr captured into the given buffers;
- * returns the exit status, or 1000 + signal number when it died of a signal. */
+ * returns the exit status, or 1000 + signal number when it died of a signal. When cpu_seconds is
+ * not NULL it gets the child's CPU time (user + system, from wait4): what a test measures of a
+ * child's cost, since the wall time depends on the machine's load. Every child runs under a CPU
+ * limit (RT_CHILD_CPU_LIMIT seconds; SIGXCPU past it, returned as 1000 + SIGXCPU), so a child
+ * that spins for ever ends the test instead of hanging it. */
+#define RT_CHILD_CPU_LIMIT 600
 static inline int rt_run(char *const argv[], char *out, size_t outlen, char *errbuf, size_t errlen,
-                         int sigint_after_ms)
+                         double *cpu_seconds)
 {
     char fo[256], fe[256];
     snprintf(fo, sizeof fo, "%s/stdout.XXXXXX", rt_tmpdir());
@@ -86,15 +93,16 @@ static inline int rt_run(char *const argv[], char *out, size_t outlen, char *err
         dup2(nul, 0);
         setenv("ASAN_OPTIONS", "exitcode=86:detect_leaks=1", 1);
         setenv("UBSAN_OPTIONS", "halt_on_error=1:exitcode=87:print_stacktrace=1", 1);
+        struct rlimit cpu = {RT_CHILD_CPU_LIMIT, RT_CHILD_CPU_LIMIT};
+        setrlimit(RLIMIT_CPU, &cpu);
         execv(argv[0], argv);
         _exit(127);
     }
-    if (sigint_after_ms > 0) {
-        usleep((useconds_t)sigint_after_ms * 1000);
-        kill(pid, SIGINT);
-    }
     int status;
-    waitpid(pid, &status, 0);
+    struct rusage ru;
+    cr_assert(wait4(pid, &status, 0, &ru) == pid);
+    if (cpu_seconds)
+        *cpu_seconds = ru.ru_utime.tv_sec + 1e-6 * ru.ru_utime.tv_usec + ru.ru_stime.tv_sec + 1e-6 * ru.ru_stime.tv_usec;
     FILE *f;
     if (out && (f = fdopen(ofd, "r"))) {
         rewind(f);
@@ -174,6 +182,36 @@ static inline double rt_chi2_quantile(int dof, double z)
     double k = dof, a = 2.0 / (9.0 * k);
     double c = 1.0 - a + z * sqrt(a);
     return k * c * c * c;
+}
+
+/* ---- Clocks for rd_render_opts.clock and rd_cmp_opts.clock -------------------------------
+ * The timing tests keep and read time on these, not on the wall clock, so that what they check
+ * does not depend on how loaded the machine is. */
+
+/* A virtual clock: its k-th reading (k = 0, 1, ...) is k dt, whatever the time. A render's time
+ * on it is the number of clock readings it made: one before every pixel it starts (the time
+ * limit's check) and a few of its own (set-up, each pass's start and end, the report). Atomic:
+ * the render's threads read it at once. dt a power of two keeps k dt exact. */
+typedef struct {
+    atomic_llong n; /* readings so far */
+    double dt;
+} rt_ticks;
+
+static inline double rt_ticks_read(void *user)
+{
+    rt_ticks *t = user;
+    return t->dt * (double)atomic_fetch_add(&t->n, 1);
+}
+
+/* CPU seconds of the calling thread. A render on one thread runs on its caller (OpenMP runs a
+ * team of one on the calling thread), so on this clock its time limit counts its own work only:
+ * the time the machine gives other processes does not count. */
+static inline double rt_thread_cpu_seconds(void *user)
+{
+    (void)user;
+    struct timespec ts;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return ts.tv_sec + 1e-9 * ts.tv_nsec;
 }
 
 /* ---- Child processes that the tests signal (test_cli.c, test_compare.c) ---------------- */
