@@ -128,7 +128,7 @@ def main():
     print()
     print("n/a: not measurable (the method's MSE is not above the reference's variance, or the method is missing).")
     if any(m["reference"].get("too_noisy") for _, _, m in scenes):
-        print("*: compare calls the reference too noisy to rank the methods (its variance > 1/4 of the best MSE).")
+        print("*: compare calls the reference too noisy to rank the methods (its variance > 1/10 of the best MSE, docs/compare.md).")
     print()
     print("## Per scene")
     for suite, name, m in scenes:
