@@ -142,6 +142,44 @@ Test(photons, same_map_on_one_and_two_threads, .timeout = 60)
     rd_scene_free(s);
 }
 
+Test(photons, one_trace_gives_the_indirect_map_of_a_trace_of_its_own, .timeout = 60)
+{
+    /* rd_trace_photons_split fills the indirect map (photons without their first flight) in
+     * the same trace as the main one: both must be, bit for bit, the maps of two traces of
+     * their own (store_direct 1 with segments, and store_direct 0), on 2 threads. */
+    rd_scene *s = rt_scene("split.json",
+                           "{\"camera\":{\"position\":[0,0,5],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
+                           "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
+                           "\"density\":{\"type\":\"noise\",\"octaves\":2},\"sigma_t\":2,\"albedo\":0.8,\"g\":0.5}],"
+                           "\"lights\":[{\"type\":\"spot\",\"position\":[0,2,0],\"look_at\":[0,0,0],\"angle\":50,\"intensity\":4}]}");
+    char err[RD_ERRLEN];
+    rd_photon_stats st;
+    rd_photon_opts o = {.count = 30000, .store_direct = 1, .segments = 1, .max_depth = 16, .seed = 9, .threads = 2};
+    pm_map *all = pm_map_new(), *ind = pm_map_new(), *all1 = pm_map_new(), *ind1 = pm_map_new();
+    cr_assert(rd_trace_photons_split(s, &o, all, ind, &st, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_trace_photons(s, &o, all1, &st, err, sizeof err) == RD_OK, "%s", err);
+    rd_photon_opts oi = o;
+    oi.store_direct = 0;
+    oi.segments = 0;
+    cr_assert(rd_trace_photons(s, &oi, ind1, &st, err, sizeof err) == RD_OK, "%s", err);
+    size_t n = pm_map_photon_count(ind);
+    cr_assert(n > 1000 && n < pm_map_photon_count(all), "indirect %zu of %zu photons", n, pm_map_photon_count(all));
+    cr_assert(n == pm_map_photon_count(ind1));
+    cr_expect(memcmp(pm_map_photons(ind), pm_map_photons(ind1), n * sizeof(pm_photon)) == 0);
+    cr_expect(pm_map_segment_count(ind) == 0);
+    cr_assert(pm_map_photon_count(all) == pm_map_photon_count(all1) && pm_map_segment_count(all) == pm_map_segment_count(all1));
+    cr_expect(memcmp(pm_map_photons(all), pm_map_photons(all1), pm_map_photon_count(all) * sizeof(pm_photon)) == 0);
+    double o1[3], o2[3];
+    pm_map_origin(ind, o1);
+    pm_map_origin(ind1, o2);
+    cr_expect(memcmp(o1, o2, sizeof o1) == 0);
+    pm_map_free(all);
+    pm_map_free(ind);
+    pm_map_free(all1);
+    pm_map_free(ind1);
+    rd_scene_free(s);
+}
+
 Test(photons, knn_radiance_converges_to_delta_tracking, .timeout = 300)
 {
     /* sigma_s L_s(x, w) at 48 fixed points and directions, from the photon map (all collisions

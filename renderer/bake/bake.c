@@ -190,9 +190,12 @@ void rd_bake_opts_for(rd_bake_opts *o, unsigned needs)
     o->indirect_guide = (needs & RD_NEEDS_INDIRECT_GUIDE) != 0;
 }
 
-/* Trace the scene's photons into a new map (*map); store_direct and segments as asked. */
+/* Trace the scene's photons into a new map (*map); store_direct and segments as asked. With
+ * `indirect`, the same trace also fills a new *indirect with the photons without their first
+ * flight (rd_trace_photons_split), which a second trace would otherwise repeat. */
 static rd_status trace_new_map(const rd_scene *s, const rd_bake_opts *o, int store_direct, int segments,
-                               pm_map **map, rd_photon_stats *ps, char *err, size_t errlen)
+                               pm_map **map, pm_map **indirect, rd_photon_stats *ps, char *err,
+                               size_t errlen)
 {
     rd_photon_opts po = {.count = o->photons > 0 ? o->photons : s->photons.count,
                          .store_direct = store_direct,
@@ -201,11 +204,11 @@ static rd_status trace_new_map(const rd_scene *s, const rd_bake_opts *o, int sto
                          .seed = o->seed >= 0 ? (uint64_t)o->seed : s->photons.seed,
                          .threads = o->threads};
     memset(ps, 0, sizeof *ps);
-    if (!(*map = pm_map_new())) {
+    if (!(*map = pm_map_new()) || (indirect && !(*indirect = pm_map_new()))) {
         snprintf(err, errlen, "%s: out of memory for the photon map", s->path);
         return RD_ERR_NOMEM;
     }
-    return rd_trace_photons(s, &po, *map, ps, err, errlen);
+    return rd_trace_photons_split(s, &po, *map, indirect ? *indirect : NULL, ps, err, errlen);
 }
 
 rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char *err,
@@ -231,7 +234,8 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
         bs->loaded = 1;
     } else {
         rd_photon_stats ps;
-        if ((st = trace_new_map(s, o, s->photons.store_direct, s->photons.segments, &b->map, &ps, err, errlen)) != RD_OK)
+        pm_map **ind = o->indirect && !o->load_indirect ? &b->indirect : NULL;
+        if ((st = trace_new_map(s, o, s->photons.store_direct, s->photons.segments, &b->map, ind, &ps, err, errlen)) != RD_OK)
             goto fail;
         bs->emitted = ps.emitted;
         bs->trace_seconds = ps.seconds;
@@ -260,9 +264,10 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
             st = RD_ERR_FORMAT;
             goto fail;
         }
-    } else if (o->indirect) {
+    } else if (o->indirect && !b->indirect) {
+        /* (with a loaded main map: the indirect photons need a trace of their own) */
         rd_photon_stats ps;
-        if ((st = trace_new_map(s, o, 0, 0, &b->indirect, &ps, err, errlen)) != RD_OK) goto fail;
+        if ((st = trace_new_map(s, o, 0, 0, &b->indirect, NULL, &ps, err, errlen)) != RD_OK) goto fail;
     }
     if (b->indirect && pm_map_build(b->indirect, pmerr, sizeof pmerr) != PM_OK) {
         snprintf(err, errlen, "photon map: %s", pmerr);
@@ -330,14 +335,15 @@ rd_status rd_bake_photon_pass(const rd_scene *s, unsigned maps, int pass, uint64
     char pmerr[RD_ERRLEN];
     rd_status st = RD_OK;
     rd_photon_stats ps;
-    /* The same two maps as rd_bake makes, from this pass's photons. */
+    /* The same two maps as rd_bake makes, from this pass's photons (one trace for both). */
     if (maps & RD_NEEDS_PHOTONS) {
-        if ((st = trace_new_map(s, &o, s->photons.store_direct, 0, &b->map, &ps, err, errlen)) != RD_OK) goto fail;
+        pm_map **ind = maps & RD_NEEDS_INDIRECT ? &b->indirect : NULL;
+        if ((st = trace_new_map(s, &o, s->photons.store_direct, 0, &b->map, ind, &ps, err, errlen)) != RD_OK) goto fail;
         b->stats.emitted = ps.emitted;
         if (pm_map_build(b->map, pmerr, sizeof pmerr) != PM_OK) goto fail_build;
     }
     if (maps & RD_NEEDS_INDIRECT) {
-        if ((st = trace_new_map(s, &o, 0, 0, &b->indirect, &ps, err, errlen)) != RD_OK) goto fail;
+        if (!b->indirect && (st = trace_new_map(s, &o, 0, 0, &b->indirect, NULL, &ps, err, errlen)) != RD_OK) goto fail;
         b->stats.emitted = ps.emitted;
         if (pm_map_build(b->indirect, pmerr, sizeof pmerr) != PM_OK) goto fail_build;
     }

@@ -30,20 +30,24 @@ typedef struct {
     size_t n_ph, cap_ph;
     pm_segment *seg;
     size_t n_seg, cap_seg;
+    int split;            /* also keep the indirect photons (depth > 1) apart, in ind */
+    pm_photon *ind;
+    size_t n_ind, cap_ind;
     double emitted[3], absorbed[3], escaped[3], carried[3], absorbed_surf[3];
     int oom;
 } block_out;
 
-static void push_photon(block_out *b, vec3 x, vec3 d, vec3 power)
+/* Append a photon to the array *arr (n, cap), growing it; sets b->oom when it cannot. */
+static void push_to(block_out *b, pm_photon **arr, size_t *n, size_t *cap, vec3 x, vec3 d, vec3 power)
 {
-    if (b->n_ph == b->cap_ph) {
-        size_t cap = b->cap_ph ? 2 * b->cap_ph : 1024;
-        pm_photon *p = realloc(b->ph, cap * sizeof *p);
+    if (*n == *cap) {
+        size_t c = *cap ? 2 * *cap : 1024;
+        pm_photon *p = realloc(*arr, c * sizeof *p);
         if (!p) { b->oom = 1; return; }
-        b->ph = p;
-        b->cap_ph = cap;
+        *arr = p;
+        *cap = c;
     }
-    pm_photon *p = &b->ph[b->n_ph++];
+    pm_photon *p = &(*arr)[(*n)++];
     p->pos[0] = (float)(x.x - b->origin[0]);
     p->pos[1] = (float)(x.y - b->origin[1]);
     p->pos[2] = (float)(x.z - b->origin[2]);
@@ -222,7 +226,8 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
             vec3 x = ray_at(r, col.t);
             vec3 scattered = v3_mul(beta, m->albedo);
             /* Store the scattered power; skip first collisions when NEE supplies direct light. */
-            if (depth > 1 || o->store_direct) push_photon(b, x, r.d, scattered);
+            if (depth > 1 || o->store_direct) push_to(b, &b->ph, &b->n_ph, &b->cap_ph, x, r.d, scattered);
+            if (depth > 1 && b->split) push_to(b, &b->ind, &b->n_ind, &b->cap_ind, x, r.d, scattered);
             acc(b->absorbed, v3_sub(beta, scattered)); /* expected absorption at this event */
             if (depth >= o->max_depth) { acc(b->carried, scattered); break; }
             /* Russian roulette on the albedo: survive with p = max channel, power x albedo / p. */
@@ -238,6 +243,12 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
 
 rd_status rd_trace_photons(const rd_scene *s, const rd_photon_opts *o, pm_map *map,
                            rd_photon_stats *st, char *err, size_t errlen)
+{
+    return rd_trace_photons_split(s, o, map, NULL, st, err, errlen);
+}
+
+rd_status rd_trace_photons_split(const rd_scene *s, const rd_photon_opts *o, pm_map *map,
+                                 pm_map *indirect, rd_photon_stats *st, char *err, size_t errlen)
 {
     memset(st, 0, sizeof *st);
     if (o->count == 0 || o->max_depth < 1) {
@@ -257,6 +268,15 @@ rd_status rd_trace_photons(const rd_scene *s, const rd_photon_opts *o, pm_map *m
     }
     double origin[3];
     pm_map_origin(map, origin);
+    if (indirect) {
+        /* The indirect map stores its positions from the same origin, so that its photons are
+         * bit for bit those a trace of its own (store_direct 0) would store. */
+        if (pm_map_photon_count(indirect) != 0 || pm_map_segment_count(indirect) != 0 ||
+            pm_map_set_origin(indirect, origin, pmerr, sizeof pmerr) != PM_OK) {
+            snprintf(err, errlen, "photon tracing: the indirect map must be new and empty");
+            return RD_ERR_INTERNAL;
+        }
+    }
     /* Light selection CDF by power (luminance). */
     double *cdf = calloc((size_t)s->n_lights + 1, sizeof *cdf);
     if (!cdf) {
@@ -281,7 +301,10 @@ rd_status rd_trace_photons(const rd_scene *s, const rd_photon_opts *o, pm_map *m
                  nblocks, o->count);
         return RD_ERR_NOMEM;
     }
-    for (size_t bi = 0; bi < nblocks; bi++) blocks[bi].origin = origin;
+    for (size_t bi = 0; bi < nblocks; bi++) {
+        blocks[bi].origin = origin;
+        blocks[bi].split = indirect != NULL;
+    }
     int nthreads = o->threads > 0 ? o->threads : omp_get_max_threads();
     struct timespec t0, t1;
     clock_gettime(CLOCK_MONOTONIC, &t0);
@@ -311,6 +334,7 @@ rd_status rd_trace_photons(const rd_scene *s, const rd_photon_opts *o, pm_map *m
         pm_status ps = PM_OK;
         if (status == RD_OK) ps = pm_map_add_photons(map, b->ph, b->n_ph, pmerr, sizeof pmerr);
         if (status == RD_OK && ps == PM_OK) ps = pm_map_add_segments(map, b->seg, b->n_seg, pmerr, sizeof pmerr);
+        if (status == RD_OK && ps == PM_OK && indirect) ps = pm_map_add_photons(indirect, b->ind, b->n_ind, pmerr, sizeof pmerr);
         if (ps != PM_OK) {
             snprintf(err, errlen, "photon map: %s", pmerr);
             status = ps == PM_ERR_NOMEM ? RD_ERR_NOMEM : RD_ERR_INTERNAL;
@@ -326,6 +350,7 @@ rd_status rd_trace_photons(const rd_scene *s, const rd_photon_opts *o, pm_map *m
         st->segments += b->n_seg;
         free(b->ph);
         free(b->seg);
+        free(b->ind);
     }
     free(blocks);
     free(cdf);

@@ -54,6 +54,12 @@ int rd_light_sample_emission(const rd_scene *s, const rd_light *l, pcg32 *rng, r
  * message into err (out of memory names what was being allocated). */
 rd_status rd_trace_photons(const rd_scene *s, const rd_photon_opts *o, pm_map *map,
                            rd_photon_stats *st, char *err, size_t errlen);
+/* The same trace, and also the photons without their first flight (depth > 1, no segments)
+ * into `indirect` (new and empty; NULL: none): one trace gives both maps, each the same bit
+ * for bit as a trace of its own (the indirect one with store_direct 0), since photon i's path
+ * depends on i alone. The statistics are the main map's. */
+rd_status rd_trace_photons_split(const rd_scene *s, const rd_photon_opts *o, pm_map *map,
+                                 pm_map *indirect, rd_photon_stats *st, char *err, size_t errlen);
 
 /* Bake the scene's SH guide grid (scene key "guide") from a built photon map over the media
  * bounds, with the media's extinction (cell means), scattering (track-length bake) and HG
