@@ -4,6 +4,7 @@
  * complete, the reference is cached and reused, a changed scene misses the cache), the page in
  * headless Chromium (tests/compare_page.sh), and the command line's errors and Ctrl-C. */
 #include "support/rd_test.h"
+#include "support/compare_scene.h"
 #include "support/test_rng.h"
 
 #include <cJSON.h>
@@ -112,15 +113,7 @@ Test(compare, add_argument_is_parsed_or_refused)
 
 /* ---- A whole comparison, in-process --------------------------------------------------- */
 
-/* 24x16 pixels, a few thousand photons, a coarse guide: a bake and a run take a fraction of a
- * second (the whole comparison must stay small: the suite also runs under ASan). */
-static const char *small_scene_json =
-    "{\"camera\":{\"position\":[0,0,4],\"look_at\":[0,0,0],\"resolution\":[24,16]},"
-    "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},\"density\":{\"type\":\"noise\",\"octaves\":2},"
-    "\"sigma_t\":2,\"albedo\":0.9,\"g\":0.4}],"
-    "\"lights\":[{\"type\":\"point\",\"position\":[1,2,1],\"intensity\":[5,4,3]}],"
-    "\"photons\":{\"count\":3000},\"guide\":{\"resolution\":[6,6,6]},"
-    "\"settings\":{\"spp\":4, \"seed\":5}}";
+/* small_scene_json: tests/support/compare_scene.h */
 
 static const char *const two_methods[] = {"guided", "delta"};
 

@@ -5,20 +5,13 @@
  * synthetic runs of known bias and variance, the sentences in the table and the page), and the
  * --add labels that would overwrite the report's own files refused. */
 #include "support/rd_test.h"
+#include "support/compare_scene.h"
 #include "support/test_rng.h"
 #include "compare/rd_compare.h"
 
 #include <cJSON.h>
 
-/* The scene of test_compare.c: 24x16 pixels, delta renders hundreds of samples per pixel in a
- * fraction of a second. */
-static const char *small_scene_json =
-    "{\"camera\":{\"position\":[0,0,4],\"look_at\":[0,0,0],\"resolution\":[24,16]},"
-    "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},\"density\":{\"type\":\"noise\",\"octaves\":2},"
-    "\"sigma_t\":2,\"albedo\":0.9,\"g\":0.4}],"
-    "\"lights\":[{\"type\":\"point\",\"position\":[1,2,1],\"intensity\":[5,4,3]}],"
-    "\"photons\":{\"count\":3000},\"guide\":{\"resolution\":[6,6,6]},"
-    "\"settings\":{\"spp\":4, \"seed\":5}}";
+/* small_scene_json: tests/support/compare_scene.h */
 
 static const char *const only_delta[] = {"delta"};
 
