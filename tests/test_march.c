@@ -284,6 +284,15 @@ Test(march, nee_paths_marchers_equal_delta_with_multiple_scattering, .timeout = 
     rd_render_result q = rt_render(sq, "guided", 96, 86, NULL);
     rt_expect_same(&d, &q, "guided, march.paths 0.4");
     rd_render_result_free(&q);
+    /* nee+delta: the samples' next-event estimates plus one delta path along the ray that
+     * leaves its first vertex's direct light to them (rd_delta_scattered); every pixel
+     * marched. */
+    rd_scene *sd = rt_scene("npd_march.json", scene_json("\"march\":{\"ls\":\"nee+delta\",\"samples\":4,\"select\":\"off\"}", -2.5));
+    rd_render_result nd = rt_render(sd, "guided", 96, 87, NULL);
+    cr_assert(nd.stats.delta_samples == 0, "select off: every pixel is marched");
+    rt_expect_same(&d, &nd, "guided, march.ls nee+delta");
+    rd_render_result_free(&nd);
+    rd_scene_free(sd);
     rd_render_result_free(&d);
     rd_scene_free(sq);
     rd_scene_free(s);

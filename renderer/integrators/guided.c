@@ -41,11 +41,24 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
         }
     free(buf);
     mst->mean_I = n > 0 ? sum / n : 0.0;
-    return RD_OK;
+    /* Only an unbiased source estimates what delta's path does: with the photon sources (and
+     * nee alone) the tiles would disagree, so every pixel is marched. */
+    int unbiased = s->march.ls == RD_LS_NEE_PATHS || s->march.ls == RD_LS_NEE_DELTA;
+    if (s->march.select == RD_SELECT_TILES && unbiased) {
+        st = rd_march_select_prepare(ctx, PLACE_GUIDED, err, errlen);
+        if (st != RD_OK) rd_march_release(ctx);
+    }
+    return st;
 }
 
+/* The marcher, or delta's path where march.select gave the pixel's tile to it (select.c). */
 static vec3 radiance_guided(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
 {
+    if (!rd_march_select_marches(ctx, th->pixel)) {
+        th->delta_samples++;
+        pcg32 rng = rd_sampler_stream(smp);
+        return rd_delta_radiance(ctx->scene, r, &rng, &th->counters);
+    }
     return rd_march_radiance(ctx, th, r, smp, PLACE_GUIDED);
 }
 

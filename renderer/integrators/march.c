@@ -27,6 +27,10 @@
  *                stored without their first flight (multiple scattering),
  *   nee+guide    the same direct light + multiple scattering read from the guide baked from
  *                the indirect photons (a cell lookup instead of a k-NN query),
+ *   nee+delta    sigma_s x next-event estimation (rd_nee_split) at the samples, and once per
+ *                segment one path of delta's along the ray that leaves its first vertex's
+ *                direct light to them (rd_delta_scattered): unbiased, and a path costs only
+ *                where delta's would scatter;
  *   nee          sigma_s x next-event estimation only (single scattering; for tests).
  * Given S, the estimate is unbiased for every placement (the defensive mixture keeps p > 0
  * wherever the integrand can be non-zero, and every ray gets at least one sample); what the
@@ -314,6 +318,10 @@ vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, v
         }
         return v3_mul(sigma_s, Ls);
     }
+    case RD_LS_NEE_DELTA:
+        /* The direct part of delta's vertex at x only: the rest of the in-scattering on this
+         * segment is one path of delta's from the segment's start (march_segment). */
+        return v3_mul(v3_scale(m->albedo, sigma_t), rd_nee_split(s, region, x, d, m->g, rng, c));
     case RD_LS_NEE_PHOTONS: {
         double r = pass_radius(ctx, ctx->photons_indirect_first, x);
         if (r >= 0.0) S = photon_estimate(s, ctx->photons_indirect, x, w, m->g, s->guide.k, r);
@@ -380,6 +388,10 @@ static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int r
         vec3 S = rd_march_source(ctx, m, region, x, r.d, sigma_t, event, q_path, rng, c);
         L = v3_madd(L, S, T / (N * ms.p[n]));
     }
+    /* nee+delta: the samples estimated the single scattering's next-event part; one path of
+     * delta's along the segment adds everything else that scatters on it (rd_delta_scattered:
+     * 0 when its flight passes, so it costs a delta path only where one would scatter). */
+    if (s->march.ls == RD_LS_NEE_DELTA) L = v3_add(L, rd_delta_scattered(s, r, region, event - 1, rng, c));
     if (T != 0.0 && need_T) T *= rd_transmittance(s, region, r, tp, t1, rng, c);
     *T_out = need_T ? T : 0.0;
     return L;
@@ -500,6 +512,8 @@ rd_status rd_march_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
 
 void rd_march_release(rd_render_ctx *ctx)
 {
+    march_state *ms = ctx->state;
+    if (ms) free(ms->sel_march);
     free(ctx->state);
     ctx->state = NULL;
 }

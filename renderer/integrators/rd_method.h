@@ -22,12 +22,14 @@ struct sh_guide;
  * method->scratch_bytes(ctx) bytes (16-byte aligned) allocated once per thread, or NULL. */
 typedef struct rd_thread {
     int index;
+    uint64_t pixel;         /* the pixel being rendered (y * width + x), set before radiance() */
     rd_track_counters counters;
     /* Per-ray statistics of the marching methods (zero for the others). */
     uint64_t rays;          /* camera rays that entered the media */
     uint64_t ray_samples;   /* samples placed along them */
     uint64_t cells;         /* PDF segments (guide cells, extinction steps) built */
     uint32_t samples_min, samples_max;
+    uint64_t delta_samples; /* guided with march.select: camera samples given to delta's path */
     void *scratch;
     size_t scratch_bytes;
 } rd_thread;

@@ -216,10 +216,11 @@ rd_status ld_parse_march(ld_ctx *c, const cJSON *j, rd_march_settings *m)
     m->ls = RD_LS_NEE_PATHS; /* unbiased; the photon sources measured against it: docs/guided-marching.md */
     m->detail = 0; /* "cells": lookups mislead where the photon estimate dominates (cloud) */
     m->paths = 1.0;
+    m->select = RD_SELECT_TILES; /* integrators/select.c */
     if (!j) return RD_OK;
     const char *path = "march";
     LD_TRY(ld_need_object(c, j, path));
-    static const char *const keys[] = {"samples", "min_samples", "max_samples", "alpha", "ls", "detail", "paths", NULL};
+    static const char *const keys[] = {"samples", "min_samples", "max_samples", "alpha", "ls", "detail", "paths", "select", NULL};
     LD_TRY(ld_check_keys(c, j, path, keys));
     long long v;
     LD_TRY(ld_get_int(c, j, path, "samples", 0, 0, 1, 4096, &v));
@@ -231,12 +232,14 @@ rd_status ld_parse_march(ld_ctx *c, const cJSON *j, rd_march_settings *m)
     if (m->max_samples < m->min_samples)
         return ld_fail(c, "march.max_samples", "must be >= march.min_samples (%d), found %d", m->min_samples, m->max_samples);
     LD_TRY(ld_get_num(c, j, path, "alpha", 0, 0.2, 0, 1, 1, 0, &m->alpha));
-    static const char *const ls[] = {"nee+photons", "photons", "nee", "nee+guide", "nee+paths", NULL};
+    static const char *const ls[] = {"nee+photons", "photons", "nee", "nee+guide", "nee+paths", "nee+delta", NULL};
     int k = RD_LS_NEE_PATHS;
     LD_TRY(ld_get_enum(c, j, path, "ls", 0, ls, RD_LS_NEE_PATHS, &k));
     m->ls = (rd_ls_kind)k;
     LD_TRY(ld_get_num(c, j, path, "paths", 0, 1.0, 0, 1, 1, 0, &m->paths));
     static const char *const detail[] = {"cells", "lookups", NULL};
     LD_TRY(ld_get_enum(c, j, path, "detail", 0, detail, 0, &m->detail));
+    static const char *const select[] = {"off", "tiles", NULL};
+    LD_TRY(ld_get_enum(c, j, path, "select", 0, select, RD_SELECT_TILES, &m->select));
     return RD_OK;
 }

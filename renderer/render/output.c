@@ -60,15 +60,17 @@ static char *report_json(const rd_scene *s, const rd_render_opts *o, const rd_re
             cJSON_AddNumberToObject(pp, "spp_per_pass", s->photons.pass_spp);
         }
     }
-    if (st->rays_marched) { /* the marching methods' per-ray statistics */
+    if (st->rays_marched || st->delta_samples) { /* the marching methods' per-ray statistics */
         cJSON *mr = cJSON_AddObjectToObject(j, "march");
         if (mr) {
+            /* march.select: the share of camera samples the tile selection gave to delta */
+            cJSON_AddNumberToObject(mr, "delta_share", st->paths ? (double)st->delta_samples / (double)st->paths : 0.0);
             cJSON_AddNumberToObject(mr, "rays", (double)st->rays_marched);
             cJSON_AddNumberToObject(mr, "samples_per_ray", st->samples_per_ray);
             cJSON_AddNumberToObject(mr, "samples_min", st->samples_min);
             cJSON_AddNumberToObject(mr, "samples_max", st->samples_max);
             cJSON_AddNumberToObject(mr, "pdf_segments_per_ray", st->cells_per_ray);
-            cJSON_AddNumberToObject(mr, "lookups_per_ray", (double)st->lookups / (double)st->rays_marched);
+            cJSON_AddNumberToObject(mr, "lookups_per_ray", st->rays_marched ? (double)st->lookups / (double)st->rays_marched : 0.0);
         }
     }
     /* Mean per-pixel standard error (luminance), a one-number noise level of the image. */

@@ -148,6 +148,7 @@ static int render_pass(const rd_render_ctx *ctx, rd_thread *th, film *f, int s0,
                     double jx = rd_sampler_1d(&smp), jy = rd_sampler_1d(&smp); /* RD_DIM_FILM */
                     if (!cam->jitter) jx = jy = 0.5; /* pixel centres (camera.jitter false) */
                     ray3 r = rd_camera_ray(cam, x + jx, y + jy);
+                    t->pixel = pix;
                     vec3 L = m->radiance(ctx, t, r, &smp);
                     /* A non-finite sample would poison the pixel: drop and count it. */
                     if (!v3_finite(L)) { bad++; continue; }
@@ -385,6 +386,7 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         rs->collisions += th[i].counters.collisions;
         rs->lookups += th[i].counters.lookups;
         rs->shadow_rays += th[i].counters.shadow_rays;
+        rs->delta_samples += th[i].delta_samples;
         if (th[i].rays == 0) continue;
         if (rs->rays_marched == 0 || (int)th[i].samples_min < rs->samples_min) rs->samples_min = (int)th[i].samples_min;
         if ((int)th[i].samples_max > rs->samples_max) rs->samples_max = (int)th[i].samples_max;

@@ -84,7 +84,7 @@ typedef struct {
 } rd_guide_settings;
 
 /* Ray-marching settings of the guided methods (scene key "march", docs/scene-format.md). */
-typedef enum { RD_LS_NEE_PHOTONS, RD_LS_PHOTONS, RD_LS_NEE, RD_LS_NEE_GUIDE, RD_LS_NEE_PATHS } rd_ls_kind;
+typedef enum { RD_LS_NEE_PHOTONS, RD_LS_PHOTONS, RD_LS_NEE, RD_LS_NEE_GUIDE, RD_LS_NEE_PATHS, RD_LS_NEE_DELTA } rd_ls_kind;
 typedef struct {
     int samples;         /* N_mean: samples per ray (uniform and transmittance: every ray);
                           * 0 (key absent): each placement's own calibrated default
@@ -97,7 +97,12 @@ typedef struct {
                           * its path (weight 1 / paths) */
     int detail;          /* guided: 1 scales each cell's f_j by sigma_t(t) / sigma_j from lookups
                           * along the ray; 0 (default) uses the cells alone (seed 001 eq. 16) */
+    int select;          /* guided: RD_SELECT_TILES (default) lets a pilot give each 8x8 tile to
+                          * the marcher or to delta's path, whichever pays (integrators/select.c);
+                          * RD_SELECT_OFF marches every pixel (seed 001's method alone); only
+                          * with the unbiased sources nee+paths and nee+delta */
 } rd_march_settings;
+enum { RD_SELECT_OFF, RD_SELECT_TILES };
 
 struct rd_scene {
     char path[1024];

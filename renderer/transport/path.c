@@ -118,9 +118,10 @@ int rd_surface_event(const rd_scene *s, const rd_hit *h, int depth, rd_surface_s
  * of L(r.o, -r.d). `region` is where r starts (rd_scene.h "Surfaces in the transport"),
  * `phase_pdf` the pdf with which r.d was drawn (0 for the camera ray), `depth` the scattering
  * events before this flight, *budget the extra copies splitting may still add to this camera
- * sample. */
+ * sample. With `scattered_only`, the first flight's pass-through and its vertex's next-event
+ * estimate are left to the caller (rd_delta_scattered). */
 static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int depth0,
-                  int camera_chain, const rd_flight_sampler *fs, pcg32 *rng,
+                  int camera_chain, int scattered_only, const rd_flight_sampler *fs, pcg32 *rng,
                   rd_track_counters *c, int *budget);
 
 /* One copy of a continuation from vertex x (arrived along d) with the vertex policy's
@@ -137,7 +138,7 @@ static vec3 continue_from(const rd_scene *s, vec3 x, vec3 d, int region, const r
     /* Weight p / pdf: 1 for phase sampling alone, the mixture's ratio otherwise. */
     double w = rd_hg_eval(m->g, v3_dot(d, wo)) / pdf;
     ray3 next = {x, wo};
-    return v3_add(L, v3_scale(trace(s, next, region, pdf, depth, 0, fs, rng, c, budget), w));
+    return v3_add(L, v3_scale(trace(s, next, region, pdf, depth, 0, 0, fs, rng, c, budget), w));
 }
 
 /* Surface crossings of one path that do not count as scattering events (index-matched
@@ -145,7 +146,7 @@ static vec3 continue_from(const rd_scene *s, vec3 x, vec3 d, int region, const r
 #define MAX_CROSSINGS 4096
 
 static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int depth0,
-                  int camera_chain, const rd_flight_sampler *fs, pcg32 *rng,
+                  int camera_chain, int scattered_only, const rd_flight_sampler *fs, pcg32 *rng,
                   rd_track_counters *c, int *budget)
 {
     vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
@@ -169,12 +170,13 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
          * to the flight; the collision's next-event estimate below takes the other weight. */
         int eq = 0;
         rd_eq_flight ef;
-        if (fs->delta && s->settings.equiangular != RD_EQ_OFF && depth + 1 <= s->settings.max_depth &&
+        int first = scattered_only && depth == depth0; /* the caller's flight (see above) */
+        if (!first && fs->delta && s->settings.equiangular != RD_EQ_OFF && depth + 1 <= s->settings.max_depth &&
             (s->settings.equiangular == RD_EQ_ALL || depth == 0)) {
             eq = rd_eq_flight_init(s, r, region, in.t_light, rd_thin_bias_q(s, &in), &ef);
             if (eq) L = v3_add(L, v3_mul(beta, rd_eq_nee(s, &ef, rng, c)));
         }
-        if (f.kind == RD_FLIGHT_END) break;
+        if (f.kind == RD_FLIGHT_END || (first && f.kind == RD_FLIGHT_PASS)) break;
         beta = v3_mul(beta, f.weight);
         if (f.kind == RD_FLIGHT_PASS && in.hit_shape < 0) {
             L = v3_add(L, v3_mul(beta, rd_flight_behind(s, &in)));
@@ -235,7 +237,9 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
             r.d = wo;
             continue;
         }
-        if (eq) {
+        if (first) {
+            /* the caller estimated this vertex's direct light */
+        } else if (eq) {
             int j;
             vec3 Ln = rd_nee_pick(s, region, x, r.d, m->g, rng, c, &j);
             L = v3_add(L, v3_mul(beta, v3_scale(Ln, rd_eq_weight(s, &ef, f.t, j))));
@@ -265,7 +269,7 @@ vec3 rd_path_radiance(const rd_scene *s, ray3 r, const rd_flight_sampler *fs, pc
 {
     int budget = RD_SPLIT_BUDGET;
     /* The camera's region (rd_scene_camera_region: found once for a perspective camera). */
-    return trace(s, r, rd_scene_camera_region(s, r), 0.0, 0, 1, fs, rng, c, &budget);
+    return trace(s, r, rd_scene_camera_region(s, r), 0.0, 0, 1, 0, fs, rng, c, &budget);
 }
 
 vec3 rd_delta_continue(const rd_scene *s, ray3 r, int region, double pdf, int depth,
@@ -273,7 +277,15 @@ vec3 rd_delta_continue(const rd_scene *s, ray3 r, int region, double pdf, int de
 {
     const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL, .delta = 1};
     int budget = 0;
-    return trace(s, r, region, pdf, depth, camera_chain, &fs, rng, c, &budget);
+    return trace(s, r, region, pdf, depth, camera_chain, 0, &fs, rng, c, &budget);
+}
+
+vec3 rd_delta_scattered(const rd_scene *s, ray3 r, int region, int depth, pcg32 *rng,
+                        rd_track_counters *c)
+{
+    const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL, .delta = 1};
+    int budget = 0;
+    return trace(s, r, region, 0.0, depth, 1, 1, &fs, rng, c, &budget);
 }
 
 vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c)

@@ -109,6 +109,16 @@ int rd_surface_event(const rd_scene *s, const rd_hit *h, int depth, rd_surface_s
  * `depth` scattering events before it): the radiance estimate of L(r.o, -r.d). */
 vec3 rd_delta_continue(const rd_scene *s, ray3 r, int region, double pdf, int depth,
                        int camera_chain, pcg32 *rng, rd_track_counters *c);
+/* `delta`'s path along r (in `region`, `depth` scattering events before it) less two parts
+ * that the caller estimates otherwise: what passes r's first flight (T L_behind, and all that
+ * lies beyond the surface ending it: the estimate is 0 when the flight does not scatter) and
+ * the next-event estimate of the first vertex (rd_nee_split's share of the direct light). What
+ * is left is every path that scatters on r and goes on: the phase-sampled continuation from
+ * the first vertex, with its MIS weight where it hits a light (rd_flight_behind), and all
+ * later vertices as `delta` has them. The marchers' nee+delta source adds it to their own
+ * estimate of the single scattering on r (integrators/march.c). */
+vec3 rd_delta_scattered(const rd_scene *s, ray3 r, int region, int depth, pcg32 *rng,
+                        rd_track_counters *c);
 /* Delta tracking's flight (rd_sample_free_path with the scene's tracker). */
 rd_flight rd_flight_delta(const rd_scene *s, const rd_flight_in *in, pcg32 *rng,
                           rd_track_counters *c);
