@@ -149,7 +149,7 @@ typedef struct {
     double samples_per_ray;
     int samples_min, samples_max;
     double cells_per_ray;
-    /* guided with march.select = "tiles": camera samples the tile selection gave to delta's
+    /* the guided methods with settings.select = "tiles": camera samples the tile selection gave to delta's
      * path instead of the marcher (integrators/select.c). */
     uint64_t delta_samples;
     /* Progressive photon passes (photons.progressive; 0 passes with one fixed map): passes

@@ -287,7 +287,7 @@ Test(march, nee_paths_marchers_equal_delta_with_multiple_scattering, .timeout = 
     /* nee+delta: the samples' next-event estimates plus one delta path along the ray that
      * leaves its first vertex's direct light to them (rd_delta_scattered); every pixel
      * marched. */
-    rd_scene *sd = rt_scene("npd_march.json", scene_json("\"march\":{\"ls\":\"nee+delta\",\"samples\":4,\"select\":\"off\"}", -2.5));
+    rd_scene *sd = rt_scene("npd_march.json", scene_json("\"march\":{\"ls\":\"nee+delta\",\"samples\":4},\"settings\":{\"select\":\"off\"}", -2.5));
     rd_render_result nd = rt_render(sd, "guided", 96, 87, NULL);
     cr_assert(nd.stats.delta_samples == 0, "select off: every pixel is marched");
     rt_expect_same(&d, &nd, "guided, march.ls nee+delta");

@@ -7,6 +7,12 @@
 
 #include <stdlib.h>
 
+/* The marcher with the guided placement at every pixel (the selection's `method`). */
+static vec3 march_guided(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
+{
+    return rd_march_radiance(ctx, th, r, smp, PLACE_GUIDED);
+}
+
 /* The pilot pass of eq. 17: mean I_ray over a sparse grid of camera rays through pixel centres
  * (every 4th pixel each way) that enter the media. Costs a guide walk per ray, no tracking. */
 static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
@@ -44,22 +50,18 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
     /* Only an unbiased source estimates what delta's path does: with the photon sources (and
      * nee alone) the tiles would disagree, so every pixel is marched. */
     int unbiased = s->march.ls == RD_LS_NEE_PATHS || s->march.ls == RD_LS_NEE_DELTA;
-    if (s->march.select == RD_SELECT_TILES && unbiased) {
-        st = rd_march_select_prepare(ctx, PLACE_GUIDED, err, errlen);
+    if (s->settings.select == RD_SELECT_TILES && unbiased) {
+        st = rd_select_prepare(ctx, march_guided, &mst->sel, err, errlen);
         if (st != RD_OK) rd_march_release(ctx);
     }
     return st;
 }
 
-/* The marcher, or delta's path where march.select gave the pixel's tile to it (select.c). */
+/* The marcher, or delta's path where settings.select gave the pixel's tile to it (select.c). */
 static vec3 radiance_guided(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
 {
-    if (!rd_march_select_marches(ctx, th->pixel)) {
-        th->delta_samples++;
-        pcg32 rng = rd_sampler_stream(smp);
-        return rd_delta_radiance(ctx->scene, r, &rng, &th->counters);
-    }
-    return rd_march_radiance(ctx, th, r, smp, PLACE_GUIDED);
+    const march_state *mst = ctx->state;
+    return rd_select_radiance(ctx, &mst->sel, march_guided, th, r, smp);
 }
 
 /* The guided placement needs the guide (and so a photon map) whatever the source needs. */

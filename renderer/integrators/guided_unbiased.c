@@ -44,6 +44,7 @@
 #include "integrators/rd_guide_pdf.h"
 #include "transport/rd_path.h"
 #include "integrators/rd_method.h"
+#include "integrators/rd_select.h"
 #include "sh.h"
 
 #include <stdlib.h>
@@ -51,6 +52,7 @@
 typedef struct {
     int cap_g;   /* guide pdf segments a flight can need (guide cells crossed + 2 fillers) */
     int cap_m;   /* majorant pdf segments (majorant cells crossed in every medium + gaps) */
+    rd_select sel; /* settings.select: the tiles the guided paths render (integrators/select.c) */
 } gu_state;
 
 /* One thread's storage (scratch), laid out by scratch_layout. */
@@ -420,7 +422,7 @@ static void gu_vertex(const rd_flight_sampler *fs, const rd_scene *s, const rd_v
     }
 }
 
-static vec3 gu_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
+static vec3 gu_path(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
 {
     gu_user u = {.ctx = ctx, .scratch = th->scratch};
     /* With directions and roulette off the vertex is `delta`'s (the loop's own roulette and
@@ -431,6 +433,13 @@ static vec3 gu_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_samp
                                   .user = &u};
     pcg32 rng = rd_sampler_stream(smp);
     return rd_path_radiance(ctx->scene, r, &fs, &rng, &th->counters);
+}
+
+/* The guided path, or delta's where settings.select gave the pixel's tile to it (select.c). */
+static vec3 gu_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
+{
+    const gu_state *st = ctx->state;
+    return rd_select_radiance(ctx, &st->sel, gu_path, th, r, smp);
 }
 
 rd_flight rd_gu_flight(const rd_render_ctx *ctx, void *scratch, const rd_flight_in *in,
@@ -481,6 +490,8 @@ static int majorant_crossings(const rd_medium *m)
     return 3 * (1 << (mj->depth < 12 ? mj->depth : 12));
 }
 
+static void gu_release(rd_render_ctx *ctx);
+
 static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
 {
     const rd_scene *s = ctx->scene;
@@ -518,11 +529,21 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
     st->cap_m = 1 + 2 * s->n_media;
     for (int i = 0; i < s->n_media; i++) st->cap_m += majorant_crossings(&s->media[i]) + 1;
     ctx->state = st;
+    /* With a guide (else the method is delta's path already), the tiles where it pays. */
+    if (s->settings.select == RD_SELECT_TILES && ctx->guide) {
+        rd_status rs = rd_select_prepare(ctx, gu_path, &st->sel, err, errlen);
+        if (rs != RD_OK) {
+            gu_release(ctx);
+            return rs;
+        }
+    }
     return RD_OK;
 }
 
 static void gu_release(rd_render_ctx *ctx)
 {
+    gu_state *st = ctx->state;
+    if (st) rd_select_free(&st->sel);
     free(ctx->state);
     ctx->state = NULL;
 }

@@ -513,7 +513,7 @@ rd_status rd_march_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
 void rd_march_release(rd_render_ctx *ctx)
 {
     march_state *ms = ctx->state;
-    if (ms) free(ms->sel_march);
+    if (ms) rd_select_free(&ms->sel);
     free(ctx->state);
     ctx->state = NULL;
 }

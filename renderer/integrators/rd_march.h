@@ -7,6 +7,7 @@
 
 #include "integrators/rd_guide_pdf.h"
 #include "integrators/rd_method.h"
+#include "integrators/rd_select.h"
 
 /* Where the samples along a camera ray go (one method each). */
 typedef enum { PLACE_GUIDED, PLACE_UNIFORM, PLACE_TRANSMITTANCE, PLACE_COUNT } placement;
@@ -20,14 +21,8 @@ typedef struct {
     int k_steps;     /* extinction lookups per ray at most: 4 N_mean (transmittance; guided
                       * detail lattice), over the placements */
     int piece_cap;   /* entries of the tb/f/sig tables: k_steps, or cells + k_steps (detail) */
-    /* march.select = "tiles" (integrators/select.c): per tile of SEL_TILE x SEL_TILE pixels, 1
-     * where the marcher renders, 0 where delta's path does; NULL: the marcher everywhere. */
-    uint8_t *sel_march;
-    int sel_tiles_x, sel_tiles, sel_marched;
+    rd_select sel;   /* guided with settings.select: the tiles it marches (integrators/select.c) */
 } march_state;
-
-/* The tile selection's tile edge in pixels. */
-#define SEL_TILE 8
 
 /* Scratch of one thread: PDF segments, sample positions and densities, extinction table. */
 typedef struct {
@@ -63,17 +58,6 @@ vec3 rd_march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampl
 size_t rd_march_scratch_bytes(const rd_render_ctx *ctx);
 rd_status rd_march_prepare(rd_render_ctx *ctx, char *err, size_t errlen);
 void rd_march_release(rd_render_ctx *ctx);
-/* march.select = "tiles" (integrators/select.c): a pilot on random numbers of its own measures
- * the variance and cost per sample of the marcher with `place` and of delta's path in every
- * tile, and keeps the choice per tile that gives the image the least error at equal time. Call
- * after the method's other set-up (it renders). */
-rd_status rd_march_select_prepare(rd_render_ctx *ctx, placement place, char *err, size_t errlen);
-/* The rule of the tile selection (select.c): for n tiles with the per-sample variance and cost
- * of delta (var[2k], cost[2k]) and of the marcher (var[2k+1], cost[2k+1]), the choices that
- * minimise (sum V)(sum C): use_march[k] = 1 for the marcher. */
-void rd_select_choose(const double *var, const double *cost, int n, uint8_t *use_march);
-/* 1 when the marcher renders `pixel` (y * width + x), 0 when delta's path does. */
-int rd_march_select_marches(const rd_render_ctx *ctx, uint64_t pixel);
 /* What the scene's source needs baked: the photon map (photons) or its indirect part
  * (nee+photons), and the indirect guide (nee+guide). */
 unsigned rd_march_source_needs(const rd_scene *s);

@@ -29,7 +29,7 @@ typedef struct rd_thread {
     uint64_t ray_samples;   /* samples placed along them */
     uint64_t cells;         /* PDF segments (guide cells, extinction steps) built */
     uint32_t samples_min, samples_max;
-    uint64_t delta_samples; /* guided with march.select: camera samples given to delta's path */
+    uint64_t delta_samples; /* settings.select: camera samples given to delta's path */
     void *scratch;
     size_t scratch_bytes;
 } rd_thread;

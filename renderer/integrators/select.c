@@ -1,12 +1,13 @@
-/* select.c: guided's choice, per tile of the image, between the marcher and delta's path
- * (march.select = "tiles"; docs/guided-marching.md "Where marching pays").
+/* select.c: the guided methods' choice, per tile of the image, between the method (the
+ * marcher of `guided`, the guided paths of `guided-unbiased`) and delta's path
+ * (settings.select = "tiles"; docs/guided-marching.md "Where marching pays").
  *
  * Both are unbiased estimators of the radiance along a camera ray, so any choice made per pixel
- * before the image's samples are drawn keeps the image unbiased. The marcher wins where the
- * light along the ray is concentrated (a sample there costs several delta paths and has far
- * less variance); delta wins where it is broad (a camera ray that passes through thin smoke
- * costs delta almost nothing). A pilot, on random numbers of its own, measures both in every
- * tile of SEL_TILE x SEL_TILE pixels: on a quarter of its pixels (every other pixel each way),
+ * before the image's samples are drawn keeps the image unbiased. The guided method wins where
+ * the light along the ray is concentrated (a sample there costs several delta paths and has
+ * far less variance); delta wins where it is broad (a camera ray that passes through thin
+ * smoke costs delta almost nothing). A pilot, on random numbers of its own, measures both in every
+ * tile of RD_SELECT_TILE x RD_SELECT_TILE pixels: on a quarter of its pixels (every other pixel each way),
  * SEL_SPP samples each, the per-sample variance V (the pixels' variances, pixel_variance(),
  * summed over the tile's pixels as the image's squared error sums them) and the cost C per
  * sample, each then
@@ -26,7 +27,7 @@
  * benchmark's), time per lookup was 0.39 / 0.40 us (cloud, delta / guided) and 0.24 / 0.19 us
  * (smoke-vdb); a per-sample term of 1.2 lookups fits smoke-vdb's ratio and -0.2 cloud's, so
  * SEL_RAY_COST is their midpoint, 0.5. */
-#include "integrators/rd_march.h"
+#include "integrators/rd_select.h"
 #include "transport/rd_path.h"
 
 #include <math.h>
@@ -47,8 +48,8 @@ typedef struct {
     double sum[3], sum2[3], nonzero[3], cost;
 } pilot_sums;
 
-static pilot_sums pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, int x, int y, int use_march,
-                              placement place)
+static pilot_sums pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, int x, int y, int use_method,
+                              rd_select_fn method)
 {
     const rd_scene *s = ctx->scene;
     const rd_camera *cam = &s->camera;
@@ -61,8 +62,9 @@ static pilot_sums pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, int x, in
         if (!cam->jitter) jx = jy = 0.5;
         ray3 r = rd_camera_ray(cam, x + jx, y + jy);
         vec3 L;
-        if (use_march) {
-            L = rd_march_radiance(ctx, th, r, &smp, place);
+        th->pixel = pix;
+        if (use_method) {
+            L = method(ctx, th, r, &smp);
         } else {
             pcg32 rng = rd_sampler_stream(&smp);
             L = rd_delta_radiance(s, r, &rng, &th->counters);
@@ -93,20 +95,20 @@ static double pixel_variance(const pilot_sums *ps, const double mu[3])
     return v / 3.0;
 }
 
-void rd_select_choose(const double *var, const double *cost, int n, uint8_t *use_march)
+void rd_select_choose(const double *var, const double *cost, int n, uint8_t *use_method)
 {
     for (int k = 0; k < n; k++) /* start: each tile's own best V C */
-        use_march[k] = var[2 * k + 1] * cost[2 * k + 1] < var[2 * k] * cost[2 * k];
+        use_method[k] = var[2 * k + 1] * cost[2 * k + 1] < var[2 * k] * cost[2 * k];
     for (int round = 0; round < SEL_ROUNDS; round++) {
         double V = 0.0, C = 0.0;
-        for (int k = 0; k < n; k++) V += var[2 * k + use_march[k]], C += cost[2 * k + use_march[k]];
+        for (int k = 0; k < n; k++) V += var[2 * k + use_method[k]], C += cost[2 * k + use_method[k]];
         if (!(C > 0.0)) return;
         double lambda = V / C;
         int changed = 0;
         for (int k = 0; k < n; k++) {
             uint8_t u = var[2 * k + 1] + lambda * cost[2 * k + 1] < var[2 * k] + lambda * cost[2 * k];
-            changed += u != use_march[k];
-            use_march[k] = u;
+            changed += u != use_method[k];
+            use_method[k] = u;
         }
         if (!changed) break;
     }
@@ -114,14 +116,14 @@ void rd_select_choose(const double *var, const double *cost, int n, uint8_t *use
      * variance for cost can still lower the product itself (the cross term dV dC < 0): flip such
      * tiles, one at a time, until no single flip helps. */
     double V = 0.0, C = 0.0;
-    for (int k = 0; k < n; k++) V += var[2 * k + use_march[k]], C += cost[2 * k + use_march[k]];
+    for (int k = 0; k < n; k++) V += var[2 * k + use_method[k]], C += cost[2 * k + use_method[k]];
     for (int round = 0, changed = 1; changed && round < SEL_ROUNDS; round++) {
         changed = 0;
         for (int k = 0; k < n; k++) {
-            int o = use_march[k], f = 1 - o;
+            int o = use_method[k], f = 1 - o;
             double V2 = V - var[2 * k + o] + var[2 * k + f], C2 = C - cost[2 * k + o] + cost[2 * k + f];
             if (V2 * C2 < V * C * (1.0 - 1e-12)) {
-                use_march[k] = (uint8_t)f;
+                use_method[k] = (uint8_t)f;
                 V = V2, C = C2;
                 changed = 1;
             }
@@ -157,19 +159,20 @@ static void pool(double *var, double *cost, int nx, int ny)
     free(tmp);
 }
 
-rd_status rd_march_select_prepare(rd_render_ctx *ctx, placement place, char *err, size_t errlen)
+rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_select *sel,
+                            char *err, size_t errlen)
 {
-    march_state *mst = ctx->state;
     const rd_camera *cam = &ctx->scene->camera;
-    mst->sel_tiles_x = (cam->width + SEL_TILE - 1) / SEL_TILE;
-    int tiles_y = (cam->height + SEL_TILE - 1) / SEL_TILE, n = mst->sel_tiles_x * tiles_y;
-    mst->sel_march = calloc((size_t)n, 1);
+    memset(sel, 0, sizeof *sel);
+    sel->tiles_x = (cam->width + RD_SELECT_TILE - 1) / RD_SELECT_TILE;
+    int tiles_y = (cam->height + RD_SELECT_TILE - 1) / RD_SELECT_TILE, n = sel->tiles_x * tiles_y;
+    uint8_t *choice = calloc((size_t)n, 1);
     double *var = calloc(2 * (size_t)n, sizeof *var), *cost = calloc(2 * (size_t)n, sizeof *cost);
     int threads = ctx->threads > 0 ? ctx->threads : 1;
     rd_thread *th = calloc((size_t)threads, sizeof *th);
-    size_t bytes = rd_march_scratch_bytes(ctx);
-    int ok = mst->sel_march && var && cost && th;
-    for (int i = 0; ok && i < threads; i++) {
+    size_t bytes = ctx->method->scratch_bytes ? ctx->method->scratch_bytes(ctx) : 0;
+    int ok = choice && var && cost && th;
+    for (int i = 0; ok && bytes && i < threads; i++) {
         th[i].index = i;
         th[i].scratch = aligned_alloc(16, (bytes + 15) / 16 * 16);
         th[i].scratch_bytes = bytes;
@@ -179,12 +182,11 @@ rd_status rd_march_select_prepare(rd_render_ctx *ctx, placement place, char *err
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 1)
         for (int k = 0; k < n; k++) {
             rd_thread *t = &th[omp_get_thread_num()];
-            int x0 = (k % mst->sel_tiles_x) * SEL_TILE, y0 = (k / mst->sel_tiles_x) * SEL_TILE;
-            for (int y = y0; y < y0 + SEL_TILE && y < cam->height; y += 2)
-                for (int x = x0; x < x0 + SEL_TILE && x < cam->width; x += 2)
-                {
-                    pilot_sums ps[2]; /* 0: delta, 1: the marcher */
-                    for (int e = 0; e < 2; e++) ps[e] = pilot_pixel(ctx, t, x, y, e, place);
+            int x0 = (k % sel->tiles_x) * RD_SELECT_TILE, y0 = (k / sel->tiles_x) * RD_SELECT_TILE;
+            for (int y = y0; y < y0 + RD_SELECT_TILE && y < cam->height; y += 2)
+                for (int x = x0; x < x0 + RD_SELECT_TILE && x < cam->width; x += 2) {
+                    pilot_sums ps[2]; /* 0: delta, 1: the method */
+                    for (int e = 0; e < 2; e++) ps[e] = pilot_pixel(ctx, t, x, y, e, method);
                     double mu[3];
                     for (int c = 0; c < 3; c++) mu[c] = (ps[0].sum[c] + ps[1].sum[c]) / (2.0 * SEL_SPP);
                     for (int e = 0; e < 2; e++) {
@@ -193,29 +195,42 @@ rd_status rd_march_select_prepare(rd_render_ctx *ctx, placement place, char *err
                     }
                 }
         }
-        pool(var, cost, mst->sel_tiles_x, tiles_y);
-        rd_select_choose(var, cost, n, mst->sel_march);
-        mst->sel_tiles = n;
-        for (int k = 0; k < n; k++) mst->sel_marched += mst->sel_march[k];
+        pool(var, cost, sel->tiles_x, tiles_y);
+        rd_select_choose(var, cost, n, choice);
+        sel->tiles = n;
+        for (int k = 0; k < n; k++) sel->n_guided += choice[k];
+        sel->guided = choice;
+        choice = NULL;
     }
     for (int i = 0; th && i < threads; i++) free(th[i].scratch);
     free(th);
     free(var);
     free(cost);
+    free(choice);
     if (!ok) {
-        free(mst->sel_march);
-        mst->sel_march = NULL;
         snprintf(err, errlen, "out of memory for the tile selection's pilot");
         return RD_ERR_NOMEM;
     }
     return RD_OK;
 }
 
-int rd_march_select_marches(const rd_render_ctx *ctx, uint64_t pixel)
+void rd_select_free(rd_select *sel)
 {
-    const march_state *mst = ctx->state;
-    if (!mst->sel_march) return 1;
-    int w = ctx->scene->camera.width;
-    int x = (int)(pixel % (uint64_t)w), y = (int)(pixel / (uint64_t)w);
-    return mst->sel_march[(y / SEL_TILE) * mst->sel_tiles_x + x / SEL_TILE];
+    free(sel->guided);
+    memset(sel, 0, sizeof *sel);
+}
+
+vec3 rd_select_radiance(const rd_render_ctx *ctx, const rd_select *sel, rd_select_fn method,
+                        rd_thread *th, ray3 r, rd_sampler *smp)
+{
+    if (sel->guided) {
+        int w = ctx->scene->camera.width;
+        int x = (int)(th->pixel % (uint64_t)w), y = (int)(th->pixel / (uint64_t)w);
+        if (!sel->guided[(y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE]) {
+            th->delta_samples++;
+            pcg32 rng = rd_sampler_stream(smp);
+            return rd_delta_radiance(ctx->scene, r, &rng, &th->counters);
+        }
+    }
+    return method(ctx, th, r, smp);
 }

@@ -52,12 +52,13 @@ rd_status ld_parse_settings(ld_ctx *c, const cJSON *j, rd_settings *s)
     s->track_step = 0.0;
     s->equiangular = RD_EQ_OFF;
     s->thin_bias = 0.0;
+    s->select = RD_SELECT_TILES; /* integrators/select.c */
     if (!j) return RD_OK;
     const char *path = "settings";
     LD_TRY(ld_need_object(c, j, path));
     static const char *const keys[] = {"spp", "time", "seed", "max_depth", "rr_depth", "method",
                                        "tracker", "transmittance", "b", "m", "step", "equiangular", "thin_bias",
-                                       NULL};
+                                       "select", NULL};
     LD_TRY(ld_check_keys(c, j, path, keys));
     long long v;
     LD_TRY(ld_get_int(c, j, path, "spp", 0, 16, 1, 1 << 24, &v));
@@ -95,6 +96,8 @@ rd_status ld_parse_settings(ld_ctx *c, const cJSON *j, rd_settings *s)
         s->transmittance != RD_TR_RAYMARCH)
         return ld_fail(c, "settings.step", "only with \"tracker\" or \"transmittance\": \"raymarch\"");
     LD_TRY(parse_strategies(c, j, s));
+    static const char *const select[] = {"off", "tiles", NULL};
+    LD_TRY(ld_get_enum(c, j, path, "select", 0, select, RD_SELECT_TILES, &s->select));
     return RD_OK;
 }
 
@@ -216,11 +219,10 @@ rd_status ld_parse_march(ld_ctx *c, const cJSON *j, rd_march_settings *m)
     m->ls = RD_LS_NEE_PATHS; /* unbiased; the photon sources measured against it: docs/guided-marching.md */
     m->detail = 0; /* "cells": lookups mislead where the photon estimate dominates (cloud) */
     m->paths = 1.0;
-    m->select = RD_SELECT_TILES; /* integrators/select.c */
     if (!j) return RD_OK;
     const char *path = "march";
     LD_TRY(ld_need_object(c, j, path));
-    static const char *const keys[] = {"samples", "min_samples", "max_samples", "alpha", "ls", "detail", "paths", "select", NULL};
+    static const char *const keys[] = {"samples", "min_samples", "max_samples", "alpha", "ls", "detail", "paths", NULL};
     LD_TRY(ld_check_keys(c, j, path, keys));
     long long v;
     LD_TRY(ld_get_int(c, j, path, "samples", 0, 0, 1, 4096, &v));
@@ -239,7 +241,5 @@ rd_status ld_parse_march(ld_ctx *c, const cJSON *j, rd_march_settings *m)
     LD_TRY(ld_get_num(c, j, path, "paths", 0, 1.0, 0, 1, 1, 0, &m->paths));
     static const char *const detail[] = {"cells", "lookups", NULL};
     LD_TRY(ld_get_enum(c, j, path, "detail", 0, detail, 0, &m->detail));
-    static const char *const select[] = {"off", "tiles", NULL};
-    LD_TRY(ld_get_enum(c, j, path, "select", 0, select, RD_SELECT_TILES, &m->select));
     return RD_OK;
 }

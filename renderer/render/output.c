@@ -60,11 +60,12 @@ static char *report_json(const rd_scene *s, const rd_render_opts *o, const rd_re
             cJSON_AddNumberToObject(pp, "spp_per_pass", s->photons.pass_spp);
         }
     }
-    if (st->rays_marched || st->delta_samples) { /* the marching methods' per-ray statistics */
+    /* settings.select: the share of camera samples the tile selection gave to delta's path */
+    if (st->rays_marched || st->delta_samples)
+        cJSON_AddNumberToObject(j, "delta_share", st->paths ? (double)st->delta_samples / (double)st->paths : 0.0);
+    if (st->rays_marched) { /* the marching methods' per-ray statistics */
         cJSON *mr = cJSON_AddObjectToObject(j, "march");
         if (mr) {
-            /* march.select: the share of camera samples the tile selection gave to delta */
-            cJSON_AddNumberToObject(mr, "delta_share", st->paths ? (double)st->delta_samples / (double)st->paths : 0.0);
             cJSON_AddNumberToObject(mr, "rays", (double)st->rays_marched);
             cJSON_AddNumberToObject(mr, "samples_per_ray", st->samples_per_ray);
             cJSON_AddNumberToObject(mr, "samples_min", st->samples_min);

@@ -32,7 +32,12 @@ typedef struct {
     double thin_bias;    /* 0: off; in (0, 1): the least probability that a flight of `delta`
                           * has a tentative collision (flights whose pass-through is worth
                           * exactly 0 are forced: 1) */
+    int select;          /* the guided methods (guided with an unbiased march.ls, and
+                          * guided-unbiased): RD_SELECT_TILES (default) lets a pilot give each
+                          * 8x8 tile to the method or to delta's path, whichever pays
+                          * (integrators/select.c); RD_SELECT_OFF: the method everywhere */
 } rd_settings;
+enum { RD_SELECT_OFF, RD_SELECT_TILES };
 typedef enum { RD_EQ_OFF, RD_EQ_ALL, RD_EQ_CAMERA } rd_equiangular_mode;
 
 /* Photon tracing settings (scene key "photons", docs/scene-format.md). */
@@ -97,12 +102,7 @@ typedef struct {
                           * its path (weight 1 / paths) */
     int detail;          /* guided: 1 scales each cell's f_j by sigma_t(t) / sigma_j from lookups
                           * along the ray; 0 (default) uses the cells alone (seed 001 eq. 16) */
-    int select;          /* guided: RD_SELECT_TILES (default) lets a pilot give each 8x8 tile to
-                          * the marcher or to delta's path, whichever pays (integrators/select.c);
-                          * RD_SELECT_OFF marches every pixel (seed 001's method alone); only
-                          * with the unbiased sources nee+paths and nee+delta */
 } rd_march_settings;
-enum { RD_SELECT_OFF, RD_SELECT_TILES };
 
 struct rd_scene {
     char path[1024];
