@@ -22,10 +22,12 @@ typedef vec3 (*rd_select_fn)(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd
 
 /* Run the pilot and make the choice: on random numbers of its own, the variance and cost per
  * sample of `method` and of delta's path in every tile; keeps the choices that give the image
- * the least error at equal time. Call at the end of the method's prepare (ctx->state set: the
+ * the least error at equal time. `lookup_cost`: the method's time per density lookup relative
+ * to delta's (its other work, guide walks and PDFs, rides on its lookups), calibrated by the
+ * method on the calibration scenes. Call at the end of the method's prepare (ctx->state set: the
  * pilot renders with the method's scratch, ctx->method->scratch_bytes). */
-rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_select *sel,
-                            char *err, size_t errlen);
+rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, double lookup_cost,
+                            rd_select *sel, char *err, size_t errlen);
 void rd_select_free(rd_select *sel);
 /* The camera sample of `th->pixel`: `method` where the selection gives it the pixel's tile,
  * else delta's path (counted in th->delta_samples). */

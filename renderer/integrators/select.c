@@ -21,12 +21,14 @@
  * made until none does (rd_select_choose).
  *
  * The cost. Time is not deterministic, and the choice must be (the same seed gives the same
- * image on any machine and thread count), so C is counted: density lookups plus SEL_RAY_COST per
- * camera sample. Lookups are what both estimators spend their time on: on 160x120 renders of
- * cloud.json and smoke-vdb.json at 16 spp on one thread (the calibration scenes, not the
- * benchmark's), time per lookup was 0.39 / 0.40 us (cloud, delta / guided) and 0.24 / 0.19 us
- * (smoke-vdb); a per-sample term of 1.2 lookups fits smoke-vdb's ratio and -0.2 cloud's, so
- * SEL_RAY_COST is their midpoint, 0.5. */
+ * image on any machine and thread count), so C is counted: density lookups, times the method's
+ * lookup_cost for the method's, plus SEL_RAY_COST per camera sample. Lookups are what all of
+ * them spend their time on: on 160x120 renders of cloud.json and smoke-vdb.json at 16 spp on
+ * one thread, select off (the calibration scenes, not the benchmark's), time per lookup was
+ * 0.38 / 0.39 / 0.62 us on cloud (delta / guided / guided-unbiased) and 0.24 / 0.18 / 0.38 us
+ * on smoke-vdb: guided's lookup_cost 0.9, guided-unbiased's 1.6 (its guide walk per flight is
+ * not a lookup). A per-sample term of 1.2 lookups fits smoke-vdb's guided/delta ratio and -0.2
+ * cloud's, so SEL_RAY_COST is their midpoint, 0.5. */
 #include "integrators/rd_select.h"
 #include "transport/rd_path.h"
 
@@ -49,7 +51,7 @@ typedef struct {
 } pilot_sums;
 
 static pilot_sums pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, int x, int y, int use_method,
-                              rd_select_fn method)
+                              rd_select_fn method, double lookup_cost)
 {
     const rd_scene *s = ctx->scene;
     const rd_camera *cam = &s->camera;
@@ -73,7 +75,7 @@ static pilot_sums pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, int x, in
         double v[3] = {L.x, L.y, L.z};
         for (int k = 0; k < 3; k++) ps.sum[k] += v[k], ps.sum2[k] += v[k] * v[k], ps.nonzero[k] += v[k] != 0.0;
     }
-    ps.cost = (double)(th->counters.lookups - lookups0) + SEL_RAY_COST * SEL_SPP;
+    ps.cost = (double)(th->counters.lookups - lookups0) * (use_method ? lookup_cost : 1.0) + SEL_RAY_COST * SEL_SPP;
     return ps;
 }
 
@@ -159,8 +161,8 @@ static void pool(double *var, double *cost, int nx, int ny)
     free(tmp);
 }
 
-rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_select *sel,
-                            char *err, size_t errlen)
+rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, double lookup_cost,
+                            rd_select *sel, char *err, size_t errlen)
 {
     const rd_camera *cam = &ctx->scene->camera;
     memset(sel, 0, sizeof *sel);
@@ -186,7 +188,7 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_se
             for (int y = y0; y < y0 + RD_SELECT_TILE && y < cam->height; y += 2)
                 for (int x = x0; x < x0 + RD_SELECT_TILE && x < cam->width; x += 2) {
                     pilot_sums ps[2]; /* 0: delta, 1: the method */
-                    for (int e = 0; e < 2; e++) ps[e] = pilot_pixel(ctx, t, x, y, e, method);
+                    for (int e = 0; e < 2; e++) ps[e] = pilot_pixel(ctx, t, x, y, e, method, lookup_cost);
                     double mu[3];
                     for (int c = 0; c < 3; c++) mu[c] = (ps[0].sum[c] + ps[1].sum[c]) / (2.0 * SEL_SPP);
                     for (int e = 0; e < 2; e++) {
