@@ -57,7 +57,9 @@ static inline const char *rt_tmp_path(const char *name)
 }
 
 /* Write `json` to <tmp>/<name> and load it; the test fails with the loader's message if the
- * scene does not load. */
+ * scene does not load. The guided methods' tile selection (settings.select, on by default) is
+ * turned off unless the scene names it: a test of a method's estimator must render the method
+ * at every pixel, not hand some tiles to delta's path (tests/test_select.c tests the mix). */
 static inline rd_scene *rt_scene(const char *name, const char *json)
 {
     char path[256], err[RD_ERRLEN];
@@ -66,6 +68,7 @@ static inline rd_scene *rt_scene(const char *name, const char *json)
     rd_scene *s = NULL;
     rd_status st = rd_scene_load(&s, path, NULL, 0, err, sizeof err);
     cr_assert(st == RD_OK, "scene %s did not load: %s", name, err);
+    if (!strstr(json, "\"select\"")) s->settings.select = RD_SELECT_OFF;
     return s;
 }
 
