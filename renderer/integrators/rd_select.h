@@ -13,7 +13,7 @@
  * everywhere (selection off, or not run). */
 typedef struct {
     uint8_t *guided;
-    int tiles_x, tiles, n_guided;
+    int tiles_x;
 } rd_select;
 
 /* A method's own estimate of the radiance along camera ray r (what its radiance() does

@@ -6,12 +6,11 @@
  * before the image's samples are drawn keeps the image unbiased. The guided method wins where
  * the light along the ray is concentrated (a sample there costs several delta paths and has
  * far less variance); delta wins where it is broad (a camera ray that passes through thin
- * smoke costs delta almost nothing). A pilot, on random numbers of its own, measures both in every
- * tile of RD_SELECT_TILE x RD_SELECT_TILE pixels: on a quarter of its pixels (every other pixel each way),
- * SEL_SPP samples each, the per-sample variance V (the pixels' variances, pixel_variance(),
- * summed over the tile's pixels as the image's squared error sums them) and the cost C per
- * sample, each then
- * pooled over the tile's 3x3 neighbourhood (pool(), below).
+ * smoke costs delta almost nothing). A pilot, on random numbers of its own, measures both in
+ * every tile of RD_SELECT_TILE x RD_SELECT_TILE pixels, on a quarter of its pixels (every other
+ * pixel each way) with SEL_SPP samples each: the per-sample variance V (the pixels' variances,
+ * pixel_variance(), summed over the tile's pixels as the image's squared error sums them) and
+ * the cost C per sample, each then pooled over the tile's 3x3 neighbourhood (pool(), below).
  *
  * The rule. At equal time the image's MSE is (sum_k V_k)(sum_k C_k) / time for the choices
  * m_k of the tiles k, so the best choices minimise the product. Its stationary point is where
@@ -20,8 +19,8 @@
  * each tile's own best V C, a few rounds; then single flips that lower the product itself are
  * made until none does (rd_select_choose).
  *
- * The cost. Time is not deterministic, and the choice must be (the same seed gives the same
- * image on any machine and thread count), so C is counted: density lookups, times the method's
+ * The cost. Time is not deterministic, and the choice must be (for one build, the same seed
+ * gives the same image on any machine and thread count), so C is counted: density lookups, times the method's
  * lookup_cost for the method's, plus SEL_RAY_COST per camera sample. Lookups are what all of
  * them spend their time on: on 160x120 renders of cloud.json and smoke-vdb.json at 16 spp on
  * one thread, select off (the calibration scenes, not the benchmark's), time per lookup was
@@ -199,8 +198,6 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, doubl
         }
         pool(var, cost, sel->tiles_x, tiles_y);
         rd_select_choose(var, cost, n, choice);
-        sel->tiles = n;
-        for (int k = 0; k < n; k++) sel->n_guided += choice[k];
         sel->guided = choice;
         choice = NULL;
     }
