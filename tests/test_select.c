@@ -11,6 +11,7 @@
 #include "support/rd_test.h"
 #include "integrators/rd_select.h"
 
+#include <limits.h>
 #include <string.h>
 
 /* ---- The rule ---------------------------------------------------------------------------- */
@@ -42,6 +43,82 @@ Test(select, rule_keeps_dominance_and_no_flip_lowers_the_product)
             cr_assert(V2 * C2 >= V * C * (1.0 - 1e-12), "instance %d tile %d: flipping it lowers the product", inst, k);
         }
     }
+}
+
+/* ---- The epochs: the image's samples correct the pilot -------------------------------------- */
+
+/* A one-tile selection whose statistics say what a pilot of 16 pixels x 8 samples would have
+ * seen, each estimator with the per-sample variance v, mean mu, non-zero rate p and cost c. */
+static void fake_pilot(rd_select *sel, int e, double mu, double v, double p, double c)
+{
+    rd_select_stats *st = &sel->stats[e];
+    memset(st, 0, sizeof *st);
+    st->n = 128, st->dof = 112, st->nonzero = p * 128, st->cost = c * 128;
+    for (int k = 0; k < 3; k++) st->sum[k] = mu * 128, st->dev2[k] = v * 112;
+}
+
+/* n samples of every pixel of the tile drawn from X = mu / q with probability q, else 0 (mean
+ * mu, variance mu^2 (1/q - 1)), each costing c: what the estimator in use shows the image. */
+static void observe_rare(rd_select *sel, int n, double mu, double q, double c, uint64_t seed)
+{
+    pcg32 rng = pcg32_seed(seed, 3, 1);
+    for (int p = 0; p < 64; p++)
+        for (int i = 0; i < n; i++) {
+            double x = pcg32_uniform(&rng) < q ? mu / q : 0.0;
+            rd_select_observe(sel, (uint64_t)p, v3(x, x, x), c);
+        }
+}
+
+Test(select, an_epoch_drops_the_method_when_the_image_shows_its_heavy_tail)
+{
+    rd_select sel;
+    char err[RD_ERRLEN];
+    cr_assert(rd_select_init(&sel, 8, 8, 1.0, err, sizeof err) == RD_OK, "%s", err);
+    /* The pilot: delta variance 1 at cost 1, the method variance 0.1 at cost 2 (V C 0.2 < 1). */
+    fake_pilot(&sel, 0, 1.0, 1.0, 1.0, 1.0);
+    fake_pilot(&sel, 1, 1.0, 0.1, 1.0, 2.0);
+    rd_select_epoch(&sel); /* no samples yet: the pilot's choice */
+    cr_assert(sel.guided[0] == 1, "the pilot's statistics favour the method");
+    /* The image: the method's samples are mostly zero with a rare firefly, variance
+     * 1 / 0.002 - 1 = 499 per sample over 64 x 256 samples. */
+    observe_rare(&sel, 256, 1.0, 0.002, 2.0, 11);
+    rd_select_epoch(&sel);
+    cr_assert(sel.guided[0] == 0, "after the method's heavy tail, delta (variance %g over %g samples)",
+              sel.stats[1].dev2[0] / sel.stats[1].dof, sel.stats[1].n);
+    cr_assert(sel.stats[1].n == 128 + 64 * 256 && sel.stats[0].n == 128,
+              "the samples go to the estimator that drew them: %g and %g", sel.stats[0].n, sel.stats[1].n);
+    rd_select_free(&sel);
+}
+
+Test(select, an_epoch_takes_the_method_when_delta_s_paths_rarely_find_the_light)
+{
+    rd_select sel;
+    char err[RD_ERRLEN];
+    cr_assert(rd_select_init(&sel, 8, 8, 1.0, err, sizeof err) == RD_OK, "%s", err);
+    /* The pilot: delta saw the light in half its samples, variance 1 at cost 1; the method
+     * variance 0.2 at cost 8 (V C 1.6 > 1: delta). */
+    fake_pilot(&sel, 0, 1.0, 1.0, 0.5, 1.0);
+    fake_pilot(&sel, 1, 1.0, 0.2, 1.0, 8.0);
+    rd_select_epoch(&sel);
+    cr_assert(sel.guided[0] == 0, "the pilot's statistics favour delta");
+    /* The image: delta's paths find the light once in 200 (variance 199 per sample). */
+    observe_rare(&sel, 256, 1.0, 0.005, 1.0, 12);
+    rd_select_epoch(&sel);
+    cr_assert(sel.guided[0] == 1, "after delta's rare hits, the method (delta's variance %g)",
+              sel.stats[0].dev2[0] / sel.stats[0].dof);
+    rd_select_free(&sel);
+}
+
+Test(select, epochs_end_at_4_16_64_and_only_with_a_selection)
+{
+    rd_select sel;
+    char err[RD_ERRLEN];
+    cr_assert(rd_select_init(&sel, 8, 8, 1.0, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_select_epoch_next(&sel, 0) == 4 && rd_select_epoch_next(&sel, 3) == 4);
+    cr_assert(rd_select_epoch_next(&sel, 4) == 16 && rd_select_epoch_next(&sel, 63) == 64);
+    cr_assert(rd_select_epoch_next(&sel, INT_MAX - 1) == INT_MAX);
+    rd_select_free(&sel);
+    cr_assert(rd_select_epoch_next(&sel, 0) == INT_MAX, "no selection, no epochs");
 }
 
 /* ---- The image --------------------------------------------------------------------------- */
@@ -92,7 +169,8 @@ Test(select, the_choice_does_not_depend_on_the_threads, .timeout = 300)
     rd_scene *s = rt_scene("selt.json", select_scene("{\"select\":\"tiles\"}"));
     rd_render_result r[2];
     for (int i = 0; i < 2; i++) {
-        rd_render_opts o = {.method = "guided", .spp = 4, .seed = 5, .threads = i + 1};
+        /* 20 samples: past the epochs at 4 and 16, which choose again */
+        rd_render_opts o = {.method = "guided", .spp = 20, .seed = 5, .threads = i + 1};
         char err[RD_ERRLEN];
         cr_assert(rd_render(s, &o, &r[i], err, sizeof err) == RD_OK, "%s", err);
     }

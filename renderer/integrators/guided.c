@@ -61,8 +61,22 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
 /* The marcher, or delta's path where settings.select gave the pixel's tile to it (select.c). */
 static vec3 radiance_guided(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
 {
-    const march_state *mst = ctx->state;
+    march_state *mst = ctx->state;
     return rd_select_radiance(ctx, &mst->sel, march_guided, th, r, smp);
+}
+
+/* The selection's epochs (select.c): the tiles chosen again from the image's samples. */
+static int epoch_next_guided(const rd_render_ctx *ctx, int sample)
+{
+    const march_state *mst = ctx->state;
+    return rd_select_epoch_next(&mst->sel, sample);
+}
+
+static void epoch_guided(rd_render_ctx *ctx, int sample)
+{
+    march_state *mst = ctx->state;
+    (void)sample;
+    rd_select_epoch(&mst->sel);
 }
 
 /* The guided placement needs the guide (and so a photon map) whatever the source needs. */
@@ -79,6 +93,8 @@ const rd_method rd_method_guided = {
     .pass_maps = rd_march_pass_maps,
     .scratch_bytes = rd_march_scratch_bytes,
     .prepare = prepare_guided,
+    .epoch_next = epoch_next_guided,
+    .epoch = epoch_guided,
     .release = rd_march_release,
     .radiance = radiance_guided,
 };

@@ -438,8 +438,22 @@ static vec3 gu_path(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler 
 /* The guided path, or delta's where settings.select gave the pixel's tile to it (select.c). */
 static vec3 gu_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
 {
-    const gu_state *st = ctx->state;
+    gu_state *st = ctx->state;
     return rd_select_radiance(ctx, &st->sel, gu_path, th, r, smp);
+}
+
+/* The selection's epochs (select.c): the tiles chosen again from the image's samples. */
+static int gu_epoch_next(const rd_render_ctx *ctx, int sample)
+{
+    const gu_state *st = ctx->state;
+    return rd_select_epoch_next(&st->sel, sample);
+}
+
+static void gu_epoch(rd_render_ctx *ctx, int sample)
+{
+    gu_state *st = ctx->state;
+    (void)sample;
+    rd_select_epoch(&st->sel);
 }
 
 rd_flight rd_gu_flight(const rd_render_ctx *ctx, void *scratch, const rd_flight_in *in,
@@ -572,6 +586,8 @@ const rd_method rd_method_guided_unbiased = {
     .needs_for = gu_needs,
     .scratch_bytes = gu_scratch_bytes,
     .prepare = gu_prepare,
+    .epoch_next = gu_epoch_next,
+    .epoch = gu_epoch,
     .release = gu_release,
     .radiance = gu_radiance,
 };

@@ -69,6 +69,13 @@ typedef struct rd_method {
     size_t (*scratch_bytes)(const rd_render_ctx *ctx);
     /* Optional: once per render, after the bake, before the passes (e.g. a pilot pass). */
     rd_status (*prepare)(rd_render_ctx *ctx, char *err, size_t errlen);
+    /* Optional, both or neither: epochs, at which the method learns from the image's samples
+     * so far (settings.select's tiles, integrators/select.c). epoch_next gives the first sample
+     * index after `sample` at which an epoch ends (INT_MAX: none); the render cuts its passes
+     * there and, when every pixel has rendered exactly that many samples, calls epoch() from
+     * the calling thread, no pass running. */
+    int (*epoch_next)(const rd_render_ctx *ctx, int sample);
+    void (*epoch)(rd_render_ctx *ctx, int sample);
     /* Optional: frees ctx->state. */
     void (*release)(rd_render_ctx *ctx);
     /* Radiance arriving at the camera along r. The sampler is keyed by (pixel, sample) and

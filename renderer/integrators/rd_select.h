@@ -9,30 +9,60 @@
 /* The tile edge in pixels. */
 #define RD_SELECT_TILE 8
 
-/* Per tile, 1 where the method renders, 0 where delta's path does. `guided` NULL: the method
- * everywhere (selection off, or not run). */
+/* One estimator's samples in one tile, from the pilot and the image's epochs so far: the
+ * count, the count with any channel non-zero, per channel the sum and the squared deviations
+ * from each pixel's own mean (dev2, with dof = samples - pixels degrees of freedom), and the
+ * counted cost. */
 typedef struct {
-    uint8_t *guided;
-    int tiles_x;
+    double n, nonzero, dof, sum[3], dev2[3], cost;
+} rd_select_stats;
+
+/* One pixel's samples since the last epoch (all of one estimator: the tile's choice does not
+ * change within an epoch). Floats: 40 bytes a pixel; the sums feed a choice, not the image. */
+typedef struct {
+    uint32_t n, nonzero;
+    float sum[3], sum2[3];
+    double cost;
+} rd_select_pixel;
+
+typedef struct {
+    uint8_t *guided;         /* per tile, 1 where the method renders, 0 where delta's path does;
+                                NULL: the method everywhere (selection off, or not run) */
+    int tiles_x, tiles_y, width, height;
+    double lookup_cost;      /* the method's time per density lookup over delta's */
+    rd_select_stats *stats;  /* per tile, [2k] delta's and [2k + 1] the method's */
+    rd_select_pixel *pixels; /* per pixel, the current epoch's samples */
 } rd_select;
 
 /* A method's own estimate of the radiance along camera ray r (what its radiance() does
  * where the selection gives it the pixel). */
 typedef vec3 (*rd_select_fn)(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp);
 
-/* Run the pilot and make the choice: on random numbers of its own, the variance and cost per
- * sample of `method` and of delta's path in every tile; keeps the choices that give the image
- * the least error at equal time. `lookup_cost`: the method's time per density lookup relative
- * to delta's (its other work, guide walks and PDFs, rides on its lookups), calibrated by the
- * method on the calibration scenes. Call at the end of the method's prepare (ctx->state set: the
- * pilot renders with the method's scratch, ctx->method->scratch_bytes). */
+/* An empty selection for a width x height image (no tile's statistics yet, every tile to
+ * delta). */
+rd_status rd_select_init(rd_select *sel, int width, int height, double lookup_cost, char *err, size_t errlen);
+/* Run the pilot and make the first choice: on random numbers of its own, the variance and cost
+ * per sample of `method` and of delta's path in every tile; keeps the choices that give the
+ * image the least error at equal time. `lookup_cost`: the method's time per density lookup
+ * relative to delta's (its other work, guide walks and PDFs, rides on its lookups), calibrated
+ * by the method on the calibration scenes. Call at the end of the method's prepare
+ * (ctx->state set: the pilot renders with the method's scratch, ctx->method->scratch_bytes). */
 rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, double lookup_cost,
                             rd_select *sel, char *err, size_t errlen);
 void rd_select_free(rd_select *sel);
 /* The camera sample of `th->pixel`: `method` where the selection gives it the pixel's tile,
- * else delta's path (counted in th->delta_samples). */
-vec3 rd_select_radiance(const rd_render_ctx *ctx, const rd_select *sel, rd_select_fn method,
+ * else delta's path (counted in th->delta_samples). The sample is recorded for the next epoch:
+ * sel is written at th->pixel only, which one thread renders at a time, in sample order. */
+vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn method,
                         rd_thread *th, ray3 r, rd_sampler *smp);
+/* Record one sample L of `pixel`, with its counted cost, for the next epoch. */
+void rd_select_observe(rd_select *sel, uint64_t pixel, vec3 L, double cost);
+/* The image's epochs: the choice is made again at samples 4, 16, 64, ... (x4) of every pixel
+ * from everything seen so far. rd_select_epoch_next: the first epoch boundary after `sample`
+ * (INT_MAX: none); rd_select_epoch: fold the pixels' samples into their tiles' statistics and
+ * choose again (no-op when the selection is off). */
+int rd_select_epoch_next(const rd_select *sel, int sample);
+void rd_select_epoch(rd_select *sel);
 /* The rule: for n tiles with the per-sample variance and cost of delta (var[2k], cost[2k]) and
  * of the method (var[2k+1], cost[2k+1]), the choices that minimise (sum V)(sum C);
  * use_method[k] = 1 for the method. */

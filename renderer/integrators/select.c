@@ -2,15 +2,31 @@
  * marcher of `guided`, the guided paths of `guided-unbiased`) and delta's path
  * (settings.select = "tiles"; docs/guided-marching.md "Where marching pays").
  *
- * Both are unbiased estimators of the radiance along a camera ray, so any choice made per pixel
- * before the image's samples are drawn keeps the image unbiased. The guided method wins where
- * the light along the ray is concentrated (a sample there costs several delta paths and has
- * far less variance); delta wins where it is broad (a camera ray that passes through thin
- * smoke costs delta almost nothing). A pilot, on random numbers of its own, measures both in
- * every tile of RD_SELECT_TILE x RD_SELECT_TILE pixels, on a quarter of its pixels (every other
- * pixel each way) with SEL_SPP samples each: the per-sample variance V (the pixels' variances,
- * pixel_variance(), summed over the tile's pixels as the image's squared error sums them) and
- * the cost C per sample, each then pooled over the tile's 3x3 neighbourhood (pool(), below).
+ * Both are unbiased estimators of the radiance along a camera ray, so any choice made for a
+ * pixel's sample before the sample is drawn keeps the image unbiased. The guided method wins
+ * where the light along the ray is concentrated (a sample there costs several delta paths and
+ * has far less variance); delta wins where it is broad (a camera ray that passes through thin
+ * smoke costs delta almost nothing).
+ *
+ * What the choice is made from. Per tile of RD_SELECT_TILE x RD_SELECT_TILE pixels and per
+ * estimator, the samples' statistics (rd_select_stats): their variance V per sample and their
+ * cost C per sample. They come first from a pilot, on random numbers of its own: every other
+ * pixel each way, SEL_SPP samples of each estimator. Then the image itself teaches: at samples
+ * 4, 16, 64, ... of every pixel (the epochs) the samples the image took since the last epoch,
+ * all of the tile's current estimator, are added to that estimator's statistics and the choice
+ * is made again. A pilot of a few hundred samples a tile misjudges heavy tails (the rare delta
+ * path that finds a narrow beam, the rare guided path that carries a firefly); the image's
+ * thousands do not, and the estimator a tile uses is the one whose statistics grow. Each
+ * epoch's choice depends only on samples drawn before it, so every sample is still an unbiased
+ * estimate given the past, and so is each pixel's mean of a fixed number of them.
+ *
+ * The variance. Per channel, the squared deviations from each pixel's own mean, pooled over the
+ * tile's pixels (the image's squared error sums the pixels' variances). It is bounded below by
+ * Cauchy-Schwarz: a non-negative X with mean mu that is non-zero with probability p has
+ * E[X^2] >= mu^2 / p, so Var X >= mu^2 (1/p - 1). The bound is what sees a narrow beam that
+ * delta's path never finds: its samples are all zero, sample variance 0, but mu, the mean of
+ * the two estimators' means (both unbiased for the tile's mean), is not, and p, by Laplace's
+ * rule (non-zero + 1) / (n + 2), falls as the zeros pile up.
  *
  * The rule. At equal time the image's MSE is (sum_k V_k)(sum_k C_k) / time for the choices
  * m_k of the tiles k, so the best choices minimise the product. Its stationary point is where
@@ -20,17 +36,19 @@
  * made until none does (rd_select_choose).
  *
  * The cost. Time is not deterministic, and the choice must be (for one build, the same seed
- * gives the same image on any machine and thread count), so C is counted: density lookups, times the method's
- * lookup_cost for the method's, plus SEL_RAY_COST per camera sample. Lookups are what all of
- * them spend their time on: on 160x120 renders of cloud.json and smoke-vdb.json at 16 spp on
- * one thread, select off (the calibration scenes, not the benchmark's), time per lookup was
- * 0.38 / 0.39 / 0.62 us on cloud (delta / guided / guided-unbiased) and 0.24 / 0.18 / 0.38 us
- * on smoke-vdb: guided's lookup_cost 0.9, guided-unbiased's 1.6 (its guide walk per flight is
- * not a lookup). A per-sample term of 1.2 lookups fits smoke-vdb's guided/delta ratio and -0.2
- * cloud's, so SEL_RAY_COST is their midpoint, 0.5. */
+ * gives the same image on any machine and thread count), so C is counted: density lookups,
+ * times the method's lookup_cost for the method's, plus SEL_RAY_COST per camera sample.
+ * Lookups are what all of them spend their time on: on 160x120 renders of cloud.json and
+ * smoke-vdb.json at 16 spp on one thread, select off (the calibration scenes, not the
+ * benchmark's), time per lookup was 0.38 / 0.39 / 0.62 us on cloud (delta / guided /
+ * guided-unbiased) and 0.24 / 0.18 / 0.38 us on smoke-vdb: guided's lookup_cost 0.9,
+ * guided-unbiased's 1.6 (its guide walk per flight is not a lookup). A per-sample term of 1.2
+ * lookups fits smoke-vdb's guided/delta ratio and -0.2 cloud's, so SEL_RAY_COST is their
+ * midpoint, 0.5. */
 #include "integrators/rd_select.h"
 #include "transport/rd_path.h"
 
+#include <limits.h>
 #include <math.h>
 #include <omp.h>
 #include <stdlib.h>
@@ -39,29 +57,57 @@
 #define SEL_SPP 8           /* pilot samples per pixel and estimator */
 #define SEL_RAY_COST 0.5    /* cost of a camera sample beyond its lookups (see above) */
 #define SEL_ROUNDS 32       /* fixed-point rounds at most */
+#define SEL_EPOCH_FIRST 4   /* the first epoch ends at sample 4 of every pixel, */
+#define SEL_EPOCH_GROWTH 4  /* and each is 4 times the last: 4, 16, 64, 256, ... */
 /* The pilot's random numbers: the image's keys (pixel, sample, seed) with the seed moved by a
  * constant, so no pilot sample is one of the image's. */
 #define SEL_SEED_SHIFT 0x5E1EC7ULL
 
-/* One pixel's pilot with one estimator: per channel the sum, the sum of squares and the count
- * of non-zero samples, and the cost summed over the samples. */
-typedef struct {
-    double sum[3], sum2[3], nonzero[3], cost;
-} pilot_sums;
+static void pixel_add(rd_select_pixel *px, vec3 L, double cost)
+{
+    const double v[3] = {L.x, L.y, L.z};
+    for (int c = 0; c < 3; c++) px->sum[c] += (float)v[c], px->sum2[c] += (float)(v[c] * v[c]);
+    px->nonzero += L.x != 0.0 || L.y != 0.0 || L.z != 0.0;
+    px->n++;
+    px->cost += cost;
+}
 
-static pilot_sums pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, int x, int y, int use_method,
-                              rd_select_fn method, double lookup_cost)
+/* Add one pixel's samples (all of one estimator) to that estimator's statistics in its tile. */
+static void pixel_fold(rd_select_stats *st, const rd_select_pixel *px)
+{
+    if (px->n == 0) return;
+    double n = px->n;
+    for (int c = 0; c < 3; c++) {
+        double s = px->sum[c];
+        st->sum[c] += s;
+        st->dev2[c] += fmax(0.0, (double)px->sum2[c] - s * s / n);
+    }
+    st->n += n;
+    st->dof += n - 1.0;
+    st->nonzero += px->nonzero;
+    st->cost += px->cost;
+}
+
+/* The cost of one sample: its lookups, at the method's rate for the method's, and the rest. */
+static double sample_cost(const rd_select *sel, uint64_t lookups, int use_method)
+{
+    return (double)lookups * (use_method ? sel->lookup_cost : 1.0) + SEL_RAY_COST;
+}
+
+/* One pixel's pilot with one estimator: SEL_SPP samples, added to the tile's statistics. */
+static void pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, const rd_select *sel, int x, int y,
+                        int use_method, rd_select_fn method, rd_select_stats *st)
 {
     const rd_scene *s = ctx->scene;
     const rd_camera *cam = &s->camera;
     uint64_t pix = (uint64_t)y * cam->width + x;
-    pilot_sums ps = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}, 0.0};
-    uint64_t lookups0 = th->counters.lookups;
+    rd_select_pixel px = {0};
     for (int i = 0; i < SEL_SPP; i++) {
         rd_sampler smp = rd_sampler_start(pix, (uint64_t)i, ctx->seed + SEL_SEED_SHIFT);
         double jx = rd_sampler_1d(&smp), jy = rd_sampler_1d(&smp);
         if (!cam->jitter) jx = jy = 0.5;
         ray3 r = rd_camera_ray(cam, x + jx, y + jy);
+        uint64_t lookups0 = th->counters.lookups;
         vec3 L;
         th->pixel = pix;
         if (use_method) {
@@ -70,28 +116,27 @@ static pilot_sums pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, int x, in
             pcg32 rng = rd_sampler_stream(&smp);
             L = rd_delta_radiance(s, r, &rng, &th->counters);
         }
-        if (!v3_finite(L)) L = v3(0, 0, 0);
-        double v[3] = {L.x, L.y, L.z};
-        for (int k = 0; k < 3; k++) ps.sum[k] += v[k], ps.sum2[k] += v[k] * v[k], ps.nonzero[k] += v[k] != 0.0;
+        if (v3_finite(L)) pixel_add(&px, L, sample_cost(sel, th->counters.lookups - lookups0, use_method));
     }
-    ps.cost = (double)(th->counters.lookups - lookups0) * (use_method ? lookup_cost : 1.0) + SEL_RAY_COST * SEL_SPP;
-    return ps;
+    pixel_fold(st, &px);
 }
 
-/* The per-sample variance of one estimator at one pixel (mean over RGB), given the pixel's mean
- * mu from both estimators' pilot samples (both are unbiased for it). The sample variance alone
- * misleads exactly where delta is worst: a path that finds a narrow beam once in a thousand
- * samples gives eight zeros, variance 0. So it is bounded below by Cauchy-Schwarz: a
- * non-negative X with mean mu that is non-zero with probability p has E[X^2] >= mu^2 / p, so
- * Var X >= mu^2 (1/p - 1), with p estimated by Laplace's rule, (non-zero + 1) / (n + 2). */
-static double pixel_variance(const pilot_sums *ps, const double mu[3])
+/* The per-sample variance of estimator e (0 delta, 1 the method) in a tile whose two
+ * statistics are pair[0], pair[1] (mean over RGB): the pooled sample variance, bounded below by
+ * Cauchy-Schwarz with mu the mean of the two estimators' means (see the head). */
+static double tile_variance(const rd_select_stats *pair, int e)
 {
-    const double n = SEL_SPP;
-    double v = 0.0;
-    for (int k = 0; k < 3; k++) {
-        double sv = fmax(0.0, (ps->sum2[k] - ps->sum[k] * ps->sum[k] / n) / (n - 1.0));
-        double p = (ps->nonzero[k] + 1.0) / (n + 2.0);
-        v += fmax(sv, mu[k] > 0.0 ? mu[k] * mu[k] * (1.0 / p - 1.0) : 0.0);
+    const rd_select_stats *st = &pair[e];
+    if (!(st->n > 0.0)) return 0.0;
+    double p = (st->nonzero + 1.0) / (st->n + 2.0), v = 0.0;
+    for (int c = 0; c < 3; c++) {
+        double mu = 0.0;
+        int k = 0;
+        for (int j = 0; j < 2; j++)
+            if (pair[j].n > 0.0) mu += pair[j].sum[c] / pair[j].n, k++;
+        mu /= k;
+        double sv = st->dof > 0.0 ? st->dev2[c] / st->dof : 0.0;
+        v += fmax(sv, mu > 0.0 ? mu * mu * (1.0 / p - 1.0) : 0.0);
     }
     return v / 3.0;
 }
@@ -160,19 +205,55 @@ static void pool(double *var, double *cost, int nx, int ny)
     free(tmp);
 }
 
+rd_status rd_select_init(rd_select *sel, int width, int height, double lookup_cost, char *err, size_t errlen)
+{
+    memset(sel, 0, sizeof *sel);
+    sel->width = width, sel->height = height, sel->lookup_cost = lookup_cost;
+    sel->tiles_x = (width + RD_SELECT_TILE - 1) / RD_SELECT_TILE;
+    sel->tiles_y = (height + RD_SELECT_TILE - 1) / RD_SELECT_TILE;
+    size_t n = (size_t)sel->tiles_x * sel->tiles_y;
+    sel->guided = calloc(n, 1);
+    sel->stats = calloc(2 * n, sizeof *sel->stats);
+    sel->pixels = calloc((size_t)width * height, sizeof *sel->pixels);
+    if (sel->guided && sel->stats && sel->pixels) return RD_OK;
+    rd_select_free(sel);
+    snprintf(err, errlen, "out of memory for the tile selection (%dx%d pixels)", width, height);
+    return RD_ERR_NOMEM;
+}
+
+/* Choose every tile's estimator from the statistics so far: each tile's V and C (as sums over
+ * its pixels, which is what the image's error and time add up), pooled, then the rule. */
+static void choose_tiles(rd_select *sel)
+{
+    int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny;
+    double *var = malloc(4 * (size_t)n * sizeof *var), *cost = var ? var + 2 * (size_t)n : NULL;
+    if (!var) return; /* the choices stay as they are */
+    for (int k = 0; k < n; k++) {
+        int tx = k % nx, ty = k / nx;
+        int w = sel->width - tx * RD_SELECT_TILE, h = sel->height - ty * RD_SELECT_TILE;
+        double pixels = (double)(w < RD_SELECT_TILE ? w : RD_SELECT_TILE) * (h < RD_SELECT_TILE ? h : RD_SELECT_TILE);
+        for (int e = 0; e < 2; e++) {
+            const rd_select_stats *st = &sel->stats[2 * k + e];
+            var[2 * k + e] = pixels * tile_variance(&sel->stats[2 * k], e);
+            cost[2 * k + e] = st->n > 0.0 ? pixels * st->cost / st->n : 0.0;
+        }
+    }
+    pool(var, cost, nx, ny);
+    rd_select_choose(var, cost, n, sel->guided);
+    free(var);
+}
+
 rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, double lookup_cost,
                             rd_select *sel, char *err, size_t errlen)
 {
     const rd_camera *cam = &ctx->scene->camera;
-    memset(sel, 0, sizeof *sel);
-    sel->tiles_x = (cam->width + RD_SELECT_TILE - 1) / RD_SELECT_TILE;
-    int tiles_y = (cam->height + RD_SELECT_TILE - 1) / RD_SELECT_TILE, n = sel->tiles_x * tiles_y;
-    uint8_t *choice = calloc((size_t)n, 1);
-    double *var = calloc(2 * (size_t)n, sizeof *var), *cost = calloc(2 * (size_t)n, sizeof *cost);
+    rd_status st = rd_select_init(sel, cam->width, cam->height, lookup_cost, err, errlen);
+    if (st != RD_OK) return st;
+    int n = sel->tiles_x * sel->tiles_y;
     int threads = ctx->threads > 0 ? ctx->threads : 1;
     rd_thread *th = calloc((size_t)threads, sizeof *th);
     size_t bytes = ctx->method->scratch_bytes ? ctx->method->scratch_bytes(ctx) : 0;
-    int ok = choice && var && cost && th;
+    int ok = th != NULL;
     for (int i = 0; ok && bytes && i < threads; i++) {
         th[i].index = i;
         th[i].scratch = aligned_alloc(16, (bytes + 15) / 16 * 16);
@@ -180,33 +261,22 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, doubl
         ok = th[i].scratch != NULL;
     }
     if (ok) {
+        /* One thread a tile: its statistics are summed in pixel order whatever the threads. */
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 1)
         for (int k = 0; k < n; k++) {
             rd_thread *t = &th[omp_get_thread_num()];
             int x0 = (k % sel->tiles_x) * RD_SELECT_TILE, y0 = (k / sel->tiles_x) * RD_SELECT_TILE;
             for (int y = y0; y < y0 + RD_SELECT_TILE && y < cam->height; y += 2)
-                for (int x = x0; x < x0 + RD_SELECT_TILE && x < cam->width; x += 2) {
-                    pilot_sums ps[2]; /* 0: delta, 1: the method */
-                    for (int e = 0; e < 2; e++) ps[e] = pilot_pixel(ctx, t, x, y, e, method, lookup_cost);
-                    double mu[3];
-                    for (int c = 0; c < 3; c++) mu[c] = (ps[0].sum[c] + ps[1].sum[c]) / (2.0 * SEL_SPP);
-                    for (int e = 0; e < 2; e++) {
-                        var[2 * k + e] += pixel_variance(&ps[e], mu); /* the tile's sums (see the head) */
-                        cost[2 * k + e] += ps[e].cost / SEL_SPP;
-                    }
-                }
+                for (int x = x0; x < x0 + RD_SELECT_TILE && x < cam->width; x += 2)
+                    for (int e = 0; e < 2; e++) /* 0: delta, 1: the method */
+                        pilot_pixel(ctx, t, sel, x, y, e, method, &sel->stats[2 * k + e]);
         }
-        pool(var, cost, sel->tiles_x, tiles_y);
-        rd_select_choose(var, cost, n, choice);
-        sel->guided = choice;
-        choice = NULL;
+        choose_tiles(sel);
     }
     for (int i = 0; th && i < threads; i++) free(th[i].scratch);
     free(th);
-    free(var);
-    free(cost);
-    free(choice);
     if (!ok) {
+        rd_select_free(sel);
         snprintf(err, errlen, "out of memory for the tile selection's pilot");
         return RD_ERR_NOMEM;
     }
@@ -216,20 +286,56 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, doubl
 void rd_select_free(rd_select *sel)
 {
     free(sel->guided);
+    free(sel->stats);
+    free(sel->pixels);
     memset(sel, 0, sizeof *sel);
 }
 
-vec3 rd_select_radiance(const rd_render_ctx *ctx, const rd_select *sel, rd_select_fn method,
+void rd_select_observe(rd_select *sel, uint64_t pixel, vec3 L, double cost)
+{
+    pixel_add(&sel->pixels[pixel], L, cost);
+}
+
+int rd_select_epoch_next(const rd_select *sel, int sample)
+{
+    if (!sel->guided) return INT_MAX;
+    int b = SEL_EPOCH_FIRST;
+    while (b <= sample) {
+        if (b > INT_MAX / SEL_EPOCH_GROWTH) return INT_MAX;
+        b *= SEL_EPOCH_GROWTH;
+    }
+    return b;
+}
+
+void rd_select_epoch(rd_select *sel)
+{
+    if (!sel->guided) return;
+    for (int y = 0; y < sel->height; y++)
+        for (int x = 0; x < sel->width; x++) {
+            int k = (y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE;
+            rd_select_pixel *px = &sel->pixels[(size_t)y * sel->width + x];
+            pixel_fold(&sel->stats[2 * k + sel->guided[k]], px);
+            memset(px, 0, sizeof *px);
+        }
+    choose_tiles(sel);
+}
+
+vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn method,
                         rd_thread *th, ray3 r, rd_sampler *smp)
 {
-    if (sel->guided) {
-        int w = ctx->scene->camera.width;
-        int x = (int)(th->pixel % (uint64_t)w), y = (int)(th->pixel / (uint64_t)w);
-        if (!sel->guided[(y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE]) {
-            th->delta_samples++;
-            pcg32 rng = rd_sampler_stream(smp);
-            return rd_delta_radiance(ctx->scene, r, &rng, &th->counters);
-        }
+    if (!sel->guided) return method(ctx, th, r, smp);
+    int w = ctx->scene->camera.width;
+    int x = (int)(th->pixel % (uint64_t)w), y = (int)(th->pixel / (uint64_t)w);
+    int use = sel->guided[(y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE];
+    uint64_t lookups0 = th->counters.lookups;
+    vec3 L;
+    if (use) {
+        L = method(ctx, th, r, smp);
+    } else {
+        th->delta_samples++;
+        pcg32 rng = rd_sampler_stream(smp);
+        L = rd_delta_radiance(ctx->scene, r, &rng, &th->counters);
     }
-    return method(ctx, th, r, smp);
+    if (v3_finite(L)) rd_select_observe(sel, th->pixel, L, sample_cost(sel, th->counters.lookups - lookups0, use));
+    return L;
 }

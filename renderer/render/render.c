@@ -342,10 +342,14 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
             if (n > ip * s->photons.pass_spp - (s0 + done)) n = ip * s->photons.pass_spp - (s0 + done);
             if (deadline < INFINITY && now_seconds(clk) >= deadline) { res->stats.timed_out = 1; break; }
         }
+        /* Samples [done, done + n) stay within one of the method's epochs. */
+        int epoch_end = m->epoch_next ? m->epoch_next(&ctx, s0 + done) : INT_MAX;
+        if (n > epoch_end - (s0 + done)) n = epoch_end - (s0 + done);
         double t0 = now_seconds(clk);
         int cut = render_pass(&ctx, th, &f, s0 + done, s0 + done + n, deadline, o->cancel, clk, &invalid);
-        double t1 = now_seconds(clk), elapsed = t1 - t_start;
         if (!cut) done += n;
+        if (!cut && s0 + done == epoch_end) m->epoch(&ctx, epoch_end);
+        double t1 = now_seconds(clk), elapsed = t1 - t_start;
         if (o->progress) o->progress(o->progress_user, done, o->spp, elapsed);
         if (o->reference) {
             uint64_t total = 0;
