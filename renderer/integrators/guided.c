@@ -50,7 +50,7 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
     /* Only an unbiased source estimates what delta's path does: with the photon sources (and
      * nee alone) the tiles would disagree, so every pixel is marched. */
     int unbiased = s->march.ls == RD_LS_NEE_PATHS || s->march.ls == RD_LS_NEE_DELTA;
-    if (s->settings.select == RD_SELECT_TILES && unbiased) {
+    if (s->settings.select != RD_SELECT_OFF && unbiased) {
         /* 0.9: the marcher's time per lookup over delta's on the calibration scenes (select.c) */
         st = rd_select_prepare(ctx, march_guided, 0.9, &mst->sel, err, errlen);
         if (st != RD_OK) rd_march_release(ctx);

@@ -544,7 +544,7 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
     for (int i = 0; i < s->n_media; i++) st->cap_m += majorant_crossings(&s->media[i]) + 1;
     ctx->state = st;
     /* With a guide (else the method is delta's path already), the tiles where it pays. */
-    if (s->settings.select == RD_SELECT_TILES && ctx->guide) {
+    if (s->settings.select != RD_SELECT_OFF && ctx->guide) {
         /* 1.6: its time per lookup over delta's on the calibration scenes (select.c) */
         rd_status rs = rd_select_prepare(ctx, gu_path, 1.6, &st->sel, err, errlen);
         if (rs != RD_OK) {

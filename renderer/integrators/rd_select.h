@@ -29,6 +29,7 @@ typedef struct {
     uint8_t *guided;         /* per tile, 1 where the method renders, 0 where delta's path does;
                                 NULL: the method everywhere (selection off, or not run) */
     int tiles_x, tiles_y, width, height;
+    int epochs;              /* choose again at the epochs (settings.select "tiles"; "pilot": 0) */
     double lookup_cost;      /* the method's time per density lookup over delta's */
     rd_select_stats *stats;  /* per tile, [2k] delta's and [2k + 1] the method's */
     rd_select_pixel *pixels; /* per pixel, the current epoch's samples */

@@ -208,7 +208,7 @@ static void pool(double *var, double *cost, int nx, int ny)
 rd_status rd_select_init(rd_select *sel, int width, int height, double lookup_cost, char *err, size_t errlen)
 {
     memset(sel, 0, sizeof *sel);
-    sel->width = width, sel->height = height, sel->lookup_cost = lookup_cost;
+    sel->width = width, sel->height = height, sel->lookup_cost = lookup_cost, sel->epochs = 1;
     sel->tiles_x = (width + RD_SELECT_TILE - 1) / RD_SELECT_TILE;
     sel->tiles_y = (height + RD_SELECT_TILE - 1) / RD_SELECT_TILE;
     size_t n = (size_t)sel->tiles_x * sel->tiles_y;
@@ -249,6 +249,7 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, doubl
     const rd_camera *cam = &ctx->scene->camera;
     rd_status st = rd_select_init(sel, cam->width, cam->height, lookup_cost, err, errlen);
     if (st != RD_OK) return st;
+    sel->epochs = ctx->scene->settings.select != RD_SELECT_PILOT;
     int n = sel->tiles_x * sel->tiles_y;
     int threads = ctx->threads > 0 ? ctx->threads : 1;
     rd_thread *th = calloc((size_t)threads, sizeof *th);
@@ -298,7 +299,7 @@ void rd_select_observe(rd_select *sel, uint64_t pixel, vec3 L, double cost)
 
 int rd_select_epoch_next(const rd_select *sel, int sample)
 {
-    if (!sel->guided) return INT_MAX;
+    if (!sel->guided || !sel->epochs) return INT_MAX;
     int b = SEL_EPOCH_FIRST;
     while (b <= sample) {
         if (b > INT_MAX / SEL_EPOCH_GROWTH) return INT_MAX;

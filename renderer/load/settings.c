@@ -96,7 +96,7 @@ rd_status ld_parse_settings(ld_ctx *c, const cJSON *j, rd_settings *s)
         s->transmittance != RD_TR_RAYMARCH)
         return ld_fail(c, "settings.step", "only with \"tracker\" or \"transmittance\": \"raymarch\"");
     LD_TRY(parse_strategies(c, j, s));
-    static const char *const select[] = {"off", "tiles", NULL};
+    static const char *const select[] = {"off", "tiles", "pilot", NULL}; /* RD_SELECT_* order */
     LD_TRY(ld_get_enum(c, j, path, "select", 0, select, RD_SELECT_TILES, &s->select));
     return RD_OK;
 }

@@ -34,10 +34,12 @@ typedef struct {
                           * exactly 0 are forced: 1) */
     int select;          /* the guided methods (guided with an unbiased march.ls, and
                           * guided-unbiased): RD_SELECT_TILES (default) lets a pilot give each
-                          * 8x8 tile to the method or to delta's path, whichever pays
-                          * (integrators/select.c); RD_SELECT_OFF: the method everywhere */
+                          * 8x8 tile to the method or to delta's path, whichever pays, and
+                          * the image's samples choose again at every epoch
+                          * (integrators/select.c); RD_SELECT_PILOT: the pilot's choice only;
+                          * RD_SELECT_OFF: the method everywhere */
 } rd_settings;
-enum { RD_SELECT_OFF, RD_SELECT_TILES };
+enum { RD_SELECT_OFF, RD_SELECT_TILES, RD_SELECT_PILOT };
 typedef enum { RD_EQ_OFF, RD_EQ_ALL, RD_EQ_CAMERA } rd_equiangular_mode;
 
 /* Photon tracing settings (scene key "photons", docs/scene-format.md). */
