@@ -45,6 +45,22 @@ Test(select, rule_keeps_dominance_and_no_flip_lowers_the_product)
     }
 }
 
+Test(select, a_tie_goes_to_delta)
+{
+    /* Tiles that see no medium: variance 0 for both, and the same cost per sample summed over
+     * different numbers of samples, so equal up to rounding either way. */
+    enum { N = 6 };
+    double var[2 * N] = {0}, cost[2 * N];
+    uint8_t m[N];
+    for (int k = 0; k < N; k++) {
+        double c = 0.0;
+        for (int i = 0; i < 3 + k; i++) c += 2.18;
+        cost[2 * k] = c / (3 + k), cost[2 * k + 1] = nextafter(cost[2 * k], (k & 1) ? 0.0 : 1e9);
+    }
+    rd_select_choose(var, cost, N, m);
+    for (int k = 0; k < N; k++) cr_assert(m[k] == 0, "tile %d: a tie (costs %.17g, %.17g) went to the method", k, cost[2 * k], cost[2 * k + 1]);
+}
+
 /* ---- The epochs: the image's samples correct the pilot -------------------------------------- */
 
 /* A one-tile selection whose statistics say what a pilot of 16 pixels x 8 samples would have

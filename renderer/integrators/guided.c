@@ -51,8 +51,8 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
      * nee alone) the tiles would disagree, so every pixel is marched. */
     int unbiased = s->march.ls == RD_LS_NEE_PATHS || s->march.ls == RD_LS_NEE_DELTA;
     if (s->settings.select != RD_SELECT_OFF && unbiased) {
-        /* 0.9: the marcher's time per lookup over delta's on the calibration scenes (select.c) */
-        st = rd_select_prepare(ctx, march_guided, 0.9, &mst->sel, err, errlen);
+        /* 1.52 lookups: the time of one of the marcher's PDF segments (select.c, the fit) */
+        st = rd_select_prepare(ctx, march_guided, 1.52, &mst->sel, err, errlen);
         if (st != RD_OK) rd_march_release(ctx);
     }
     return st;

@@ -232,6 +232,8 @@ typedef struct {
     double I_cam;   /* the guide's estimate of the camera sample's radiance, S~ + B~ of its
                      * first flight (0 when that flight was delta tracking's): the pixel
                      * estimate of the roulette's weight window */
+    uint64_t segments; /* distance-pdf segments built (the selection's counted cost, select.c) */
+    uint64_t vertices; /* vertices whose policy read the guide (likewise) */
 } gu_user;
 
 /* Whether this flight's distance is the guide's (else delta tracking's). */
@@ -260,6 +262,7 @@ static rd_flight guided_flight(const rd_flight_sampler *fs, const rd_scene *s,
     scratch_layout(ctx->state, &sc, u->scratch);
     gu_dist D;
     flight_majorant(ctx, &sc, in->region, r, t0, t1, &D);
+    u->segments += (uint64_t)D.m.n;
     /* An optically thick flight (majorant depth above guide.distance_tau_max) is delta
      * tracking's: there T sigma_t, which delta tracking samples exactly, is most of the
      * integrand's shape, and the guide's cell-mean T~ and sigma can only add weight noise
@@ -267,6 +270,7 @@ static rd_flight guided_flight(const rd_flight_sampler *fs, const rd_scene *s,
     if (D.tau_m > s->guide.distance_tau_max) guided = 0;
     if (!(guided || want_I)) return rd_flight_delta(s, in, rng, c);
     flight_dist(ctx, &sc, r, t0, t1, behind_mean(s, in), &D);
+    u->segments += (uint64_t)D.g.n;
     if (in->depth == 0) u->I_cam = D.g.I + D.B;
     /* A guide with no light along this ray (an empty or wrong guide, or a dark region) knows
      * nothing to guide by: delta tracking's flight. The choice depends on the ray alone, so
@@ -362,9 +366,10 @@ static int guide_lobe(const rd_scene *s, const float *coeffs, int bands, double 
 static void gu_vertex(const rd_flight_sampler *fs, const rd_scene *s, const rd_vertex_in *v,
                       pcg32 *rng, rd_vertex_out *out)
 {
-    const gu_user *u = fs->user;
+    gu_user *u = fs->user;
     const sh_guide *guide = u->ctx->guide;
     const rd_guide_settings *gs = &s->guide;
+    u->vertices++;
     out->n = 1;
     out->rr_scale = 1.0;
     out->mix = (rd_dir_mix){.a = 0.0};
@@ -432,7 +437,10 @@ static vec3 gu_path(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler 
                                   .vertex = ctx->guide && (gs->directions || gs->roulette) ? gu_vertex : NULL,
                                   .user = &u};
     pcg32 rng = rd_sampler_stream(smp);
-    return rd_path_radiance(ctx->scene, r, &fs, &rng, &th->counters);
+    vec3 L = rd_path_radiance(ctx->scene, r, &fs, &rng, &th->counters);
+    th->cells += u.segments;
+    th->guide_vertices += u.vertices;
+    return L;
 }
 
 /* The guided path, or delta's where settings.select gave the pixel's tile to it (select.c). */
@@ -545,8 +553,8 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
     ctx->state = st;
     /* With a guide (else the method is delta's path already), the tiles where it pays. */
     if (s->settings.select != RD_SELECT_OFF && ctx->guide) {
-        /* 1.6: its time per lookup over delta's on the calibration scenes (select.c) */
-        rd_status rs = rd_select_prepare(ctx, gu_path, 1.6, &st->sel, err, errlen);
+        /* 0.37 lookups: the time of one of its flights' pdf segments (select.c, the fit) */
+        rd_status rs = rd_select_prepare(ctx, gu_path, 0.37, &st->sel, err, errlen);
         if (rs != RD_OK) {
             gu_release(ctx);
             return rs;

@@ -27,7 +27,9 @@ typedef struct rd_thread {
     /* Per-ray statistics of the marching methods (zero for the others). */
     uint64_t rays;          /* camera rays that entered the media */
     uint64_t ray_samples;   /* samples placed along them */
-    uint64_t cells;         /* PDF segments (guide cells, extinction steps) built */
+    uint64_t cells;         /* PDF segments (guide cells, extinction steps) built; guided-unbiased:
+                             * its flights' distance-pdf segments */
+    uint64_t guide_vertices; /* guided-unbiased: path vertices whose policy read the guide */
     uint32_t samples_min, samples_max;
     uint64_t delta_samples; /* settings.select: camera samples given to delta's path */
     void *scratch;

@@ -30,7 +30,8 @@ typedef struct {
                                 NULL: the method everywhere (selection off, or not run) */
     int tiles_x, tiles_y, width, height;
     int epochs;              /* choose again at the epochs (settings.select "tiles"; "pilot": 0) */
-    double lookup_cost;      /* the method's time per density lookup over delta's */
+    double cell_cost;        /* the method's cost per PDF segment it counts in rd_thread.cells,
+                                in density lookups (select.c) */
     rd_select_stats *stats;  /* per tile, [2k] delta's and [2k + 1] the method's */
     rd_select_pixel *pixels; /* per pixel, the current epoch's samples */
 } rd_select;
@@ -41,14 +42,14 @@ typedef vec3 (*rd_select_fn)(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd
 
 /* An empty selection for a width x height image (no tile's statistics yet, every tile to
  * delta). */
-rd_status rd_select_init(rd_select *sel, int width, int height, double lookup_cost, char *err, size_t errlen);
+rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost, char *err, size_t errlen);
 /* Run the pilot and make the first choice: on random numbers of its own, the variance and cost
  * per sample of `method` and of delta's path in every tile; keeps the choices that give the
- * image the least error at equal time. `lookup_cost`: the method's time per density lookup
- * relative to delta's (its other work, guide walks and PDFs, rides on its lookups), calibrated
- * by the method on the calibration scenes. Call at the end of the method's prepare
- * (ctx->state set: the pilot renders with the method's scratch, ctx->method->scratch_bytes). */
-rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, double lookup_cost,
+ * image the least error at equal time. The cost is counted work (select.c): `cell_cost` is
+ * what one of the method's PDF segments (rd_thread.cells) costs, in density lookups, fitted on
+ * the calibration scenes. Call at the end of the method's prepare (ctx->state set: the pilot
+ * renders with the method's scratch, ctx->method->scratch_bytes). */
+rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, double cell_cost,
                             rd_select *sel, char *err, size_t errlen);
 void rd_select_free(rd_select *sel);
 /* The camera sample of `th->pixel`: `method` where the selection gives it the pixel's tile,

@@ -36,15 +36,24 @@
  * made until none does (rd_select_choose).
  *
  * The cost. Time is not deterministic, and the choice must be (for one build, the same seed
- * gives the same image on any machine and thread count), so C is counted: density lookups,
- * times the method's lookup_cost for the method's, plus SEL_RAY_COST per camera sample.
- * Lookups are what all of them spend their time on: on 160x120 renders of cloud.json and
- * smoke-vdb.json at 16 spp on one thread, select off (the calibration scenes, not the
- * benchmark's), time per lookup was 0.38 / 0.39 / 0.62 us on cloud (delta / guided /
- * guided-unbiased) and 0.24 / 0.18 / 0.38 us on smoke-vdb: guided's lookup_cost 0.9,
- * guided-unbiased's 1.6 (its guide walk per flight is not a lookup). A per-sample term of 1.2
- * lookups fits smoke-vdb's guided/delta ratio and -0.2 cloud's, so SEL_RAY_COST is their
- * midpoint, 0.5. */
+ * gives the same image on any machine and thread count), so C is counted: the work a sample
+ * did, weighted by what each kind of work costs. Per camera sample, in units of one density
+ * lookup (c, below: the weights):
+ *   C = lookups + c_S shadow rays + c_cell PDF segments + c_V guided vertices + c_0,
+ * with the PDF segments the marcher's (guide cells and extinction steps per camera ray) or
+ * guided-unbiased's (its flights' distance-pdf segments), whose weights differ (a marcher's
+ * segment evaluates SH, a flight's is a lookup in a built table), and the guided vertices
+ * guided-unbiased's (its vertex policy reads the guide and samples a lobe). The weights are a
+ * least-squares fit of time per camera sample (weighted by its inverse: relative errors) on
+ * six scenes that are not in the benchmark's tables, each rendered by delta, guided and
+ * guided-unbiased with select off, 160x120, 16 spp, one thread: cloud, smoke-vdb, glass-fog,
+ * sphere-in-fog, hetero-forward and noise-block. In microseconds: lookup 0.164, shadow ray
+ * 0.322, marcher segment 0.249, flight segment 0.061, guided vertex 0.763, camera sample
+ * 0.358. Checked, not fitted, on hard-dense-block and hard-lens-caustic: the method's time
+ * over delta's per sample is 3.73 / 28.9 (guided / guided-unbiased) and 6.29 / 8.74 there,
+ * the model says 4.10 / 24.1 and 6.67 / 8.13; the model it replaces (lookups x 0.9 or 1.6,
+ * + 0.5) said 1.92 / 12.3 and 3.27 / 4.85, and so gave the methods tiles at half their
+ * cost. */
 #include "integrators/rd_select.h"
 #include "transport/rd_path.h"
 
@@ -55,8 +64,12 @@
 #include <string.h>
 
 #define SEL_SPP 8           /* pilot samples per pixel and estimator */
-#define SEL_RAY_COST 0.5    /* cost of a camera sample beyond its lookups (see above) */
+/* The cost weights, in density lookups (see the head): */
+#define SEL_COST_SHADOW 1.96   /* a shadow ray (its own lookups are counted as lookups) */
+#define SEL_COST_SAMPLE 2.18   /* a camera sample: its rays, shapes and set-up */
+#define SEL_COST_VERTEX 4.65   /* a guided-unbiased vertex that read the guide */
 #define SEL_ROUNDS 32       /* fixed-point rounds at most */
+#define SEL_TIE 1e-9        /* relative margin below which the method does not beat delta */
 #define SEL_EPOCH_FIRST 4   /* the first epoch ends at sample 4 of every pixel, */
 #define SEL_EPOCH_GROWTH 4  /* and each is 4 times the last: 4, 16, 64, 256, ... */
 /* The pilot's random numbers: the image's keys (pixel, sample, seed) with the seed moved by a
@@ -88,10 +101,22 @@ static void pixel_fold(rd_select_stats *st, const rd_select_pixel *px)
     st->cost += px->cost;
 }
 
-/* The cost of one sample: its lookups, at the method's rate for the method's, and the rest. */
-static double sample_cost(const rd_select *sel, uint64_t lookups, int use_method)
+/* The counted cost of one sample, from th's counters before it (c0) and after (see the head). */
+typedef struct {
+    uint64_t lookups, shadow_rays, cells, vertices;
+} work;
+
+static work work_now(const rd_thread *th)
 {
-    return (double)lookups * (use_method ? sel->lookup_cost : 1.0) + SEL_RAY_COST;
+    return (work){th->counters.lookups, th->counters.shadow_rays, th->cells, th->guide_vertices};
+}
+
+static double sample_cost(const rd_select *sel, const rd_thread *th, work c0)
+{
+    work c1 = work_now(th);
+    return (double)(c1.lookups - c0.lookups) + SEL_COST_SHADOW * (double)(c1.shadow_rays - c0.shadow_rays) +
+           sel->cell_cost * (double)(c1.cells - c0.cells) + SEL_COST_VERTEX * (double)(c1.vertices - c0.vertices) +
+           SEL_COST_SAMPLE;
 }
 
 /* One pixel's pilot with one estimator: SEL_SPP samples, added to the tile's statistics. */
@@ -107,7 +132,7 @@ static void pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, const rd_select
         double jx = rd_sampler_1d(&smp), jy = rd_sampler_1d(&smp);
         if (!cam->jitter) jx = jy = 0.5;
         ray3 r = rd_camera_ray(cam, x + jx, y + jy);
-        uint64_t lookups0 = th->counters.lookups;
+        work c0 = work_now(th);
         vec3 L;
         th->pixel = pix;
         if (use_method) {
@@ -116,7 +141,7 @@ static void pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, const rd_select
             pcg32 rng = rd_sampler_stream(&smp);
             L = rd_delta_radiance(s, r, &rng, &th->counters);
         }
-        if (v3_finite(L)) pixel_add(&px, L, sample_cost(sel, th->counters.lookups - lookups0, use_method));
+        if (v3_finite(L)) pixel_add(&px, L, sample_cost(sel, th, c0));
     }
     pixel_fold(st, &px);
 }
@@ -143,8 +168,10 @@ static double tile_variance(const rd_select_stats *pair, int e)
 
 void rd_select_choose(const double *var, const double *cost, int n, uint8_t *use_method)
 {
+    /* A tie goes to delta: the method must be better by more than rounding (a tile the camera
+     * sees no medium in costs both the same, summed over different numbers of samples). */
     for (int k = 0; k < n; k++) /* start: each tile's own best V C */
-        use_method[k] = var[2 * k + 1] * cost[2 * k + 1] < var[2 * k] * cost[2 * k];
+        use_method[k] = var[2 * k + 1] * cost[2 * k + 1] < var[2 * k] * cost[2 * k] * (1.0 - SEL_TIE);
     for (int round = 0; round < SEL_ROUNDS; round++) {
         double V = 0.0, C = 0.0;
         for (int k = 0; k < n; k++) V += var[2 * k + use_method[k]], C += cost[2 * k + use_method[k]];
@@ -152,7 +179,7 @@ void rd_select_choose(const double *var, const double *cost, int n, uint8_t *use
         double lambda = V / C;
         int changed = 0;
         for (int k = 0; k < n; k++) {
-            uint8_t u = var[2 * k + 1] + lambda * cost[2 * k + 1] < var[2 * k] + lambda * cost[2 * k];
+            uint8_t u = var[2 * k + 1] + lambda * cost[2 * k + 1] < (var[2 * k] + lambda * cost[2 * k]) * (1.0 - SEL_TIE);
             changed += u != use_method[k];
             use_method[k] = u;
         }
@@ -205,10 +232,10 @@ static void pool(double *var, double *cost, int nx, int ny)
     free(tmp);
 }
 
-rd_status rd_select_init(rd_select *sel, int width, int height, double lookup_cost, char *err, size_t errlen)
+rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost, char *err, size_t errlen)
 {
     memset(sel, 0, sizeof *sel);
-    sel->width = width, sel->height = height, sel->lookup_cost = lookup_cost, sel->epochs = 1;
+    sel->width = width, sel->height = height, sel->cell_cost = cell_cost, sel->epochs = 1;
     sel->tiles_x = (width + RD_SELECT_TILE - 1) / RD_SELECT_TILE;
     sel->tiles_y = (height + RD_SELECT_TILE - 1) / RD_SELECT_TILE;
     size_t n = (size_t)sel->tiles_x * sel->tiles_y;
@@ -243,11 +270,11 @@ static void choose_tiles(rd_select *sel)
     free(var);
 }
 
-rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, double lookup_cost,
+rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, double cell_cost,
                             rd_select *sel, char *err, size_t errlen)
 {
     const rd_camera *cam = &ctx->scene->camera;
-    rd_status st = rd_select_init(sel, cam->width, cam->height, lookup_cost, err, errlen);
+    rd_status st = rd_select_init(sel, cam->width, cam->height, cell_cost, err, errlen);
     if (st != RD_OK) return st;
     sel->epochs = ctx->scene->settings.select != RD_SELECT_PILOT;
     int n = sel->tiles_x * sel->tiles_y;
@@ -328,7 +355,7 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
     int w = ctx->scene->camera.width;
     int x = (int)(th->pixel % (uint64_t)w), y = (int)(th->pixel / (uint64_t)w);
     int use = sel->guided[(y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE];
-    uint64_t lookups0 = th->counters.lookups;
+    work c0 = work_now(th);
     vec3 L;
     if (use) {
         L = method(ctx, th, r, smp);
@@ -337,6 +364,6 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
         pcg32 rng = rd_sampler_stream(smp);
         L = rd_delta_radiance(ctx->scene, r, &rng, &th->counters);
     }
-    if (v3_finite(L)) rd_select_observe(sel, th->pixel, L, sample_cost(sel, th->counters.lookups - lookups0, use));
+    if (v3_finite(L)) rd_select_observe(sel, th->pixel, L, sample_cost(sel, th, c0));
     return L;
 }
