@@ -48,11 +48,13 @@ Test(select, rule_keeps_dominance_and_no_flip_lowers_the_product)
 Test(select, a_tie_goes_to_delta)
 {
     /* Tiles that see no medium: variance 0 for both, and the same cost per sample summed over
-     * different numbers of samples, so equal up to rounding either way. */
-    enum { N = 6 };
+     * different numbers of samples, so equal up to rounding either way; the last tile sees
+     * the medium (lambda = sum V / sum C > 0, so the costs decide the others). */
+    enum { N = 7 };
     double var[2 * N] = {0}, cost[2 * N];
     uint8_t m[N];
-    for (int k = 0; k < N; k++) {
+    var[2 * (N - 1)] = 1.0, var[2 * (N - 1) + 1] = 3.0, cost[2 * (N - 1)] = cost[2 * (N - 1) + 1] = 2.0;
+    for (int k = 0; k < N - 1; k++) {
         double c = 0.0;
         for (int i = 0; i < 3 + k; i++) c += 2.18;
         cost[2 * k] = c / (3 + k), cost[2 * k + 1] = nextafter(cost[2 * k], (k & 1) ? 0.0 : 1e9);
