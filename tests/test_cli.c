@@ -89,6 +89,7 @@ static const bad_case catalogue[] = {
     {"thin_bias_above_one.json", "settings.thin_bias: expected false or a number in (0, 1), found 1.5"},
     {"thin_bias_weighted.json", "settings.thin_bias: only with \"tracker\": \"auto\", \"supervoxel\" or \"woodcock\""},
     {"too_thick.json", "media[0].sigma_t: majorant optical depth across the bounds is 3.46e+12"},
+    {"shape_outside_wrong.json", "shapes[0].outside: \"fog\" but the shape lies in \"room\""},
 };
 
 /* Every case through `render` and `info`: exit 2, one line naming the file and the field, no
