@@ -879,6 +879,33 @@ Test(cli, bake_signal_while_tracing_stops_and_writes_nothing, .timeout = 240)
     }
 }
 
+/* The same during `compare`'s bake of a guided method (the event: its signal handler installed,
+ * which it does just before the comparison starts; with --reference given, the bake is the first
+ * thing it does): the bake stops promptly and, no run having finished, nothing is written. */
+Test(cli, compare_signal_while_baking_stops_promptly, .timeout = 240)
+{
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char ref[256], dir[256], err[8192], msg[RD_ERRLEN];
+    snprintf(ref, sizeof ref, "%s/cmp-ref.exr", rt_tmpdir());
+    snprintf(dir, sizeof dir, "%s/cmp-cancel", rt_tmpdir());
+    static float px[24 * 16 * 3];
+    rd_image im = {24, 16, px, 0};
+    cr_assert(rd_image_write_exr(ref, &im, msg, sizeof msg) == RD_OK, "%s", msg);
+    char *argv[] = {(char *)bin, "compare", (char *)tiny_scene(), "--methods", "guided,delta", "--reference", ref,
+                    "--budget", "1", "--runs", "1", "--threads", "2", "-o", dir, "-q",
+                    "--set", "photons.count=1000000000", LONG_TRACE, NULL};
+    child c = spawn_until(argv, "", err, sizeof err); /* started; the event is below */
+    wait_until_catching_sigterm(c.pid);
+    kill(c.pid, SIGTERM);
+    double cpu = 0;
+    int code = child_wait_cpu(&c, err, sizeof err, &cpu);
+    cr_expect(code == 128 + SIGTERM, "exit %d (expected %d): %s", code, 128 + SIGTERM, err);
+    cr_expect(cpu < 30.0, "the bake went on for %.1f CPU s after SIGTERM", cpu);
+    cr_expect(strstr(err, "interrupted before any run finished; nothing written") != NULL, "%s", err);
+    cr_expect(access(dir, F_OK) != 0, "a report was written");
+}
+
 /* The same during `render`'s bake (a guided method, through the bake cache beside the output):
  * it stops promptly, says so in one line, leaves the previous image and writes nothing into the
  * cache. */
