@@ -41,6 +41,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 
 #ifdef __cplusplus
 extern "C" {
@@ -137,10 +138,13 @@ int pm_map_radiance(const pm_map *map, const double x[3], const float w[3], int 
                     pm_phase_fn phase, void *phase_user, float out[3]);
 
 /* Photon map file (format in docs/photonmap-format.md): magic "PMAP", version, counts,
- * origin, photons, segments, FNV-1a 64 checksum. Version 1 files (no origin) load with origin 0. Save writes to a temporary name and renames. Load
+ * origin, photons, segments, FNV-1a 64 checksum. Version 1 files (no origin) load with origin 0.
+ * pm_map_write writes the file to the stream f (opened for binary writing by the caller, who
+ * closes it; the renderer writes through a temporary name and a rename) and flushes it; a
+ * failed write is PM_ERR_IO naming `name` (the file's name for messages). Load
  * rejects wrong magic/version, truncation, absurd counts and checksum mismatches with
  * PM_ERR_FORMAT and a message naming the file. A loaded map is not built: call pm_map_build. */
-pm_status pm_map_save(const pm_map *map, const char *path, char *err, size_t errlen);
+pm_status pm_map_write(const pm_map *map, FILE *f, const char *name, char *err, size_t errlen);
 pm_status pm_map_load(pm_map **out, const char *path, char *err, size_t errlen);
 
 #ifdef __cplusplus

@@ -1,5 +1,6 @@
-/* pm_file.c: the photon map's .pmap file (docs/photonmap-format.md "The .pmap file"): save
- * (written to a hidden temporary and renamed into place) and load (header, counts against the
+/* pm_file.c: the photon map's .pmap file (docs/photonmap-format.md "The .pmap file"): write
+ * (to a stream the caller opened; where it goes, and how it is put in place, is the caller's)
+ * and load (header, counts against the
  * file size, records, FNV-1a 64 checksum, then the same value checks as pm_map_add_photons /
  * _add_segments). */
 #include <errno.h>
@@ -9,7 +10,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <unistd.h>
 
 #include "pm_internal.h"
 
@@ -123,40 +123,11 @@ static void errno_text(int e, char *buf, size_t len)
         snprintf(buf, len, "error %d", e);
 }
 
-/* The temporary name of `path` for this process: "dir/name.ext" -> "dir/.name.tmp<pid>.ext",
- * the scheme of the renderer's outputs (renderer/core/files.c): in the same folder, so the
- * rename is atomic, and hidden, so a bake killed mid-write leaves no visible file. `out` holds
- * strlen(path) + 32 bytes (a dot, ".tmp" and at most 20 digits are added). */
-static void temp_name(const char *path, char *out, size_t n)
+pm_status pm_map_write(const pm_map *map, FILE *f, const char *name, char *err, size_t errlen)
 {
-    const char *slash = strrchr(path, '/');
-    const char *base = slash ? slash + 1 : path;
-    const char *dot = strrchr(base, '.');
-    if (!dot || dot == base) dot = base + strlen(base);
-    snprintf(out, n, "%.*s.%.*s.tmp%ld%s", (int)(base - path), path, (int)(dot - base), base,
-             (long)getpid(), dot);
-}
-
-pm_status pm_map_save(const pm_map *map, const char *path, char *err, size_t errlen)
-{
-    if (map == NULL || path == NULL) {
-        pmi_set_err(err, errlen, "pm_map_save: NULL argument");
+    if (map == NULL || f == NULL || name == NULL) {
+        pmi_set_err(err, errlen, "pm_map_write: NULL argument");
         return PM_ERR_ARG;
-    }
-    size_t tlen = strlen(path) + 32;
-    char *tmp = malloc(tlen);
-    if (tmp == NULL) {
-        pmi_set_err(err, errlen, "%s: out of memory", path);
-        return PM_ERR_NOMEM;
-    }
-    temp_name(path, tmp, tlen);
-    char why[128];
-    FILE *f = fopen(tmp, "wb");
-    if (f == NULL) {
-        errno_text(errno, why, sizeof why);
-        pmi_set_err(err, errlen, "%s: cannot create %s: %s", path, tmp, why);
-        free(tmp);
-        return PM_ERR_IO;
     }
     unsigned char head[PM_HEADER_BYTES + PM_ORIGIN_BYTES];
     memcpy(head, "PMAP", 4);
@@ -165,30 +136,20 @@ pm_status pm_map_save(const pm_map *map, const char *path, char *err, size_t err
     put_le(head + 16, (uint64_t)map->nseg, 8);
     put_origin(head + PM_HEADER_BYTES, map->origin);
     uint64_t h = fnv1a(FNV_OFFSET, head, sizeof head);
+    errno = 0;
     int ok = fwrite(head, 1, sizeof head, f) == sizeof head;
     ok = ok && write_records(f, map->ph, map->nph * sizeof(pm_photon), &h);
     ok = ok && write_records(f, map->seg, map->nseg * sizeof(pm_segment), &h);
     unsigned char tail[PM_CHECKSUM_BYTES];
     put_le(tail, h, 8);
     ok = ok && fwrite(tail, 1, sizeof tail, f) == sizeof tail;
-    ok = ok && fflush(f) == 0 && fsync(fileno(f)) == 0;
-    int e = errno;
-    if (fclose(f) != 0 && ok) {
-        ok = 0;
-        e = errno;
-    }
-    if (ok && rename(tmp, path) != 0) {
-        ok = 0;
-        e = errno;
-    }
+    ok = ok && fflush(f) == 0 && !ferror(f);
     if (!ok) {
-        errno_text(e, why, sizeof why);
-        pmi_set_err(err, errlen, "%s: write failed: %s", path, why);
-        remove(tmp);
-        free(tmp);
+        char why[128];
+        errno_text(errno ? errno : EIO, why, sizeof why);
+        pmi_set_err(err, errlen, "%s: write failed: %s", name, why);
         return PM_ERR_IO;
     }
-    free(tmp);
     return PM_OK;
 }
 

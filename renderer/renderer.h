@@ -30,7 +30,8 @@ typedef enum {
     RD_ERR_SCENE,  /* valid JSON, invalid scene (wrong type, range, unknown key, ...) */
     RD_ERR_FORMAT, /* a data file (volume, image) is corrupt or of the wrong kind */
     RD_ERR_INTERNAL,
-    RD_ERR_OUTPUT  /* an output file or folder could not be written */
+    RD_ERR_OUTPUT, /* an output file or folder could not be written */
+    RD_ERR_CANCELLED /* stopped by the caller's cancel flag (a signal); nothing was written */
 } rd_status;
 
 #define RD_ERRLEN 512
@@ -252,6 +253,10 @@ typedef struct {
     int indirect_guide;        /* 1 (with indirect): also a guide grid baked from that map, the
                                   multiple-scattering source of march.ls = nee+guide */
     const char *load_indirect_guide; /* reuse a saved indirect .guide (with indirect_guide) */
+    const volatile int *cancel; /* non-NULL: polled while tracing (every 4096 photons), between
+                                   the steps and while baking the guide; once non-zero the bake
+                                   stops and returns RD_ERR_CANCELLED with no bake, and
+                                   rd_bake_cached puts no further cache file in place */
 } rd_bake_opts;
 
 /* Set the bake options that a method's needs (RD_NEEDS_*, from rd_method_needs_for) decide:

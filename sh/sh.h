@@ -42,6 +42,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 
 #include "photonmap.h"
 
@@ -60,7 +61,8 @@ typedef enum {
     SH_ERR_NOMEM,    /* allocation failed (or the requested grid exceeds max_cells) */
     SH_ERR_IO,       /* open/read/write/rename failed */
     SH_ERR_FORMAT,   /* file is not a guide, wrong version, truncated, corrupt, bad checksum */
-    SH_ERR_PHOTONMAP /* a photon-map query failed (map not built, ...) */
+    SH_ERR_PHOTONMAP, /* a photon-map query failed (map not built, ...) */
+    SH_ERR_CANCELLED  /* the caller's cancel flag stopped the work (sh_bake_params.cancel) */
 } sh_status;
 
 /* Short English name of a status ("ok", "bad argument", ...). Static storage. */
@@ -205,6 +207,9 @@ typedef struct {
     sh_rgb_field_fn sigma_s;
     void *sigma_s_user;
     int threads; /* OpenMP threads, 0 (default) = all. The result does not depend on it. */
+    /* Non-NULL: read between work units (16 cells, k-NN; one region, track); once it is
+     * non-zero the bake stops within them and returns SH_ERR_CANCELLED, no guide. Default NULL. */
+    const volatile int *cancel;
     /* The callbacks (sigma_t, sigma_s, phase_at) are called from several threads at once and
      * must be thread-safe (pure functions of x and a read-only user pointer). */
 } sh_bake_params;
@@ -324,11 +329,13 @@ sh_status sh_guide_slice(const sh_guide *g, int axis, double coord, const double
 
 /* --- Files (format in docs/guide-grid.md) --------------------------------------------------
  * Magic "SHGUIDE\0", version, kind, method, bands, box, resolution / octree nodes, cell
- * coefficients and extinctions, FNV-1a 64 checksum; little-endian. Save writes PATH.tmp.<pid>
- * and renames it over PATH. Load rejects a wrong magic or version, truncation, trailing bytes,
+ * coefficients and extinctions, FNV-1a 64 checksum; little-endian. sh_guide_write writes the
+ * file to the stream f (opened for binary writing by the caller, who closes it; the renderer
+ * writes through a temporary name and a rename) and flushes it; a failed write is SH_ERR_IO
+ * naming `name` (the file's name for messages). Load rejects a wrong magic or version, truncation, trailing bytes,
  * absurd sizes, a malformed octree, non-finite values and checksum mismatches with
  * SH_ERR_FORMAT and a one-line message naming the file. */
-sh_status sh_guide_save(const sh_guide *g, const char *path, char *err, size_t errlen);
+sh_status sh_guide_write(const sh_guide *g, FILE *f, const char *name, char *err, size_t errlen);
 sh_status sh_guide_load(sh_guide **out, const char *path, char *err, size_t errlen);
 
 #ifdef __cplusplus

@@ -67,6 +67,13 @@ static void cell_phase(const sh_bake_params *P, const double c[3], int bands, do
             b[l] = P->phase_b[l];
 }
 
+/* The caller's cancel flag (params.cancel) has been raised: the loops skip their remaining work
+ * units and the bake returns SH_ERR_CANCELLED. */
+static int shi_cancelled(const sh_bake_params *P)
+{
+    return P->cancel && *P->cancel;
+}
+
 /* OpenMP threads for the bake: params.threads, or all (0). The result does not depend on it. */
 static int nthreads(const sh_bake_params *P)
 {
@@ -95,7 +102,7 @@ sh_status shi_bake_knn(sh_guide *g, const pm_map *map, const sh_bake_params *P, 
         }
 #pragma omp for schedule(dynamic, 16)
         for (long long ci = 0; ci < ncell; ci++) {
-            if (!idx || !d2)
+            if (!idx || !d2 || shi_cancelled(P))
                 continue;
             size_t cell = (size_t)ci;
             double lo[3], hi[3], c[3];
@@ -145,6 +152,10 @@ sh_status shi_bake_knn(sh_guide *g, const pm_map *map, const sh_bake_params *P, 
     if (failed) {
         shi_set_err(err, errlen, "sh_guide_bake: pm_map_knn failed (is the photon map built?)");
         return SH_ERR_PHOTONMAP;
+    }
+    if (shi_cancelled(P)) {
+        shi_set_err(err, errlen, "sh_guide_bake: cancelled");
+        return SH_ERR_CANCELLED;
     }
     return SH_OK;
 }
@@ -400,6 +411,8 @@ sh_status shi_bake_track(sh_guide *g, const pm_map *map, const sh_bake_params *P
     long long nreg = (long long)nr;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads(P))
     for (long long ri = 0; ri < nreg; ri++) {
+        if (shi_cancelled(P))
+            continue;
         const region *r = &R[ri];
         size_t rc; /* cells in the region */
         int ni[3] = {0, 0, 0};
@@ -515,6 +528,10 @@ sh_status shi_bake_track(sh_guide *g, const pm_map *map, const sh_bake_params *P
     free(bin_off);
     if (nomem_flag)
         goto nomem;
+    if (shi_cancelled(P)) {
+        shi_set_err(err, errlen, "sh_guide_bake: cancelled");
+        return SH_ERR_CANCELLED;
+    }
     return SH_OK;
 nomem:
     free(R);

@@ -1,12 +1,11 @@
 /* sh_io.c: getting a guide out of memory: slice images for looking at it, and the guide file
- * (save / load; format in docs/guide-grid.md "File format" and below). Loading validates
+ * (write to a caller's stream / load; format in docs/guide-grid.md "File format" and below). Loading validates
  * everything before the guide is handed out: sizes against the file length, the checksum,
  * the octree's shape, and finite values. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 #include "sh_internal.h"
 
@@ -166,39 +165,13 @@ static void w_floats(wstream *w, const float *x, size_t n)
     }
 }
 
-/* The temporary name of `path` for this process: "dir/name.ext" -> "dir/.name.tmp<pid>.ext",
- * the scheme of the renderer's outputs (renderer/core/files.c): in the same folder, so the
- * rename is atomic, and hidden, so a bake killed mid-write leaves no visible file. `out` holds
- * strlen(path) + 32 bytes (a dot, ".tmp" and at most 20 digits are added). */
-static void temp_name(const char *path, char *out, size_t n)
+sh_status sh_guide_write(const sh_guide *g, FILE *f, const char *name, char *err, size_t errlen)
 {
-    const char *slash = strrchr(path, '/');
-    const char *base = slash ? slash + 1 : path;
-    const char *dot = strrchr(base, '.');
-    if (!dot || dot == base) dot = base + strlen(base);
-    snprintf(out, n, "%.*s.%.*s.tmp%ld%s", (int)(base - path), path, (int)(dot - base), base,
-             (long)getpid(), dot);
-}
-
-sh_status sh_guide_save(const sh_guide *g, const char *path, char *err, size_t errlen)
-{
-    if (!g || !path) {
-        shi_set_err(err, errlen, "sh_guide_save: guide and path must be non-NULL");
+    if (!g || !f || !name) {
+        shi_set_err(err, errlen, "sh_guide_write: guide, stream and name must be non-NULL");
         return SH_ERR_ARG;
     }
-    size_t plen = strlen(path);
-    char *tmp = malloc(plen + 32);
-    if (!tmp) {
-        shi_set_err(err, errlen, "%s: out of memory", path);
-        return SH_ERR_NOMEM;
-    }
-    temp_name(path, tmp, plen + 32);
-    wstream w = {fopen(tmp, "wb"), FNV_OFFSET, 0};
-    if (!w.f) {
-        shi_set_err(err, errlen, "%s: cannot create temporary file %s", path, tmp);
-        free(tmp);
-        return SH_ERR_IO;
-    }
+    wstream w = {f, FNV_OFFSET, 0};
     unsigned char hd[SH_HEADER_BYTES];
     memset(hd, 0, sizeof hd);
     memcpy(hd, SH_FILE_MAGIC, 8);
@@ -232,23 +205,12 @@ sh_status sh_guide_save(const sh_guide *g, const char *path, char *err, size_t e
     put_u64(cs, w.h);
     if (!w.bad && fwrite(cs, 1, 8, w.f) != 8)
         w.bad = 1;
-    if (fflush(w.f) != 0)
-        w.bad = 1;
-    if (fclose(w.f) != 0)
+    if (fflush(w.f) != 0 || ferror(w.f))
         w.bad = 1;
     if (w.bad) {
-        remove(tmp);
-        shi_set_err(err, errlen, "%s: write failed (temporary file %s removed)", path, tmp);
-        free(tmp);
+        shi_set_err(err, errlen, "%s: write failed", name);
         return SH_ERR_IO;
     }
-    if (rename(tmp, path) != 0) {
-        remove(tmp);
-        shi_set_err(err, errlen, "%s: cannot rename temporary file %s over it", path, tmp);
-        free(tmp);
-        return SH_ERR_IO;
-    }
-    free(tmp);
     return SH_OK;
 }
 

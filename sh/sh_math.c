@@ -30,6 +30,7 @@ const char *sh_status_name(sh_status s)
     case SH_ERR_IO: return "i/o error";
     case SH_ERR_FORMAT: return "bad file format";
     case SH_ERR_PHOTONMAP: return "photon map query failed";
+    case SH_ERR_CANCELLED: return "cancelled";
     }
     return "unknown status";
 }

@@ -89,6 +89,7 @@ static const bad_case catalogue[] = {
     {"thin_bias_above_one.json", "settings.thin_bias: expected false or a number in (0, 1), found 1.5"},
     {"thin_bias_weighted.json", "settings.thin_bias: only with \"tracker\": \"auto\", \"supervoxel\" or \"woodcock\""},
     {"too_thick.json", "media[0].sigma_t: majorant optical depth across the bounds is 3.46e+12"},
+    {"shape_outside_wrong.json", "shapes[0].outside: \"fog\" but the shape lies in \"room\""},
 };
 
 /* Every case through `render` and `info`: exit 2, one line naming the file and the field, no
@@ -794,6 +795,12 @@ static void bake_killed_while_writing(const char *kind)
         cr_expect(strstr(e->d_name, ".tmp.") == NULL, "not the .NAME.tmp<pid>.ext scheme: %s", e->d_name);
     }
     closedir(d);
+    cr_assert(count_entries(dir, ".tmp") > 0, "the kill left no temporary: nothing to clear below");
+    /* The next bake writing the same outputs (a small one) clears the killed one's temporaries. */
+    char out[4096], err[4096];
+    char *again[] = {(char *)bin, "bake", (char *)tiny_scene(), "-o", prefix, "--photons", "20000", "-q", NULL};
+    cr_assert(rt_run(again, out, sizeof out, err, sizeof err, NULL) == 0, "%s", err);
+    cr_expect(count_entries(dir, ".tmp") == 0, "the next bake left the killed one's %s temporary", kind);
 }
 
 Test(cli, bake_killed_writing_the_photon_map_leaves_only_hidden_temporaries, .timeout = 180)
@@ -804,4 +811,130 @@ Test(cli, bake_killed_writing_the_photon_map_leaves_only_hidden_temporaries, .ti
 Test(cli, bake_killed_writing_the_guide_leaves_only_hidden_temporaries, .timeout = 180)
 {
     bake_killed_while_writing("guide");
+}
+
+/* Wait for child c (spawn_until) like child_wait, and also return the CPU seconds it used. */
+static int child_wait_cpu(child *c, char *errbuf, size_t errlen, double *cpu)
+{
+    int status = 0;
+    struct rusage ru;
+    cr_assert(wait4(c->pid, &status, 0, &ru) == c->pid);
+    *cpu = ru.ru_utime.tv_sec + 1e-6 * ru.ru_utime.tv_usec + ru.ru_stime.tv_sec + 1e-6 * ru.ru_stime.tv_usec;
+    child_stderr(c, errbuf, errlen);
+    close(c->efd), close(c->ofd);
+    unlink(c->path), unlink(c->opath);
+    return WIFSIGNALED(status) ? 1000 + WTERMSIG(status) : WEXITSTATUS(status);
+}
+
+/* The lines of `text` after the one containing `marker`. */
+static int lines_after(const char *text, const char *marker)
+{
+    const char *p = strstr(text, marker);
+    if (!p) return -1;
+    p = strchr(p, '\n');
+    int n = 0;
+    for (; p && p[1]; p = strchr(p + 1, '\n')) n++;
+    return n;
+}
+
+/* A billion photons of one collision each, none stored (so memory stays flat): about ten CPU
+ * minutes of tracing, which a prompt cancel cuts to a fraction of a second. */
+#define LONG_TRACE "--set", "photons.max_depth=1", "--set", "photons.store_direct=false"
+
+/* Ctrl-C or SIGTERM while `bake` traces (the event: its line saying so, printed once the
+ * cancelling handler is in place): the trace stops promptly (the child's CPU time, not the
+ * clock's, so the machine's load does not matter), one line says nothing was written, the exit
+ * status is 128 + the signal, the previous bake's files are as they were and no temporary is
+ * left. */
+Test(cli, bake_signal_while_tracing_stops_and_writes_nothing, .timeout = 240)
+{
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char dir[200], prefix[256], pmap[300], guide[300], pmap0[300], guide0[300], out[4096], err[8192];
+    snprintf(dir, sizeof dir, "%s/bcancel", rt_tmpdir());
+    snprintf(prefix, sizeof prefix, "%s/b", dir);
+    snprintf(pmap, sizeof pmap, "%s.pmap", prefix);
+    snprintf(guide, sizeof guide, "%s.guide", prefix);
+    snprintf(pmap0, sizeof pmap0, "%s/previous.pmap", rt_tmpdir());
+    snprintf(guide0, sizeof guide0, "%s/previous.guide", rt_tmpdir());
+    char *first[] = {(char *)bin, "bake", (char *)tiny_scene(), "-o", prefix, "--photons", "20000", "-q", NULL};
+    cr_assert(rt_run(first, out, sizeof out, err, sizeof err, NULL) == 0, "%s", err);
+    copy_file(pmap, pmap0);
+    copy_file(guide, guide0);
+    const int sigs[2] = {SIGINT, SIGTERM};
+    for (int i = 0; i < 2; i++) {
+        char *argv[] = {(char *)bin, "bake", (char *)tiny_scene(), "-o", prefix, "--photons", "1000000000",
+                        "--threads", "2", LONG_TRACE, NULL};
+        child c = spawn_until(argv, "Ctrl-C stops and writes nothing", err, sizeof err);
+        kill(c.pid, sigs[i]);
+        double cpu = 0;
+        int code = child_wait_cpu(&c, err, sizeof err, &cpu);
+        cr_expect(code == 128 + sigs[i], "signal %d: exit %d (expected %d): %s", sigs[i], code, 128 + sigs[i], err);
+        cr_expect(cpu < 30.0, "signal %d: the bake went on for %.1f CPU s after it", sigs[i], cpu);
+        cr_expect(strstr(last_line(err), "photonmarch bake: interrupted while baking; nothing written") == last_line(err),
+                  "signal %d: the last line is not the cancel's: %s", sigs[i], err);
+        cr_expect(lines_after(err, "Ctrl-C stops and writes nothing") == 1, "signal %d: not one line: %s", sigs[i], err);
+        cr_expect(same_bytes(pmap, pmap0) && same_bytes(guide, guide0), "signal %d: the previous bake was changed", sigs[i]);
+        cr_expect(count_entries(dir, ".tmp") == 0, "signal %d: a temporary was left", sigs[i]);
+    }
+}
+
+/* The same during `compare`'s bake of a guided method (the event: its signal handler installed,
+ * which it does just before the comparison starts; with --reference given, the bake is the first
+ * thing it does): the bake stops promptly and, no run having finished, nothing is written. */
+Test(cli, compare_signal_while_baking_stops_promptly, .timeout = 240)
+{
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char ref[256], dir[256], err[8192], msg[RD_ERRLEN];
+    snprintf(ref, sizeof ref, "%s/cmp-ref.exr", rt_tmpdir());
+    snprintf(dir, sizeof dir, "%s/cmp-cancel", rt_tmpdir());
+    static float px[24 * 16 * 3];
+    rd_image im = {24, 16, px, 0};
+    cr_assert(rd_image_write_exr(ref, &im, msg, sizeof msg) == RD_OK, "%s", msg);
+    char *argv[] = {(char *)bin, "compare", (char *)tiny_scene(), "--methods", "guided,delta", "--reference", ref,
+                    "--budget", "1", "--runs", "1", "--threads", "2", "-o", dir, "-q",
+                    "--set", "photons.count=1000000000", LONG_TRACE, NULL};
+    child c = spawn_until(argv, "", err, sizeof err); /* started; the event is below */
+    wait_until_catching_sigterm(c.pid);
+    kill(c.pid, SIGTERM);
+    double cpu = 0;
+    int code = child_wait_cpu(&c, err, sizeof err, &cpu);
+    cr_expect(code == 128 + SIGTERM, "exit %d (expected %d): %s", code, 128 + SIGTERM, err);
+    cr_expect(cpu < 30.0, "the bake went on for %.1f CPU s after SIGTERM", cpu);
+    cr_expect(strstr(err, "interrupted before any run finished; nothing written") != NULL, "%s", err);
+    cr_expect(access(dir, F_OK) != 0, "a report was written");
+}
+
+/* The same during `render`'s bake (a guided method, through the bake cache beside the output):
+ * it stops promptly, says so in one line, leaves the previous image and writes nothing into the
+ * cache. */
+Test(cli, render_signal_while_baking_stops_and_writes_nothing, .timeout = 240)
+{
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char dir[200], exr[256], exr0[300], cache[300], out[4096], err[8192];
+    snprintf(dir, sizeof dir, "%s/rcancel", rt_tmpdir());
+    snprintf(exr, sizeof exr, "%s/r.exr", dir);
+    snprintf(exr0, sizeof exr0, "%s/previous-r.exr", rt_tmpdir());
+    snprintf(cache, sizeof cache, "%s/.photonmarch-cache", dir);
+    char *first[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", exr, "--spp", "1", "-q", NULL};
+    cr_assert(rt_run(first, out, sizeof out, err, sizeof err, NULL) == 0, "%s", err);
+    copy_file(exr, exr0);
+    char *argv[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", exr, "--method", "guided", "--spp", "1",
+                    "--threads", "2", "--set", "photons.count=1000000000", LONG_TRACE, NULL};
+    child c = spawn_until(argv, "Ctrl-C stops and writes nothing", err, sizeof err);
+    kill(c.pid, SIGTERM);
+    double cpu = 0;
+    int code = child_wait_cpu(&c, err, sizeof err, &cpu);
+    cr_expect(code == 128 + SIGTERM, "exit %d (expected %d): %s", code, 128 + SIGTERM, err);
+    cr_expect(cpu < 30.0, "the bake went on for %.1f CPU s after SIGTERM", cpu);
+    cr_expect(strstr(last_line(err), "photonmarch render: interrupted while baking") == last_line(err),
+              "the last line is not the cancel's: %s", err);
+    cr_expect(lines_after(err, "Ctrl-C stops and writes nothing") == 1, "not one line: %s", err);
+    cr_expect(same_bytes(exr, exr0), "the previous image was changed");
+    cr_expect(count_entries(dir, ".tmp") == 0, "a temporary was left beside the image");
+    cr_expect(access(cache, F_OK) != 0 || (count_entries(cache, ".pmap") == 0 && count_entries(cache, ".guide") == 0 &&
+                                            count_entries(cache, ".tmp") == 0),
+              "the cancelled bake wrote into the cache %s", cache);
 }

@@ -315,10 +315,10 @@ Test(geom, scene_shape_errors)
     char sh[1024];
     snprintf(sh, sizeof sh, "{\"file\":\"c.obj\",%s,\"inside\":\"smoke\"}", mat);
     expect_scene_error(shape_scene("e1.json", FOG, sh, ""), "e1.json: shapes[0].inside: no medium named \"smoke\"", "fog");
-    expect_scene_error(shape_scene("e2.json", FOG, "{\"file\":\"c.obj\",\"material\":{\"type\":\"dielectric\",\"ior\":0.5}}", ""),
-                       "e2.json: shapes[0].material.ior: must be in [1, 4]", NULL);
+    expect_scene_error(shape_scene("e2.json", FOG, "{\"file\":\"c.obj\",\"material\":{\"type\":\"dielectric\",\"ior\":0.2}}", ""),
+                       "e2.json: shapes[0].material.ior: must be in [0.25, 4]", NULL);
     expect_scene_error(shape_scene("e3.json", FOG, "{\"file\":\"c.obj\",\"material\":{\"type\":\"dielectric\",\"ior\":5}}", ""),
-                       "shapes[0].material.ior: must be in [1, 4]", NULL);
+                       "shapes[0].material.ior: must be in [0.25, 4]", NULL);
     snprintf(sh, sizeof sh, "{\"file\":\"meshes/knot.obj\",%s}", mat);
     expect_scene_error(shape_scene("e4.json", FOG, sh, ""), "e4.json: shapes[0].file:", "meshes/knot.obj: no such file");
     snprintf(sh, sizeof sh, "{\"file\":\"open.obj\",%s,\"inside\":\"fog\"}", mat);
@@ -654,4 +654,37 @@ Test(geom, glass_slab_through_embree, .timeout = 120)
     cr_expect(fabs(got - expect) < 5 * sd, "transmitted %.5f, (1-F)/(1+F) = %.5f +- %.5f", got, expect, sd);
     rd_geom_free(g);
     rd_scene_free(s);
+}
+
+/* A shape's "outside" must be the medium around it (the inside of the innermost closed shape
+ * that contains it, else the scene-wide medium): one line naming the file and the field, and the
+ * medium that is there. A bubble (a shape inside another, of lower index: ior < 1) loads when
+ * written right, in either order of the shapes, and its regions are the ones written. */
+#define GLASS_CUBE "{\"name\":\"glass\",\"file\":\"c.obj\",\"transform\":{\"scale\":2.2,\"translate\":[-1.1,-1.1,-1.1]}," \
+                   "\"material\":{\"type\":\"dielectric\",\"ior\":1.5},\"inside\":\"fog\",\"outside\":\"room\"}"
+#define BUBBLE(outside) "{\"name\":\"bubble\",\"file\":\"c.obj\",\"transform\":{\"scale\":0.5,\"translate\":[-0.25,-0.25,-0.25]}," \
+                        "\"material\":{\"type\":\"dielectric\",\"ior\":0.6667},\"inside\":null,\"outside\":" outside "}"
+Test(geom, shape_outside_must_be_the_medium_around_it)
+{
+    cube_obj("c.obj", -1, -1);
+    /* Nested: the bubble lies in the glass's fog, not in the room. */
+    expect_scene_error(shape_scene("o1.json", FOG "," ROOM, GLASS_CUBE "," BUBBLE("\"room\""), "\"medium\":\"room\""),
+                       "o1.json: shapes[1].outside: \"room\" but the shape lies in \"fog\"", "inside shapes[0] (\"glass\")");
+    /* Top level: around it is the scene-wide medium, or vacuum when there is none. */
+    expect_scene_error(shape_scene("o2.json", FOG "," ROOM, BUBBLE("\"fog\""), "\"medium\":\"room\""),
+                       "o2.json: shapes[0].outside: \"fog\" but the shape lies in \"room\"", "scene-wide");
+    expect_scene_error(shape_scene("o3.json", FOG "," ROOM, GLASS_CUBE, ""),
+                       "o3.json: shapes[0].outside: \"room\" but the shape lies in vacuum (null)", NULL);
+    /* The bubble written right, before or after the glass. */
+    const char *orders[2] = {GLASS_CUBE "," BUBBLE("\"fog\""), BUBBLE("\"fog\"") "," GLASS_CUBE};
+    for (int i = 0; i < 2; i++) {
+        rd_scene *s;
+        char err[RD_ERRLEN];
+        cr_assert(load(shape_scene("bubble.json", FOG "," ROOM, orders[i], "\"medium\":\"room\""), &s, err) == RD_OK,
+                  "order %d: %s", i, err);
+        cr_expect_eq(rd_scene_region_at(s, v3(0, 0, 0)), -1, "order %d: inside the bubble: vacuum", i);
+        cr_expect_eq(rd_scene_region_at(s, v3(0.6, 0.5, 0.4)), 0, "order %d: in the glass, outside the bubble: fog", i);
+        cr_expect_eq(rd_scene_region_at(s, v3(0, 3, 0)), 1, "order %d: outside the glass: the room", i);
+        rd_scene_free(s);
+    }
 }

@@ -816,3 +816,37 @@ Test(sh, bakes_far_from_the_origin_equal_bakes_near_it)
     free(ph);
     free(sg);
 }
+
+/* sh_bake_params.cancel: a raised flag stops either bake with SH_ERR_CANCELLED and no guide; a
+ * flag that stays down changes nothing (the same maps bake). */
+Test(sh, a_raised_cancel_flag_stops_both_bakes)
+{
+    rng r = rng_new(41);
+    const size_t ns = 500;
+    pm_segment *sg = random_segments(&r, ns, -0.2, 1.2, 0.4);
+    pm_photon ph;
+    double x[3] = {0.5, 0.5, 0.5}, w[3] = {0, 0, 1}, pw[3] = {1, 1, 1};
+    set_photon(&ph, x, w, pw);
+    pm_map *m = build_map(&ph, 1, sg, ns);
+    for (int method = 0; method < 2; method++) {
+        sh_bake_params P;
+        sh_bake_params_default(&P);
+        unit_box(&P);
+        P.method = method ? SH_BAKE_TRACK : SH_BAKE_KNN;
+        P.k = 1;
+        P.res[0] = P.res[1] = P.res[2] = 8;
+        volatile int flag = 1;
+        P.cancel = &flag;
+        sh_guide *g = NULL;
+        char err[256] = "";
+        cr_expect_eq(sh_guide_bake(&g, m, &P, err, sizeof err), SH_ERR_CANCELLED, "method %d: %s", method, err);
+        cr_expect_null(g);
+        cr_expect(strstr(err, "cancelled") != NULL, "%s", err);
+        flag = 0;
+        cr_expect_eq(sh_guide_bake(&g, m, &P, err, sizeof err), SH_OK, "method %d: %s", method, err);
+        cr_expect_not_null(g);
+        sh_guide_free(g);
+    }
+    pm_map_free(m);
+    free(sg);
+}

@@ -1,6 +1,7 @@
 /* bake.c: from a scene to its photon map and SH guide grid (seed 001 §3, THEORY.md §3-5), and
  * the pictures that show them: a projection of the stored photons through the scene camera,
  * and slices of the guide evaluated toward a direction. */
+#include "core/rd_core.h"
 #include "integrators/rd_method.h"
 #include "bake/rd_photons.h"
 #include "sh.h"
@@ -46,8 +47,9 @@ static void cb_phase_at(const double x[3], void *user, double *b)
     guide_phase_coeffs(&pc->s->guide, m ? m->g : 0.0, b);
 }
 
-rd_status rd_guide_bake(const rd_scene *s, const pm_map *map, int threads, sh_guide **out,
-                        char *err, size_t errlen)
+/* rd_guide_bake with a cancel flag (rd_bake_opts.cancel; NULL: none). */
+static rd_status guide_bake(const rd_scene *s, const pm_map *map, int threads, const volatile int *cancel,
+                            sh_guide **out, char *err, size_t errlen)
 {
     const rd_guide_settings *gs = &s->guide;
     sh_bake_params p;
@@ -77,13 +79,24 @@ rd_status rd_guide_bake(const rd_scene *s, const pm_map *map, int threads, sh_gu
     p.sigma_s = cb_sigma_s;
     p.sigma_s_user = (void *)s;
     p.threads = threads;
+    p.cancel = cancel;
     char msg[RD_ERRLEN];
     sh_status st = sh_guide_bake(out, map, &p, msg, sizeof msg);
+    if (st == SH_ERR_CANCELLED) {
+        snprintf(err, errlen, "%s: guide bake interrupted", s->path);
+        return RD_ERR_CANCELLED;
+    }
     if (st != SH_OK) {
         snprintf(err, errlen, "%s: guide: %s", s->path, msg);
         return st == SH_ERR_NOMEM ? RD_ERR_NOMEM : RD_ERR_SCENE;
     }
     return RD_OK;
+}
+
+rd_status rd_guide_bake(const rd_scene *s, const pm_map *map, int threads, sh_guide **out,
+                        char *err, size_t errlen)
+{
+    return guide_bake(s, map, threads, NULL, out, err, errlen);
 }
 
 /* ---- Pictures ------------------------------------------------------------------------------ */
@@ -202,7 +215,8 @@ static rd_status trace_new_map(const rd_scene *s, const rd_bake_opts *o, int sto
                          .segments = segments,
                          .max_depth = s->photons.max_depth,
                          .seed = o->seed >= 0 ? (uint64_t)o->seed : s->photons.seed,
-                         .threads = o->threads};
+                         .threads = o->threads,
+                         .cancel = o->cancel};
     memset(ps, 0, sizeof *ps);
     if (!(*map = pm_map_new()) || (indirect && !(*indirect = pm_map_new()))) {
         snprintf(err, errlen, "%s: out of memory for the photon map", s->path);
@@ -274,6 +288,12 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
         st = RD_ERR_INTERNAL;
         goto fail;
     }
+    /* (A signal during the index builds, which cannot stop part-way, is seen here.) */
+    if (o->cancel && *o->cancel) {
+        snprintf(err, errlen, "%s: bake interrupted", s->path);
+        st = RD_ERR_CANCELLED;
+        goto fail;
+    }
     /* 3. The SH guide grid (THEORY.md §5). */
     if (!o->no_guide && o->load_guide) {
         if (sh_guide_load(&b->guide, o->load_guide, pmerr, sizeof pmerr) != SH_OK) {
@@ -281,7 +301,7 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
             st = RD_ERR_FORMAT;
             goto fail;
         }
-    } else if (!o->no_guide && (st = rd_guide_bake(s, b->map, o->threads, &b->guide, err, errlen)) != RD_OK) {
+    } else if (!o->no_guide && (st = guide_bake(s, b->map, o->threads, o->cancel, &b->guide, err, errlen)) != RD_OK) {
         goto fail;
     }
     /* 3b. The guide of the indirect map: multiple scattering for march.ls = nee+guide. */
@@ -292,7 +312,7 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
             goto fail;
         }
     } else if (b->indirect && o->indirect_guide &&
-               (st = rd_guide_bake(s, b->indirect, o->threads, &b->guide_indirect, err, errlen)) != RD_OK) {
+               (st = guide_bake(s, b->indirect, o->threads, o->cancel, &b->guide_indirect, err, errlen)) != RD_OK) {
         goto fail;
     }
     if (b->guide) {
@@ -358,6 +378,26 @@ fail:
     return st;
 }
 
+/* ---- Files: a photon map or a guide through core/files.c's temporary and rename ---------- */
+
+typedef struct { const pm_map *map; const sh_guide *guide; const char *path; } save_job;
+
+static rd_status write_map_or_guide(FILE *f, void *user, char *err, size_t errlen)
+{
+    const save_job *j = user;
+    if (j->map) return pm_map_write(j->map, f, j->path, err, errlen) == PM_OK ? RD_OK : RD_ERR_OUTPUT;
+    return sh_guide_write(j->guide, f, j->path, err, errlen) == SH_OK ? RD_OK : RD_ERR_OUTPUT;
+}
+
+/* Save a map (guide NULL) or a guide (map NULL) as path; with a raised cancel flag the file is
+ * not put in place (RD_ERR_CANCELLED) and its temporary is removed. */
+static rd_status save_file(const pm_map *map, const sh_guide *guide, const char *path,
+                           const volatile int *cancel, char *err, size_t errlen)
+{
+    save_job j = {map, guide, path};
+    return rd_write_file(path, write_map_or_guide, &j, cancel, err, errlen);
+}
+
 /* ---- The bake cache -------------------------------------------------------------------- */
 
 rd_status rd_bake_cached(const rd_scene *s, const rd_bake_opts *o, const char *dir, rd_baked **out,
@@ -395,11 +435,18 @@ rd_status rd_bake_cached(const rd_scene *s, const rd_bake_opts *o, const char *d
     rd_status st = rd_bake(s, o, out, err, errlen);
     if (st != RD_OK) return st;
     const rd_baked *b = *out;
-    if (rd_make_parent_dirs(pmap, msg, sizeof msg) != RD_OK ||
-        pm_map_save(b->map, pmap, msg, sizeof msg) != PM_OK ||
-        (b->indirect && pm_map_save(b->indirect, ind, msg, sizeof msg) != PM_OK) ||
-        (b->guide && sh_guide_save(b->guide, guide, msg, sizeof msg) != SH_OK) ||
-        (b->guide_indirect && sh_guide_save(b->guide_indirect, iguide, msg, sizeof msg) != SH_OK)) {
+    const volatile int *c = o->cancel;
+    if ((st = rd_make_parent_dirs(pmap, msg, sizeof msg)) != RD_OK ||
+        (st = save_file(b->map, NULL, pmap, c, msg, sizeof msg)) != RD_OK ||
+        (b->indirect && (st = save_file(b->indirect, NULL, ind, c, msg, sizeof msg)) != RD_OK) ||
+        (b->guide && (st = save_file(NULL, b->guide, guide, c, msg, sizeof msg)) != RD_OK) ||
+        (b->guide_indirect && (st = save_file(NULL, b->guide_indirect, iguide, c, msg, sizeof msg)) != RD_OK)) {
+        if (st == RD_ERR_CANCELLED) { /* interrupted while saving: no bake, no more files */
+            rd_baked_free(*out);
+            *out = NULL;
+            snprintf(err, errlen, "%s: bake interrupted while saving the cache (%s)", s->path, msg);
+            return RD_ERR_CANCELLED;
+        }
         snprintf(err, errlen, "bake cache not saved: %s", msg); /* the bake itself is good */
         *hit = -1;
     }
@@ -458,15 +505,12 @@ static rd_status write_slice(const sh_guide *g, const char *prefix, char axis_na
 rd_status rd_baked_write(const rd_baked *b, const rd_scene *s, const char *prefix,
                          const rd_bake_write_opts *o, char *err, size_t errlen)
 {
-    char path[1200], pmerr[RD_ERRLEN];
+    char path[1200];
     rd_status st = rd_make_parent_dirs(prefix, err, errlen);
     if (st) return st;
     if (o->write_map) {
         snprintf(path, sizeof path, "%s.pmap", prefix);
-        if (pm_map_save(b->map, path, pmerr, sizeof pmerr) != PM_OK) {
-            snprintf(err, errlen, "%s", pmerr);
-            return RD_ERR_OUTPUT;
-        }
+        if ((st = save_file(b->map, NULL, path, NULL, err, errlen)) != RD_OK) return st;
     }
     rd_image img = {0, 0, NULL, 0};
     if ((st = rd_photon_image(s, b->map, &img, err, errlen)) == RD_OK)
@@ -474,10 +518,7 @@ rd_status rd_baked_write(const rd_baked *b, const rd_scene *s, const char *prefi
     rd_image_free_pixels(&img);
     if (st || !b->guide) return st;
     snprintf(path, sizeof path, "%s.guide", prefix);
-    if (sh_guide_save(b->guide, path, pmerr, sizeof pmerr) != SH_OK) {
-        snprintf(err, errlen, "%s", pmerr);
-        return RD_ERR_OUTPUT;
-    }
+    if ((st = save_file(NULL, b->guide, path, NULL, err, errlen)) != RD_OK) return st;
     /* Slices toward the camera unless told otherwise; one across z at the centre by default. */
     double w[3] = {-s->camera.forward.x, -s->camera.forward.y, -s->camera.forward.z};
     if (o->has_toward) memcpy(w, o->toward, sizeof w);

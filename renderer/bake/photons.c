@@ -311,6 +311,7 @@ rd_status rd_trace_photons_split(const rd_scene *s, const rd_photon_opts *o, pm_
     uint64_t coll = 0, look = 0;
 #pragma omp parallel for num_threads(nthreads) schedule(dynamic, 1) reduction(+ : coll, look)
     for (size_t bi = 0; bi < nblocks; bi++) {
+        if (o->cancel && *o->cancel) continue; /* cancelled: skip the blocks not begun */
         size_t first = bi * BLOCK, cnt = first + BLOCK <= o->count ? BLOCK : o->count - first;
         rd_track_counters tc = {0};
         trace_block(s, o, cdf, first, cnt, &blocks[bi], &tc);
@@ -324,6 +325,10 @@ rd_status rd_trace_photons_split(const rd_scene *s, const rd_photon_opts *o, pm_
     st->emitted = o->count;
 
     rd_status status = RD_OK;
+    if (o->cancel && *o->cancel) {
+        snprintf(err, errlen, "%s: photon tracing interrupted", s->path);
+        status = RD_ERR_CANCELLED; /* nothing is added to the maps; the blocks are freed below */
+    }
     for (size_t bi = 0; bi < nblocks; bi++) {
         block_out *b = &blocks[bi];
         if (status == RD_OK && b->oom) {

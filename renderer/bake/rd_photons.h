@@ -18,6 +18,8 @@ typedef struct {
     int max_depth;     /* collisions per photon path */
     uint64_t seed;
     int threads;       /* 0 = all */
+    const volatile int *cancel; /* non-NULL: read before each block of 4096 photons; once it is
+                                   non-zero the trace stops and returns RD_ERR_CANCELLED */
 } rd_photon_opts;
 
 typedef struct {

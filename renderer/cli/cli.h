@@ -87,6 +87,12 @@ void cli_on_signal_quit(void);
 /* While there is something to write: the first SIGINT or SIGTERM is noted (the cancel flag)
  * so the work stops and writes what it has; a second one ends the process at once. */
 void cli_on_signal_stop(void);
+/* During a bake (rd_bake_opts.cancel = cli_cancel_flag()): the first signal is noted silently,
+ * so the bake stops and removes its temporaries; a second one ends the process at once. */
+void cli_on_signal_cancel(void);
+/* The one line after a bake stopped by a signal, "photonmarch CMD: interrupted WHAT; nothing
+ * written, ...", on stderr; returns the exit status (130 / 143). */
+int cli_report_cancelled(const char *cmd, const char *what);
 /* The flag for rd_render_opts.cancel and rd_cmp_opts.cancel: the first signal's number. */
 const volatile sig_atomic_t *cli_cancel_flag(void);
 /* The number of the first SIGINT or SIGTERM received (0: none yet). */

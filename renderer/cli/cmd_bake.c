@@ -35,6 +35,9 @@ static const char *const usage_bake =
     "  PREFIX-photons.exr/.png    photon power projected through the scene camera\n"
     "  PREFIX-slice-A.exr/.png    a slice of the guide across axis A, evaluated toward --toward\n"
     "  PREFIX-cells-A.png         the same slice showing cell extinction (uniform) or depth (adaptive)\n"
+    "Ctrl-C or SIGTERM while tracing or baking stops at once and writes nothing, leaving the\n"
+    "previous files as they were (exit 130 / 143); once the files are being written, they are\n"
+    "finished first.\n"
     "\n"
     "options:\n"
     "  -o, --output PREFIX    output prefix\n"
@@ -148,7 +151,7 @@ int cli_cmd_bake(int argc, char **argv)
         return CLI_EXIT_USAGE;
     }
     if (refuse_bake_outputs(prefix, a.scene)) return CLI_EXIT_USAGE;
-    cli_on_signal_quit(); /* tracing and baking cannot stop part-way */
+    cli_on_signal_quit(); /* while the scene loads, a signal ends the process at once */
     bo.photons = photons > 0 ? (size_t)photons : 0;
     bo.seed = seed;
     bo.threads = (int)threads;
@@ -160,9 +163,17 @@ int cli_cmd_bake(int argc, char **argv)
     if (st) return cli_report_error(st, err);
     rd_baked *b = NULL;
     int code = 0;
+    cli_on_signal_cancel(); /* a signal stops the tracing and the guide bake: nothing written */
+    bo.cancel = cli_cancel_flag();
+    if (!quiet) fprintf(stderr, "photonmarch bake: tracing and baking (Ctrl-C stops and writes nothing)\n");
     if ((st = rd_make_parent_dirs(prefix, err, sizeof err)) != RD_OK ||
         (st = rd_bake(s, &bo, &b, err, sizeof err)) != RD_OK) {
-        code = cli_report_error(st, err);
+        code = st == RD_ERR_CANCELLED ? cli_report_cancelled("bake", "while baking")
+                                      : cli_report_error(st, err);
+        goto done;
+    }
+    if (cli_interrupted()) { /* after the bake's last check: still nothing written */
+        code = cli_report_cancelled("bake", "while baking");
         goto done;
     }
     const rd_bake_stats *bs = rd_baked_stats(b);

@@ -29,7 +29,8 @@ static const char *const usage_render =
     "Files are written under a temporary name and renamed, so a failed run never destroys a\n"
     "good image. Ctrl-C or SIGTERM (or the time limit) stops before the next pixel and writes\n"
     "what it has (exit 130 for Ctrl-C, 143 for SIGTERM); a second signal ends it at once; the\n"
-    "per-pixel sample counts are in the report.\n"
+    "per-pixel sample counts are in the report. A signal while the method's photon map and\n"
+    "guide are baked stops the bake and writes nothing (exit 130 / 143).\n"
     "\n"
     "options:\n"
     "  --method M        rendering method (default: settings.method, else delta); the methods\n"
@@ -169,7 +170,14 @@ int cli_cmd_render(int argc, char **argv)
         bo.load_photons = photons_path;
         bo.load_guide = guide_path;
         double t0 = cli_wall_seconds();
+        cli_on_signal_cancel(); /* a signal stops the bake, which removes its cache temporaries */
+        bo.cancel = cli_cancel_flag();
+        if (!quiet) fprintf(stderr, "photonmarch render: preparing the photon map and guide (Ctrl-C stops and writes nothing)\n");
         st = cli_bake_beside(scene, &bo, outpath, photons_path || guide_path || no_cache, quiet, &baked, err, sizeof err);
+        if (st == RD_ERR_CANCELLED || (st == RD_OK && cli_interrupted())) {
+            code = cli_report_cancelled("render", "while baking the photon map and guide");
+            goto out;
+        }
         if (st) {
             code = cli_report_error(st, err);
             goto out;

@@ -1,10 +1,13 @@
 /* signals.c: Ctrl-C and SIGTERM for the command line (docs/cli.md, "Signals"). Before there is
- * anything to write a signal ends the process at once; while there is, the first one is noted in
- * the cancel flag, polled by the render and compare loops, and what was done is written. */
+ * anything to write a signal ends the process at once; during a bake the first one is noted in
+ * the cancel flag, which stops the tracing and the guide bake, and nothing is written; while
+ * there is something to write, it is noted in the cancel flag, polled by the render and compare
+ * loops, and what was done is written. */
 #define _DEFAULT_SOURCE /* SA_RESTART */
 #include "cli.h"
 
 #include <signal.h>
+#include <stdio.h>
 #include <string.h>
 #include <unistd.h>
 
@@ -34,13 +37,12 @@ static void handle_stop_signals(void (*fn)(int))
     sigprocmask(SIG_UNBLOCK, &both, NULL);
 }
 
-/* While there is something to write (a render's passes and the writing of any outputs): note
- * the signal, then let the next one end the process at once (default action). Only
+/* The first signal of a bake (cancel), a render's passes or the writing of any outputs (stop):
+ * note it, then let the next one end the process at once (default action). Only
  * async-signal-safe calls here (sigaction, write, raise; POSIX.1-2008 2.4.3). Every output goes
  * through a temporary name and a rename, so being killed mid-write keeps the previous files. */
-static void on_signal_stop(int sig)
+static void note_first_signal(int sig, const char *msg, size_t len)
 {
-    static const char msg[] = "\nphotonmarch: stopping; writing what it has (a second Ctrl-C or SIGTERM ends at once)\n";
     static const struct sigaction dfl = {.sa_handler = SIG_DFL};
     /* Two threads can take a SIGINT and a SIGTERM at the same moment, each running this
      * handler: only the one that turns `interrupted` from 0 to its signal (atomically; a
@@ -53,12 +55,24 @@ static void on_signal_stop(int sig)
     }
     sigaction(SIGINT, &dfl, NULL);
     sigaction(SIGTERM, &dfl, NULL);
-    ssize_t r = write(STDERR_FILENO, msg, sizeof msg - 1);
-    (void)r;
+    if (len > 0) {
+        ssize_t r = write(STDERR_FILENO, msg, len);
+        (void)r;
+    }
 }
 
-/* Before there is anything to write (loading the scene, tracing and baking, which cannot stop
- * part-way): end at once with the documented status. */
+static void on_signal_stop(int sig)
+{
+    static const char msg[] = "\nphotonmarch: stopping; writing what it has (a second Ctrl-C or SIGTERM ends at once)\n";
+    note_first_signal(sig, msg, sizeof msg - 1);
+}
+
+/* During a bake: the same, silently; the command prints its one line when the bake has
+ * stopped (cli_report_cancelled). */
+static void on_signal_cancel(int sig) { note_first_signal(sig, "", 0); }
+
+/* Before there is anything to write (loading the scene): end at once with the documented
+ * status. */
 static void on_signal_quit(int sig)
 {
     static const char msg[] = "\nphotonmarch: interrupted before anything was rendered; nothing written\n";
@@ -74,6 +88,13 @@ int cli_exit_interrupted(int sig) { return 128 + sig; }
 /* Install the handlers: cli.h. */
 void cli_on_signal_quit(void) { handle_stop_signals(on_signal_quit); }
 void cli_on_signal_stop(void) { handle_stop_signals(on_signal_stop); }
+void cli_on_signal_cancel(void) { handle_stop_signals(on_signal_cancel); }
+
+int cli_report_cancelled(const char *cmd, const char *what)
+{
+    fprintf(stderr, "photonmarch %s: interrupted %s; nothing written, the previous files are as they were\n", cmd, what);
+    return cli_exit_interrupted(interrupted ? interrupted : SIGINT);
+}
 
 const volatile sig_atomic_t *cli_cancel_flag(void) { return &interrupted; }
 int cli_interrupted(void) { return interrupted; }

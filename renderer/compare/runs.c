@@ -48,7 +48,7 @@ static rd_status bake_for(rd_comparison *c, const rd_scene *s, int mi, char *err
             m->needs = needs;
             return RD_OK;
         }
-    rd_bake_opts bo = {.seed = -1, .threads = c->opts.threads};
+    rd_bake_opts bo = {.seed = -1, .threads = c->opts.threads, .cancel = c->opts.cancel};
     rd_bake_opts_for(&bo, needs);
     double t0 = now_seconds(&c->opts);
     rd_status st = rd_bake(s, &bo, &m->baked, err, errlen);
@@ -322,6 +322,10 @@ static rd_status run_all(rd_comparison *c, const rd_scene *s, char *err, size_t 
 {
     for (int mi = 0; mi < c->n_methods && !c->sum.cancelled; mi++) {
         rd_status st = bake_for(c, s, mi, err, errlen);
+        if (st == RD_ERR_CANCELLED) { /* Ctrl-C while baking: the rows hold what finished */
+            c->sum.cancelled = 1;
+            break;
+        }
         if (st) return st;
         for (int k = 0; k < c->opts.runs && !c->sum.cancelled; k++) {
             if (c->opts.cancel && *c->opts.cancel) { c->sum.cancelled = 1; break; }

@@ -1,7 +1,10 @@
 /* files.c: the renderer's files on disk: making an output's folder, and writing a file through
  * a temporary name in its folder and a rename, so a failed or interrupted run never leaves a
  * partial file where a good one was. A run killed mid-write leaves at most a hidden temporary
- * (".OUT.tmp<pid>.ext"), which the next run writing the same output removes. */
+ * (".OUT.tmp<pid>.ext"), which the next run writing the same output removes. This is the one
+ * implementation of that policy: the leaf libraries write to a stream (pm_map_write,
+ * sh_guide_write, through rd_write_file) and the C++ shims (image_io.cpp, vdb_io.cpp) write to
+ * rd_temp_name's name and call rd_commit_temp. */
 #define _DEFAULT_SOURCE /* mkdir, kill */
 #include "core/rd_core.h"
 
@@ -36,9 +39,9 @@ fail:
     return RD_ERR_OUTPUT;
 }
 
-/* The temporary name of `path` for process `pid`: "dir/stem.ext" -> "dir/.stem.tmp<pid>.ext",
- * the same scheme as image_io.cpp: in the same folder (so the rename is atomic), hidden (a
- * leading dot), keeping the extension. Returns the length of "dir/.stem.tmp" (the part before
+/* The temporary name of `path` for process `pid`: "dir/stem.ext" -> "dir/.stem.tmp<pid>.ext":
+ * in the same folder (so the rename is atomic), hidden (a leading dot), keeping the extension
+ * (OpenImageIO picks the format by it). Returns the length of "dir/.stem.tmp" (the part before
  * the pid), or -1 if the name does not fit. */
 static int temp_name(const char *path, long pid, char *out, size_t n)
 {
@@ -49,6 +52,11 @@ static int temp_name(const char *path, long pid, char *out, size_t n)
     int dirlen = (int)(base - path), stemlen = (int)(dot - base);
     int len = snprintf(out, n, "%.*s.%.*s.tmp%ld%s", dirlen, path, stemlen, base, pid, dot);
     return len < 0 || (size_t)len >= n ? -1 : dirlen + 1 + stemlen + 4;
+}
+
+int rd_temp_name(const char *path, char *out, size_t n)
+{
+    return temp_name(path, (long)getpid(), out, n) < 0 ? -1 : 0;
 }
 
 /* A process killed mid-write (SIGKILL, a second Ctrl-C, a power cut) leaves its hidden
@@ -81,21 +89,64 @@ void rd_remove_stale_temps(const char *path)
     closedir(d);
 }
 
-rd_status rd_write_atomic(const char *path, const void *data, size_t n, char *err, size_t errlen)
+rd_status rd_commit_temp(const char *tmp, const char *path, char *err, size_t errlen)
 {
-    char tmp[2200];
-    if (temp_name(path, (long)getpid(), tmp, sizeof tmp) < 0) {
-        snprintf(err, errlen, "%.200s...: path too long", path);
-        return RD_ERR_OUTPUT;
-    }
-    FILE *f = fopen(tmp, "wb");
-    int ok = f && fwrite(data, 1, n, f) == n;
-    if (f && fclose(f) != 0) ok = 0;
-    if (!ok || rename(tmp, path) != 0) {
-        snprintf(err, errlen, "%s: cannot write: %s", path, strerror(errno));
+    if (rename(tmp, path) != 0) {
+        snprintf(err, errlen, "%s: cannot rename %s into place: %s", path, tmp, strerror(errno));
         remove(tmp);
         return RD_ERR_OUTPUT;
     }
     rd_remove_stale_temps(path);
     return RD_OK;
+}
+
+rd_status rd_write_file(const char *path, rd_file_writer write, void *user, const volatile int *cancel,
+                        char *err, size_t errlen)
+{
+    char tmp[2200];
+    if (rd_temp_name(path, tmp, sizeof tmp) < 0) {
+        snprintf(err, errlen, "%.200s...: path too long", path);
+        return RD_ERR_OUTPUT;
+    }
+    FILE *f = fopen(tmp, "wb");
+    if (!f) {
+        snprintf(err, errlen, "%s: cannot write: %s", path, strerror(errno));
+        return RD_ERR_OUTPUT;
+    }
+    /* The writer's own message names the file; a failure of the flush, fsync (so that after a
+     * power cut the renamed file has its bytes) or close is ours. */
+    rd_status st = write(f, user, err, errlen);
+    if (st == RD_OK && (fflush(f) != 0 || fsync(fileno(f)) != 0)) {
+        snprintf(err, errlen, "%s: cannot write: %s", path, strerror(errno));
+        st = RD_ERR_OUTPUT;
+    }
+    if (fclose(f) != 0 && st == RD_OK) {
+        snprintf(err, errlen, "%s: cannot write: %s", path, strerror(errno));
+        st = RD_ERR_OUTPUT;
+    }
+    if (st == RD_OK && cancel && *cancel) {
+        snprintf(err, errlen, "%s: not written (interrupted)", path);
+        st = RD_ERR_CANCELLED;
+    }
+    if (st != RD_OK) {
+        remove(tmp);
+        return st;
+    }
+    return rd_commit_temp(tmp, path, err, errlen);
+}
+
+typedef struct { const void *data; size_t n; const char *path; } bytes_job;
+
+static rd_status write_bytes(FILE *f, void *user, char *err, size_t errlen)
+{
+    const bytes_job *j = user;
+    if (fwrite(j->data, 1, j->n, f) == j->n) return RD_OK;
+    snprintf(err, errlen, "%s: cannot write: %s", j->path, strerror(errno));
+    return RD_ERR_OUTPUT;
+}
+
+rd_status rd_write_atomic(const char *path, const void *data, size_t n, char *err, size_t errlen)
+{
+    bytes_job j = {data, n, path};
+    return rd_write_file(path, write_bytes, &j, NULL, err, errlen);
 }

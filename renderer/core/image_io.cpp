@@ -1,6 +1,7 @@
 // image_io.cpp: OpenImageIO behind the plain C API of renderer.h. Every entry point catches
-// every exception; files are written to a temporary name in the same folder and renamed.
-#include "renderer.h"
+// every exception; files are written to a temporary name in the same folder and renamed
+// (rd_temp_name, rd_commit_temp: core/files.c).
+#include "core/rd_core.h"
 
 #include <OpenImageIO/imageio.h>
 
@@ -16,23 +17,14 @@ using namespace OIIO;
 
 namespace {
 
-// "dir/name.exr" -> "dir/.name.tmp<pid>.exr": same folder (so rename is atomic), same extension
-// (so OpenImageIO picks the format).
-std::string temp_name(const std::string &path)
-{
-    size_t slash = path.find_last_of('/');
-    std::string dir = slash == std::string::npos ? "" : path.substr(0, slash + 1);
-    std::string base = slash == std::string::npos ? path : path.substr(slash + 1);
-    size_t dot = base.find_last_of('.');
-    std::string ext = dot == std::string::npos ? "" : base.substr(dot);
-    std::string stem = dot == std::string::npos ? base : base.substr(0, dot);
-    return dir + "." + stem + ".tmp" + std::to_string((long)getpid()) + ext;
-}
-
 rd_status write_pixels(const char *path, int w, int h, TypeDesc type, const void *pixels,
                        char *err, size_t errlen)
 {
-    std::string tmp = temp_name(path);
+    char tmp[2200]; // core/files.c's scheme, same extension: OpenImageIO picks the format by it
+    if (rd_temp_name(path, tmp, sizeof tmp) < 0) {
+        std::snprintf(err, errlen, "%.200s...: path too long", path);
+        return RD_ERR_IO;
+    }
     auto out = ImageOutput::create(path);
     if (!out) {
         std::snprintf(err, errlen, "%s: cannot write this format (%s)", path, OIIO::geterror().c_str());
@@ -42,15 +34,10 @@ rd_status write_pixels(const char *path, int w, int h, TypeDesc type, const void
     spec.attribute("Software", "photonmarch");
     if (!out->open(tmp, spec) || !out->write_image(type, pixels) || !out->close()) {
         std::snprintf(err, errlen, "%s: %s", path, out->geterror().c_str());
-        std::remove(tmp.c_str());
+        std::remove(tmp);
         return RD_ERR_IO;
     }
-    if (std::rename(tmp.c_str(), path) != 0) {
-        std::snprintf(err, errlen, "%s: cannot rename %s into place: %s", path, tmp.c_str(), std::strerror(errno));
-        std::remove(tmp.c_str());
-        return RD_ERR_IO;
-    }
-    return RD_OK;
+    return rd_commit_temp(tmp, path, err, errlen) == RD_OK ? RD_OK : RD_ERR_IO;
 }
 
 unsigned char to_srgb8(double v)

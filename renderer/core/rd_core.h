@@ -7,6 +7,7 @@
 #include "renderer.h"
 
 #include <stddef.h>
+#include <stdio.h>
 
 #ifdef __cplusplus
 extern "C" {
@@ -20,11 +21,32 @@ void rd_text_printf(rd_text *b, const char *fmt, ...) __attribute__((format(prin
  * memory writes nothing and fails with RD_ERR_NOMEM, "PATH: out of memory". */
 rd_status rd_text_write(rd_text *b, const char *path, char *err, size_t errlen);
 
-/* Write n bytes to path through a temporary name in its folder and a rename (core/files.c), so a
- * failed write never leaves a partial file; RD_ERR_OUTPUT naming the path. */
+/* ---- Atomic writes (core/files.c), the one implementation of the policy of docs/cli.md,
+ * "Signals": a file is written under a hidden temporary name in its folder,
+ * ".stem.tmp<pid>.ext", and renamed into place, so an output is always the previous file or the
+ * complete new one; putting a file in place removes the temporaries of that path left by
+ * processes that no longer run. */
+
+/* Writes one file's bytes to f (opened "wb"; not to be closed); on failure a message naming the
+ * file in err and a status other than RD_OK. */
+typedef rd_status (*rd_file_writer)(FILE *f, void *user, char *err, size_t errlen);
+/* Write path through its temporary: write(f, user, ...), flush, fsync, close, then, unless
+ * *cancel (when cancel is not NULL) has become non-zero meanwhile, rename into place. On any
+ * failure, or when cancelled (RD_ERR_CANCELLED), the temporary is removed and path is left as it
+ * was. Errors: the writer's status, or RD_ERR_OUTPUT naming the path. */
+rd_status rd_write_file(const char *path, rd_file_writer write, void *user, const volatile int *cancel,
+                        char *err, size_t errlen);
+/* Write n bytes to path (rd_write_file); RD_ERR_OUTPUT naming the path. */
 rd_status rd_write_atomic(const char *path, const void *data, size_t n, char *err, size_t errlen);
-/* Remove the hidden temporaries of `path` (".stem.tmp<pid>.ext", the scheme of rd_write_atomic
- * and image_io.cpp) left by processes that no longer run; best effort, reports nothing. */
+/* For writers that need a file name (OpenImageIO, OpenVDB): the temporary name of path for this
+ * process into out (n bytes); -1 when it does not fit. Write it, then rd_commit_temp (or
+ * remove it on failure). */
+int rd_temp_name(const char *path, char *out, size_t n);
+/* Rename tmp onto path and remove path's stale temporaries; on failure remove tmp and return
+ * RD_ERR_OUTPUT naming both. */
+rd_status rd_commit_temp(const char *tmp, const char *path, char *err, size_t errlen);
+/* Remove the hidden temporaries of `path` left by processes that no longer run (kill(pid, 0)
+ * fails with ESRCH); those of running processes stay. Best effort, reports nothing. */
 void rd_remove_stale_temps(const char *path);
 
 #ifdef __cplusplus

@@ -148,6 +148,7 @@ static rd_status validate(ld_ctx *c, const cJSON *root, rd_scene *s)
     for (int i = 0; i < nm; i++) s->media[i].bound = rd_scene_medium_bound(s, i);
     /* Media must not overlap: the trackers visit them one interval at a time. (Media bound to
      * shapes are exempt: the surfaces say where they are; box media stay clear of shapes.) */
+    LD_TRY(ld_check_shape_outsides(c, s));
     LD_TRY(ld_check_boxes_clear_of_shapes(c, s));
     for (int i = 0; i < nm; i++)
         for (int k = i + 1; k < nm; k++) {

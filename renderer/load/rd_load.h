@@ -83,5 +83,9 @@ rd_status ld_parse_surfaces(ld_ctx *c, const cJSON *root, rd_scene *s);
 /* A box medium must lie clear of every shape that encloses a region other than the scene-wide
  * medium's (shapes.c). */
 rd_status ld_check_boxes_clear_of_shapes(ld_ctx *c, const rd_scene *s);
+/* Every shape's "outside" names the medium actually around it (the inside of the innermost
+ * closed shape containing it, else the scene-wide medium): "shapes[1].outside: "fog" but the
+ * shape lies in "room" (...)". */
+rd_status ld_check_shape_outsides(ld_ctx *c, const rd_scene *s);
 
 #endif

@@ -1,10 +1,12 @@
 /* shapes.c: the scene's "shapes" (a mesh file, its transform and material, the media inside
- * and outside) and the scene-wide "medium", which name media by name; and the check that box
- * media lie clear of the shapes (issue 14; rd_geom.h). */
+ * and outside) and the scene-wide "medium", which name media by name; the check that every
+ * shape's outside is the medium actually around it; and the check that box media lie clear of
+ * the shapes (issue 14; rd_geom.h). */
 #include "scene/rd_geom.h"
 #include "load/rd_load.h"
 
 #include <cJSON.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -100,7 +102,7 @@ static rd_status parse_material(ld_ctx *c, const cJSON *sh, const char *spath, r
         static const char *const keys[] = {"type", "ior", NULL};
         LD_TRY(ld_check_keys(c, j, path, keys));
         m->kind = RD_MAT_DIELECTRIC;
-        LD_TRY(ld_get_num(c, j, path, "ior", 0, 1.5, 1, 0, 4, 0, &m->ior));
+        LD_TRY(ld_get_num(c, j, path, "ior", 0, 1.5, 0.25, 0, 4, 0, &m->ior));
     } else {
         static const char *const keys[] = {"type", "albedo", NULL};
         LD_TRY(ld_check_keys(c, j, path, keys));
@@ -193,6 +195,101 @@ rd_status ld_check_boxes_clear_of_shapes(ld_ctx *c, const rd_scene *s)
                                      "that encloses a region other than the scene-wide medium's; make it a shape's inside (an \"interface\" shape around it) instead", k, s->shapes[k].name);
             }
         }
+    }
+    return RD_OK;
+}
+
+/* ---- a shape's outside against the medium around it (issue 24) ------------------------------ */
+
+/* The distance along the ray (o, d) to triangle t of mesh m (Moller-Trumbore, in double), or
+ * -1 when it misses; *back = 1 when the ray meets the triangle's back (d . n > 0, n by the
+ * counter-clockwise winding: the outward normal of a closed mesh, rd_mesh). */
+static double triangle_hit(const rd_mesh *m, size_t t, vec3 o, vec3 d, int *back)
+{
+    const float *P = m->positions;
+    const uint32_t *ix = m->indices + 3 * t;
+    vec3 a = v3(P[3 * ix[0]], P[3 * ix[0] + 1], P[3 * ix[0] + 2]);
+    vec3 e1 = v3_sub(v3(P[3 * ix[1]], P[3 * ix[1] + 1], P[3 * ix[1] + 2]), a);
+    vec3 e2 = v3_sub(v3(P[3 * ix[2]], P[3 * ix[2] + 1], P[3 * ix[2] + 2]), a);
+    vec3 q = v3_cross(d, e2);
+    double det = v3_dot(e1, q);
+    if (det == 0.0) return -1.0;
+    vec3 r = v3_sub(o, a);
+    double u = v3_dot(r, q) / det;
+    if (u < 0.0 || u > 1.0) return -1.0;
+    vec3 w = v3_cross(r, e1);
+    double v = v3_dot(d, w) / det;
+    if (v < 0.0 || u + v > 1.0) return -1.0;
+    double tt = v3_dot(e2, w) / det;
+    if (!(tt > 0.0)) return -1.0;
+    *back = v3_dot(d, v3_cross(e1, e2)) > 0.0;
+    return tt;
+}
+
+/* Whether x lies inside the closed mesh m: the nearest triangle a ray from x meets is met from
+ * its back (one nearest hit, not a parity count, so a ray through an edge does not matter
+ * unless that edge is the nearest hit); *dist gets that hit's distance. */
+static int inside_closed_mesh(const rd_mesh *m, vec3 x, vec3 d, double *dist)
+{
+    if (x.x < m->bmin.x || x.x > m->bmax.x || x.y < m->bmin.y || x.y > m->bmax.y || x.z < m->bmin.z ||
+        x.z > m->bmax.z)
+        return 0;
+    double best = INFINITY;
+    int best_back = 0;
+    for (size_t t = 0; t < m->n_triangles; t++) {
+        int back = 0;
+        double h = triangle_hit(m, t, x, d, &back);
+        if (h > 0.0 && h < best) best = h, best_back = back;
+    }
+    *dist = best;
+    return isfinite(best) && best_back;
+}
+
+static const char *medium_label(const rd_scene *s, int i, char *buf, size_t n)
+{
+    if (i < 0) return "vacuum (null)";
+    snprintf(buf, n, "\"%s\"", s->media[i].name);
+    return buf;
+}
+
+/* Every shape's `outside` must be the medium around it: the `inside` of the innermost closed
+ * shape that contains it (the first one a ray from the shape leaves through its back: nested
+ * closed surfaces are left innermost first), or the scene-wide medium when no shape contains
+ * it. A shape is located by the centroid of its first triangle. Otherwise a path crossing the
+ * shape outward would take a medium that is not there. */
+rd_status ld_check_shape_outsides(ld_ctx *c, const rd_scene *s)
+{
+    /* An arbitrary direction, off every axis and diagonal, so that a ray along it from a
+     * face of an axis-aligned mesh does not run along another's edges. */
+    const vec3 d = v3_norm(v3(0.3141592653, 0.5772156649, 0.7548776662));
+    for (int k = 0; k < s->n_shapes; k++) {
+        const rd_mesh *mk = &s->shapes[k].mesh;
+        if (mk->n_triangles == 0) continue;
+        const float *P = mk->positions;
+        vec3 x = v3(0, 0, 0);
+        for (int v = 0; v < 3; v++) {
+            const float *q = P + 3 * mk->indices[v];
+            x = v3_add(x, v3_scale(v3(q[0], q[1], q[2]), 1.0 / 3.0));
+        }
+        int around = s->fill_medium, container = -1;
+        double nearest = INFINITY, dist;
+        for (int j = 0; j < s->n_shapes; j++) {
+            if (j == k || !s->shapes[j].mesh.closed) continue;
+            if (inside_closed_mesh(&s->shapes[j].mesh, x, d, &dist) && dist < nearest) {
+                nearest = dist;
+                around = s->shapes[j].inside;
+                container = j;
+            }
+        }
+        if (s->shapes[k].outside == around) continue;
+        char p[64], a[80], b[80], where[160];
+        snprintf(p, sizeof p, "shapes[%d].outside", k);
+        if (container >= 0)
+            snprintf(where, sizeof where, "it is inside shapes[%d] (\"%s\")", container, s->shapes[container].name);
+        else
+            snprintf(where, sizeof where, "no shape contains it: the scene-wide \"medium\"");
+        return ld_fail(c, p, "%s but the shape lies in %s (%s)", medium_label(s, s->shapes[k].outside, a, sizeof a),
+                       medium_label(s, around, b, sizeof b), where);
     }
     return RD_OK;
 }

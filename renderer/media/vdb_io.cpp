@@ -5,6 +5,7 @@
 // scene-making scripts). Every exception is caught and turned into a one-line message.
 #include "media/rd_medium.h"
 #include "media/rd_vdb.h"
+#include "core/rd_core.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/io/File.h>
@@ -319,25 +320,15 @@ static void fill_dense(openvdb::FloatGrid &grid, const float *data, int nx, int 
                 if (data[q] != 0.0f) acc.setValue(openvdb::Coord(i, j, k), data[q]);
 }
 
-// "dir/name.vdb" -> "dir/.name.tmp<pid>.vdb", the scheme of every output (core/files.c,
-// core/image_io.cpp): in the same folder (so the rename is atomic) and hidden (a leading dot),
-// so a process killed mid-write leaves no visible file.
-static std::string temp_name(const std::string &path)
-{
-    size_t slash = path.find_last_of('/');
-    std::string dir = slash == std::string::npos ? "" : path.substr(0, slash + 1);
-    std::string base = slash == std::string::npos ? path : path.substr(slash + 1);
-    size_t dot = base.find_last_of('.');
-    std::string ext = dot == std::string::npos || dot == 0 ? "" : base.substr(dot);
-    std::string stem = base.substr(0, base.size() - ext.size());
-    return dir + "." + stem + ".tmp" + std::to_string((long)getpid()) + ext;
-}
-
 // Write one grid to a temporary name beside `path`, then rename it into place. Throws on an
 // OpenVDB error (the callers catch); returns RD_ERR_IO with a message when the rename fails.
 static rd_status write_grid(const char *path, openvdb::FloatGrid::Ptr grid, char *err, size_t errlen)
 {
-    std::string tmp = temp_name(path);
+    char tmp[2200]; // core/files.c's scheme
+    if (rd_temp_name(path, tmp, sizeof tmp) < 0) {
+        std::snprintf(err, errlen, "%.200s...: path too long", path);
+        return RD_ERR_IO;
+    }
     openvdb::GridPtrVec grids{grid};
     try {
         openvdb::io::File file(tmp);
@@ -345,15 +336,10 @@ static rd_status write_grid(const char *path, openvdb::FloatGrid::Ptr grid, char
         file.write(grids);
         file.close();
     } catch (...) {
-        std::remove(tmp.c_str()); /* never leave a half-written temporary behind */
+        std::remove(tmp); /* never leave a half-written temporary behind */
         throw;
     }
-    if (std::rename(tmp.c_str(), path) != 0) {
-        std::snprintf(err, errlen, "%s: cannot rename into place: %s", path, std::strerror(errno));
-        std::remove(tmp.c_str());
-        return RD_ERR_IO;
-    }
-    return RD_OK;
+    return rd_commit_temp(tmp, path, err, errlen) == RD_OK ? RD_OK : RD_ERR_IO;
 }
 
 static openvdb::FloatGrid::Ptr new_fog_grid(const char *grid_name)

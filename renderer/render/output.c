@@ -117,9 +117,5 @@ rd_status rd_render_write(const rd_scene *s, const rd_render_opts *o, const rd_r
     }
     st = rd_write_atomic(json, text, strlen(text), err, errlen);
     cJSON_free(text);
-    /* The images went through image_io.cpp's temporaries (same naming): clear stale ones. */
-    rd_remove_stale_temps(exr_path);
-    rd_remove_stale_temps(se);
-    rd_remove_stale_temps(png);
     return st;
 }

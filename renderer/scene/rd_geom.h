@@ -96,7 +96,7 @@ typedef enum {
 
 typedef struct {
     rd_material_kind kind;
-    double ior;   /* dielectric: relative index of refraction n_inside / n_outside, in [1, 4]
+    double ior;   /* dielectric: relative index of refraction n_inside / n_outside, in [0.25, 4]
                    * (the media carry no index of their own); 1 is invisible */
     vec3 albedo;  /* diffuse: reflectance per channel, in [0, 1] */
 } rd_material;
