@@ -117,5 +117,8 @@ int cli_ranks_unmute(rd_dist *d, int saved, int code);
 /* 0 when every rank read the same bytes at `path` (every rank loads its own copy of the scene),
  * else CLI_EXIT_INPUT after one line from rank 0. */
 int cli_ranks_same_file(rd_dist *d, const char *path);
+/* 0 when every rank passed the same `text` (its options that decide the image, as text), else
+ * CLI_EXIT_USAGE after one line from rank 0. */
+int cli_ranks_same_options(rd_dist *d, const char *text);
 
 #endif

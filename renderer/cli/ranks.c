@@ -7,6 +7,7 @@
 
 #include <fcntl.h>
 #include <stdio.h>
+#include <string.h>
 #include <unistd.h>
 
 int cli_ranks_agree(rd_dist *d, int code, const char *msg)
@@ -64,6 +65,23 @@ int cli_ranks_unmute(rd_dist *d, int saved, int code)
     return v;
 }
 
+/* FNV-1a (64 bits) of n bytes, continuing from h. */
+static uint64_t fnv1a(uint64_t h, const void *p, size_t n)
+{
+    for (size_t i = 0; i < n; i++) h = (h ^ ((const unsigned char *)p)[i]) * 1099511628211ULL;
+    return h;
+}
+
+int cli_ranks_same_options(rd_dist *d, const char *text)
+{
+    if (rd_dist_size(d) <= 1) return 0;
+    if (rd_dist_same(d, fnv1a(1469598103934665603ULL, text, strlen(text)))) return 0;
+    if (rd_dist_rank(d) == 0)
+        fprintf(stderr, "photonmarch: the ranks' options differ (method, samples, seed, time, --set, files): every "
+                        "rank runs the same command\n");
+    return CLI_EXIT_USAGE;
+}
+
 /* FNV-1a (64 bits) of the file's bytes; 0 when it cannot be read. */
 static uint64_t file_hash(const char *path)
 {
@@ -72,8 +90,7 @@ static uint64_t file_hash(const char *path)
     uint64_t h = 1469598103934665603ULL;
     unsigned char buf[65536];
     size_t n;
-    while ((n = fread(buf, 1, sizeof buf, f)) > 0)
-        for (size_t i = 0; i < n; i++) h = (h ^ buf[i]) * 1099511628211ULL;
+    while ((n = fread(buf, 1, sizeof buf, f)) > 0) h = fnv1a(h, buf, n);
     int bad = ferror(f);
     fclose(f);
     return bad ? 0 : h;
