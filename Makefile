@@ -47,7 +47,14 @@ PM_SRC   := $(wildcard photonmap/*.c)
 PM_CXX   := $(wildcard photonmap/*.cpp)
 SH_SRC   := $(wildcard sh/*.c)
 CLI_SRC  := $(wildcard renderer/cli/*.c)
-RD_SRC   := $(filter-out $(CLI_SRC),$(wildcard renderer/*/*.c))
+# renderer/dist/: the one module that calls MPI (OpenMPI; docs/cluster.md), linked into the
+# command line only (not the library, the suite, the tools or the fuzz targets, none of which
+# starts MPI). Compiler and linker flags from OpenMPI's pkg-config file (mpicc --showme says the
+# same).
+DIST_SRC := $(wildcard renderer/dist/*.c)
+MPI_CFLAGS := $(shell pkg-config --cflags ompi-c 2>/dev/null)
+MPI_LIBS   := $(shell pkg-config --libs ompi-c 2>/dev/null)
+RD_SRC   := $(filter-out $(CLI_SRC) $(DIST_SRC),$(wildcard renderer/*/*.c))
 RD_CXX   := $(wildcard renderer/*/*.cpp)
 
 obj = $(patsubst %.c,$(BUILD)/%.o,$(filter %.c,$(1))) $(patsubst %.cpp,$(BUILD)/%.o,$(filter %.cpp,$(1)))
@@ -91,7 +98,7 @@ DEP_HEADERS      := flann/flann.h lz4.h OpenImageIO/imageio.h cjson/cJSON.h embr
 TEST_DEP_HEADERS := criterion/criterion.h
 DEPS_CHECK       ?= 1
 missing_headers = $(if $(filter 1,$(DEPS_CHECK)),$(patsubst /usr/include/%,%,$(filter-out $(wildcard $(addprefix /usr/include/,$(1))),$(addprefix /usr/include/,$(1)))))
-DEPS_MISSING      := $(call missing_headers,$(DEP_HEADERS))
+DEPS_MISSING      := $(strip $(call missing_headers,$(DEP_HEADERS)) $(if $(filter 1,$(DEPS_CHECK)),$(if $(MPI_LIBS),,OpenMPI (pkg-config ompi-c))))
 TEST_DEPS_MISSING := $(call missing_headers,$(TEST_DEP_HEADERS))
 check-deps:
 	$(if $(DEPS_MISSING),$(error the build needs $(DEPS_MISSING) (not in /usr/include): run 'bash scripts/install-deps.sh' first, or 'make demo' / 'make test', which run it))
@@ -106,6 +113,7 @@ $(BUILD)/%.o: %.cpp | check-deps
 	@mkdir -p $(dir $@)
 	$(CXX) $(CXXFLAGS) -c $< -o $@
 $(call obj,$(wildcard tests/*.c) $(TEST_SUP)): | check-test-deps
+$(call obj,$(DIST_SRC)): CFLAGS += $(MPI_CFLAGS)
 
 $(LIB_WK): $(WK_OBJ)
 	@mkdir -p $(dir $@)
@@ -120,8 +128,8 @@ $(LIB_RD): $(RD_OBJ)
 	@mkdir -p $(dir $@)
 	rm -f $@ && ar rcs $@ $^
 
-$(BIN): $(call obj,$(CLI_SRC)) $(LIB_RD) $(LIB_SH) $(LIB_WK) $(LIB_PM)
-	$(CXX) $(LDFLAGS) $^ $(LIBS) -o $@
+$(BIN): $(call obj,$(CLI_SRC) $(DIST_SRC)) $(LIB_RD) $(LIB_SH) $(LIB_WK) $(LIB_PM)
+	$(CXX) $(LDFLAGS) $^ $(LIBS) $(MPI_LIBS) -o $@
 
 # One Criterion binary for the whole suite, so a run ends with one summary line.
 $(TEST_BIN): $(call obj,$(TEST_WK) $(TEST_PM) $(TEST_SH) $(TEST_RD) $(TEST_SUP)) $(FUZZ_HARNESS) $(LIB_RD) $(LIB_SH) $(LIB_WK) $(LIB_PM)
@@ -231,11 +239,14 @@ test-tsan: deps
 #    page, error and Ctrl-C tests, compare_cli/*): in this run they would spawn the release binary again
 #    (PHOTONMARCH_BIN), so under ASan they only repeat the release run; the command line itself
 #    runs under ASan + UBSan in the release run's cli/malformed_scene_catalogue_under_sanitizers;
-#  - structure/* (tests/check_structure.py reads the release build's objects with nm; run once).
+#  - structure/* (tests/check_structure.py reads the release build's objects with nm; run once);
+#  - mpi/* (tests/test_mpi.c): they only spawn mpirun and the release command line (nothing of
+#    the suite's own code is under test there), and so no process of the sanitizer run starts
+#    MPI: OpenMPI's start-up leaves blocks LeakSanitizer would report, which are none of ours.
 # Together they would take the suite past 15 minutes.
 SAN_BUILD := build-fuzz
 SAN_MAKE  := $(MAKE) BUILD=$(SAN_BUILD) SAN=fuzz CC=clang-14 CXX=clang++-14
-ASAN_FILTER := '!(fuzz_regress/image|render/pixels_of_one_image_are_uncorrelated|guided_unbiased/each_part_alone_*|guided_unbiased/flight_sampler_chi_square_*|march/guided_and_transmittance_share_*|march/defensive_only_and_wrong_guides_*|photons/knn_radiance_converges_*|integrator/white_furnace_every_tracker|stress_big/*|cli/*|memory/*|compare/page_loads_*|compare/bad_reference_*|compare/ctrl_c_*|compare_cli/*|geom/cli_renders_shapes|structure/*|progressive/squared_gap_*)'
+ASAN_FILTER := '!(fuzz_regress/image|render/pixels_of_one_image_are_uncorrelated|guided_unbiased/each_part_alone_*|guided_unbiased/flight_sampler_chi_square_*|march/guided_and_transmittance_share_*|march/defensive_only_and_wrong_guides_*|photons/knn_radiance_converges_*|integrator/white_furnace_every_tracker|stress_big/*|cli/*|memory/*|compare/page_loads_*|compare/bad_reference_*|compare/ctrl_c_*|compare_cli/*|geom/cli_renders_shapes|structure/*|progressive/squared_gap_*|mpi/*)'
 SAN_LOG := $(SAN_BUILD)/sanitizer-reports
 SAN_ASAN := halt_on_error=1:detect_leaks=1:leak_check_at_exit=0:allocator_may_return_null=1:log_path=$(CURDIR)/$(SAN_LOG)/process
 SAN_ENV := ASAN_OPTIONS=$(SAN_ASAN) \

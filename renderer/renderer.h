@@ -99,6 +99,23 @@ void rd_image_free_pixels(rd_image *img);
 typedef double (*rd_clock_fn)(void *user);
 double rd_clock_monotonic(void *user); /* CLOCK_MONOTONIC in seconds; user is ignored */
 
+/* Several processes on one job (MPI ranks, docs/cluster.md): the plain C hooks through which a
+ * render shares its work. The library never calls MPI itself; the command line's renderer/dist/
+ * implements these with MPI, and a test may implement them with threads. NULL, or size <= 1:
+ * one process, and nothing below is called. */
+typedef enum { RD_COMM_DOUBLE, RD_COMM_UINT32, RD_COMM_UINT64, RD_COMM_INT } rd_comm_type;
+typedef enum { RD_COMM_SUM, RD_COMM_MIN, RD_COMM_MAX } rd_comm_op;
+typedef struct rd_comm {
+    int rank, size;   /* this process's rank in [0, size) and the number of ranks */
+    void *user;       /* passed to the hooks */
+    /* Element-wise reduce of buf[0, count) (elements of `type`) over every rank with `op`, in
+     * place: root < 0 leaves the result in every rank's buf (an allreduce), root >= 0 in that
+     * rank's only (the others' buf is then unspecified). Collective: every rank calls it with the
+     * same count, type, op and root, in the same order. A failure ends the job (MPI's default
+     * error handler), so it returns nothing. */
+    void (*reduce)(void *user, void *buf, size_t count, rd_comm_type type, rd_comm_op op, int root);
+} rd_comm;
+
 typedef struct {
     const char *method;  /* a name from the method table */
     int spp;             /* samples per pixel to reach (>= 1) */
@@ -128,6 +145,14 @@ typedef struct {
      * with first_sample = N and the same seed are together the render of N + M samples (the
      * random numbers are keyed by the sample index). compare extends its reference this way. */
     int first_sample;
+    /* Several ranks render one image (NULL: this process alone; borrowed): rank r renders the
+     * 16x16 tiles whose index is r modulo size, the ranks agree after every pass whether to stop
+     * (the time limit or the cancel flag of any rank stops them all) and on the next pass's size
+     * (the smallest), and the films are summed onto rank 0, whose result is the image of one
+     * process, bit for bit (each pixel is rendered by one rank; the others add zeros). The
+     * other ranks' results hold only their own pixels. Every rank calls rd_render with the
+     * same scene and options. */
+    const rd_comm *comm;
 } rd_render_opts;
 
 typedef struct {

@@ -17,6 +17,7 @@ PACKAGES=(
   chromium                     # headless check of the compare report page (make test)
   clang-14 libclang-rt-14-dev  # make fuzz: clang with libFuzzer and its ASan/UBSan runtimes
   libomp-14-dev                # OpenMP for the clang-built fuzz targets
+  libopenmpi-dev openmpi-bin   # MPI: one job over several processes or nodes (renderer/dist/, mpirun; docs/cluster.md)
 )
 
 missing=()

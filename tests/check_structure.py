@@ -34,7 +34,7 @@ ALLOWED = {
 }
 # renderer/'s folders from the bottom up (docs/render-core.md, "The map").
 RENDERER_LAYERS = ["core", "media", "scene", "transport", "integrators", "bake", "render", "load",
-                   "compare", "cli"]
+                   "compare", "dist", "cli"]
 PUBLIC_HEADERS = {"walk/walk.h", "photonmap/photonmap.h", "sh/sh.h", "renderer/renderer.h"}
 MAX_SOURCE_LINES = 1000
 MAX_INTERNAL_HEADER_LINES = 300

@@ -95,12 +95,12 @@ Test(select, an_epoch_drops_the_method_when_the_image_shows_its_heavy_tail)
     /* The pilot: delta variance 1 at cost 1, the method variance 0.1 at cost 2 (V C 0.2 < 1). */
     fake_pilot(&sel, 0, 1.0, 1.0, 1.0, 1.0);
     fake_pilot(&sel, 1, 1.0, 0.1, 1.0, 2.0);
-    rd_select_epoch(&sel); /* no samples yet: the pilot's choice */
+    rd_select_epoch(&sel, NULL); /* no samples yet: the pilot's choice */
     cr_assert(sel.guided[0] == 1, "the pilot's statistics favour the method");
     /* The image: the method's samples are mostly zero with a rare firefly, variance
      * 1 / 0.002 - 1 = 499 per sample over 64 x 256 samples. */
     observe_rare(&sel, 256, 1.0, 0.002, 2.0, 11);
-    rd_select_epoch(&sel);
+    rd_select_epoch(&sel, NULL);
     cr_assert(sel.guided[0] == 0, "after the method's heavy tail, delta (variance %g over %g samples)",
               sel.stats[1].dev2[0] / sel.stats[1].dof, sel.stats[1].n);
     cr_assert(sel.stats[1].n == 128 + 64 * 256 && sel.stats[0].n == 128,
@@ -117,11 +117,11 @@ Test(select, an_epoch_takes_the_method_when_delta_s_paths_rarely_find_the_light)
      * variance 0.2 at cost 8 (V C 1.6 > 1: delta). */
     fake_pilot(&sel, 0, 1.0, 1.0, 0.5, 1.0);
     fake_pilot(&sel, 1, 1.0, 0.2, 1.0, 8.0);
-    rd_select_epoch(&sel);
+    rd_select_epoch(&sel, NULL);
     cr_assert(sel.guided[0] == 0, "the pilot's statistics favour delta");
     /* The image: delta's paths find the light once in 200 (variance 199 per sample). */
     observe_rare(&sel, 256, 1.0, 0.005, 1.0, 12);
-    rd_select_epoch(&sel);
+    rd_select_epoch(&sel, NULL);
     cr_assert(sel.guided[0] == 1, "after delta's rare hits, the method (delta's variance %g)",
               sel.stats[0].dev2[0] / sel.stats[0].dof);
     rd_select_free(&sel);

@@ -2,10 +2,12 @@
  * main.c dispatches to one cmd_<name>.c per subcommand; they share common.c (options, exit
  * codes, output checks, default names, the cached bake) and signals.c (Ctrl-C and SIGTERM).
  * Everything here reaches the renderer only through renderer.h. Dependencies point one way:
- * main.c -> cmd_*.c -> common.c, signals.c. */
+ * main.c -> cmd_*.c -> common.c, signals.c, ranks.c. Under an MPI launcher main.c starts
+ * dist/ (rd_dist.h) and hands it to the commands that run on several ranks (docs/cluster.md). */
 #ifndef CLI_H
 #define CLI_H
 
+#include "dist/rd_dist.h"
 #include "renderer.h"
 
 #include <signal.h>
@@ -21,6 +23,8 @@ enum { CLI_EXIT_USAGE = 1, CLI_EXIT_INPUT = 2, CLI_EXIT_OUTPUT = 3, CLI_EXIT_INT
  * code. ---------------------------------------------------------------------------------- */
 
 int cli_cmd_render(int argc, char **argv);
+/* render on the ranks of d (NULL: alone, as cli_cmd_render): every rank calls it. */
+int cli_cmd_render_on(int argc, char **argv, rd_dist *d);
 int cli_cmd_info(int argc, char **argv);
 int cli_cmd_voxelize(int argc, char **argv);
 int cli_cmd_bake(int argc, char **argv);
@@ -99,5 +103,28 @@ const volatile sig_atomic_t *cli_cancel_flag(void);
 int cli_interrupted(void);
 /* The exit status after signal `sig`: 128 + its number (130 SIGINT, 143 SIGTERM). */
 int cli_exit_interrupted(int sig);
+
+/* ---- several ranks (ranks.c; docs/cluster.md) --------------------------------------------
+ * Every function here is collective when d has several ranks (every rank calls it, in the same
+ * order), and does the one-process thing when d is NULL. */
+
+/* Agree on a step's outcome: code is this rank's exit code for the step (0: it went well), msg
+ * its one-line message when it failed (NULL: nothing to print). Alone: prints msg, returns code.
+ * Several ranks: when every rank failed, rank 0 prints its message (the same input fails the
+ * same way everywhere); when only some did, each of them prints "photonmarch: rank K of N: msg"
+ * and the others nothing. Returns 0 when every rank went well, else this rank's code or, on a
+ * rank that did not fail, the largest code of those that did. */
+int cli_ranks_agree(rd_dist *d, int code, const char *msg);
+/* Around the options' parsing: on the ranks other than 0, stdout and stderr go to /dev/null
+ * (rank 0 says what every rank would say); cli_ranks_unmute restores them and returns rank 0's
+ * `code` (a rank whose code differs, its options not rank 0's, says so in one line). */
+int cli_ranks_mute(rd_dist *d);
+int cli_ranks_unmute(rd_dist *d, int saved, int code);
+/* 0 when every rank read the same bytes at `path` (every rank loads its own copy of the scene),
+ * else CLI_EXIT_INPUT after one line from rank 0. */
+int cli_ranks_same_file(rd_dist *d, const char *path);
+/* 0 when every rank passed the same `text` (its options that decide the image, as text), else
+ * CLI_EXIT_USAGE after one line from rank 0. */
+int cli_ranks_same_options(rd_dist *d, const char *text);
 
 #endif

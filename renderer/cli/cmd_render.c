@@ -3,6 +3,7 @@
 #include "cli.h"
 
 #include <math.h>
+#include <stdlib.h>
 #include <stdio.h>
 #include <string.h>
 #include <unistd.h>
@@ -88,16 +89,27 @@ static void progress(void *user, int done, int total, double seconds)
     fflush(stderr);
 }
 
-int cli_cmd_render(int argc, char **argv)
+/* The command line of render, parsed. */
+typedef struct {
+    cli_scene_args a;
+    const char *method, *outpath, *refpath, *photons_path, *guide_path;
+    long spp, seed, threads;
+    double time_limit;
+    int quiet, no_cache;
+    char defout[1024];
+} render_args;
+
+/* Parse argv into *r: -1 to go on, else the exit code (after a message, or --help). */
+static int parse_render(int argc, char **argv, render_args *r)
 {
-    cli_scene_args a = {0};
+    cli_scene_args *a = &r->a;
     const char *method = NULL, *outpath = NULL, *refpath = NULL, *photons_path = NULL, *guide_path = NULL;
     long spp = -1, seed = -1, threads = 0;
     double time_limit = -1;
     int quiet = 0, no_cache = 0;
     for (int i = 0; i < argc; i++) {
         const char *o = argv[i];
-        int t = cli_take_set(&a, argc, argv, &i);
+        int t = cli_take_set(a, argc, argv, &i);
         if (t < 0) return CLI_EXIT_USAGE;
         if (t) continue;
         int has_val = i + 1 < argc;
@@ -113,30 +125,80 @@ int cli_cmd_render(int argc, char **argv)
         else if (!strcmp(o, "--seed") && has_val) { if (!cli_parse_int(o, argv[++i], 0, 0x7fffffffL, &seed)) return CLI_EXIT_USAGE; }
         else if (!strcmp(o, "--threads") && has_val) { if (!cli_parse_int(o, argv[++i], 1, 1024, &threads)) return CLI_EXIT_USAGE; }
         else if ((!strcmp(o, "-o") || !strcmp(o, "--output")) && has_val) outpath = argv[++i];
-        else if (cli_take_positional(&a, "render", o)) return CLI_EXIT_USAGE;
+        else if (cli_take_positional(a, "render", o)) return CLI_EXIT_USAGE;
     }
-    if (cli_need_scene(&a, "render")) return CLI_EXIT_USAGE;
-    char defout[1024];
+    if (cli_need_scene(a, "render")) return CLI_EXIT_USAGE;
     if (!outpath) {
-        cli_default_output(a.scene, ".exr", defout, sizeof defout);
-        outpath = defout;
+        cli_default_output(a->scene, ".exr", r->defout, sizeof r->defout);
+        outpath = r->defout;
     }
     size_t olen = strlen(outpath);
     if (olen < 5 || strcmp(outpath + olen - 4, ".exr") != 0 || olen > 1000) {
         fprintf(stderr, "photonmarch render: -o %s: expected a path ending in .exr\n", outpath);
         return CLI_EXIT_USAGE;
     }
-    if (refuse_render_outputs(outpath, a.scene)) return CLI_EXIT_USAGE;
+    if (refuse_render_outputs(outpath, a->scene)) return CLI_EXIT_USAGE;
+    r->method = method, r->outpath = outpath, r->refpath = refpath;
+    r->photons_path = photons_path, r->guide_path = guide_path;
+    r->spp = spp, r->seed = seed, r->threads = threads, r->time_limit = time_limit;
+    r->quiet = quiet, r->no_cache = no_cache;
+    return -1;
+}
+
+int cli_cmd_render(int argc, char **argv) { return cli_cmd_render_on(argc, argv, NULL); }
+
+/* The exit code of a bake's outcome, with its one line in err: a signal during the bake
+ * (rd_bake_opts.cancel) ends the render with nothing written. */
+static int bake_outcome(rd_status st, char *err, size_t errlen)
+{
+    if (st == RD_ERR_CANCELLED || (st == RD_OK && cli_interrupted())) {
+        snprintf(err, errlen, "photonmarch render: interrupted while baking the photon map and guide; nothing "
+                              "written, the previous files are as they were");
+        return cli_exit_interrupted(cli_interrupted() ? cli_interrupted() : SIGINT);
+    }
+    return cli_exit_for(st);
+}
+
+/* Several ranks (d, docs/cluster.md): every rank parses, loads the scene and renders its share;
+ * rank 0 alone prints progress and writes the outputs; after each step that can fail the ranks
+ * agree (cli_ranks_agree), so a failure anywhere ends every rank with a non-zero exit. */
+int cli_cmd_render_on(int argc, char **argv, rd_dist *d)
+{
+    render_args *r = calloc(1, sizeof *r);
+    if (!r) {
+        fprintf(stderr, "photonmarch render: out of memory\n");
+        return CLI_EXIT_INTERNAL;
+    }
+    int muted = cli_ranks_mute(d);
+    int pc = cli_ranks_unmute(d, muted, parse_render(argc, argv, r));
+    if (pc >= 0) {
+        free(r);
+        return pc;
+    }
+    const int lead = rd_dist_rank(d) == 0, ranks = rd_dist_size(d);
+    cli_scene_args *a = &r->a;
+    const char *method = r->method, *outpath = r->outpath, *refpath = r->refpath;
+    const char *photons_path = r->photons_path, *guide_path = r->guide_path;
+    long spp = r->spp, seed = r->seed, threads = r->threads;
+    double time_limit = r->time_limit;
+    int quiet = r->quiet || !lead, no_cache = r->no_cache;
     cli_on_signal_quit(); /* nothing to save until the passes begin */
 
     char err[RD_ERRLEN];
-    rd_scene *scene;
-    rd_status st = rd_scene_load(&scene, a.scene, a.ov, a.nov, err, sizeof err);
-    if (st) return cli_report_error(st, err);
+    rd_scene *scene = NULL;
+    rd_status st = rd_scene_load(&scene, a->scene, a->ov, a->nov, err, sizeof err);
+    int code = cli_ranks_agree(d, cli_exit_for(st), err);
+    if (!code) code = cli_ranks_same_file(d, a->scene);
     rd_image ref = {0, 0, NULL, 0};
-    if (refpath && (st = rd_image_read(refpath, &ref, err, sizeof err)) != RD_OK) {
+    if (!code && refpath) {
+        st = rd_image_read(refpath, &ref, err, sizeof err);
+        code = cli_ranks_agree(d, cli_exit_for(st), err);
+    }
+    if (code) {
         rd_scene_free(scene);
-        return cli_report_error(st, err);
+        rd_image_free_pixels(&ref);
+        free(r);
+        return code;
     }
     rd_render_opts ro = {0};
     ro.method = method ? method : rd_scene_method(scene);
@@ -149,17 +211,25 @@ int cli_cmd_render(int argc, char **argv)
     ro.threads = (int)threads;
     ro.cancel = cli_cancel_flag();
     ro.reference = refpath ? &ref : NULL;
+    ro.comm = rd_dist_comm(d);
     cli_progress_state ps = {ro.time_limit, isatty(2), 0.0};
     if (!quiet) {
         ro.progress = progress;
         ro.progress_user = &ps;
     }
-    int code = 0;
     rd_baked *baked = NULL; /* before the first goto out, which frees it */
-    if ((st = rd_make_parent_dirs(outpath, err, sizeof err)) != RD_OK) {
-        code = cli_report_error(st, err);
-        goto out;
+    if (ranks > 1) { /* the ranks must render one image: the options that decide it agree */
+        char opts[8192];
+        int len = snprintf(opts, sizeof opts, "%s|%d|%llu|%a|%d|%s|%s|%s", ro.method, ro.spp,
+                           (unsigned long long)ro.seed, ro.time_limit, no_cache, photons_path ? photons_path : "",
+                           guide_path ? guide_path : "", refpath ? refpath : "");
+        for (int i = 0; i < a->nov && len >= 0 && (size_t)len < sizeof opts; i++)
+            len += snprintf(opts + len, sizeof opts - (size_t)len, "|%s=%s", a->ov[i].key, a->ov[i].value);
+        if ((code = cli_ranks_same_options(d, opts)) != 0) goto out;
     }
+    /* Only rank 0 writes. */
+    st = lead ? rd_make_parent_dirs(outpath, err, sizeof err) : RD_OK;
+    if ((code = cli_ranks_agree(d, cli_exit_for(st), err)) != 0) goto out;
     /* What the method needs baked: from --photons/--guide, the cache, or a fresh bake. */
     unsigned needs = rd_method_needs_for(ro.method, scene);
     if (needs) {
@@ -170,18 +240,17 @@ int cli_cmd_render(int argc, char **argv)
         bo.load_photons = photons_path;
         bo.load_guide = guide_path;
         double t0 = cli_wall_seconds();
+        int fresh = photons_path || guide_path || no_cache;
         cli_on_signal_cancel(); /* a signal stops the bake, which removes its cache temporaries */
         bo.cancel = cli_cancel_flag();
-        if (!quiet) fprintf(stderr, "photonmarch render: preparing the photon map and guide (Ctrl-C stops and writes nothing)\n");
-        st = cli_bake_beside(scene, &bo, outpath, photons_path || guide_path || no_cache, quiet, &baked, err, sizeof err);
-        if (st == RD_ERR_CANCELLED || (st == RD_OK && cli_interrupted())) {
-            code = cli_report_cancelled("render", "while baking the photon map and guide");
-            goto out;
-        }
-        if (st) {
-            code = cli_report_error(st, err);
-            goto out;
-        }
+        if (!quiet && lead)
+            fprintf(stderr, "photonmarch render: preparing the photon map and guide (Ctrl-C stops and writes nothing)\n");
+        /* Several ranks, each needing the whole bake: rank 0 first (it bakes or finds the cache,
+         * and saves it), then the others, who find it in the cache; so one process writes it. */
+        st = lead ? cli_bake_beside(scene, &bo, outpath, fresh, quiet, &baked, err, sizeof err) : RD_OK;
+        if ((code = cli_ranks_agree(d, bake_outcome(st, err, sizeof err), err)) != 0) goto out;
+        st = lead ? RD_OK : cli_bake_beside(scene, &bo, outpath, fresh, quiet, &baked, err, sizeof err);
+        if ((code = cli_ranks_agree(d, bake_outcome(st, err, sizeof err), err)) != 0) goto out;
         ro.baked = baked;
         ro.baked_seconds = cli_wall_seconds() - t0;
     }
@@ -190,12 +259,16 @@ int cli_cmd_render(int argc, char **argv)
     st = rd_render(scene, &ro, &res, err, sizeof err);
     if (ro.progress && ps.tty) fputc('\n', stderr);
     if (refpath && st == RD_ERR_ARG) { /* the only argument rd_render checks against a file */
-        fprintf(stderr, "%s: %s\n", refpath, err);
-        code = CLI_EXIT_INPUT;
+        char msg[RD_ERRLEN + 1100];
+        snprintf(msg, sizeof msg, "%s: %s", refpath, err);
+        code = cli_ranks_agree(d, CLI_EXIT_INPUT, msg);
         goto out;
     }
-    if (st) {
-        code = cli_report_error(st, err);
+    if ((code = cli_ranks_agree(d, cli_exit_for(st), err)) != 0) goto out;
+    if (!lead) { /* rank 0 writes; the others end with its status */
+        code = cli_ranks_agree(d, 0, NULL);
+        if (!code && cli_interrupted()) code = cli_exit_interrupted(cli_interrupted());
+        rd_render_result_free(&res);
         goto out;
     }
     if (res.stats.spp_mean <= 0.0 && !res.stats.cancelled) {
@@ -206,7 +279,8 @@ int cli_cmd_render(int argc, char **argv)
         fprintf(stderr, "photonmarch render: interrupted before any pixel was sampled; nothing written\n");
         code = cli_exit_interrupted(cli_interrupted());
     } else if ((st = rd_render_write(scene, &ro, &res, outpath, err, sizeof err)) != RD_OK) {
-        code = cli_report_error(st, err);
+        code = cli_exit_for(st);
+        if (ranks <= 1) fprintf(stderr, "%s\n", err);
     } else {
         if (!quiet) {
             const rd_render_stats *rs = &res.stats;
@@ -223,10 +297,16 @@ int cli_cmd_render(int argc, char **argv)
         /* A signal that came after the last pixel still says so in the status. */
         if (cli_interrupted()) code = cli_exit_interrupted(cli_interrupted());
     }
+    if (ranks > 1) { /* rank 0's outcome to the others (its message printed above or here) */
+        int failed = code && code != cli_exit_interrupted(cli_interrupted());
+        int c = cli_ranks_agree(d, failed ? code : 0, failed && st ? err : NULL);
+        if (!code) code = c;
+    }
     rd_render_result_free(&res);
 out:
     rd_baked_free(baked);
     rd_image_free_pixels(&ref);
     rd_scene_free(scene);
+    free(r);
     return code;
 }

@@ -32,7 +32,11 @@ static const char *const usage_main =
     "            3 output not written, 4 internal error, 130 / 143 interrupted by SIGINT (Ctrl-C)\n"
     "            / SIGTERM (the image so far written)\n"
     "\n"
+    "several processes: mpirun -n K photonmarch render ... (docs/cluster.md)\n"
+    "\n"
     "docs: docs/cli.md (this reference), docs/scene-format.md (the scene file)\n";
+
+static int run(int argc, char **argv);
 
 /* The subcommands; each gets the arguments after its name. */
 static const struct {
@@ -43,7 +47,40 @@ static const struct {
     {"voxelize", cli_cmd_voxelize}, {"explain", cli_cmd_explain}, {"compare", cli_cmd_compare},
 };
 
+/* The command under an MPI launcher (rd_dist.h): render shares its work between the ranks; the
+ * others do not yet, and refuse to run on several ranks (each would do the whole job). One rank
+ * runs every command as a plain process would. */
+static int run_on_ranks(int argc, char **argv, rd_dist *d)
+{
+    if (argc < 2) return run(argc, argv);
+    if (!strcmp(argv[1], "render")) return cli_cmd_render_on(argc - 2, argv + 2, d);
+    if (rd_dist_size(d) > 1) {
+        for (size_t k = 0; k < sizeof commands / sizeof commands[0]; k++)
+            if (!strcmp(argv[1], commands[k].name)) {
+                if (rd_dist_rank(d) == 0)
+                    fprintf(stderr, "photonmarch %s: runs on one process only (mpirun -n 1, or without mpirun); "
+                                    "only render is shared between ranks (docs/cluster.md)\n", argv[1]);
+                return CLI_EXIT_USAGE;
+            }
+    }
+    return run(argc, argv);
+}
+
 int main(int argc, char **argv)
+{
+    /* MPI only when an MPI launcher started this process; a plain run never touches it. */
+    rd_dist *d = NULL;
+    char err[RD_ERRLEN];
+    if (rd_dist_start(&argc, &argv, &d, err, sizeof err) != RD_OK) {
+        fprintf(stderr, "photonmarch: %s\n", err);
+        return CLI_EXIT_INTERNAL;
+    }
+    int code = d ? run_on_ranks(argc, argv, d) : run(argc, argv);
+    rd_dist_finish(d);
+    return code;
+}
+
+static int run(int argc, char **argv)
 {
     if (argc < 2 || !strcmp(argv[1], "-h") || !strcmp(argv[1], "--help") || !strcmp(argv[1], "help")) {
         fputs(usage_main, argc < 2 ? stderr : stdout);

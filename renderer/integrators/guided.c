@@ -76,7 +76,7 @@ static void epoch_guided(rd_render_ctx *ctx, int sample)
 {
     march_state *mst = ctx->state;
     (void)sample;
-    rd_select_epoch(&mst->sel);
+    rd_select_epoch(&mst->sel, ctx->comm);
 }
 
 /* The guided placement needs the guide (and so a photon map) whatever the source needs. */

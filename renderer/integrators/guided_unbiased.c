@@ -461,7 +461,7 @@ static void gu_epoch(rd_render_ctx *ctx, int sample)
 {
     gu_state *st = ctx->state;
     (void)sample;
-    rd_select_epoch(&st->sel);
+    rd_select_epoch(&st->sel, ctx->comm);
 }
 
 rd_flight rd_gu_flight(const rd_render_ctx *ctx, void *scratch, const rd_flight_in *in,

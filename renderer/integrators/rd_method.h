@@ -55,6 +55,9 @@ typedef struct rd_render_ctx {
     const struct pm_map *photons_indirect_first;
     uint64_t seed;
     int threads;
+    /* Several ranks on one image (rd_render_opts.comm; NULL: one process): a method that learns
+     * from the image's samples (epoch) sums what each rank saw through it first. */
+    const rd_comm *comm;
 } rd_render_ctx;
 
 typedef struct rd_method {

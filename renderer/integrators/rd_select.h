@@ -18,12 +18,16 @@ typedef struct {
 } rd_select_stats;
 
 /* One pixel's samples since the last epoch (all of one estimator: the tile's choice does not
- * change within an epoch). Floats: 40 bytes a pixel; the sums feed a choice, not the image. */
+ * change within an epoch). Plain doubles, so that several ranks' arrays are summed as one array
+ * of doubles (rd_select_epoch): 9 a pixel, 72 bytes. sum and sum2 are accumulated in float
+ * precision (each sum rounded to a float; the sums feed a choice, not the image) and n and
+ * nonzero are counts, all exact in a double. */
 typedef struct {
-    uint32_t n, nonzero;
-    float sum[3], sum2[3];
+    double n, nonzero;
+    double sum[3], sum2[3];
     double cost;
 } rd_select_pixel;
+#define RD_SELECT_PIXEL_DOUBLES 9
 
 typedef struct {
     uint8_t *guided;         /* per tile, 1 where the method renders, 0 where delta's path does;
@@ -64,7 +68,11 @@ void rd_select_observe(rd_select *sel, uint64_t pixel, vec3 L, double cost);
  * (INT_MAX: none); rd_select_epoch: fold the pixels' samples into their tiles' statistics and
  * choose again (no-op when the selection is off). */
 int rd_select_epoch_next(const rd_select *sel, int sample);
-void rd_select_epoch(rd_select *sel);
+/* With comm (several ranks, each with the samples of the pixels it renders and zeros
+ * elsewhere), the pixels' samples are first summed over the ranks (exactly: one rank holds each
+ * pixel's), so every rank folds the same statistics and makes the same choice as one process.
+ * Collective then: every rank calls it at the same epoch. comm NULL: this process alone. */
+void rd_select_epoch(rd_select *sel, const rd_comm *comm);
 /* The rule: for n tiles with the per-sample variance and cost of delta (var[2k], cost[2k]) and
  * of the method (var[2k+1], cost[2k+1]), the choices that minimise (sum V)(sum C);
  * use_method[k] = 1 for the method. */

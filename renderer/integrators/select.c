@@ -79,7 +79,10 @@
 static void pixel_add(rd_select_pixel *px, vec3 L, double cost)
 {
     const double v[3] = {L.x, L.y, L.z};
-    for (int c = 0; c < 3; c++) px->sum[c] += (float)v[c], px->sum2[c] += (float)(v[c] * v[c]);
+    for (int c = 0; c < 3; c++) { /* float sums, as they always were: the same choices */
+        px->sum[c] = (float)px->sum[c] + (float)v[c];
+        px->sum2[c] = (float)px->sum2[c] + (float)(v[c] * v[c]);
+    }
     px->nonzero += L.x != 0.0 || L.y != 0.0 || L.z != 0.0;
     px->n++;
     px->cost += cost;
@@ -335,9 +338,16 @@ int rd_select_epoch_next(const rd_select *sel, int sample)
     return b;
 }
 
-void rd_select_epoch(rd_select *sel)
+void rd_select_epoch(rd_select *sel, const rd_comm *comm)
 {
     if (!sel->guided) return;
+    _Static_assert(sizeof(rd_select_pixel) == RD_SELECT_PIXEL_DOUBLES * sizeof(double),
+                   "rd_select_pixel is an array of doubles");
+    /* Several ranks: each holds the samples of the pixels it rendered and zeros elsewhere, so
+     * the sum over the ranks is every pixel's samples, exactly (x + 0 = x). */
+    if (comm && comm->size > 1)
+        comm->reduce(comm->user, sel->pixels, (size_t)sel->width * sel->height * RD_SELECT_PIXEL_DOUBLES,
+                     RD_COMM_DOUBLE, RD_COMM_SUM, -1);
     for (int y = 0; y < sel->height; y++)
         for (int x = 0; x < sel->width; x++) {
             int k = (y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE;

@@ -11,7 +11,14 @@
  * pixel, their count: the image is the mean, and the render reports each pixel's standard error
  * (docs/cli.md). A time limit or Ctrl-C is checked before every pixel, so a render stops within
  * one pixel's work of the budget; pixels then differ in count by at most one pass, which the
- * per-pixel count accounts for. */
+ * per-pixel count accounts for.
+ *
+ * Several ranks (rd_render_opts.comm, docs/cluster.md): each renders the tiles it owns (tile
+ * index modulo the rank count), the ranks agree before and after every pass (one small
+ * allreduce: stop if any rank's time is up or its cancel flag is set; the smallest next pass),
+ * so every collective call is matched on every rank, and the films are summed onto rank 0 at the
+ * end. A pixel's samples depend only on its keys, and each pixel has one owner, whose sums the
+ * others' zeros leave exact: rank 0's image is one process's, bit for bit. */
 #include "bake/rd_photons.h"
 #include "core/rd_core.h"
 #include "integrators/rd_method.h"
@@ -84,12 +91,16 @@ static int film_alloc(film *f, int w, int h)
     return 0;
 }
 
-/* RMSE of the running mean against the reference over the pixels sampled so far. */
-static double film_rmse(const film *f, const rd_image *ref)
+/* The running mean's squared error against the reference over the pixels sampled so far:
+ * acc[0] += the sum of squared errors, acc[1] += the channels counted (the RMSE is
+ * sqrt(acc[0] / acc[1])); acc[2] += the samples in the film. */
+static void film_sq_err(const film *f, const rd_image *ref, double acc[3])
 {
     size_t np = (size_t)f->w * f->h, m = 0;
     double se = 0.0;
+    uint64_t total = 0;
     for (size_t p = 0; p < np; p++) {
+        total += f->n[p];
         if (!f->n[p]) continue;
         for (int c = 0; c < 3; c++) {
             double e = f->sum[3 * p + c] / f->n[p] - ref->rgb[3 * p + c];
@@ -97,7 +108,9 @@ static double film_rmse(const film *f, const rd_image *ref)
         }
         m += 3;
     }
-    return m ? sqrt(se / m) : 0.0;
+    acc[0] += se;
+    acc[1] += (double)m;
+    acc[2] += (double)total;
 }
 
 /* The mean and its standard error: se = sqrt(s^2 / n), s^2 = (sum2 - sum^2 / n) / (n - 1). */
@@ -123,12 +136,17 @@ static int should_stop(double deadline, const volatile int *cancel, const rclock
     return (cancel && *cancel) || (deadline < INFINITY && now_seconds(clk) >= deadline);
 }
 
-/* Render samples [s0, s1) of every pixel into the film; returns 1 when the deadline or the
- * cancel flag cut the pass short. Each thread reads the clock before each of its pixels and
- * stops at the first reading at or past the deadline. */
+/* The ranks sharing the render (1 and 0 alone). */
+static int comm_size(const rd_comm *c) { return c && c->size > 1 ? c->size : 1; }
+static int comm_rank(const rd_comm *c) { return comm_size(c) > 1 ? c->rank : 0; }
+
+/* Render samples [s0, s1) of every pixel of this rank's tiles into the film; returns 1 when the
+ * deadline or the cancel flag cut the pass short. Each thread reads the clock before each of its
+ * pixels and stops at the first reading at or past the deadline. */
 static int render_pass(const rd_render_ctx *ctx, rd_thread *th, film *f, int s0, int s1,
                        double deadline, const volatile int *cancel, const rclock *clk, uint64_t *invalid)
 {
+    const int ranks = comm_size(ctx->comm), rank = comm_rank(ctx->comm);
     const rd_camera *cam = &ctx->scene->camera;
     const rd_method *m = ctx->method;
     int tiles_x = (cam->width + TILE - 1) / TILE, tiles_y = (cam->height + TILE - 1) / TILE;
@@ -136,6 +154,7 @@ static int render_pass(const rd_render_ctx *ctx, rd_thread *th, film *f, int s0,
     int stopped = 0;
 #pragma omp parallel for num_threads(ctx->threads) schedule(dynamic, 1) reduction(+ : bad) reduction(| : stopped)
     for (int tile = 0; tile < tiles_x * tiles_y; tile++) {
+        if (ranks > 1 && tile % ranks != rank) continue; /* another rank's tile */
         rd_thread *t = &th[omp_get_thread_num()];
         int x0 = (tile % tiles_x) * TILE, y0 = (tile / tiles_x) * TILE;
         for (int y = y0; y < y0 + TILE && y < cam->height; y++)
@@ -273,7 +292,9 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
     double t_start = now_seconds(clk) - (o->baked ? fmax(0.0, o->baked_seconds) : 0.0);
     double deadline = o->time_limit > 0 ? t_start + o->time_limit : INFINITY; /* a clock may read 0 */
     rd_render_ctx ctx = {.scene = s, .method = m, .seed = o->seed,
-                         .threads = o->threads > 0 ? o->threads : omp_get_max_threads()};
+                         .threads = o->threads > 0 ? o->threads : omp_get_max_threads(),
+                         .comm = comm_size(o->comm) > 1 ? o->comm : NULL};
+    const rd_comm *comm = ctx.comm;
     res->stats.threads = ctx.threads;
 
     /* What the method needs baked: given, or baked here (its time is part of the render). */
@@ -318,8 +339,15 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         res->stderr_img.rgb = malloc(npix * 3 * sizeof(float));
         ok = res->image.rgb && res->stderr_img.rgb;
     }
-    if (!ok) {
-        snprintf(err, errlen, "out of memory for a %dx%d film and %d threads' scratch", w, h, ctx.threads);
+    int others_ok = 1; /* several ranks: all go on, or all stop (the passes are collective) */
+    if (comm) {
+        int all = ok;
+        comm->reduce(comm->user, &all, 1, RD_COMM_INT, RD_COMM_MIN, -1);
+        others_ok = all || !ok;
+    }
+    if (!ok || !others_ok) {
+        if (!ok) snprintf(err, errlen, "out of memory for a %dx%d film and %d threads' scratch", w, h, ctx.threads);
+        else snprintf(err, errlen, "another rank ran out of memory for its %dx%d film", w, h);
         st = RD_ERR_NOMEM;
         goto done;
     }
@@ -330,8 +358,13 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
     uint64_t invalid = 0;
     int done = 0, pass = 1, curve_cap = 0;
     while (done < o->spp) {
-        if (o->cancel && *o->cancel) { res->stats.cancelled = 1; break; }
-        if (deadline < INFINITY && now_seconds(clk) >= deadline) { res->stats.timed_out = 1; break; }
+        int stop[3] = {o->cancel && *o->cancel, deadline < INFINITY && now_seconds(clk) >= deadline, -pass};
+        if (comm) { /* stop when any rank stops; the smallest pass */
+            comm->reduce(comm->user, stop, 3, RD_COMM_INT, RD_COMM_MAX, -1);
+            pass = -stop[2];
+        }
+        if (stop[0]) { res->stats.cancelled = 1; break; }
+        if (stop[1]) { res->stats.timed_out = 1; break; }
         int n = pass < o->spp - done ? pass : o->spp - done;
         if (pass_maps) {
             /* Samples [done, done + n) stay within one photon pass. */
@@ -340,27 +373,37 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
                 (st = photon_pass(&ctx, pass_maps, ip, &pass_bake, first_bake, &res->stats, err, errlen)) != RD_OK)
                 goto done;
             if (n > ip * s->photons.pass_spp - (s0 + done)) n = ip * s->photons.pass_spp - (s0 + done);
-            if (deadline < INFINITY && now_seconds(clk) >= deadline) { res->stats.timed_out = 1; break; }
+            /* (Several ranks: the pass below finds the deadline at its first pixel, and they agree.) */
+            if (!comm && deadline < INFINITY && now_seconds(clk) >= deadline) { res->stats.timed_out = 1; break; }
         }
         /* Samples [done, done + n) stay within one of the method's epochs. */
         int epoch_end = m->epoch_next ? m->epoch_next(&ctx, s0 + done) : INT_MAX;
         if (n > epoch_end - (s0 + done)) n = epoch_end - (s0 + done);
         double t0 = now_seconds(clk);
         int cut = render_pass(&ctx, th, &f, s0 + done, s0 + done + n, deadline, o->cancel, clk, &invalid);
+        int any_cancel = o->cancel && *o->cancel;
+        if (comm) { /* a pass cut short on any rank is cut short on all */
+            int v[2] = {cut, any_cancel};
+            comm->reduce(comm->user, v, 2, RD_COMM_INT, RD_COMM_MAX, -1);
+            cut = v[0], any_cancel = v[1];
+        }
         if (!cut) done += n;
         if (!cut && s0 + done == epoch_end) m->epoch(&ctx, epoch_end);
         double t1 = now_seconds(clk), elapsed = t1 - t_start;
         if (o->progress) o->progress(o->progress_user, done, o->spp, elapsed);
         if (o->reference) {
-            uint64_t total = 0;
-            for (size_t p = 0; p < npix; p++) total += f.n[p];
-            if (!curve_push(res, &curve_cap, elapsed, (double)total / npix, film_rmse(&f, o->reference))) {
+            double acc[3] = {0.0, 0.0, 0.0};
+            film_sq_err(&f, o->reference, acc);
+            if (comm) comm->reduce(comm->user, acc, 3, RD_COMM_DOUBLE, RD_COMM_SUM, -1);
+            /* (One process: after the loop, a failed push stops the render; several ranks go
+             * on without the curve point, so that all keep calling the same collectives.) */
+            if (!curve_push(res, &curve_cap, elapsed, acc[2] / npix, acc[1] > 0 ? sqrt(acc[0] / acc[1]) : 0.0) && !comm) {
                 st = fail(err, errlen, RD_ERR_NOMEM, "out of memory for the convergence curve");
                 goto done;
             }
         }
         if (cut) {
-            if (o->cancel && *o->cancel) res->stats.cancelled = 1;
+            if (any_cancel) res->stats.cancelled = 1;
             else res->stats.timed_out = 1;
             break;
         }
@@ -374,6 +417,11 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
     }
     if (o->cancel && *o->cancel) res->stats.cancelled = 1;
 
+    if (comm) { /* every pixel's sums onto rank 0: x + 0 = x, so the film of one process */
+        comm->reduce(comm->user, f.sum, 3 * npix, RD_COMM_DOUBLE, RD_COMM_SUM, 0);
+        comm->reduce(comm->user, f.sum2, 3 * npix, RD_COMM_DOUBLE, RD_COMM_SUM, 0);
+        comm->reduce(comm->user, f.n, npix, RD_COMM_UINT32, RD_COMM_SUM, 0);
+    }
     film_resolve(&f, res->image.rgb, res->stderr_img.rgb);
     res->image.w = res->stderr_img.w = w;
     res->image.h = res->stderr_img.h = h;
@@ -397,6 +445,18 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         rs->rays_marched += th[i].rays;
         samples += th[i].ray_samples;
         cells += th[i].cells;
+    }
+    if (comm) { /* the counters of every rank (rank 0's report), as for the film */
+        uint64_t c[8] = {invalid, rs->collisions, rs->lookups, rs->shadow_rays, rs->delta_samples,
+                         rs->rays_marched, samples, cells};
+        int mm[2] = {rs->rays_marched ? -rs->samples_min : INT_MIN, rs->samples_max};
+        comm->reduce(comm->user, c, 8, RD_COMM_UINT64, RD_COMM_SUM, 0);
+        comm->reduce(comm->user, mm, 2, RD_COMM_INT, RD_COMM_MAX, 0);
+        invalid = c[0], rs->collisions = c[1], rs->lookups = c[2], rs->shadow_rays = c[3];
+        rs->delta_samples = c[4], rs->rays_marched = c[5], samples = c[6], cells = c[7];
+        rs->samples_min = rs->rays_marched ? -mm[0] : 0, rs->samples_max = mm[1];
+        rs->paths = total + invalid;
+        rs->invalid = invalid;
     }
     if (rs->rays_marched) {
         rs->samples_per_ray = (double)samples / rs->rays_marched;

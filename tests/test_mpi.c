@@ -1,0 +1,291 @@
+/* The command line on several MPI ranks (renderer/dist/, docs/cluster.md), through OpenMPI's
+ * mpirun with two ranks on this machine:
+ *  - render splits the image's tiles between the ranks and sums the films on rank 0: the image
+ *    (and its standard error, and the report's counters) equals one process's bit for bit, for
+ *    delta and for guided with the tile selection on (its epochs sum the ranks' samples first:
+ *    without that sum the choice, and so the image, differs on this scene and seed);
+ *  - a time-limited render on two ranks ends, and one set of outputs is written;
+ *  - a rank that cannot read the scene, ranks with different scene files, an output rank 0
+ *    cannot write, a command that is not shared: one line and a non-zero exit, no hang.
+ * Every run is waited for (rt_run); the timeouts only guard against a hang.
+ * mpirun's options: as root (CI) it must be told so; --oversubscribe: two ranks on any number of
+ * cores; --bind-to none: the ranks may use any core; the shared-memory transport's single copy
+ * (CMA, process_vm_readv) is off because containers often forbid it, and these tests are about
+ * the program, not the transport. */
+#include "support/rd_test.h"
+
+#include <dirent.h>
+
+#define MPIRUN "/usr/bin/mpirun"
+
+/* The small scene of test_select.c (a spot beam through noise in the image's left half, the
+ * tile selection on) at 48x24: 3x2 render tiles, so each rank's tiles (a checkerboard) hold
+ * part of the medium, and 6x3 selection tiles. */
+static const char *scene_file(const char *name)
+{
+    static char path[4][256];
+    static int k = 0;
+    k = (k + 1) % 4;
+    snprintf(path[k], sizeof path[k], "%s/%s", rt_tmpdir(), name);
+    const char *json =
+        "{\"camera\":{\"position\":[0,0.3,4.5],\"look_at\":[0,0,0],\"fov\":40,\"resolution\":[48,24]},"
+        "\"media\":[{\"bounds\":{\"min\":[-2.2,-1,-1.2],\"max\":[0.0,1,1.2]},"
+        "\"density\":{\"type\":\"noise\",\"octaves\":3,\"frequency\":1.2,\"amplitude\":0.4,\"seed\":5,"
+        "\"shape\":\"none\"},\"sigma_t\":0.15,\"albedo\":0.9,\"g\":0.3}],"
+        "\"lights\":[{\"type\":\"spot\",\"position\":[-3.2,0.9,-0.4],\"look_at\":[2.2,-0.5,0.3],\"angle\":3,"
+        "\"falloff\":0.3,\"intensity\":[1600,1500,1300]}],"
+        "\"photons\":{\"count\":40000},\"settings\":{\"select\":\"tiles\"}}";
+    rt_write_file(path[k], json, strlen(json));
+    return path[k];
+}
+
+static const char *bin(void)
+{
+    const char *b = getenv("PHOTONMARCH_BIN");
+    cr_assert(b != NULL, "PHOTONMARCH_BIN is not set (run through make test)");
+    cr_assert(access(MPIRUN, X_OK) == 0, MPIRUN " not found: run scripts/install-deps.sh (openmpi-bin)");
+    return b;
+}
+
+/* argv of `mpirun <options> -n 2 BIN <args...>` into a[] (NULL-terminated). */
+#define MPI_ARGS MPIRUN, "--allow-run-as-root", "--oversubscribe", "--bind-to", "none", "--mca", \
+                 "btl_vader_single_copy_mechanism", "none"
+
+static void read_image(const char *path, rd_image *img)
+{
+    char err[RD_ERRLEN];
+    cr_assert(rd_image_read(path, img, err, sizeof err) == RD_OK, "%s", err);
+}
+
+static void expect_same_pixels(const char *a, const char *b)
+{
+    rd_image x, y;
+    read_image(a, &x);
+    read_image(b, &y);
+    cr_assert(x.w == y.w && x.h == y.h, "%s and %s: sizes differ", a, b);
+    size_t n = (size_t)x.w * x.h * 3, diff = 0;
+    for (size_t i = 0; i < n; i++) diff += memcmp(&x.rgb[i], &y.rgb[i], sizeof(float)) != 0;
+    cr_assert(diff == 0, "%s and %s: %zu of %zu values differ", a, b, diff, n);
+    rd_image_free_pixels(&x);
+    rd_image_free_pixels(&y);
+}
+
+/* The text of a report field, "key": value, into out ("" when absent). */
+static void report_field(const char *json_path, const char *key, char *out, size_t n)
+{
+    char buf[65536] = {0}, pat[128];
+    FILE *f = fopen(json_path, "rb");
+    cr_assert(f != NULL, "cannot read %s", json_path);
+    size_t len = fread(buf, 1, sizeof buf - 1, f);
+    buf[len] = 0;
+    fclose(f);
+    snprintf(pat, sizeof pat, "\"%s\":", key);
+    const char *p = strstr(buf, pat);
+    out[0] = 0;
+    if (!p) return;
+    p += strlen(pat);
+    while (*p == ' ' || *p == '\t') p++;
+    size_t k = 0;
+    while (p[k] && p[k] != ',' && p[k] != '\n' && p[k] != '}' && k + 1 < n) k++;
+    snprintf(out, n, "%.*s", (int)k, p);
+}
+
+/* Render on one process and on two ranks with the same options; the images, standard errors
+ * and the report's counters must be equal. */
+static void one_against_two(const char *method, const char *spp, const char *seed, const char *tag)
+{
+    const char *b = bin(), *scene = scene_file("mpi.json");
+    char one[256], two[256], out[8192], err[8192];
+    snprintf(one, sizeof one, "%s/%s-one/img.exr", rt_tmpdir(), tag);
+    snprintf(two, sizeof two, "%s/%s-two/img.exr", rt_tmpdir(), tag);
+    char *a1[] = {(char *)b, "render", (char *)scene, "--method", (char *)method, "--spp", (char *)spp, "--seed",
+                  (char *)seed, "--threads", "1", "--no-cache", "-q", "-o", one, NULL};
+    int code = rt_run(a1, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 0, "one process: exit %d: %s", code, err);
+    char *a2[] = {MPI_ARGS, "-n", "2", (char *)b, "render", (char *)scene, "--method", (char *)method, "--spp",
+                  (char *)spp, "--seed", (char *)seed, "--threads", "1", "--no-cache", "-q", "-o", two, NULL};
+    code = rt_run(a2, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 0, "two ranks: exit %d: %s", code, err);
+    expect_same_pixels(one, two);
+    char s1[256], s2[256];
+    snprintf(s1, sizeof s1, "%.*s-stderr.exr", (int)(strlen(one) - 4), one);
+    snprintf(s2, sizeof s2, "%.*s-stderr.exr", (int)(strlen(two) - 4), two);
+    expect_same_pixels(s1, s2);
+    snprintf(s1, sizeof s1, "%.*s.json", (int)(strlen(one) - 4), one);
+    snprintf(s2, sizeof s2, "%.*s.json", (int)(strlen(two) - 4), two);
+    static const char *const keys[] = {"paths", "density_lookups", "tentative_collisions", "delta_share", "spp"};
+    for (size_t k = 0; k < sizeof keys / sizeof keys[0]; k++) {
+        char v1[64], v2[64];
+        report_field(s1, keys[k], v1, sizeof v1);
+        report_field(s2, keys[k], v2, sizeof v2);
+        cr_assert(strcmp(v1, v2) == 0, "report %s: one process %s, two ranks %s", keys[k], v1, v2);
+        cr_assert(v1[0] || !strcmp(keys[k], "delta_share"), "the report has no %s", keys[k]); /* delta: no share */
+    }
+}
+
+Test(mpi, two_ranks_render_delta_as_one_process_bit_for_bit, .timeout = 300)
+{
+    one_against_two("delta", "20", "5", "delta");
+}
+
+/* guided with the tile selection: 20 samples pass the epochs at 4 and 16. With seed 4 a build
+ * whose epochs folded only each rank's own pixels (no sum over the ranks) chose other tiles
+ * (delta's share 0.77 against 0.6) and gave another image (69 values differ): the test sees it. */
+Test(mpi, two_ranks_render_guided_with_selection_as_one_process_bit_for_bit, .timeout = 300)
+{
+    one_against_two("guided", "20", "4", "guided");
+    char v[64];
+    char path[256];
+    snprintf(path, sizeof path, "%s/guided-one/img.json", rt_tmpdir());
+    report_field(path, "delta_share", v, sizeof v);
+    double share = atof(v);
+    cr_assert(share > 0.0 && share < 1.0, "delta's share %g: the selection must mix both estimators", share);
+}
+
+/* The outputs in dir: exactly the four of one render, no temporary left behind. */
+static void expect_one_output_set(const char *dir)
+{
+    DIR *d = opendir(dir);
+    cr_assert(d != NULL, "%s: no output folder", dir);
+    int files = 0;
+    char names[1024] = "";
+    for (struct dirent *e; (e = readdir(d)) != NULL;) {
+        if (e->d_name[0] == '.' && (!e->d_name[1] || !strcmp(e->d_name, ".."))) continue;
+        files++;
+        strncat(names, e->d_name, sizeof names - strlen(names) - 2);
+        strcat(names, " ");
+    }
+    closedir(d);
+    cr_assert(files == 4, "%s holds %d files (%s), expected img.exr, img-stderr.exr, img.png, img.json", dir, files, names);
+}
+
+Test(mpi, time_limited_render_on_two_ranks_ends_and_writes_one_image, .timeout = 300)
+{
+    /* guided: a cut pass must be agreed, and the epochs' sums matched, or a rank would wait
+     * for ever. */
+    const char *b = bin(), *scene = scene_file("mpi-time.json");
+    char dir[256], exr[300], js[300], out[8192], err[8192];
+    snprintf(dir, sizeof dir, "%s/timed", rt_tmpdir());
+    snprintf(exr, sizeof exr, "%s/img.exr", dir);
+    snprintf(js, sizeof js, "%s/img.json", dir);
+    /* The bake first, on one process: the time limit counts a bake made by the render, and on a
+     * loaded machine that could take the whole budget (then nothing is rendered, by design). */
+    char prefix[256], pmap[300], guide[300];
+    snprintf(prefix, sizeof prefix, "%s/bk/sel", rt_tmpdir());
+    snprintf(pmap, sizeof pmap, "%s.pmap", prefix);
+    snprintf(guide, sizeof guide, "%s.guide", prefix);
+    char *bake[] = {(char *)b, "bake", (char *)scene, "-q", "-o", prefix, NULL};
+    int code = rt_run(bake, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 0, "bake: exit %d: %s", code, err);
+    char *a[] = {MPI_ARGS, "-n", "2", (char *)b, "render", (char *)scene, "--method", "guided", "--time", "3",
+                 "--threads", "1", "--photons", pmap, "--guide", guide, "-o", exr, NULL};
+    code = rt_run(a, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 0, "exit %d: %s", code, err);
+    expect_one_output_set(dir);
+    const char *first = strstr(out, "image  "), *again = first ? strstr(first + 1, "image  ") : NULL;
+    cr_assert(first && !again, "stdout names the image once (rank 0 alone writes): %s", out);
+    char v[64];
+    report_field(js, "timed_out", v, sizeof v);
+    cr_assert(strcmp(v, "true") == 0 || strcmp(v, "1") == 0, "timed_out is %s", v);
+    report_field(js, "spp_mean", v, sizeof v);
+    cr_assert(atof(v) > 0.0, "spp_mean %s", v);
+}
+
+/* The lines photonmarch printed (those starting with "photonmarch" or naming `needle`), not
+ * mpirun's own notice. */
+static int count_lines_with(const char *text, const char *needle)
+{
+    int n = 0;
+    for (const char *p = text; p && *p;) {
+        const char *e = strchr(p, '\n');
+        size_t len = e ? (size_t)(e - p) : strlen(p);
+        char line[1024];
+        snprintf(line, sizeof line, "%.*s", (int)(len < sizeof line ? len : sizeof line - 1), p);
+        n += strstr(line, needle) != NULL;
+        p = e ? e + 1 : NULL;
+    }
+    return n;
+}
+
+Test(mpi, a_rank_that_cannot_read_the_scene_ends_every_rank, .timeout = 120)
+{
+    /* mpirun's MPMD form: rank 0 gets a scene, rank 1 a path that is not there. */
+    const char *b = bin(), *scene = scene_file("mpi-ok.json");
+    char missing[256], exr[256], out[8192], err[8192];
+    snprintf(missing, sizeof missing, "%s/not-there.json", rt_tmpdir());
+    snprintf(exr, sizeof exr, "%s/miss/img.exr", rt_tmpdir());
+    char *a[] = {MPI_ARGS, "-n", "1", (char *)b, "render", (char *)scene, "-q", "-o", exr, ":",
+                 "-n", "1", (char *)b, "render", missing, "-q", "-o", exr, NULL};
+    int code = rt_run(a, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 2, "exit %d (expected 2, invalid input): %s", code, err);
+    cr_assert(count_lines_with(err, "photonmarch") == 1 && count_lines_with(err, "not-there.json") == 1,
+              "one line naming the file: %s", err);
+    cr_assert(access(exr, F_OK) != 0, "nothing is written");
+}
+
+Test(mpi, ranks_with_different_scene_files_refuse, .timeout = 120)
+{
+    const char *b = bin(), *s1 = scene_file("mpi-a.json");
+    char s2[256], exr[256], out[8192], err[8192];
+    snprintf(s2, sizeof s2, "%s/mpi-b.json", rt_tmpdir());
+    /* the same scene with another seed of its noise: a valid scene, another file */
+    FILE *f = fopen(s1, "rb");
+    cr_assert(f != NULL);
+    char buf[4096];
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = 0;
+    char *seed = strstr(buf, "\"seed\":5");
+    cr_assert(seed != NULL);
+    seed[7] = '6';
+    rt_write_file(s2, buf, n);
+    snprintf(exr, sizeof exr, "%s/diff/img.exr", rt_tmpdir());
+    char *a[] = {MPI_ARGS, "-n", "1", (char *)b, "render", (char *)s1, "-q", "-o", exr, ":",
+                 "-n", "1", (char *)b, "render", s2, "-q", "-o", exr, NULL};
+    int code = rt_run(a, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 2, "exit %d (expected 2): %s", code, err);
+    cr_assert(count_lines_with(err, "not the same file on every rank") == 1, "one line: %s", err);
+    cr_assert(access(exr, F_OK) != 0, "nothing is written");
+}
+
+Test(mpi, an_output_rank_0_cannot_write_ends_every_rank, .timeout = 120)
+{
+    const char *b = bin(), *scene = scene_file("mpi-out.json");
+    char file[256], exr[300], out[8192], err[8192];
+    snprintf(file, sizeof file, "%s/a-file", rt_tmpdir());
+    rt_write_file(file, "x", 1);
+    snprintf(exr, sizeof exr, "%s/img.exr", file); /* a folder that is a file */
+    char *a[] = {MPI_ARGS, "-n", "2", (char *)b, "render", (char *)scene, "--spp", "2", "-q", "-o", exr, NULL};
+    int code = rt_run(a, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 3, "exit %d (expected 3, output not written): %s", code, err);
+    cr_assert(count_lines_with(err, "a-file") == 1, "one line naming the output: %s", err);
+}
+
+Test(mpi, commands_not_shared_between_ranks_refuse, .timeout = 120)
+{
+    const char *b = bin(), *scene = scene_file("mpi-info.json");
+    char out[8192], err[8192];
+    char *a[] = {MPI_ARGS, "-n", "2", (char *)b, "info", (char *)scene, NULL};
+    int code = rt_run(a, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 1, "exit %d (expected 1): %s", code, err);
+    cr_assert(count_lines_with(err, "photonmarch info") == 1, "one line: %s", err);
+    /* One rank runs any command as a plain process does. */
+    char *a1[] = {MPI_ARGS, "-n", "1", (char *)b, "info", (char *)scene, NULL};
+    code = rt_run(a1, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 0, "one rank: exit %d: %s", code, err);
+}
+
+Test(mpi, ranks_with_different_options_refuse, .timeout = 120)
+{
+    /* Both command lines parse, but the ranks would render different images (and call their
+     * collectives a different number of times): they must stop before the passes. */
+    const char *b = bin(), *scene = scene_file("mpi-opt.json");
+    char exr[256], out[8192], err[8192];
+    snprintf(exr, sizeof exr, "%s/opt/img.exr", rt_tmpdir());
+    char *a[] = {MPI_ARGS, "-n", "1", (char *)b, "render", (char *)scene, "--spp", "2", "-q", "-o", exr, ":",
+                 "-n", "1", (char *)b, "render", (char *)scene, "--spp", "3", "-q", "-o", exr, NULL};
+    int code = rt_run(a, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 1, "exit %d (expected 1): %s", code, err);
+    cr_assert(count_lines_with(err, "options differ") == 1, "one line: %s", err);
+    cr_assert(access(exr, F_OK) != 0, "nothing is written");
+}
