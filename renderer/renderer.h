@@ -127,7 +127,9 @@ typedef struct {
     uint64_t seed;
     int threads;         /* 0 = OpenMP default */
     /* Polled between pixels: when it becomes non-zero the render stops and rd_render returns
-     * RD_OK with the samples done so far (pixels may then differ by one pass in count). */
+     * RD_OK with the samples done so far (pixels may then differ by one pass in count). In one
+     * process (no comm) also passed to the bake rd_render makes when `baked` is NULL: set
+     * during it, rd_render returns RD_ERR_CANCELLED with nothing rendered. */
     const volatile int *cancel;
     /* Called after every pass (from the calling thread). May be NULL. */
     void (*progress)(void *user, int spp_done, int spp_total, double seconds);

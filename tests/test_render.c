@@ -446,3 +446,23 @@ Test(render, time_budget_is_kept_within_a_tenth_of_cpu_time, .timeout = 120)
     rd_render_result_free(&r);
     rd_scene_free(s);
 }
+
+/* A cancel flag already set when rd_render must bake for its method (no `baked` given) stops
+ * the bake, not only the passes: RD_ERR_CANCELLED, nothing rendered. A bake that ignored the
+ * flag would trace its 4e6 photons (seconds) and the render would return RD_OK, cancelled
+ * after 0 samples. */
+Test(render, a_cancel_stops_the_bake_rd_render_makes, .timeout = 60)
+{
+    rd_scene *s = rt_scene("cbake.json",
+                           "{\"camera\":{\"position\":[0,0,3],\"look_at\":[0,0,0],\"resolution\":[8,8]},"
+                           "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":2,\"albedo\":0.9}],"
+                           "\"lights\":[{\"type\":\"point\",\"position\":[0,2,0],\"intensity\":[5,5,5]}],"
+                           "\"photons\":{\"count\":4000000}}");
+    static volatile int set = 1;
+    rd_render_opts o = {.method = "guided-unbiased", .spp = 4, .seed = 1, .threads = 2, .cancel = &set};
+    rd_render_result r;
+    char err[RD_ERRLEN] = "";
+    rd_status st = rd_render(s, &o, &r, err, sizeof err);
+    cr_assert(st == RD_ERR_CANCELLED, "status %d (%s): the bake ran on under a set cancel flag", (int)st, err);
+    rd_scene_free(s);
+}

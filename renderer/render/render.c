@@ -202,7 +202,7 @@ static rd_status fail(char *err, size_t errlen, rd_status st, const char *msg)
 
 /* Attach what ctx's method needs baked to ctx: `given`, or a bake made here (*own, which the
  * caller frees). */
-static rd_status attach_bake(rd_render_ctx *ctx, const rd_baked *given, int threads,
+static rd_status attach_bake(rd_render_ctx *ctx, const rd_baked *given, int threads, const volatile int *cancel,
                              rd_baked **own, char *err, size_t errlen)
 {
     const rd_scene *s = ctx->scene;
@@ -215,6 +215,7 @@ static rd_status attach_bake(rd_render_ctx *ctx, const rd_baked *given, int thre
         rd_bake_opts bo = {0};
         bo.seed = -1;
         bo.threads = threads;
+        bo.cancel = cancel; /* a cancel during the bake: RD_ERR_CANCELLED, nothing rendered */
         rd_bake_opts_for(&bo, needs);
         rd_status st = rd_bake(s, &bo, own, err, errlen);
         if (st != RD_OK) return st;
@@ -299,7 +300,11 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
 
     /* What the method needs baked: given, or baked here (its time is part of the render). */
     rd_baked *own = NULL;
-    rd_status st = attach_bake(&ctx, o->baked, o->threads, &own, err, errlen);
+    /* One process: a cancel stops its bake. Several ranks bake alike and must reach the
+     * passes' agreement together, so their bake runs to its end and the first agreement stops
+     * them all. */
+    const volatile int *bake_cancel = ctx.comm ? NULL : o->cancel;
+    rd_status st = attach_bake(&ctx, o->baked, o->threads, bake_cancel, &own, err, errlen);
     if (st != RD_OK) return st;
     /* Progressive photon passes: pass 1's maps are traced here (the bake's own maps serve its
      * guide); the passes go on between render passes, pass i for samples
@@ -505,7 +510,7 @@ rd_status rd_explain(const rd_scene *s, const rd_explain_opts *o, rd_explain_res
     rd_render_ctx ctx = {.scene = s, .method = &rd_method_guided, .seed = o->seed,
                          .threads = o->threads > 0 ? o->threads : omp_get_max_threads()};
     rd_baked *own = NULL;
-    rd_status st = attach_bake(&ctx, o->baked, o->threads, &own, err, errlen);
+    rd_status st = attach_bake(&ctx, o->baked, o->threads, NULL, &own, err, errlen);
     if (st != RD_OK) return st;
     if ((st = ctx.method->prepare(&ctx, err, errlen)) == RD_OK) {
         e->px = o->px, e->py = o->py;
