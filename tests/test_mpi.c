@@ -27,14 +27,7 @@ static const char *scene_file(const char *name)
     static int k = 0;
     k = (k + 1) % 4;
     snprintf(path[k], sizeof path[k], "%s/%s", rt_tmpdir(), name);
-    const char *json =
-        "{\"camera\":{\"position\":[0,0.3,4.5],\"look_at\":[0,0,0],\"fov\":40,\"resolution\":[48,24]},"
-        "\"media\":[{\"bounds\":{\"min\":[-2.2,-1,-1.2],\"max\":[0.0,1,1.2]},"
-        "\"density\":{\"type\":\"noise\",\"octaves\":3,\"frequency\":1.2,\"amplitude\":0.4,\"seed\":5,"
-        "\"shape\":\"none\"},\"sigma_t\":0.15,\"albedo\":0.9,\"g\":0.3}],"
-        "\"lights\":[{\"type\":\"spot\",\"position\":[-3.2,0.9,-0.4],\"look_at\":[2.2,-0.5,0.3],\"angle\":3,"
-        "\"falloff\":0.3,\"intensity\":[1600,1500,1300]}],"
-        "\"photons\":{\"count\":40000},\"settings\":{\"select\":\"tiles\"}}";
+    const char *json = rt_spot_fog_json(48, 24, "{\"select\":\"tiles\"}");
     rt_write_file(path[k], json, strlen(json));
     return path[k];
 }

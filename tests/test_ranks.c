@@ -106,20 +106,16 @@ static void render_on_ranks(const rd_scene *s, const rd_render_opts *o, int n, f
     }
 }
 
-/* test_select.c's scene at 48x24: 3x2 render tiles, so with three ranks each holds two tiles
- * and part of the medium. */
-static const char *const scene_json =
-    "{\"camera\":{\"position\":[0,0.3,4.5],\"look_at\":[0,0,0],\"fov\":40,\"resolution\":[48,24]},"
-    "\"media\":[{\"bounds\":{\"min\":[-2.2,-1,-1.2],\"max\":[0.0,1,1.2]},"
-    "\"density\":{\"type\":\"noise\",\"octaves\":3,\"frequency\":1.2,\"amplitude\":0.4,\"seed\":5,"
-    "\"shape\":\"none\"},\"sigma_t\":0.15,\"albedo\":0.9,\"g\":0.3}],"
-    "\"lights\":[{\"type\":\"spot\",\"position\":[-3.2,0.9,-0.4],\"look_at\":[2.2,-0.5,0.3],\"angle\":3,"
-    "\"falloff\":0.3,\"intensity\":[1600,1500,1300]}],"
-    "\"photons\":{\"count\":40000},\"settings\":{\"select\":\"tiles\"}}";
+/* test_select.c's scene (rt_spot_fog_json) at 48x24: 3x2 render tiles, so with three ranks each
+ * holds two tiles and part of the medium. */
+static const char *ranks_scene(void)
+{
+    return rt_spot_fog_json(48, 24, "{\"select\":\"tiles\"}");
+}
 
 Test(ranks, three_ranks_give_rank_0_one_process_s_image_bit_for_bit, .timeout = 600)
 {
-    rd_scene *s = rt_scene("ranks.json", scene_json);
+    rd_scene *s = rt_scene("ranks.json", ranks_scene());
     rd_bake_opts bo = {.seed = -1, .threads = 1};
     rd_bake_opts_for(&bo, rd_method_needs_for("guided", s));
     rd_baked *b = NULL;
@@ -153,7 +149,7 @@ Test(ranks, three_ranks_give_rank_0_one_process_s_image_bit_for_bit, .timeout = 
 
 Test(ranks, a_cancel_on_one_rank_stops_them_all, .timeout = 300)
 {
-    rd_scene *s = rt_scene("ranksc.json", scene_json);
+    rd_scene *s = rt_scene("ranksc.json", ranks_scene());
     /* delta, no bake; rank 1's flag is set from the start, the others' never */
     rd_render_opts o = {.method = "delta", .spp = 1 << 20, .seed = 1, .threads = 1};
     static volatile int set = 1;

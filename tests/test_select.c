@@ -143,23 +143,12 @@ Test(select, epochs_end_at_4_16_64_and_only_with_epochs_on)
 
 /* ---- The image --------------------------------------------------------------------------- */
 
-/* A narrow spot (3 degrees) across a thin fog seen side-on (scenes/hard-narrow-spot.json made
- * small, the fog cut at x = 0 so that the right half of the image sees none: delta's tiles
- * there, where both estimators are exact and delta's costs no more); 32x24 pixels are 12
- * tiles. Which of the lit tiles march depends on the pilot's samples: with this seed, some. */
+/* rt_spot_fog_json at 32x24, 12 tiles: the right half of the image sees no fog (delta's tiles
+ * there, where both estimators are exact and delta's costs no more). Which of the lit tiles
+ * march depends on the pilot's samples: with this seed, some. */
 static const char *select_scene(const char *settings)
 {
-    static char buf[2048];
-    snprintf(buf, sizeof buf,
-             "{\"camera\":{\"position\":[0,0.3,4.5],\"look_at\":[0,0,0],\"fov\":40,\"resolution\":[32,24]},"
-             "\"media\":[{\"bounds\":{\"min\":[-2.2,-1,-1.2],\"max\":[0.0,1,1.2]},"
-             "\"density\":{\"type\":\"noise\",\"octaves\":3,\"frequency\":1.2,\"amplitude\":0.4,\"seed\":5,"
-             "\"shape\":\"none\"},\"sigma_t\":0.15,\"albedo\":0.9,\"g\":0.3}],"
-             "\"lights\":[{\"type\":\"spot\",\"position\":[-3.2,0.9,-0.4],\"look_at\":[2.2,-0.5,0.3],\"angle\":3,"
-             "\"falloff\":0.3,\"intensity\":[1600,1500,1300]}],"
-             "\"photons\":{\"count\":40000},\"settings\":%s}",
-             settings);
-    return buf;
+    return rt_spot_fog_json(32, 24, settings);
 }
 
 Test(select, tiles_of_both_kinds_give_delta_s_image, .timeout = 300)

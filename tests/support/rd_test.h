@@ -72,6 +72,26 @@ static inline rd_scene *rt_scene(const char *name, const char *json)
     return s;
 }
 
+/* The guided methods' selection scene (tests/test_select.c, test_mpi.c, test_ranks.c): a
+ * narrow spot (3 degrees) across a thin fog seen side-on (scenes/hard-narrow-spot.json made
+ * small), the fog cut at x = 0 so that the right half of the image sees none; width x height
+ * pixels, `settings` the scene's "settings" object. Returns the JSON (a static buffer, valid
+ * until the next call). */
+static inline const char *rt_spot_fog_json(int width, int height, const char *settings)
+{
+    static char buf[2048];
+    snprintf(buf, sizeof buf,
+             "{\"camera\":{\"position\":[0,0.3,4.5],\"look_at\":[0,0,0],\"fov\":40,\"resolution\":[%d,%d]},"
+             "\"media\":[{\"bounds\":{\"min\":[-2.2,-1,-1.2],\"max\":[0.0,1,1.2]},"
+             "\"density\":{\"type\":\"noise\",\"octaves\":3,\"frequency\":1.2,\"amplitude\":0.4,\"seed\":5,"
+             "\"shape\":\"none\"},\"sigma_t\":0.15,\"albedo\":0.9,\"g\":0.3}],"
+             "\"lights\":[{\"type\":\"spot\",\"position\":[-3.2,0.9,-0.4],\"look_at\":[2.2,-0.5,0.3],\"angle\":3,"
+             "\"falloff\":0.3,\"intensity\":[1600,1500,1300]}],"
+             "\"photons\":{\"count\":40000},\"settings\":%s}",
+             width, height, settings);
+    return buf;
+}
+
 /* Run `argv` (argv[0] is the program path) with stdout/stderr captured into the given buffers;
  * returns the exit status, or 1000 + signal number when it died of a signal. When cpu_seconds is
  * not NULL it gets the child's CPU time (user + system, from wait4): what a test measures of a
