@@ -145,7 +145,9 @@ typedef struct {
     /* Index of every pixel's first sample (default 0): the render takes samples
      * [first_sample, first_sample + spp), so a render of N samples followed by one of M more
      * with first_sample = N and the same seed are together the render of N + M samples (the
-     * random numbers are keyed by the sample index). compare extends its reference this way. */
+     * random numbers are keyed by the sample index). compare extends its reference this way.
+     * Not so for the guided methods with settings.select "tiles": each render runs its own
+     * pilot and epochs, so the continuation is another unbiased render, not the same one. */
     int first_sample;
     /* Several ranks render one image (NULL: this process alone; borrowed): rank r renders the
      * 16x16 tiles whose index is r modulo size, the ranks agree after every pass whether to stop
