@@ -149,6 +149,11 @@ void sh_eval_rgb(int bands, const float *coeffs, const float *y, float out[3]);
 void sh_eval_rgb_clamped(int bands, const float *coeffs, const float *y, float out[3]);
 /* The scalar a PDF uses: (1/3) sum_ch max(0, f_ch(w)). Never negative. */
 float sh_eval_guide(int bands, const float *coeffs, const float *y);
+/* The same scalar from the first `use` bands (1 <= use <= bands) of coefficients stored with
+ * `bands` bands (channel stride bands^2): the band-limited guide sum_{l<use} c_lm Y_lm(w), y
+ * needing only use^2 entries. A guide read for sampling decisions only, where any positive
+ * function keeps the estimate unbiased, trades directional detail for cost this way. */
+float sh_eval_guide_bands(int bands, int use, const float *coeffs, const float *y);
 
 /* ------------------------------------------------------------------------------------------
  * 4. Guide grids

@@ -352,15 +352,16 @@ void sh_project_add(int bands, const double *b, const double *y, const double po
     }
 }
 
-void sh_eval_rgb(int bands, const float *coeffs, const float *y, float out[3])
+/* f_c(w) over the first `use` bands of coefficients stored `bands` to a channel. */
+static void eval_rgb(int bands, int use, const float *coeffs, const float *y, float out[3])
 {
     /* Eight independent partial sums per channel: the serial sum is one dependency chain of
      * L^2 additions (IEEE order forbids the compiler to split it), the eight lanes are what
      * the vectoriser turns into two SIMD accumulators. The guided methods call this for every
      * guide cell a ray crosses (renderer/integrators/guide_pdf.c). */
-    const int n = bands * bands;
+    const int n = use * use, stride = bands * bands;
     for (int c = 0; c < SH_CHANNELS; c++) {
-        const float *cc = coeffs + (size_t)c * n;
+        const float *cc = coeffs + (size_t)c * stride;
         float s[8] = {0, 0, 0, 0, 0, 0, 0, 0}, t = 0.0f;
         int i = 0;
         for (; i + 8 <= n; i += 8)
@@ -372,6 +373,11 @@ void sh_eval_rgb(int bands, const float *coeffs, const float *y, float out[3])
     }
 }
 
+void sh_eval_rgb(int bands, const float *coeffs, const float *y, float out[3])
+{
+    eval_rgb(bands, bands, coeffs, y, out);
+}
+
 void sh_eval_rgb_clamped(int bands, const float *coeffs, const float *y, float out[3])
 {
     sh_eval_rgb(bands, coeffs, y, out);
@@ -381,7 +387,14 @@ void sh_eval_rgb_clamped(int bands, const float *coeffs, const float *y, float o
 
 float sh_eval_guide(int bands, const float *coeffs, const float *y)
 {
+    return sh_eval_guide_bands(bands, bands, coeffs, y);
+}
+
+float sh_eval_guide_bands(int bands, int use, const float *coeffs, const float *y)
+{
     float f[3];
-    sh_eval_rgb_clamped(bands, coeffs, y, f);
+    eval_rgb(bands, use < bands ? use : bands, coeffs, y, f);
+    for (int c = 0; c < SH_CHANNELS; c++)
+        f[c] = f[c] > 0.0f ? f[c] : 0.0f; /* truncation rings (THEORY.md §4) */
     return (f[0] + f[1] + f[2]) * (1.0f / 3.0f);
 }

@@ -69,6 +69,13 @@ Test(guided_unbiased, equals_delta_forward_scattering_spot_and_environment, .tim
     rd_scene *s1 = rt_scene("gu_fwd1.json", scene_json(0.9, -2.5, ENV, ",\"secondary\":false"));
     rd_render_result g1 = rt_render(s1, "guided-unbiased", 128, 13, NULL);
     rt_expect_same(&d, &g1, "g = 0.9, spot + environment, camera flights only");
+    /* The guide read through its band 0 alone (guide.eval_bands 1): other flights and
+     * roulette, the same image. */
+    rd_scene *s2 = rt_scene("gu_fwd2.json", scene_json(0.9, -2.5, ENV, ",\"eval_bands\":1"));
+    rd_render_result g2 = rt_render(s2, "guided-unbiased", 128, 14, NULL);
+    rt_expect_same(&d, &g2, "g = 0.9, spot + environment, guide band 0 only");
+    rd_render_result_free(&g2);
+    rd_scene_free(s2);
     rd_render_result_free(&g1);
     rd_scene_free(s1);
     rd_render_result_free(&g);
@@ -296,6 +303,9 @@ Test(guided_unbiased, flight_sampler_chi_square_against_its_pdf, .timeout = 900)
      * majorant weight and with the guide strategy alone. */
     chi_square_flights("", 77);
     chi_square_flights(",\"majorant_weight\":0", 78);
+    /* The guide read through all its bands instead of the default first two (guide.eval_bands):
+     * another pdf, which the cdf must follow too. */
+    chi_square_flights(",\"eval_bands\":4", 79);
 }
 
 Test(guided_unbiased, white_furnace, .timeout = 300)
@@ -347,6 +357,9 @@ Test(guided_unbiased, scene_keys_are_validated)
         {"\"split_max\":2.5", "guide.split_max"},
         {"\"distance_tau_max\":0", "guide.distance_tau_max"},
         {"\"distance_tau_max\":-1", "guide.distance_tau_max"},
+        {"\"eval_bands\":0", "guide.eval_bands"},
+        {"\"eval_bands\":9", "guide.eval_bands"},
+        {"\"eval_bands\":1.5", "guide.eval_bands"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         char path[256], extra[64], err[RD_ERRLEN] = "";

@@ -364,6 +364,39 @@ Test(sh, guide_value_never_negative)
                  negatives);
 }
 
+Test(sh, eval_guide_bands_is_the_band_limited_sum)
+{
+    /* sh_eval_guide_bands(L, use, c, y) against the sum it stands for, written out in double
+     * over l < use from coefficients stored L bands to a channel: (1/3) sum_ch max(0,
+     * sum_{l<use, m} c[ch][lm] Y_lm(w)). use = L must equal sh_eval_guide bit for bit. A
+     * stride of use^2 instead of L^2 (reading channel 1 from inside channel 0) or a sum over
+     * all L bands fails it. */
+    rng r = rng_new(991);
+    const int L = 6;
+    sh_basis B;
+    sh_basis_init(&B, L);
+    for (int t = 0; t < 500; t++) {
+        float cf[3 * SH_MAX_COEFFS], y[SH_MAX_COEFFS];
+        for (int i = 0; i < 3 * L * L; i++) cf[i] = (float)(rng_u01(&r) - 0.3) / (1 + i % (L * L));
+        double w[3];
+        rng_dir(&r, w);
+        sh_basis_evalf(&B, w, y);
+        cr_assert_eq(sh_eval_guide_bands(L, L, cf, y), sh_eval_guide(L, cf, y));
+        for (int use = 1; use <= L; use++) {
+            double want = 0.0;
+            for (int ch = 0; ch < 3; ch++) {
+                double f = 0.0;
+                for (int i = 0; i < use * use; i++) f += (double)cf[ch * L * L + i] * y[i];
+                want += f > 0.0 ? f : 0.0;
+            }
+            want /= 3.0;
+            double got = sh_eval_guide_bands(L, use, cf, y);
+            cr_assert(fabs(got - want) <= 1e-5 * (fabs(want) + 1.0), "use %d: %.9g vs %.9g", use,
+                      got, want);
+        }
+    }
+}
+
 Test(sh, status_names)
 {
     cr_assert_str_eq(sh_status_name(SH_OK), "ok");

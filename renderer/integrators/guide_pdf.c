@@ -162,6 +162,14 @@ rd_status rd_guide_pdf_build_guide(rd_guide_pdf *pdf, const sh_guide *g, const d
                                    const double d[3], double tmin, double tmax, double alpha,
                                    char *err, size_t errlen)
 {
+    return rd_guide_pdf_build_guide_bands(pdf, g, NULL, o, d, tmin, tmax, alpha, err, errlen);
+}
+
+rd_status rd_guide_pdf_build_guide_bands(rd_guide_pdf *pdf, const sh_guide *g,
+                                         const sh_basis *basis, const double o[3],
+                                         const double d[3], double tmin, double tmax,
+                                         double alpha, char *err, size_t errlen)
+{
     if (!pdf) return RD_ERR_ARG;
     pdf->n = pdf->needed = 0;
     if (!g || !o || !d) return fail(pdf, RD_ERR_ARG, err, errlen, "guide pdf: NULL guide or ray");
@@ -181,9 +189,14 @@ rd_status rd_guide_pdf_build_guide(rd_guide_pdf *pdf, const sh_guide *g, const d
     /* Guide value toward w = -d: light travels toward the camera (sh.h, THEORY.md §6). One SH
      * evaluation per ray; per cell only the dot product of sh_eval_guide. */
     const int L = sh_guide_bands(g);
+    if (!basis) basis = sh_guide_basis(g);
+    if (basis->bands > L)
+        return fail(pdf, RD_ERR_ARG, err, errlen, "guide pdf: %d bands asked of a %d-band guide",
+                    basis->bands, L);
+    const int use = basis->bands;
     const double w[3] = {-d[0], -d[1], -d[2]};
     float y[SH_MAX_COEFFS];
-    sh_basis_evalf(sh_guide_basis(g), w, y);
+    sh_basis_evalf(basis, w, y);
 
     sh_guide_ray it;
     sh_guide_seg gs;
@@ -191,7 +204,7 @@ rd_status rd_guide_pdf_build_guide(rd_guide_pdf *pdf, const sh_guide *g, const d
     double tend = tmin;
     while (sh_guide_ray_next(&it, &gs)) {
         if (pdf->needed == 0 && gs.t0 > tmin) push(pdf, tmin, gs.t0, 0.0, 0.0, -1);
-        double f = sh_eval_guide(L, gs.coeffs, y);
+        double f = sh_eval_guide_bands(L, use, gs.coeffs, y);
         double s = gs.sigma_t;
         if (!(f >= 0.0) || !isfinite(f)) f = 0.0;   /* sh_eval_guide never gives < 0; NaN guard */
         if (!(s >= 0.0) || !isfinite(s)) s = 0.0;

@@ -53,6 +53,8 @@ typedef struct {
     int cap_g;   /* guide pdf segments a flight can need (guide cells crossed + 2 fillers) */
     int cap_m;   /* majorant pdf segments (majorant cells crossed in every medium + gaps) */
     rd_select sel; /* settings.select: the tiles the guided paths render (integrators/select.c) */
+    sh_basis eval; /* the guide's first guide.eval_bands bands: what its flights and roulette
+                      read (sh_eval_guide_bands) */
 } gu_state;
 
 /* One thread's storage (scratch), laid out by scratch_layout. */
@@ -145,8 +147,8 @@ static void build_guide_pdf(const rd_render_ctx *ctx, const gu_scratch *sc, ray3
     const gu_state *st = ctx->state;
     const double o[3] = {r.o.x, r.o.y, r.o.z}, d[3] = {r.d.x, r.d.y, r.d.z};
     rd_guide_pdf_init(pdf, sc->seg_g, st->cap_g);
-    if (rd_guide_pdf_build_guide(pdf, ctx->guide, o, d, t0, t1, ctx->scene->guide.distance_alpha,
-                                 NULL, 0) != RD_OK)
+    if (rd_guide_pdf_build_guide_bands(pdf, ctx->guide, &st->eval, o, d, t0, t1,
+                                       ctx->scene->guide.distance_alpha, NULL, 0) != RD_OK)
         rd_guide_pdf_build(pdf, 0, NULL, NULL, NULL, t0, t1, 1.0, NULL, 0);
 }
 
@@ -392,12 +394,13 @@ static void gu_vertex(const rd_flight_sampler *fs, const rd_scene *s, const rd_v
      *   rho = |beta| L~_s(x, -d) / I~_cam,  L~_s = f(-d) / sigma_s of the cell,
      * f(-d) the guide's sigma_s L_s toward the way the path came (sh.h). */
     if (coeffs && gs->roulette && u->I_cam > 0.0) {
-        float y[SH_MAX_COEFFS], f[3];
+        const gu_state *st = u->ctx->state;
+        float y[SH_MAX_COEFFS];
         const double w[3] = {-v->d.x, -v->d.y, -v->d.z};
-        sh_basis_evalf(sh_guide_basis(guide), w, y);
-        sh_eval_rgb_clamped(bands, coeffs, y, f);
+        sh_basis_evalf(&st->eval, w, y);
+        double f = sh_eval_guide_bands(bands, st->eval.bands, coeffs, y);
         double sig_s = sh_guide_cell_sigma_t(guide, (size_t)cell) * mean3(v->medium->albedo);
-        double Ls = sig_s > 0.0 ? (f[0] + f[1] + f[2]) / (3.0 * sig_s) : 0.0;
+        double Ls = sig_s > 0.0 ? f / sig_s : 0.0;
         double rho = beta * Ls / u->I_cam;
         double lo = 2.0 / (1.0 + GU_WINDOW_S), hi = GU_WINDOW_S * lo;
         if (rho > hi && isfinite(rho)) {
@@ -545,6 +548,8 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
         st->cap_g = gs.kind == SH_GRID_UNIFORM
                         ? gs.res[0] + gs.res[1] + gs.res[2] + 2
                         : 3 * (1 << (gs.depth_max < 12 ? gs.depth_max : 12)) + 2;
+        int bands = sh_guide_bands(ctx->guide);
+        sh_basis_init(&st->eval, g->eval_bands < bands ? g->eval_bands : bands);
     }
     /* The scene-wide medium may come in pieces between box media: one more walk start and
      * gap each (rd_media_intervals). */

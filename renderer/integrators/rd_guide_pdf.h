@@ -68,6 +68,13 @@ void rd_guide_pdf_init(rd_guide_pdf *pdf, rd_gpdf_seg *storage, int cap);
 rd_status rd_guide_pdf_build_guide(rd_guide_pdf *pdf, const sh_guide *g, const double o[3],
                                    const double d[3], double tmin, double tmax, double alpha,
                                    char *err, size_t errlen);
+/* The same with the guide read through its first basis->bands bands only (basis->bands <=
+ * the guide's; sh_eval_guide_bands): f_j = the band-limited guide toward -d. NULL basis: all
+ * of them, as rd_guide_pdf_build_guide. */
+rd_status rd_guide_pdf_build_guide_bands(rd_guide_pdf *pdf, const sh_guide *g,
+                                         const sh_basis *basis, const double o[3],
+                                         const double d[3], double tmin, double tmax,
+                                         double alpha, char *err, size_t errlen);
 
 /* Build from plain arrays: n >= 0 segments with bounds t[0..n] (strictly increasing,
  * tmin <= t[0], t[n] <= tmax), heights f[0..n-1] >= 0 and extinctions sigma[0..n-1] >= 0, all

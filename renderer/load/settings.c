@@ -155,12 +155,14 @@ rd_status ld_parse_guide(ld_ctx *c, const cJSON *j, rd_guide_settings *g)
     g->direction_weight = 0.25;
     g->roulette = 1;
     g->split_max = 2;
+    g->eval_bands = 2; /* calibrated on the six calibration scenes and beam-vdb (docs/guided-unbiased.md) */
     if (!j) return RD_OK;
     const char *path = "guide";
     LD_TRY(ld_need_object(c, j, path));
     static const char *const keys[] = {"grid", "bake", "bands", "k", "lambda", "resolution", "min_cell", "max_depth", "window",
                                        "distances", "distance_alpha", "pass_floor", "majorant_weight", "secondary",
-                                       "directions", "direction_weight", "roulette", "split_max", "distance_tau_max", NULL};
+                                       "directions", "direction_weight", "roulette", "split_max", "distance_tau_max",
+                                       "eval_bands", NULL};
     LD_TRY(ld_check_keys(c, j, path, keys));
     static const char *const grids[] = {"uniform", "adaptive", NULL};
     static const char *const bakes[] = {"knn", "track", NULL};
@@ -193,6 +195,8 @@ rd_status ld_parse_guide(ld_ctx *c, const cJSON *j, rd_guide_settings *g)
     LD_TRY(ld_get_bool(c, j, path, "roulette", 1, &g->roulette));
     LD_TRY(ld_get_int(c, j, path, "split_max", 0, 2, 1, 64, &v));
     g->split_max = (int)v;
+    LD_TRY(ld_get_int(c, j, path, "eval_bands", 0, 2, 1, 8, &v));
+    g->eval_bands = (int)v;
     const cJSON *res = cJSON_GetObjectItemCaseSensitive(j, "resolution");
     if (res) {
         if (!cJSON_IsArray(res) || cJSON_GetArraySize(res) != 3)

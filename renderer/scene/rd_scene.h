@@ -88,6 +88,8 @@ typedef struct {
                           * of the path's contribution (weight window, Vorba and Krivanek 2016);
                           * 0: the throughput roulette of `delta` */
     int split_max;       /* most copies one vertex splits into, in [1, 64] (1: roulette only) */
+    int eval_bands;      /* guided-unbiased reads the guide's first min(eval_bands, bands)
+                          * bands, in [1, 8] (sampling decisions only: unbiased for any) */
 } rd_guide_settings;
 
 /* Ray-marching settings of the guided methods (scene key "march", docs/scene-format.md). */
