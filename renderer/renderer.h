@@ -182,6 +182,10 @@ typedef struct {
     /* the guided methods with settings.select = "tiles": camera samples the tile selection gave to delta's
      * path instead of the marcher (integrators/select.c). */
     uint64_t delta_samples;
+    /* guided-unbiased: distance-pdf segments its flights built (guide cells crossed) and path
+     * vertices whose policy read the guide: with lookups and shadow rays, what a sample costs
+     * (the selection's counted cost, integrators/select.c). 0 for the other methods. */
+    uint64_t flight_segments, guide_vertices;
     /* Progressive photon passes (photons.progressive; 0 passes with one fixed map): passes
      * traced, photons emitted over them, seconds spent tracing and indexing them (part of
      * `seconds`), and the last pass's gather radius relative to the first pass's. */

@@ -558,8 +558,8 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
     ctx->state = st;
     /* With a guide (else the method is delta's path already), the tiles where it pays. */
     if (s->settings.select != RD_SELECT_OFF && ctx->guide) {
-        /* 0.37 lookups: the time of one of its flights' pdf segments (select.c, the fit) */
-        rd_status rs = rd_select_prepare(ctx, gu_path, 0.37, &st->sel, err, errlen);
+        /* 0.41 lookups: the time of one of its flights' pdf segments (select.c, the fit) */
+        rd_status rs = rd_select_prepare(ctx, gu_path, 0.41, &st->sel, err, errlen);
         if (rs != RD_OK) {
             gu_release(ctx);
             return rs;

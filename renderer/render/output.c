@@ -63,6 +63,14 @@ static char *report_json(const rd_scene *s, const rd_render_opts *o, const rd_re
     /* settings.select: the share of camera samples the tile selection gave to delta's path */
     if (st->rays_marched || st->delta_samples)
         cJSON_AddNumberToObject(j, "delta_share", st->paths ? (double)st->delta_samples / (double)st->paths : 0.0);
+    if (st->flight_segments || st->guide_vertices) { /* guided-unbiased's guide reads */
+        cJSON *gp = cJSON_AddObjectToObject(j, "guided_paths");
+        if (gp) {
+            double n = st->paths ? (double)st->paths : 1.0;
+            cJSON_AddNumberToObject(gp, "flight_segments_per_path", (double)st->flight_segments / n);
+            cJSON_AddNumberToObject(gp, "guide_vertices_per_path", (double)st->guide_vertices / n);
+        }
+    }
     if (st->rays_marched) { /* the marching methods' per-ray statistics */
         cJSON *mr = cJSON_AddObjectToObject(j, "march");
         if (mr) {

@@ -444,7 +444,11 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         rs->lookups += th[i].counters.lookups;
         rs->shadow_rays += th[i].counters.shadow_rays;
         rs->delta_samples += th[i].delta_samples;
-        if (th[i].rays == 0) continue;
+        rs->guide_vertices += th[i].guide_vertices;
+        if (th[i].rays == 0) { /* th->cells: a marcher's pdf segments, else guided flights' */
+            rs->flight_segments += th[i].cells;
+            continue;
+        }
         if (rs->rays_marched == 0 || (int)th[i].samples_min < rs->samples_min) rs->samples_min = (int)th[i].samples_min;
         if ((int)th[i].samples_max > rs->samples_max) rs->samples_max = (int)th[i].samples_max;
         rs->rays_marched += th[i].rays;
@@ -452,13 +456,14 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         cells += th[i].cells;
     }
     if (comm) { /* the counters of every rank (rank 0's report), as for the film */
-        uint64_t c[8] = {invalid, rs->collisions, rs->lookups, rs->shadow_rays, rs->delta_samples,
-                         rs->rays_marched, samples, cells};
+        uint64_t c[10] = {invalid, rs->collisions, rs->lookups, rs->shadow_rays, rs->delta_samples,
+                          rs->rays_marched, samples, cells, rs->flight_segments, rs->guide_vertices};
         int mm[2] = {rs->rays_marched ? -rs->samples_min : INT_MIN, rs->samples_max};
-        comm->reduce(comm->user, c, 8, RD_COMM_UINT64, RD_COMM_SUM, 0);
+        comm->reduce(comm->user, c, 10, RD_COMM_UINT64, RD_COMM_SUM, 0);
         comm->reduce(comm->user, mm, 2, RD_COMM_INT, RD_COMM_MAX, 0);
         invalid = c[0], rs->collisions = c[1], rs->lookups = c[2], rs->shadow_rays = c[3];
         rs->delta_samples = c[4], rs->rays_marched = c[5], samples = c[6], cells = c[7];
+        rs->flight_segments = c[8], rs->guide_vertices = c[9];
         rs->samples_min = rs->rays_marched ? -mm[0] : 0, rs->samples_max = mm[1];
         rs->paths = total + invalid;
         rs->invalid = invalid;
