@@ -906,6 +906,35 @@ Test(cli, compare_signal_while_baking_stops_promptly, .timeout = 240)
     cr_expect(access(dir, F_OK) != 0, "a report was written");
 }
 
+/* The same during `explain`'s bake (through the bake cache beside its outputs; the event: its
+ * line saying Ctrl-C stops it): it stops promptly, says so in one line, and writes neither its
+ * report nor into the cache. */
+Test(cli, explain_signal_while_baking_stops_and_writes_nothing, .timeout = 240)
+{
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char dir[200], prefix[256], report[300], cache[300], err[8192];
+    snprintf(dir, sizeof dir, "%s/xcancel", rt_tmpdir());
+    snprintf(prefix, sizeof prefix, "%s/x", dir);
+    snprintf(report, sizeof report, "%s.json", prefix);
+    snprintf(cache, sizeof cache, "%s/.photonmarch-cache", dir);
+    char *argv[] = {(char *)bin, "explain", (char *)tiny_scene(), "--pixel", "4,4", "-o", prefix, "--threads", "2",
+                    "--set", "photons.count=1000000000", LONG_TRACE, NULL};
+    child c = spawn_until(argv, "Ctrl-C stops and writes nothing", err, sizeof err);
+    kill(c.pid, SIGINT);
+    double cpu = 0;
+    int code = child_wait_cpu(&c, err, sizeof err, &cpu);
+    cr_expect(code == 128 + SIGINT, "exit %d (expected %d): %s", code, 128 + SIGINT, err);
+    cr_expect(cpu < 30.0, "the bake went on for %.1f CPU s after SIGINT", cpu);
+    cr_expect(strstr(last_line(err), "photonmarch explain: interrupted while baking") == last_line(err),
+              "the last line is not the cancel's: %s", err);
+    cr_expect(lines_after(err, "Ctrl-C stops and writes nothing") == 1, "not one line: %s", err);
+    cr_expect(access(report, F_OK) != 0, "a report was written");
+    cr_expect(access(cache, F_OK) != 0 || (count_entries(cache, ".pmap") == 0 && count_entries(cache, ".guide") == 0 &&
+                                            count_entries(cache, ".tmp") == 0),
+              "the cancelled bake wrote into the cache %s", cache);
+}
+
 /* The same during `render`'s bake (a guided method, through the bake cache beside the output):
  * it stops promptly, says so in one line, leaves the previous image and writes nothing into the
  * cache. */

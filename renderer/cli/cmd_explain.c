@@ -18,7 +18,8 @@ static const char *const usage_explain =
     "each placement's estimate of the ray's integral (4000 simulated draws). Writes PREFIX.json,\n"
     "PREFIX.csv and PREFIX.gp, and PREFIX.png drawn by gnuplot. Bakes like render --method\n"
     "guided (cache beside PREFIX). In a scene with shapes: the ray's first straight segment,\n"
-    "up to the first surface it meets.\n"
+    "up to the first surface it meets. Ctrl-C or SIGTERM during the bake stops it and writes\n"
+    "nothing (exit 130 / 143); later, the rays already written are kept and the rest skipped.\n"
     "\n"
     "options:\n"
     "  --pixel X,Y      the pixel (required; repeat it for several rays, which share one bake:\n"
@@ -138,12 +139,26 @@ static int explain_run(int argc, char **argv, long (*pxs)[2])
     bo.seed = -1;
     bo.threads = (int)threads;
     rd_bake_opts_for(&bo, rd_method_needs_for("guided", scene));
+    cli_on_signal_cancel(); /* a signal stops the bake, which removes its cache temporaries */
+    bo.cancel = cli_cancel_flag();
+    if (!quiet)
+        fprintf(stderr, "photonmarch explain: preparing the photon map and guide (Ctrl-C stops and writes nothing)\n");
     st = cli_bake_beside(scene, &bo, prefix, no_cache, quiet, &baked, err, sizeof err);
+    if (st == RD_ERR_CANCELLED || (st == RD_OK && cli_interrupted())) {
+        code = cli_report_cancelled("explain", "while baking");
+        goto out;
+    }
     if (st) {
         code = cli_report_error(st, err);
         goto out;
     }
+    cli_on_signal_stop(); /* from here a signal lets the ray being written finish, then stops */
     for (int q = 0; q < npx && code == 0; q++) {
+        if (cli_interrupted()) {
+            fprintf(stderr, "photonmarch explain: interrupted after %d of %d rays; those are written\n", q, npx);
+            code = cli_exit_interrupted(cli_interrupted());
+            break;
+        }
         long px = pxs[q][0], py = pxs[q][1];
         char one[1100];
         if (npx == 1) snprintf(one, sizeof one, "%s", prefix);
