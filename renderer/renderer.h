@@ -68,8 +68,11 @@ int rd_scene_spp_given(const rd_scene *scene);    /* 1 when settings.spp is in t
  * The render methods form one table (renderer/integrators/methods.c); --help, settings.method,
  * the report and rd_render all read it. */
 /* What a method needs baked: a photon map, its guide grid, and the photon map of the photons
- * stored without their first flight (multiple scattering only, beside next-event estimation). */
-enum { RD_NEEDS_PHOTONS = 1, RD_NEEDS_GUIDE = 2, RD_NEEDS_INDIRECT = 4, RD_NEEDS_INDIRECT_GUIDE = 8 };
+ * stored without their first flight (multiple scattering only, beside next-event estimation).
+ * RD_NEEDS_FEW_PHOTONS: the guide only steers sampling decisions, so a share of the photons
+ * serves (guide.photon_share of photons.count; guided-unbiased). */
+enum { RD_NEEDS_PHOTONS = 1, RD_NEEDS_GUIDE = 2, RD_NEEDS_INDIRECT = 4, RD_NEEDS_INDIRECT_GUIDE = 8,
+       RD_NEEDS_FEW_PHOTONS = 16 };
 int rd_method_count(void);
 /* Name, one-line summary and needs of method i (0 <= i < rd_method_count()). */
 const char *rd_method_name(int i);
@@ -286,6 +289,8 @@ typedef struct {
     int indirect_guide;        /* 1 (with indirect): also a guide grid baked from that map, the
                                   multiple-scattering source of march.ls = nee+guide */
     const char *load_indirect_guide; /* reuse a saved indirect .guide (with indirect_guide) */
+    int few_photons;           /* 1 (RD_NEEDS_FEW_PHOTONS): with photons 0, trace the scene's
+                                  guide.photon_share of photons.count (at least 1) */
     const volatile int *cancel; /* non-NULL: polled while tracing (every 4096 photons), between
                                    the steps and while baking the guide; once non-zero the bake
                                    stops and returns RD_ERR_CANCELLED with no bake, and
@@ -293,7 +298,7 @@ typedef struct {
 } rd_bake_opts;
 
 /* Set the bake options that a method's needs (RD_NEEDS_*, from rd_method_needs_for) decide:
- * no_guide, indirect, indirect_guide. The rest of *opts is left alone. */
+ * no_guide, indirect, indirect_guide, few_photons. The rest of *opts is left alone. */
 void rd_bake_opts_for(rd_bake_opts *opts, unsigned needs);
 
 typedef struct {

@@ -337,6 +337,33 @@ Test(guided_unbiased, white_furnace, .timeout = 300)
     rd_scene_free(s);
 }
 
+Test(guided_unbiased, bakes_its_share_of_the_photons, .timeout = 120)
+{
+    /* guided-unbiased's needs ask for few photons (guide.photon_share of photons.count, 0.25 by
+     * default); guided's, and guided-unbiased's at share 1, for all of them. The count the
+     * bake emitted is what the statistics say; the cache key follows it. */
+    const struct {
+        const char *method, *extra;
+        size_t emitted;
+    } cases[] = {{"guided-unbiased", "", 10000},
+                 {"guided-unbiased", ",\"photon_share\":0.1", 4000},
+                 {"guided-unbiased", ",\"photon_share\":1", 40000},
+                 {"guided", "", 40000}};
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        rd_scene *s = rt_scene("gu_share.json", scene_json(0.5, -2.5, "", cases[i].extra));
+        unsigned needs = rd_method_needs_for(cases[i].method, s);
+        char err[RD_ERRLEN];
+        rd_baked *b = NULL;
+        rd_bake_opts bo = {.seed = -1, .threads = 2};
+        rd_bake_opts_for(&bo, needs);
+        cr_assert(rd_bake(s, &bo, &b, err, sizeof err) == RD_OK, "%s", err);
+        cr_expect_eq(rd_baked_stats(b)->emitted, cases[i].emitted, "%s%s: %zu photons emitted, expected %zu",
+                     cases[i].method, cases[i].extra, rd_baked_stats(b)->emitted, cases[i].emitted);
+        rd_baked_free(b);
+        rd_scene_free(s);
+    }
+}
+
 Test(guided_unbiased, scene_keys_are_validated)
 {
     const char *bad[][2] = {
@@ -360,6 +387,8 @@ Test(guided_unbiased, scene_keys_are_validated)
         {"\"eval_bands\":0", "guide.eval_bands"},
         {"\"eval_bands\":9", "guide.eval_bands"},
         {"\"eval_bands\":1.5", "guide.eval_bands"},
+        {"\"photon_share\":0", "guide.photon_share"},
+        {"\"photon_share\":1.5", "guide.photon_share"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         char path[256], extra[64], err[RD_ERRLEN] = "";

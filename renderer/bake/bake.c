@@ -201,6 +201,17 @@ void rd_bake_opts_for(rd_bake_opts *o, unsigned needs)
     o->no_guide = !(needs & RD_NEEDS_GUIDE);
     o->indirect = (needs & (RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE)) != 0;
     o->indirect_guide = (needs & RD_NEEDS_INDIRECT_GUIDE) != 0;
+    o->few_photons = (needs & RD_NEEDS_FEW_PHOTONS) != 0;
+}
+
+/* Photons to emit: the options' count, or the scene's (its guide.photon_share of it when the
+ * method asked for few photons). */
+static size_t photons_to_trace(const rd_scene *s, const rd_bake_opts *o)
+{
+    if (o->photons > 0) return o->photons;
+    if (!o->few_photons) return s->photons.count;
+    double n = floor((double)s->photons.count * s->guide.photon_share + 0.5);
+    return n >= 1.0 ? (size_t)n : 1;
 }
 
 /* Trace the scene's photons into a new map (*map); store_direct and segments as asked. With
@@ -210,7 +221,7 @@ static rd_status trace_new_map(const rd_scene *s, const rd_bake_opts *o, int sto
                                pm_map **map, pm_map **indirect, rd_photon_stats *ps, char *err,
                                size_t errlen)
 {
-    rd_photon_opts po = {.count = o->photons > 0 ? o->photons : s->photons.count,
+    rd_photon_opts po = {.count = photons_to_trace(s, o),
                          .store_direct = store_direct,
                          .segments = segments,
                          .max_depth = s->photons.max_depth,
@@ -405,8 +416,8 @@ rd_status rd_bake_cached(const rd_scene *s, const rd_bake_opts *o, const char *d
 {
     /* The key: the scene's bake key and the options that change what is baked. */
     uint64_t k = s->bake_key;
-    uint64_t extra[5] = {o->photons, (uint64_t)o->seed, (uint64_t)o->indirect, (uint64_t)o->no_guide,
-                         (uint64_t)o->indirect_guide};
+    uint64_t extra[5] = {photons_to_trace(s, o), (uint64_t)o->seed, (uint64_t)o->indirect,
+                         (uint64_t)o->no_guide, (uint64_t)o->indirect_guide};
     for (size_t i = 0; i < sizeof extra; i++) k = (k ^ ((const unsigned char *)extra)[i]) * 0x100000001b3ULL;
     char pmap[1100], ind[1100], guide[1100], iguide[1100], msg[RD_ERRLEN];
     snprintf(pmap, sizeof pmap, "%s/%016llx.pmap", dir, (unsigned long long)k);

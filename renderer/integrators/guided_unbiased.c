@@ -589,6 +589,7 @@ static unsigned gu_needs(const rd_scene *s)
     if (!s->guide.distances && !s->guide.directions && !s->guide.roulette) return 0u;
     unsigned n = RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE;
     if (s->guide.directions) n |= RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE;
+    if (s->guide.photon_share < 1.0) n |= RD_NEEDS_FEW_PHOTONS; /* its guide steers, never sums */
     return n;
 }
 

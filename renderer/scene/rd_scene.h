@@ -90,6 +90,7 @@ typedef struct {
     int split_max;       /* most copies one vertex splits into, in [1, 64] (1: roulette only) */
     int eval_bands;      /* guided-unbiased reads the guide's first min(eval_bands, bands)
                           * bands, in [1, 8] (sampling decisions only: unbiased for any) */
+    double photon_share; /* guided-unbiased bakes this share of photons.count, in (0, 1] */
 } rd_guide_settings;
 
 /* Ray-marching settings of the guided methods (scene key "march", docs/scene-format.md). */
