@@ -282,3 +282,90 @@ Test(mpi, ranks_with_different_options_refuse, .timeout = 120)
     cr_assert(count_lines_with(err, "options differ") == 1, "one line: %s", err);
     cr_assert(access(exr, F_OK) != 0, "nothing is written");
 }
+
+/* The bytes of a file (a caller-freed buffer, its size in *n). */
+static char *file_bytes(const char *path, size_t *n)
+{
+    FILE *f = fopen(path, "rb");
+    cr_assert(f != NULL, "cannot read %s", path);
+    fseek(f, 0, SEEK_END);
+    long len = ftell(f);
+    rewind(f);
+    char *buf = malloc((size_t)len + 1);
+    cr_assert(buf != NULL && fread(buf, 1, (size_t)len, f) == (size_t)len);
+    fclose(f);
+    *n = (size_t)len;
+    return buf;
+}
+
+Test(mpi, two_ranks_bake_the_files_of_one_process, .timeout = 300)
+{
+    /* 40000 photons: 10 blocks of 4096, 5 traced by each rank and gathered in block order */
+    const char *b = bin(), *scene = scene_file("mpi-bake.json");
+    char one[256], two[256], out[8192], err[8192];
+    snprintf(one, sizeof one, "%s/bake-one/b", rt_tmpdir());
+    snprintf(two, sizeof two, "%s/bake-two/b", rt_tmpdir());
+    char *a1[] = {(char *)b, "bake", (char *)scene, "--seed", "7", "--threads", "1", "-o", one, NULL};
+    int code = rt_run(a1, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 0, "one process: exit %d: %s", code, err);
+    char *a2[] = {MPI_ARGS, "-n", "2", (char *)b, "bake", (char *)scene, "--seed", "7", "--threads", "1", "--stats",
+                  "-o", two, NULL};
+    code = rt_run(a2, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 0, "two ranks: exit %d: %s", code, err);
+    const char *first = strstr(out, "photons    emitted"), *again = first ? strstr(first + 1, "photons    emitted") : NULL;
+    cr_assert(first && !again, "rank 0 alone prints: %s", out);
+    cr_assert(strstr(out, "gather") != NULL, "--stats on two ranks says the gather: %s", out);
+    char p1[300], p2[300];
+    size_t n1, n2;
+    snprintf(p1, sizeof p1, "%s.pmap", one);
+    snprintf(p2, sizeof p2, "%s.pmap", two);
+    char *x = file_bytes(p1, &n1), *y = file_bytes(p2, &n2);
+    cr_assert(n1 == n2 && memcmp(x, y, n1) == 0, "%s and %s differ (%zu and %zu bytes)", p1, p2, n1, n2);
+    free(x), free(y);
+    snprintf(p1, sizeof p1, "%s.guide", one);
+    snprintf(p2, sizeof p2, "%s.guide", two);
+    x = file_bytes(p1, &n1), y = file_bytes(p2, &n2);
+    cr_assert(rt_same_guide_bytes(x, n1, y, n2), "%s and %s differ (but for the bake time)", p1, p2);
+    free(x), free(y);
+    snprintf(p1, sizeof p1, "%s-photons.exr", one);
+    snprintf(p2, sizeof p2, "%s-photons.exr", two);
+    expect_same_pixels(p1, p2);
+}
+
+Test(mpi, two_ranks_bake_through_the_cache_together_and_render_one_process_s_image, .timeout = 300)
+{
+    /* A render's own bake through the cache on two ranks: no cache yet, so the ranks trace
+     * together and rank 0 saves the cache; the second render finds it on every rank. Both
+     * images are one process's (which baked with --no-cache). */
+    const char *b = bin(), *scene = scene_file("mpi-cache.json");
+    char one[256], two[300], dir[256], out[8192], err[8192];
+    snprintf(one, sizeof one, "%s/cache-one/img.exr", rt_tmpdir());
+    snprintf(dir, sizeof dir, "%s/cache-two", rt_tmpdir());
+    snprintf(two, sizeof two, "%s/img.exr", dir);
+    char *a1[] = {(char *)b, "render", (char *)scene, "--method", "guided", "--spp", "6", "--seed", "2", "--threads",
+                  "1", "--no-cache", "-q", "-o", one, NULL};
+    int code = rt_run(a1, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 0, "one process: exit %d: %s", code, err);
+    for (int run = 0; run < 2; run++) {
+        char *a2[] = {MPI_ARGS, "-n", "2", (char *)b, "render", (char *)scene, "--method", "guided", "--spp", "6",
+                      "--seed", "2", "--threads", "1", "-o", two, NULL};
+        code = rt_run(a2, out, sizeof out, err, sizeof err, NULL);
+        cr_assert(code == 0, "two ranks, run %d: exit %d: %s", run, code, err);
+        const char *said = run == 0 ? "baked the photon map" : "reused the cached photon map";
+        cr_assert(count_lines_with(err, said) == 1, "run %d: rank 0 says \"%s\" once: %s", run, said, err);
+        expect_same_pixels(one, two);
+    }
+    char cache[300];
+    snprintf(cache, sizeof cache, "%s/.photonmarch-cache", dir);
+    DIR *dd = opendir(cache);
+    cr_assert(dd != NULL, "no cache folder %s", cache);
+    int pmaps = 0, others = 0;
+    for (struct dirent *e; (e = readdir(dd)) != NULL;) {
+        if (e->d_name[0] == '.') continue;
+        size_t len = strlen(e->d_name);
+        if (len > 5 && !strcmp(e->d_name + len - 5, ".pmap")) pmaps++;
+        else if (len <= 6 || strcmp(e->d_name + len - 6, ".guide")) others++;
+    }
+    closedir(dd);
+    cr_assert(pmaps >= 1 && others == 0, "the cache holds %d maps and %d other files (temporaries?)", pmaps, others);
+}

@@ -28,6 +28,8 @@ int cli_cmd_render_on(int argc, char **argv, rd_dist *d);
 int cli_cmd_info(int argc, char **argv);
 int cli_cmd_voxelize(int argc, char **argv);
 int cli_cmd_bake(int argc, char **argv);
+/* bake on the ranks of d (NULL: alone, as cli_cmd_bake): every rank calls it. */
+int cli_cmd_bake_on(int argc, char **argv, rd_dist *d);
 int cli_cmd_explain(int argc, char **argv);
 int cli_cmd_compare(int argc, char **argv);
 
@@ -115,6 +117,11 @@ int cli_exit_interrupted(int sig);
  * and the others nothing. Returns 0 when every rank went well, else this rank's code or, on a
  * rank that did not fail, the largest code of those that did. */
 int cli_ranks_agree(rd_dist *d, int code, const char *msg);
+/* The same after a library step that agrees itself (rd_bake with comm: every rank returns the
+ * failure): a rank whose msg ends in RD_ON_ANOTHER_RANK did not fail itself and stays silent,
+ * the ranks that did fail speak as in cli_ranks_agree. Returns code (the same on every rank
+ * after such a step). */
+int cli_ranks_agree_shared(rd_dist *d, int code, const char *msg);
 /* Around the options' parsing: on the ranks other than 0, stdout and stderr go to /dev/null
  * (rank 0 says what every rank would say); cli_ranks_unmute restores them and returns rank 0's
  * `code` (a rank whose code differs, its options not rank 0's, says so in one line). */

@@ -243,14 +243,13 @@ int cli_cmd_render_on(int argc, char **argv, rd_dist *d)
         int fresh = photons_path || guide_path || no_cache;
         cli_on_signal_cancel(); /* a signal stops the bake, which removes its cache temporaries */
         bo.cancel = cli_cancel_flag();
+        /* Several ranks trace the photons together (each a range, gathered on every rank); they
+         * use the cache when every rank can read it, and rank 0 alone saves it. */
+        bo.comm = rd_dist_comm(d);
         if (!quiet && lead)
             fprintf(stderr, "photonmarch render: preparing the photon map and guide (Ctrl-C stops and writes nothing)\n");
-        /* Several ranks, each needing the whole bake: rank 0 first (it bakes or finds the cache,
-         * and saves it), then the others, who find it in the cache; so one process writes it. */
-        st = lead ? cli_bake_beside(scene, &bo, outpath, fresh, quiet, &baked, err, sizeof err) : RD_OK;
-        if ((code = cli_ranks_agree(d, bake_outcome(st, err, sizeof err), err)) != 0) goto out;
-        st = lead ? RD_OK : cli_bake_beside(scene, &bo, outpath, fresh, quiet, &baked, err, sizeof err);
-        if ((code = cli_ranks_agree(d, bake_outcome(st, err, sizeof err), err)) != 0) goto out;
+        st = cli_bake_beside(scene, &bo, outpath, fresh, quiet, &baked, err, sizeof err);
+        if ((code = cli_ranks_agree_shared(d, bake_outcome(st, err, sizeof err), err)) != 0) goto out;
         ro.baked = baked;
         ro.baked_seconds = cli_wall_seconds() - t0;
     }
@@ -264,7 +263,9 @@ int cli_cmd_render_on(int argc, char **argv, rd_dist *d)
         code = cli_ranks_agree(d, CLI_EXIT_INPUT, msg);
         goto out;
     }
-    if ((code = cli_ranks_agree(d, cli_exit_for(st), err)) != 0) goto out;
+    /* (a cancel while tracing the first progressive photon pass: nothing rendered) */
+    code = st == RD_ERR_CANCELLED ? bake_outcome(st, err, sizeof err) : cli_exit_for(st);
+    if ((code = cli_ranks_agree_shared(d, code, err)) != 0) goto out;
     if (!lead) { /* rank 0 writes; the others end with its status */
         code = cli_ranks_agree(d, 0, NULL);
         if (!code && cli_interrupted()) code = cli_exit_interrupted(cli_interrupted());

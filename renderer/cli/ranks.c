@@ -28,6 +28,14 @@ int cli_ranks_agree(rd_dist *d, int code, const char *msg)
     return code ? code : v[1];
 }
 
+int cli_ranks_agree_shared(rd_dist *d, int code, const char *msg)
+{
+    size_t n = msg ? strlen(msg) : 0, k = strlen(RD_ON_ANOTHER_RANK);
+    int own = code && msg && !(n >= k && !strcmp(msg + n - k, RD_ON_ANOTHER_RANK));
+    int c = cli_ranks_agree(d, own ? code : 0, own ? msg : NULL);
+    return code ? code : c;
+}
+
 int cli_ranks_mute(rd_dist *d)
 {
     if (rd_dist_size(d) <= 1 || rd_dist_rank(d) == 0) return -1;
