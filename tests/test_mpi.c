@@ -6,7 +6,12 @@
  *    without that sum the choice, and so the image, differs on this scene and seed);
  *  - a time-limited render on two ranks ends, and one set of outputs is written;
  *  - a rank that cannot read the scene, ranks with different scene files, an output rank 0
- *    cannot write, a command that is not shared: one line and a non-zero exit, no hang.
+ *    cannot write, a command that is not shared: one line and a non-zero exit, no hang;
+ *  - bake on two ranks (each traces a range of the photons, gathered on every rank) writes one
+ *    process's .pmap byte for byte and its .guide but for the bake time; a render's bake through
+ *    the cache is traced by the two ranks together and its image is one process's;
+ *  - a rank killed mid-render (SIGKILL) ends the job with a non-zero status and the previous
+ *    image stays as it was.
  * Every run is waited for (rt_run); the timeouts only guard against a hang.
  * mpirun's options: as root (CI) it must be told so; --oversubscribe: two ranks on any number of
  * cores; --bind-to none: the ranks may use any core; the shared-memory transport's single copy
@@ -368,4 +373,88 @@ Test(mpi, two_ranks_bake_through_the_cache_together_and_render_one_process_s_ima
     }
     closedir(dd);
     cr_assert(pmaps >= 1 && others == 0, "the cache holds %d maps and %d other files (temporaries?)", pmaps, others);
+}
+
+/* The pid of the process whose parent is `parent` and whose environment says
+ * OMPI_COMM_WORLD_RANK=rank (0: none found). */
+static pid_t rank_pid(pid_t parent, int rank)
+{
+    DIR *proc = opendir("/proc");
+    cr_assert(proc != NULL);
+    pid_t found = 0;
+    char want[64];
+    int wlen = snprintf(want, sizeof want, "OMPI_COMM_WORLD_RANK=%d", rank);
+    for (struct dirent *e; !found && (e = readdir(proc)) != NULL;) {
+        pid_t pid = (pid_t)atoi(e->d_name);
+        if (pid <= 0) continue;
+        char path[64], buf[4096];
+        snprintf(path, sizeof path, "/proc/%d/stat", (int)pid);
+        FILE *f = fopen(path, "r");
+        if (!f) continue;
+        size_t n = fread(buf, 1, sizeof buf - 1, f);
+        fclose(f);
+        buf[n] = 0;
+        const char *rp = strrchr(buf, ')'); /* "pid (comm) state ppid ..." */
+        int ppid = 0;
+        char state;
+        if (!rp || sscanf(rp + 1, " %c %d", &state, &ppid) != 2 || ppid != parent) continue;
+        snprintf(path, sizeof path, "/proc/%d/environ", (int)pid);
+        if (!(f = fopen(path, "r"))) continue;
+        static char env[1 << 16];
+        n = fread(env, 1, sizeof env - 1, f);
+        fclose(f);
+        for (size_t i = 0; i < n; i += strlen(env + i) + 1)
+            if (!strncmp(env + i, want, (size_t)wlen) && env[i + wlen] == 0) found = pid;
+    }
+    closedir(proc);
+    return found;
+}
+
+Test(mpi, a_rank_killed_mid_render_ends_the_job_and_leaves_the_old_image, .timeout = 300)
+{
+    const char *b = bin(), *scene = scene_file("mpi-kill.json");
+    char exr[256], out[8192], err[8192];
+    snprintf(exr, sizeof exr, "%s/kill/img.exr", rt_tmpdir());
+    /* a good image there first */
+    char *a1[] = {(char *)b, "render", (char *)scene, "--method", "delta", "--spp", "2", "--threads", "1", "-q", "-o",
+                  exr, NULL};
+    int code = rt_run(a1, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 0, "the first render: exit %d: %s", code, err);
+    size_t n0, nj0;
+    char js[300];
+    snprintf(js, sizeof js, "%s/kill/img.json", rt_tmpdir());
+    char *before = file_bytes(exr, &n0), *before_js = file_bytes(js, &nj0);
+    /* A long render on two ranks; rank 0's first progress line says the passes have begun. */
+    char *a2[] = {MPI_ARGS, "-n", "2", (char *)b, "render", (char *)scene, "--method", "delta", "--time", "60",
+                  "--threads", "1", "-o", exr, NULL};
+    child c = spawn_until(a2, " spp ", err, sizeof err);
+    pid_t victim = rank_pid(c.pid, 1);
+    cr_assert(victim > 0, "rank 1's process (a child of mpirun %d) not found", (int)c.pid);
+    cr_assert(kill(victim, SIGKILL) == 0);
+    /* mpirun must end the job: poll for its end, well within the 60 s the render asked for */
+    struct timespec t0, now, nap = {0, 20 * 1000 * 1000};
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    int status = 0, ended = 0;
+    for (;;) {
+        pid_t w = waitpid(c.pid, &status, WNOHANG);
+        cr_assert(w >= 0);
+        if (w == c.pid) { ended = 1; break; }
+        clock_gettime(CLOCK_MONOTONIC, &now);
+        if (now.tv_sec - t0.tv_sec > 30) break;
+        nanosleep(&nap, NULL);
+    }
+    if (!ended) { /* fail, but leave nothing running */
+        kill(c.pid, SIGKILL);
+        waitpid(c.pid, &status, 0);
+    }
+    child_stderr(&c, err, sizeof err);
+    close(c.efd), close(c.ofd);
+    unlink(c.path), unlink(c.opath);
+    cr_assert(ended, "mpirun still ran 30 s after rank 1 was killed: %s", err);
+    cr_assert(!(WIFEXITED(status) && WEXITSTATUS(status) == 0), "the job ended with status 0: %s", err);
+    size_t n1, nj1;
+    char *after = file_bytes(exr, &n1), *after_js = file_bytes(js, &nj1);
+    cr_assert(n0 == n1 && memcmp(before, after, n0) == 0, "%s changed", exr);
+    cr_assert(nj0 == nj1 && memcmp(before_js, after_js, nj0) == 0, "%s changed", js);
+    free(before), free(after), free(before_js), free(after_js);
 }
