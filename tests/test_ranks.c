@@ -96,7 +96,7 @@ static void fake_allgatherv(void *user, const void *send, void *recv, const size
     pthread_barrier_wait(&w->bar);
     char *at = recv;
     for (int k = 0; k < w->size; k++) {
-        if (counts[k]) memcpy(at, w->bufs[k], counts[k] * elem_bytes);
+        if (counts[k] && at != w->bufs[k]) memcpy(at, w->bufs[k], counts[k] * elem_bytes); /* (else in place) */
         at += counts[k] * elem_bytes;
     }
     pthread_barrier_wait(&w->bar);

@@ -17,6 +17,7 @@
 #include "scene/rd_geom.h"
 #include "transport/rd_path.h"
 #include "bake/rd_photons.h"
+#include "core/rd_core.h"
 
 #include <omp.h>
 #include <stdlib.h>
@@ -240,16 +241,6 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
         }
         if (b->oom) return;
     }
-}
-
-rd_status rd_comm_agree(const rd_comm *c, rd_status st, const char *what, char *err, size_t errlen)
-{
-    if (!c || c->size <= 1) return st;
-    int v = (int)st;
-    c->reduce(c->user, &v, 1, RD_COMM_INT, RD_COMM_MAX, -1);
-    if (st == RD_OK && v != RD_OK)
-        snprintf(err, errlen, "%s: %s " RD_ON_ANOTHER_RANK, what, v == RD_ERR_CANCELLED ? "interrupted" : "failed");
-    return (rd_status)v;
 }
 
 /* The power sums a block keeps, in the order gather_blocks sends them. */

@@ -73,12 +73,6 @@ rd_status rd_trace_photons(const rd_scene *s, const rd_photon_opts *o, pm_map *m
 rd_status rd_trace_photons_split(const rd_scene *s, const rd_photon_opts *o, pm_map *map,
                                  pm_map *indirect, rd_photon_stats *st, char *err, size_t errlen);
 
-/* Several ranks (c non-NULL with size > 1; else returns st at once): the worst outcome over the
- * ranks (the largest rd_status), the same on every rank. A rank whose own st was RD_OK and that
- * gets a failure writes "WHAT: failed on another rank" (or "interrupted on another rank") into
- * err. Collective. */
-rd_status rd_comm_agree(const rd_comm *c, rd_status st, const char *what, char *err, size_t errlen);
-
 /* Bake the scene's SH guide grid (scene key "guide") from a built photon map over the media
  * bounds, with the media's extinction (cell means), scattering (track-length bake) and HG
  * phase coefficients. */

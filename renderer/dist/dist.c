@@ -86,13 +86,14 @@ static void comm_allgatherv(void *user, const void *send, void *recv, const size
             displ[k] = (int)at;
             at += counts[k];
         }
-        /* send is const in MPI 3; a rank with nothing to send may pass NULL */
-        MPI_Allgatherv(send, cn[d->rank], et, recv, cn, displ, et, MPI_COMM_WORLD);
+        /* in place when send is this rank's own place in recv (MPI forbids aliased buffers) */
+        const void *sb = send == (const char *)recv + (size_t)displ[d->rank] * elem_bytes ? MPI_IN_PLACE : send;
+        MPI_Allgatherv(sb, cn[d->rank], et, recv, cn, displ, et, MPI_COMM_WORLD);
         free(cn);
     } else {
         char *at = recv;
         for (int k = 0; k < K; k++) {
-            if (k == d->rank && counts[k]) memcpy(at, send, counts[k] * elem_bytes);
+            if (k == d->rank && counts[k] && at != send) memcpy(at, send, counts[k] * elem_bytes);
             for (size_t i = 0; i < counts[k]; i += CHUNK) {
                 int n = (int)(counts[k] - i < CHUNK ? counts[k] - i : CHUNK);
                 MPI_Bcast(at + i * elem_bytes, n, et, k, MPI_COMM_WORLD);
