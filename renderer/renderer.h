@@ -117,7 +117,8 @@ typedef struct rd_comm {
     /* Gather onto every rank (an allgatherv): rank r contributes counts[r] elements of
      * elem_bytes bytes each from `send`; `recv` receives every rank's elements in rank order
      * (counts[0] + ... + counts[size-1] elements). counts and elem_bytes are the same on every
-     * rank (a reduce of the counts gives them). Collective, like reduce; a failure ends the job.
+     * rank (a reduce of the counts gives them). `send` may be this rank's own place in recv (in
+     * place). Collective, like reduce; a failure ends the job.
      * The bake gathers its photons through it (rd_bake_opts.comm). */
     void (*allgatherv)(void *user, const void *send, void *recv, const size_t *counts, size_t elem_bytes);
 } rd_comm;
@@ -477,6 +478,14 @@ typedef struct {
     void *progress_user;
     rd_clock_fn clock;   /* the clock of the budget, the bake's charge and every time reported */
     void *clock_user;    /* (rd_render_opts.clock); NULL: rd_clock_monotonic */
+    /* Several ranks compare together (NULL: this process alone; borrowed; docs/compare.md,
+     * "On several ranks"): run k of method i (the (i runs + k)-th run) is rendered whole by rank
+     * (i runs + k) modulo size, with its own bake of the method's needs; the rendered reference
+     * is one render by all ranks together (rd_render_opts.comm), shared with every rank; then
+     * every run's images, counters and curve go to every rank, so every rank holds the same
+     * comparison (rank 0 writes the report). Every rank calls rd_compare_run with the same
+     * scene and options; it returns the same status on every rank. */
+    const rd_comm *comm;
 } rd_cmp_opts;
 
 /* One row of the comparison: a method (its K runs) or an added image. Absent values are NaN. */
@@ -511,6 +520,8 @@ typedef struct {
     int ref_capped;         /* 1: the default reference stopped at its cap, rule unmet */
     double ref_cap_seconds; /* that cap (NaN unless ref_auto) */
     double ref_share;       /* ref_var / the smallest method MSE (NaN when unknown) */
+    int ranks;              /* processes that ran the comparison (1: one) */
+    char hosts[512];        /* their host names, "a x2, b" (rank order of first appearance) */
 } rd_cmp_summary;
 
 typedef struct rd_comparison rd_comparison; /* the runs' images, curves and rows; opaque */

@@ -11,7 +11,9 @@
  *    process's .pmap byte for byte and its .guide but for the bake time; a render's bake through
  *    the cache is traced by the two ranks together and its image is one process's;
  *  - a rank killed mid-render (SIGKILL) ends the job with a non-zero status and the previous
- *    image stays as it was.
+ *    image stays as it was;
+ *  - compare on two ranks (runs dealt round the ranks, the reference rendered by both) gives one
+ *    process's numbers at equal spp, and its report records the ranks and the host.
  * Every run is waited for (rt_run); the timeouts only guard against a hang.
  * mpirun's options: as root (CI) it must be told so; --oversubscribe: two ranks on any number of
  * cores; --bind-to none: the ranks may use any core; the shared-memory transport's single copy
@@ -19,6 +21,7 @@
  * the program, not the transport. */
 #include "support/rd_test.h"
 
+#include <cJSON.h>
 #include <dirent.h>
 
 #define MPIRUN "/usr/bin/mpirun"
@@ -457,4 +460,70 @@ Test(mpi, a_rank_killed_mid_render_ends_the_job_and_leaves_the_old_image, .timeo
     cr_assert(n0 == n1 && memcmp(before, after, n0) == 0, "%s changed", exr);
     cr_assert(nj0 == nj1 && memcmp(before_js, after_js, nj0) == 0, "%s changed", js);
     free(before), free(after), free(before_js), free(after_js);
+}
+
+/* metrics.json of a compare report, parsed (the caller frees it with cJSON_Delete). */
+static cJSON *read_metrics(const char *dir)
+{
+    char path[300];
+    size_t n;
+    snprintf(path, sizeof path, "%s/metrics.json", dir);
+    char *text = file_bytes(path, &n);
+    cJSON *j = cJSON_Parse(text);
+    free(text);
+    cr_assert(j != NULL, "%s: not JSON", path);
+    return j;
+}
+
+static double json_number(const cJSON *o, const char *key)
+{
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
+    cr_assert(v != NULL && cJSON_IsNumber(v), "no number \"%s\"", key);
+    return v->valuedouble;
+}
+
+Test(mpi, compare_on_two_ranks_gives_one_process_s_numbers, .timeout = 600)
+{
+    /* equal spp, a fixed reference: every number but the times is decided by the images, which
+     * must be one process's (each run whole on one rank, the reference by both together) */
+    const char *b = bin(), *scene = scene_file("mpi-cmp.json");
+    char one[256], two[256], out[16384], err[8192];
+    snprintf(one, sizeof one, "%s/cmp-one", rt_tmpdir());
+    snprintf(two, sizeof two, "%s/cmp-two", rt_tmpdir());
+#define CMP_ARGS "compare", (char *)scene, "--methods", "delta,guided", "--equal", "spp", "--budget", "4", "--runs", \
+                 "3", "--ref-spp", "16", "--seed", "3", "--threads", "1", "--no-cache", "-q"
+    char *a1[] = {(char *)b, CMP_ARGS, "-o", one, NULL};
+    int code = rt_run(a1, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 0, "one process: exit %d: %s", code, err);
+    char *a2[] = {MPI_ARGS, "-n", "2", (char *)b, CMP_ARGS, "-o", two, NULL};
+#undef CMP_ARGS
+    code = rt_run(a2, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 0, "two ranks: exit %d: %s", code, err);
+    const char *first = strstr(out, "report "), *again = first ? strstr(first + 1, "report ") : NULL;
+    cr_assert(first && !again, "rank 0 alone prints: %s", out);
+    cJSON *x = read_metrics(one), *y = read_metrics(two);
+    cr_assert(json_number(x, "ranks") == 1 && json_number(y, "ranks") == 2, "the report records the ranks");
+    const cJSON *hosts = cJSON_GetObjectItemCaseSensitive(y, "hosts");
+    cr_assert(cJSON_IsString(hosts) && strstr(hosts->valuestring, " x2"), "hosts: one host, two ranks");
+    const cJSON *rx = cJSON_GetObjectItemCaseSensitive(x, "reference"), *ry = cJSON_GetObjectItemCaseSensitive(y, "reference");
+    cr_assert(json_number(rx, "spp") == json_number(ry, "spp") && json_number(rx, "variance") == json_number(ry, "variance"),
+              "the reference differs");
+    const cJSON *mx = cJSON_GetObjectItemCaseSensitive(x, "methods"), *my = cJSON_GetObjectItemCaseSensitive(y, "methods");
+    cr_assert(cJSON_GetArraySize(mx) == 2 && cJSON_GetArraySize(my) == 2);
+    static const char *const keys[] = {"runs", "spp", "mse", "rmse", "relmse", "mare", "bias2", "bias2_se", "variance",
+                                       "homogeneity"};
+    for (int i = 0; i < 2; i++) {
+        const cJSON *p = cJSON_GetArrayItem(mx, i), *q = cJSON_GetArrayItem(my, i);
+        for (size_t k = 0; k < sizeof keys / sizeof keys[0]; k++) {
+            double u = json_number(p, keys[k]), v = json_number(q, keys[k]);
+            cr_assert(u == v, "%s %s: one process %.17g, two ranks %.17g", cJSON_GetObjectItem(p, "label")->valuestring,
+                      keys[k], u, v);
+        }
+        const cJSON *pp = cJSON_GetObjectItemCaseSensitive(p, "per_pixel"), *qp = cJSON_GetObjectItemCaseSensitive(q, "per_pixel");
+        cr_assert(json_number(pp, "collisions") == json_number(qp, "collisions") &&
+                      json_number(pp, "lookups") == json_number(qp, "lookups"),
+                  "the counters per pixel differ");
+    }
+    cJSON_Delete(x);
+    cJSON_Delete(y);
 }

@@ -32,6 +32,8 @@ int cli_cmd_bake(int argc, char **argv);
 int cli_cmd_bake_on(int argc, char **argv, rd_dist *d);
 int cli_cmd_explain(int argc, char **argv);
 int cli_cmd_compare(int argc, char **argv);
+/* compare on the ranks of d (NULL: alone, as cli_cmd_compare): every rank calls it. */
+int cli_cmd_compare_on(int argc, char **argv, rd_dist *d);
 
 /* ---- options (common.c) ------------------------------------------------------------------ */
 
