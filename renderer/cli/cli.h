@@ -132,8 +132,12 @@ int cli_ranks_unmute(rd_dist *d, int saved, int code);
 /* 0 when every rank read the same bytes at `path` (every rank loads its own copy of the scene),
  * else CLI_EXIT_INPUT after one line from rank 0. */
 int cli_ranks_same_file(rd_dist *d, const char *path);
-/* 0 when every rank passed the same `text` (its options that decide the image, as text), else
- * CLI_EXIT_USAGE after one line from rank 0. */
-int cli_ranks_same_options(rd_dist *d, const char *text);
+/* 0 when every rank passed the same `text` (its options that decide the outcome, as text) and
+ * the same --set overrides in `a` (NULL: none), else CLI_EXIT_USAGE after one line from rank 0. */
+int cli_ranks_same_options(rd_dist *d, const char *text, const cli_scene_args *a);
+/* Load a's scene on every rank (*scene; the caller frees it, also after a failure) and agree:
+ * 0 when every rank loaded it and read the same file, else the exit code after one line
+ * (cli_ranks_agree, cli_ranks_same_file). */
+int cli_ranks_load_scene(rd_dist *d, const cli_scene_args *a, rd_scene **scene);
 
 #endif

@@ -199,16 +199,13 @@ int cli_cmd_bake_on(int argc, char **argv, rd_dist *d)
 
     char err[RD_ERRLEN];
     rd_scene *s = NULL;
-    rd_status st = rd_scene_load(&s, r->a.scene, r->a.ov, r->a.nov, err, sizeof err);
-    int code = cli_ranks_agree(d, cli_exit_for(st), err);
-    if (!code) code = cli_ranks_same_file(d, r->a.scene);
+    rd_status st;
+    int code = cli_ranks_load_scene(d, &r->a, &s);
     if (!code && rd_dist_size(d) > 1) { /* the ranks must bake one map: the options that decide it agree */
-        char opts[8192];
-        int len = snprintf(opts, sizeof opts, "%zu|%lld|%d|%s", bo.photons, bo.seed, bo.no_guide,
-                           bo.load_photons ? bo.load_photons : "");
-        for (int i = 0; i < r->a.nov && len >= 0 && (size_t)len < sizeof opts; i++)
-            len += snprintf(opts + len, sizeof opts - (size_t)len, "|%s=%s", r->a.ov[i].key, r->a.ov[i].value);
-        code = cli_ranks_same_options(d, opts);
+        char opts[2048];
+        snprintf(opts, sizeof opts, "%zu|%lld|%d|%s", bo.photons, bo.seed, bo.no_guide,
+                 bo.load_photons ? bo.load_photons : "");
+        code = cli_ranks_same_options(d, opts, &r->a);
     }
     rd_baked *b = NULL;
     if (code) goto done;

@@ -196,9 +196,8 @@ int cli_cmd_compare_on(int argc, char **argv, rd_dist *d)
     char err[RD_ERRLEN];
     rd_scene *scene = NULL;
     rd_comparison *cmp = NULL;
-    rd_status st = rd_scene_load(&scene, ca->a.scene, ca->a.ov, ca->a.nov, err, sizeof err);
-    int code = cli_ranks_agree(d, cli_exit_for(st), err);
-    if (!code) code = cli_ranks_same_file(d, ca->a.scene);
+    rd_status st;
+    int code = cli_ranks_load_scene(d, &ca->a, &scene);
     if (!code && rd_dist_size(d) > 1) { /* the ranks must run one comparison: its options agree */
         char opts[8192];
         const rd_cmp_opts *o = &ca->o;
@@ -209,9 +208,7 @@ int cli_cmd_compare_on(int argc, char **argv, rd_dist *d)
             len += snprintf(opts + len, sizeof opts - (size_t)len, "|%s", o->methods[i]);
         for (int i = 0; i < o->n_extras && len >= 0 && (size_t)len < sizeof opts; i++)
             len += snprintf(opts + len, sizeof opts - (size_t)len, "|%s=%s", o->extras[i].label, o->extras[i].path);
-        for (int i = 0; i < ca->a.nov && len >= 0 && (size_t)len < sizeof opts; i++)
-            len += snprintf(opts + len, sizeof opts - (size_t)len, "|%s=%s", ca->a.ov[i].key, ca->a.ov[i].value);
-        code = cli_ranks_same_options(d, opts);
+        code = cli_ranks_same_options(d, opts, &ca->a);
     }
     if (code) goto out;
     ca->o.seed = ca->seed >= 0 ? (uint64_t)ca->seed : rd_scene_seed(scene);

@@ -186,9 +186,8 @@ int cli_cmd_render_on(int argc, char **argv, rd_dist *d)
 
     char err[RD_ERRLEN];
     rd_scene *scene = NULL;
-    rd_status st = rd_scene_load(&scene, a->scene, a->ov, a->nov, err, sizeof err);
-    int code = cli_ranks_agree(d, cli_exit_for(st), err);
-    if (!code) code = cli_ranks_same_file(d, a->scene);
+    rd_status st;
+    int code = cli_ranks_load_scene(d, a, &scene);
     rd_image ref = {0, 0, NULL, 0};
     if (!code && refpath) {
         st = rd_image_read(refpath, &ref, err, sizeof err);
@@ -220,12 +219,10 @@ int cli_cmd_render_on(int argc, char **argv, rd_dist *d)
     rd_baked *baked = NULL; /* before the first goto out, which frees it */
     if (ranks > 1) { /* the ranks must render one image: the options that decide it agree */
         char opts[8192];
-        int len = snprintf(opts, sizeof opts, "%s|%d|%llu|%a|%d|%s|%s|%s", ro.method, ro.spp,
-                           (unsigned long long)ro.seed, ro.time_limit, no_cache, photons_path ? photons_path : "",
-                           guide_path ? guide_path : "", refpath ? refpath : "");
-        for (int i = 0; i < a->nov && len >= 0 && (size_t)len < sizeof opts; i++)
-            len += snprintf(opts + len, sizeof opts - (size_t)len, "|%s=%s", a->ov[i].key, a->ov[i].value);
-        if ((code = cli_ranks_same_options(d, opts)) != 0) goto out;
+        snprintf(opts, sizeof opts, "%s|%d|%llu|%a|%d|%s|%s|%s", ro.method, ro.spp, (unsigned long long)ro.seed,
+                 ro.time_limit, no_cache, photons_path ? photons_path : "", guide_path ? guide_path : "",
+                 refpath ? refpath : "");
+        if ((code = cli_ranks_same_options(d, opts, a)) != 0) goto out;
     }
     /* Only rank 0 writes. */
     st = lead ? rd_make_parent_dirs(outpath, err, sizeof err) : RD_OK;
