@@ -266,12 +266,13 @@ static void *concat_records(block_out *blocks, size_t b0, size_t b1, int which, 
     size_t at = 0;
     for (size_t bi = b0; bi < b1; bi++) {
         block_out *b = &blocks[bi];
-        void **arr = which == 0 ? (void **)&b->ph : which == 1 ? (void **)&b->seg : (void **)&b->ind;
+        const void *src = which == 0 ? (const void *)b->ph : which == 1 ? (const void *)b->seg : (const void *)b->ind;
         size_t m = which == 0 ? b->n_ph : which == 1 ? b->n_seg : b->n_ind;
-        if (out && m) memcpy(out + at * es, *arr, m * es);
+        if (out && m) memcpy(out + at * es, src, m * es);
         at += m;
-        free(*arr);
-        *arr = NULL;
+        if (which == 0) free(b->ph), b->ph = NULL;
+        else if (which == 1) free(b->seg), b->seg = NULL;
+        else free(b->ind), b->ind = NULL;
     }
     return out;
 }

@@ -419,37 +419,34 @@ static rd_status gather_runs(rd_comparison *c, const int *local, char *err, size
     return st;
 }
 
-/* Several ranks: their host names into c->sum.hosts ("a x2, b"). Collective. */
+/* Several ranks: their host names into c->sum.hosts ("a x2, b": each name once, in rank order
+ * of first appearance, with its rank count; past 32 names, "..."), one broadcast a rank.
+ * Collective. */
 static void gather_hosts(rd_comparison *c)
 {
     const rd_comm *comm = cmp_ranks(c);
+    enum { HOST = 64, NAMES = 32 };
+    char names[NAMES][HOST];
+    int times[NAMES], n = 0, more = 0;
     c->sum.ranks = comm ? comm->size : 1;
-    enum { HOST = 64 };
-    char mine[HOST] = {0};
-    if (gethostname(mine, HOST - 1) != 0) snprintf(mine, HOST, "?");
-    int n = comm ? comm->size : 1;
-    char *all = calloc((size_t)n, HOST);
-    size_t *counts = calloc((size_t)n, sizeof *counts);
-    if (!all || !counts) abort(); /* (a few bytes a rank; as a failed collective, the job ends) */
-    for (int k = 0; k < n; k++) counts[k] = 1;
-    if (comm) comm->allgatherv(comm->user, mine, all, counts, HOST);
-    else memcpy(all, mine, HOST);
+    for (int k = 0; k < c->sum.ranks; k++) {
+        char h[HOST] = {0};
+        if ((!comm || comm->rank == k) && gethostname(h, HOST - 1) != 0) snprintf(h, HOST, "?");
+        rd_comm_bcast(comm, h, HOST, k);
+        int j = 0;
+        while (j < n && strcmp(names[j], h)) j++;
+        if (j < n) times[j]++;
+        else if (n < NAMES) memcpy(names[n], h, HOST), times[n++] = 1;
+        else more = 1;
+    }
     size_t at = 0;
     c->sum.hosts[0] = 0;
-    for (int k = 0; k < n; k++) {
-        const char *h = all + (size_t)k * HOST;
-        int seen = 0, times = 0;
-        for (int j = 0; j < n; j++) {
-            seen |= j < k && !strncmp(all + (size_t)j * HOST, h, HOST);
-            times += !strncmp(all + (size_t)j * HOST, h, HOST);
-        }
-        if (seen || at >= sizeof c->sum.hosts) continue;
-        int w = times > 1 ? snprintf(c->sum.hosts + at, sizeof c->sum.hosts - at, "%s%s x%d", at ? ", " : "", h, times)
-                          : snprintf(c->sum.hosts + at, sizeof c->sum.hosts - at, "%s%s", at ? ", " : "", h);
+    for (int j = 0; j < n && at < sizeof c->sum.hosts; j++) {
+        int w = times[j] > 1 ? snprintf(c->sum.hosts + at, sizeof c->sum.hosts - at, "%s%s x%d", j ? ", " : "", names[j], times[j])
+                             : snprintf(c->sum.hosts + at, sizeof c->sum.hosts - at, "%s%s", j ? ", " : "", names[j]);
         at += w > 0 ? (size_t)w : 0;
     }
-    free(all);
-    free(counts);
+    if (more && at < sizeof c->sum.hosts) snprintf(c->sum.hosts + at, sizeof c->sum.hosts - at, ", ...");
 }
 
 rd_status rd_compare_run(const rd_scene *scene, const rd_cmp_opts *opts, rd_comparison **out,
