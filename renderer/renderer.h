@@ -117,7 +117,18 @@ typedef struct rd_comm {
      * same count, type, op and root, in the same order. A failure ends the job (MPI's default
      * error handler), so it returns nothing. */
     void (*reduce)(void *user, void *buf, size_t count, rd_comm_type type, rd_comm_op op, int root);
+    /* Gather onto every rank (an allgatherv): rank r contributes counts[r] elements of
+     * elem_bytes bytes each from `send`; `recv` receives every rank's elements in rank order
+     * (counts[0] + ... + counts[size-1] elements). counts and elem_bytes are the same on every
+     * rank (a reduce of the counts gives them). `send` may be this rank's own place in recv (in
+     * place). Collective, like reduce; a failure ends the job.
+     * The bake gathers its photons through it (rd_bake_opts.comm). */
+    void (*allgatherv)(void *user, const void *send, void *recv, const size_t *counts, size_t elem_bytes);
 } rd_comm;
+/* A collective step that failed on another rank (and not on this one) ends its message with
+ * this, so that the caller can leave the saying to the rank that failed. */
+#define RD_ON_ANOTHER_RANK "on another rank"
+
 
 typedef struct {
     const char *method;  /* a name from the method table */
@@ -130,9 +141,11 @@ typedef struct {
     uint64_t seed;
     int threads;         /* 0 = OpenMP default */
     /* Polled between pixels: when it becomes non-zero the render stops and rd_render returns
-     * RD_OK with the samples done so far (pixels may then differ by one pass in count). In one
-     * process (no comm) also passed to the bake rd_render makes when `baked` is NULL: set
-     * during it, rd_render returns RD_ERR_CANCELLED with nothing rendered. */
+     * RD_OK with the samples done so far (pixels may then differ by one pass in count). Also
+     * passed to the bake rd_render makes when `baked` is NULL and to the tracing of the
+     * progressive photon passes: set during the bake or the first pass, rd_render returns
+     * RD_ERR_CANCELLED with nothing rendered (on every rank: they agree on the bake's outcome);
+     * during a later photon pass, RD_OK with the samples so far. */
     const volatile int *cancel;
     /* Called after every pass (from the calling thread). May be NULL. */
     void (*progress)(void *user, int spp_done, int spp_total, double seconds);
@@ -295,6 +308,15 @@ typedef struct {
                                    the steps and while baking the guide; once non-zero the bake
                                    stops and returns RD_ERR_CANCELLED with no bake, and
                                    rd_bake_cached puts no further cache file in place */
+    /* Several ranks bake together (NULL: this process alone; borrowed; renderer.h rd_comm):
+     * rank r traces a contiguous range of the photon blocks (photon i's path depends on i
+     * alone), and the photons, segments, indirect photons and the power sums are gathered on
+     * every rank in photon order, so every rank holds one process's map, kd-tree and guide, bit
+     * for bit. Every rank calls rd_bake (rd_bake_cached) with the same scene and options; both
+     * return the same status on every rank (a failure or a cancel flag on one rank fails all;
+     * a rank that did not fail says "another rank ..."). rd_bake_cached: the ranks use the cache
+     * only when every rank can load it, else all bake, and rank 0 alone saves it. */
+    const rd_comm *comm;
 } rd_bake_opts;
 
 /* Set the bake options that a method's needs (RD_NEEDS_*, from rd_method_needs_for) decide:
@@ -310,6 +332,9 @@ typedef struct {
     size_t map_bytes;          /* photons, segments and index */
     double power_emitted, power_absorbed, power_escaped, power_cut; /* luminance, W */
     double power_absorbed_surfaces; /* luminance, W: absorbed by diffuse surfaces */
+    int ranks;                 /* ranks that traced the photons together (1: one process) */
+    double gather_seconds;     /* several ranks: seconds of the photons' gather (in trace_seconds) */
+    size_t gather_bytes;       /* bytes each rank received in it */
     /* guide grid (has_guide = 0 with no_guide) */
     int has_guide;
     int adaptive, track;       /* uniform/adaptive grid, k-NN/track-length bake */
@@ -462,6 +487,14 @@ typedef struct {
     void *progress_user;
     rd_clock_fn clock;   /* the clock of the budget, the bake's charge and every time reported */
     void *clock_user;    /* (rd_render_opts.clock); NULL: rd_clock_monotonic */
+    /* Several ranks compare together (NULL: this process alone; borrowed; docs/compare.md,
+     * "On several ranks"): run k of method i (the (i runs + k)-th run) is rendered whole by rank
+     * (i runs + k) modulo size, with its own bake of the method's needs; the rendered reference
+     * is one render by all ranks together (rd_render_opts.comm), shared with every rank; then
+     * every run's images, counters and curve go to every rank, so every rank holds the same
+     * comparison (rank 0 writes the report). Every rank calls rd_compare_run with the same
+     * scene and options; it returns the same status on every rank. */
+    const rd_comm *comm;
 } rd_cmp_opts;
 
 /* One row of the comparison: a method (its K runs) or an added image. Absent values are NaN. */
@@ -496,6 +529,8 @@ typedef struct {
     int ref_capped;         /* 1: the default reference stopped at its cap, rule unmet */
     double ref_cap_seconds; /* that cap (NaN unless ref_auto) */
     double ref_share;       /* ref_var / the smallest method MSE (NaN when unknown) */
+    int ranks;              /* processes that ran the comparison (1: one) */
+    char hosts[512];        /* their host names, "a x2, b" (rank order of first appearance) */
 } rd_cmp_summary;
 
 typedef struct rd_comparison rd_comparison; /* the runs' images, curves and rows; opaque */

@@ -6,7 +6,14 @@
  *    without that sum the choice, and so the image, differs on this scene and seed);
  *  - a time-limited render on two ranks ends, and one set of outputs is written;
  *  - a rank that cannot read the scene, ranks with different scene files, an output rank 0
- *    cannot write, a command that is not shared: one line and a non-zero exit, no hang.
+ *    cannot write, a command that is not shared: one line and a non-zero exit, no hang;
+ *  - bake on two ranks (each traces a range of the photons, gathered on every rank) writes one
+ *    process's .pmap byte for byte and its .guide but for the bake time; a render's bake through
+ *    the cache is traced by the two ranks together and its image is one process's;
+ *  - a rank killed mid-render (SIGKILL) ends the job with a non-zero status and the previous
+ *    image stays as it was;
+ *  - compare on two ranks (runs dealt round the ranks, the reference rendered by both) gives one
+ *    process's numbers at equal spp, and its report records the ranks and the host.
  * Every run is waited for (rt_run); the timeouts only guard against a hang.
  * mpirun's options: as root (CI) it must be told so; --oversubscribe: two ranks on any number of
  * cores; --bind-to none: the ranks may use any core; the shared-memory transport's single copy
@@ -14,6 +21,7 @@
  * the program, not the transport. */
 #include "support/rd_test.h"
 
+#include <cJSON.h>
 #include <dirent.h>
 
 #define MPIRUN "/usr/bin/mpirun"
@@ -281,4 +289,241 @@ Test(mpi, ranks_with_different_options_refuse, .timeout = 120)
     cr_assert(code == 1, "exit %d (expected 1): %s", code, err);
     cr_assert(count_lines_with(err, "options differ") == 1, "one line: %s", err);
     cr_assert(access(exr, F_OK) != 0, "nothing is written");
+}
+
+/* The bytes of a file (a caller-freed buffer, its size in *n). */
+static char *file_bytes(const char *path, size_t *n)
+{
+    FILE *f = fopen(path, "rb");
+    cr_assert(f != NULL, "cannot read %s", path);
+    fseek(f, 0, SEEK_END);
+    long len = ftell(f);
+    rewind(f);
+    char *buf = malloc((size_t)len + 1);
+    cr_assert(buf != NULL && fread(buf, 1, (size_t)len, f) == (size_t)len);
+    fclose(f);
+    *n = (size_t)len;
+    return buf;
+}
+
+Test(mpi, two_ranks_bake_the_files_of_one_process, .timeout = 300)
+{
+    /* 40000 photons: 10 blocks of 4096, 5 traced by each rank and gathered in block order */
+    const char *b = bin(), *scene = scene_file("mpi-bake.json");
+    char one[256], two[256], out[8192], err[8192];
+    snprintf(one, sizeof one, "%s/bake-one/b", rt_tmpdir());
+    snprintf(two, sizeof two, "%s/bake-two/b", rt_tmpdir());
+    char *a1[] = {(char *)b, "bake", (char *)scene, "--seed", "7", "--threads", "1", "-o", one, NULL};
+    int code = rt_run(a1, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 0, "one process: exit %d: %s", code, err);
+    char *a2[] = {MPI_ARGS, "-n", "2", (char *)b, "bake", (char *)scene, "--seed", "7", "--threads", "1", "--stats",
+                  "-o", two, NULL};
+    code = rt_run(a2, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 0, "two ranks: exit %d: %s", code, err);
+    const char *first = strstr(out, "photons    emitted"), *again = first ? strstr(first + 1, "photons    emitted") : NULL;
+    cr_assert(first && !again, "rank 0 alone prints: %s", out);
+    cr_assert(strstr(out, "gather") != NULL, "--stats on two ranks says the gather: %s", out);
+    char p1[300], p2[300];
+    size_t n1, n2;
+    snprintf(p1, sizeof p1, "%s.pmap", one);
+    snprintf(p2, sizeof p2, "%s.pmap", two);
+    char *x = file_bytes(p1, &n1), *y = file_bytes(p2, &n2);
+    cr_assert(n1 == n2 && memcmp(x, y, n1) == 0, "%s and %s differ (%zu and %zu bytes)", p1, p2, n1, n2);
+    free(x), free(y);
+    snprintf(p1, sizeof p1, "%s.guide", one);
+    snprintf(p2, sizeof p2, "%s.guide", two);
+    x = file_bytes(p1, &n1), y = file_bytes(p2, &n2);
+    cr_assert(rt_same_guide_bytes(x, n1, y, n2), "%s and %s differ (but for the bake time)", p1, p2);
+    free(x), free(y);
+    snprintf(p1, sizeof p1, "%s-photons.exr", one);
+    snprintf(p2, sizeof p2, "%s-photons.exr", two);
+    expect_same_pixels(p1, p2);
+}
+
+Test(mpi, two_ranks_bake_through_the_cache_together_and_render_one_process_s_image, .timeout = 300)
+{
+    /* A render's own bake through the cache on two ranks: no cache yet, so the ranks trace
+     * together and rank 0 saves the cache; the second render finds it on every rank. Both
+     * images are one process's (which baked with --no-cache). */
+    const char *b = bin(), *scene = scene_file("mpi-cache.json");
+    char one[256], two[300], dir[256], out[8192], err[8192];
+    snprintf(one, sizeof one, "%s/cache-one/img.exr", rt_tmpdir());
+    snprintf(dir, sizeof dir, "%s/cache-two", rt_tmpdir());
+    snprintf(two, sizeof two, "%s/img.exr", dir);
+    char *a1[] = {(char *)b, "render", (char *)scene, "--method", "guided", "--spp", "6", "--seed", "2", "--threads",
+                  "1", "--no-cache", "-q", "-o", one, NULL};
+    int code = rt_run(a1, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 0, "one process: exit %d: %s", code, err);
+    for (int run = 0; run < 2; run++) {
+        char *a2[] = {MPI_ARGS, "-n", "2", (char *)b, "render", (char *)scene, "--method", "guided", "--spp", "6",
+                      "--seed", "2", "--threads", "1", "-o", two, NULL};
+        code = rt_run(a2, out, sizeof out, err, sizeof err, NULL);
+        cr_assert(code == 0, "two ranks, run %d: exit %d: %s", run, code, err);
+        const char *said = run == 0 ? "baked the photon map" : "reused the cached photon map";
+        cr_assert(count_lines_with(err, said) == 1, "run %d: rank 0 says \"%s\" once: %s", run, said, err);
+        expect_same_pixels(one, two);
+    }
+    char cache[300];
+    snprintf(cache, sizeof cache, "%s/.photonmarch-cache", dir);
+    DIR *dd = opendir(cache);
+    cr_assert(dd != NULL, "no cache folder %s", cache);
+    int pmaps = 0, others = 0;
+    for (struct dirent *e; (e = readdir(dd)) != NULL;) {
+        if (e->d_name[0] == '.') continue;
+        size_t len = strlen(e->d_name);
+        if (len > 5 && !strcmp(e->d_name + len - 5, ".pmap")) pmaps++;
+        else if (len <= 6 || strcmp(e->d_name + len - 6, ".guide")) others++;
+    }
+    closedir(dd);
+    cr_assert(pmaps >= 1 && others == 0, "the cache holds %d maps and %d other files (temporaries?)", pmaps, others);
+}
+
+/* The pid of the process whose parent is `parent` and whose environment says
+ * OMPI_COMM_WORLD_RANK=rank (0: none found). */
+static pid_t rank_pid(pid_t parent, int rank)
+{
+    DIR *proc = opendir("/proc");
+    cr_assert(proc != NULL);
+    pid_t found = 0;
+    char want[64];
+    int wlen = snprintf(want, sizeof want, "OMPI_COMM_WORLD_RANK=%d", rank);
+    for (struct dirent *e; !found && (e = readdir(proc)) != NULL;) {
+        pid_t pid = (pid_t)atoi(e->d_name);
+        if (pid <= 0) continue;
+        char path[64], buf[4096];
+        snprintf(path, sizeof path, "/proc/%d/stat", (int)pid);
+        FILE *f = fopen(path, "r");
+        if (!f) continue;
+        size_t n = fread(buf, 1, sizeof buf - 1, f);
+        fclose(f);
+        buf[n] = 0;
+        const char *rp = strrchr(buf, ')'); /* "pid (comm) state ppid ..." */
+        int ppid = 0;
+        char state;
+        if (!rp || sscanf(rp + 1, " %c %d", &state, &ppid) != 2 || ppid != parent) continue;
+        snprintf(path, sizeof path, "/proc/%d/environ", (int)pid);
+        if (!(f = fopen(path, "r"))) continue;
+        static char env[1 << 16];
+        n = fread(env, 1, sizeof env - 1, f);
+        fclose(f);
+        for (size_t i = 0; i < n; i += strlen(env + i) + 1)
+            if (!strncmp(env + i, want, (size_t)wlen) && env[i + wlen] == 0) found = pid;
+    }
+    closedir(proc);
+    return found;
+}
+
+Test(mpi, a_rank_killed_mid_render_ends_the_job_and_leaves_the_old_image, .timeout = 300)
+{
+    const char *b = bin(), *scene = scene_file("mpi-kill.json");
+    char exr[256], out[8192], err[8192];
+    snprintf(exr, sizeof exr, "%s/kill/img.exr", rt_tmpdir());
+    /* a good image there first */
+    char *a1[] = {(char *)b, "render", (char *)scene, "--method", "delta", "--spp", "2", "--threads", "1", "-q", "-o",
+                  exr, NULL};
+    int code = rt_run(a1, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 0, "the first render: exit %d: %s", code, err);
+    size_t n0, nj0;
+    char js[300];
+    snprintf(js, sizeof js, "%s/kill/img.json", rt_tmpdir());
+    char *before = file_bytes(exr, &n0), *before_js = file_bytes(js, &nj0);
+    /* A long render on two ranks; rank 0's first progress line says the passes have begun. */
+    char *a2[] = {MPI_ARGS, "-n", "2", (char *)b, "render", (char *)scene, "--method", "delta", "--time", "60",
+                  "--threads", "1", "-o", exr, NULL};
+    child c = spawn_until(a2, " spp ", err, sizeof err);
+    pid_t victim = rank_pid(c.pid, 1);
+    cr_assert(victim > 0, "rank 1's process (a child of mpirun %d) not found", (int)c.pid);
+    cr_assert(kill(victim, SIGKILL) == 0);
+    /* mpirun must end the job: poll for its end, well within the 60 s the render asked for */
+    struct timespec t0, now, nap = {0, 20 * 1000 * 1000};
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    int status = 0, ended = 0;
+    for (;;) {
+        pid_t w = waitpid(c.pid, &status, WNOHANG);
+        cr_assert(w >= 0);
+        if (w == c.pid) { ended = 1; break; }
+        clock_gettime(CLOCK_MONOTONIC, &now);
+        if (now.tv_sec - t0.tv_sec > 30) break;
+        nanosleep(&nap, NULL);
+    }
+    if (!ended) { /* fail, but leave nothing running */
+        kill(c.pid, SIGKILL);
+        waitpid(c.pid, &status, 0);
+    }
+    child_stderr(&c, err, sizeof err);
+    close(c.efd), close(c.ofd);
+    unlink(c.path), unlink(c.opath);
+    cr_assert(ended, "mpirun still ran 30 s after rank 1 was killed: %s", err);
+    cr_assert(!(WIFEXITED(status) && WEXITSTATUS(status) == 0), "the job ended with status 0: %s", err);
+    size_t n1, nj1;
+    char *after = file_bytes(exr, &n1), *after_js = file_bytes(js, &nj1);
+    cr_assert(n0 == n1 && memcmp(before, after, n0) == 0, "%s changed", exr);
+    cr_assert(nj0 == nj1 && memcmp(before_js, after_js, nj0) == 0, "%s changed", js);
+    free(before), free(after), free(before_js), free(after_js);
+}
+
+/* metrics.json of a compare report, parsed (the caller frees it with cJSON_Delete). */
+static cJSON *read_metrics(const char *dir)
+{
+    char path[300];
+    size_t n;
+    snprintf(path, sizeof path, "%s/metrics.json", dir);
+    char *text = file_bytes(path, &n);
+    cJSON *j = cJSON_Parse(text);
+    free(text);
+    cr_assert(j != NULL, "%s: not JSON", path);
+    return j;
+}
+
+static double json_number(const cJSON *o, const char *key)
+{
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
+    cr_assert(v != NULL && cJSON_IsNumber(v), "no number \"%s\"", key);
+    return v->valuedouble;
+}
+
+Test(mpi, compare_on_two_ranks_gives_one_process_s_numbers, .timeout = 600)
+{
+    /* equal spp, a fixed reference: every number but the times is decided by the images, which
+     * must be one process's (each run whole on one rank, the reference by both together) */
+    const char *b = bin(), *scene = scene_file("mpi-cmp.json");
+    char one[256], two[256], out[16384], err[8192];
+    snprintf(one, sizeof one, "%s/cmp-one", rt_tmpdir());
+    snprintf(two, sizeof two, "%s/cmp-two", rt_tmpdir());
+#define CMP_ARGS "compare", (char *)scene, "--methods", "delta,guided", "--equal", "spp", "--budget", "4", "--runs", \
+                 "3", "--ref-spp", "16", "--seed", "3", "--threads", "1", "--no-cache", "-q"
+    char *a1[] = {(char *)b, CMP_ARGS, "-o", one, NULL};
+    int code = rt_run(a1, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 0, "one process: exit %d: %s", code, err);
+    char *a2[] = {MPI_ARGS, "-n", "2", (char *)b, CMP_ARGS, "-o", two, NULL};
+#undef CMP_ARGS
+    code = rt_run(a2, out, sizeof out, err, sizeof err, NULL);
+    cr_assert(code == 0, "two ranks: exit %d: %s", code, err);
+    const char *first = strstr(out, "report "), *again = first ? strstr(first + 1, "report ") : NULL;
+    cr_assert(first && !again, "rank 0 alone prints: %s", out);
+    cJSON *x = read_metrics(one), *y = read_metrics(two);
+    cr_assert(json_number(x, "ranks") == 1 && json_number(y, "ranks") == 2, "the report records the ranks");
+    const cJSON *hosts = cJSON_GetObjectItemCaseSensitive(y, "hosts");
+    cr_assert(cJSON_IsString(hosts) && strstr(hosts->valuestring, " x2"), "hosts: one host, two ranks");
+    const cJSON *rx = cJSON_GetObjectItemCaseSensitive(x, "reference"), *ry = cJSON_GetObjectItemCaseSensitive(y, "reference");
+    cr_assert(json_number(rx, "spp") == json_number(ry, "spp") && json_number(rx, "variance") == json_number(ry, "variance"),
+              "the reference differs");
+    const cJSON *mx = cJSON_GetObjectItemCaseSensitive(x, "methods"), *my = cJSON_GetObjectItemCaseSensitive(y, "methods");
+    cr_assert(cJSON_GetArraySize(mx) == 2 && cJSON_GetArraySize(my) == 2);
+    static const char *const keys[] = {"runs", "spp", "mse", "rmse", "relmse", "mare", "bias2", "bias2_se", "variance",
+                                       "homogeneity"};
+    for (int i = 0; i < 2; i++) {
+        const cJSON *p = cJSON_GetArrayItem(mx, i), *q = cJSON_GetArrayItem(my, i);
+        for (size_t k = 0; k < sizeof keys / sizeof keys[0]; k++) {
+            double u = json_number(p, keys[k]), v = json_number(q, keys[k]);
+            cr_assert(u == v, "%s %s: one process %.17g, two ranks %.17g", cJSON_GetObjectItem(p, "label")->valuestring,
+                      keys[k], u, v);
+        }
+        const cJSON *pp = cJSON_GetObjectItemCaseSensitive(p, "per_pixel"), *qp = cJSON_GetObjectItemCaseSensitive(q, "per_pixel");
+        cr_assert(json_number(pp, "collisions") == json_number(qp, "collisions") &&
+                      json_number(pp, "lookups") == json_number(qp, "lookups"),
+                  "the counters per pixel differ");
+    }
+    cJSON_Delete(x);
+    cJSON_Delete(y);
 }

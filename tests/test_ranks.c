@@ -5,9 +5,16 @@
  * the sanitizer run included, while tests/test_mpi.c tests the command line under mpirun.
  *  - three ranks give rank 0 one process's image and standard error bit for bit (guided with the
  *    tile selection, whose epochs need the ranks' sums);
- *  - a cancel flag set on one rank stops every rank at the next agreement (none waits). */
+ *  - a cancel flag set on one rank stops every rank at the next agreement (none waits);
+ *  - rd_bake on three ranks (each traces a range of the photon blocks, gathered in block order)
+ *    gives every rank one process's photons, segments, indirect photons, power sums and guides
+ *    bit for bit (the guides' files but for the bake time they record), and a cancel flag on one rank fails the bake on all (none waits);
+ *  - a render with progressive photon passes (each pass traced by the ranks together) gives
+ *    rank 0 one process's image bit for bit. */
 #include "support/rd_test.h"
 #include "integrators/rd_method.h"
+#include "bake/rd_photons.h"
+#include "sh.h"
 
 #include <pthread.h>
 
@@ -24,10 +31,13 @@ typedef struct {
     fake_world *w;
     int rank;
     rd_comm comm;
-    /* the render of this rank */
+    /* the render of this rank, or its bake (do_bake) */
     const rd_scene *scene;
     rd_render_opts opts;
     rd_render_result res;
+    int do_bake;
+    rd_bake_opts bopts;
+    rd_baked *baked;
     rd_status st;
     char err[RD_ERRLEN];
 } fake_rank;
@@ -76,16 +86,37 @@ static void fake_reduce(void *user, void *buf, size_t count, rd_comm_type type, 
     if (r->rank == 0) free(w->result);
 }
 
+/* rd_comm.allgatherv: every rank posts its part, then each copies every rank's part in rank
+ * order into its own recv. */
+static void fake_allgatherv(void *user, const void *send, void *recv, const size_t *counts, size_t elem_bytes)
+{
+    fake_rank *r = user;
+    fake_world *w = r->w;
+    w->bufs[r->rank] = (void *)send;
+    pthread_barrier_wait(&w->bar);
+    char *at = recv;
+    for (int k = 0; k < w->size; k++) {
+        if (counts[k] && at != w->bufs[k]) memcpy(at, w->bufs[k], counts[k] * elem_bytes); /* (else in place) */
+        at += counts[k] * elem_bytes;
+    }
+    pthread_barrier_wait(&w->bar);
+}
+
 static void *rank_main(void *arg)
 {
     fake_rank *r = arg;
+    if (r->do_bake) {
+        r->bopts.comm = &r->comm;
+        r->st = rd_bake(r->scene, &r->bopts, &r->baked, r->err, sizeof r->err);
+        return NULL;
+    }
     r->opts.comm = &r->comm;
     r->st = rd_render(r->scene, &r->opts, &r->res, r->err, sizeof r->err);
     return NULL;
 }
 
-/* Render `o` on `n` threaded ranks into ranks[0..n) (each rank's own copy of o). */
-static void render_on_ranks(const rd_scene *s, const rd_render_opts *o, int n, fake_rank *ranks)
+/* Run ranks[0..n) (set up by the caller, comm included) on n threads sharing one world. */
+static void run_ranks(int n, fake_rank *ranks)
 {
     fake_world *w = calloc(1, sizeof *w);
     cr_assert(w != NULL);
@@ -93,13 +124,22 @@ static void render_on_ranks(const rd_scene *s, const rd_render_opts *o, int n, f
     pthread_barrier_init(&w->bar, NULL, (unsigned)n);
     pthread_t th[MAX_RANKS];
     for (int k = 0; k < n; k++) {
-        ranks[k] = (fake_rank){.w = w, .rank = k, .scene = s, .opts = *o};
-        ranks[k].comm = (rd_comm){.rank = k, .size = n, .user = &ranks[k], .reduce = fake_reduce};
+        ranks[k].w = w;
+        ranks[k].rank = k;
+        ranks[k].comm = (rd_comm){.rank = k, .size = n, .user = &ranks[k], .reduce = fake_reduce,
+                                  .allgatherv = fake_allgatherv};
     }
     for (int k = 0; k < n; k++) cr_assert(pthread_create(&th[k], NULL, rank_main, &ranks[k]) == 0);
     for (int k = 0; k < n; k++) pthread_join(th[k], NULL);
     pthread_barrier_destroy(&w->bar);
     free(w);
+}
+
+/* Render `o` on `n` threaded ranks into ranks[0..n) (each rank's own copy of o). */
+static void render_on_ranks(const rd_scene *s, const rd_render_opts *o, int n, fake_rank *ranks)
+{
+    for (int k = 0; k < n; k++) ranks[k] = (fake_rank){.scene = s, .opts = *o};
+    run_ranks(n, ranks);
     for (int k = 0; k < n; k++) {
         cr_assert(ranks[k].st == RD_OK, "rank %d: %s", k, ranks[k].err);
         ranks[k].opts.comm = NULL;
@@ -154,26 +194,131 @@ Test(ranks, a_cancel_on_one_rank_stops_them_all, .timeout = 300)
     rd_render_opts o = {.method = "delta", .spp = 1 << 20, .seed = 1, .threads = 1};
     static volatile int set = 1;
     fake_rank ranks[2];
-    /* render_on_ranks copies o to every rank; give rank 1 its flag through a second copy */
-    fake_world *w = calloc(1, sizeof *w);
-    cr_assert(w != NULL);
-    w->size = 2;
-    pthread_barrier_init(&w->bar, NULL, 2);
-    pthread_t th[2];
-    for (int k = 0; k < 2; k++) {
-        ranks[k] = (fake_rank){.w = w, .rank = k, .scene = s, .opts = o};
-        ranks[k].comm = (rd_comm){.rank = k, .size = 2, .user = &ranks[k], .reduce = fake_reduce};
-    }
-    ranks[1].opts.cancel = &set;
-    for (int k = 0; k < 2; k++) cr_assert(pthread_create(&th[k], NULL, rank_main, &ranks[k]) == 0);
-    for (int k = 0; k < 2; k++) pthread_join(th[k], NULL);
-    pthread_barrier_destroy(&w->bar);
-    free(w);
+    for (int k = 0; k < 2; k++) ranks[k] = (fake_rank){.scene = s, .opts = o};
+    ranks[1].opts.cancel = &set; /* rank 1's flag alone */
+    run_ranks(2, ranks);
     for (int k = 0; k < 2; k++) {
         cr_assert(ranks[k].st == RD_OK, "rank %d: %s", k, ranks[k].err);
         cr_assert(ranks[k].res.stats.cancelled && ranks[k].res.stats.spp == 0,
                   "rank %d: cancelled %d after %d spp", k, ranks[k].res.stats.cancelled, ranks[k].res.stats.spp);
         rd_render_result_free(&ranks[k].res);
     }
+    rd_scene_free(s);
+}
+
+/* The bytes sh_guide_write writes for g (a caller-freed buffer, its size in *n). */
+static char *guide_bytes(const struct sh_guide *g, size_t *n)
+{
+    char *buf = NULL, err[RD_ERRLEN];
+    FILE *f = open_memstream(&buf, n);
+    cr_assert(f != NULL);
+    cr_assert(sh_guide_write(g, f, "guide", err, sizeof err) == SH_OK, "%s", err);
+    fclose(f);
+    return buf;
+}
+
+static void expect_same_map(const pm_map *a, const pm_map *b, const char *what, int rank)
+{
+    cr_assert(pm_map_photon_count(a) == pm_map_photon_count(b) && pm_map_segment_count(a) == pm_map_segment_count(b),
+              "rank %d, %s: %zu photons and %zu segments, one process %zu and %zu", rank, what,
+              pm_map_photon_count(b), pm_map_segment_count(b), pm_map_photon_count(a), pm_map_segment_count(a));
+    cr_assert(memcmp(pm_map_photons(a), pm_map_photons(b), pm_map_photon_count(a) * sizeof(pm_photon)) == 0,
+              "rank %d, %s: the photons differ", rank, what);
+    if (pm_map_segment_count(a))
+        cr_assert(memcmp(pm_map_segments(a), pm_map_segments(b), pm_map_segment_count(a) * sizeof(pm_segment)) == 0,
+                  "rank %d, %s: the segments differ", rank, what);
+}
+
+static void expect_same_guide(const struct sh_guide *a, const struct sh_guide *b, const char *what, int rank)
+{
+    size_t na, nb;
+    char *x = guide_bytes(a, &na), *y = guide_bytes(b, &nb);
+    cr_assert(rt_same_guide_bytes(x, na, y, nb), "rank %d, %s: the guide's bytes differ (bake time aside)", rank, what);
+    free(x);
+    free(y);
+}
+
+Test(ranks, three_ranks_bake_one_process_s_photons_and_guides_bit_for_bit, .timeout = 600)
+{
+    /* 40000 photons: 10 blocks of 4096, split 3 + 3 + 4; segments stored too, and the indirect
+     * map and its guide (one trace for both maps) */
+    rd_scene *s = rt_scene("ranksb.json", ranks_scene());
+    s->photons.segments = 1;
+    rd_bake_opts bo = {.seed = -1, .threads = 1, .indirect = 1, .indirect_guide = 1};
+    rd_baked *one = NULL;
+    char err[RD_ERRLEN];
+    cr_assert(rd_bake(s, &bo, &one, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(pm_map_segment_count(rd_baked_map(one)) > 0 && pm_map_photon_count(rd_baked_indirect_map(one)) > 0);
+    fake_rank ranks[3];
+    for (int k = 0; k < 3; k++) ranks[k] = (fake_rank){.scene = s, .do_bake = 1, .bopts = bo};
+    ranks[2].bopts.threads = 2; /* the thread count changes nothing either */
+    run_ranks(3, ranks);
+    const rd_bake_stats *a = rd_baked_stats(one);
+    for (int k = 0; k < 3; k++) {
+        cr_assert(ranks[k].st == RD_OK, "rank %d: %s", k, ranks[k].err);
+        const rd_baked *b = ranks[k].baked;
+        expect_same_map(rd_baked_map(one), rd_baked_map(b), "map", k);
+        expect_same_map(rd_baked_indirect_map(one), rd_baked_indirect_map(b), "indirect map", k);
+        expect_same_guide(rd_baked_guide(one), rd_baked_guide(b), "guide", k);
+        expect_same_guide(rd_baked_indirect_guide(one), rd_baked_indirect_guide(b), "indirect guide", k);
+        const rd_bake_stats *c = rd_baked_stats(b);
+        /* the power sums in block order: the same additions, so the same bits */
+        cr_assert(a->power_emitted == c->power_emitted && a->power_absorbed == c->power_absorbed &&
+                      a->power_escaped == c->power_escaped && a->power_cut == c->power_cut &&
+                      a->collisions_per_photon == c->collisions_per_photon && a->emitted == c->emitted,
+                  "rank %d: power emitted %.17g / %.17g, absorbed %.17g / %.17g", k, a->power_emitted,
+                  c->power_emitted, a->power_absorbed, c->power_absorbed);
+        cr_assert(c->ranks == 3 && c->gather_bytes > 0, "rank %d: ranks %d, gathered %zu bytes", k, c->ranks,
+                  c->gather_bytes);
+        rd_baked_free(ranks[k].baked);
+    }
+    rd_baked_free(one);
+    rd_scene_free(s);
+}
+
+Test(ranks, a_cancel_on_one_rank_fails_the_bake_on_all, .timeout = 300)
+{
+    rd_scene *s = rt_scene("ranksbc.json", ranks_scene());
+    static volatile int set = 1;
+    fake_rank ranks[2];
+    for (int k = 0; k < 2; k++) ranks[k] = (fake_rank){.scene = s, .do_bake = 1, .bopts = {.seed = -1, .threads = 1}};
+    ranks[1].bopts.cancel = &set; /* rank 1's flag alone */
+    run_ranks(2, ranks);
+    for (int k = 0; k < 2; k++) {
+        cr_assert(ranks[k].st == RD_ERR_CANCELLED && ranks[k].baked == NULL, "rank %d: status %d: %s", k,
+                  ranks[k].st, ranks[k].err);
+    }
+    cr_assert(strstr(ranks[0].err, RD_ON_ANOTHER_RANK) != NULL, "rank 0 says another rank stopped: %s", ranks[0].err);
+    rd_scene_free(s);
+}
+
+Test(ranks, progressive_photon_passes_on_two_ranks_give_one_process_s_image, .timeout = 600)
+{
+    /* uniform marching with the photons as its source, a photon pass every 2 samples: 6
+     * samples trace 3 passes of 8192 photons, each by the two ranks together */
+    char json[2600];
+    snprintf(json, sizeof json, "%s", rt_spot_fog_json(32, 16, "{\"method\":\"uniform\"}"));
+    char *ph = strstr(json, "\"photons\":{\"count\":40000}");
+    cr_assert(ph != NULL);
+    const char *rest = ph + strlen("\"photons\":{\"count\":40000}");
+    char tail[1024];
+    snprintf(tail, sizeof tail, "\"photons\":{\"count\":8192,\"progressive\":true,\"pass_spp\":2},"
+                                "\"march\":{\"ls\":\"photons\"}%s", rest);
+    snprintf(ph, sizeof json - (size_t)(ph - json), "%s", tail);
+    rd_scene *s = rt_scene("ranksp.json", json);
+    rd_render_opts o = {.method = "uniform", .spp = 6, .seed = 3, .threads = 1};
+    rd_render_result one;
+    char err[RD_ERRLEN];
+    cr_assert(rd_render(s, &o, &one, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(one.stats.photon_passes == 3, "%d photon passes", one.stats.photon_passes);
+    fake_rank ranks[2];
+    render_on_ranks(s, &o, 2, ranks);
+    const rd_render_result *r0 = &ranks[0].res;
+    size_t n = (size_t)one.image.w * one.image.h * 3;
+    cr_assert(memcmp(one.image.rgb, r0->image.rgb, n * sizeof(float)) == 0, "rank 0's image is not one process's");
+    cr_assert(r0->stats.photon_passes == 3 && r0->stats.photons_traced == one.stats.photons_traced,
+              "rank 0: %d passes, %llu photons", r0->stats.photon_passes, (unsigned long long)r0->stats.photons_traced);
+    for (int k = 0; k < 2; k++) rd_render_result_free(&ranks[k].res);
+    rd_render_result_free(&one);
     rd_scene_free(s);
 }

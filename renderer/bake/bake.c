@@ -216,7 +216,8 @@ static size_t photons_to_trace(const rd_scene *s, const rd_bake_opts *o)
 
 /* Trace the scene's photons into a new map (*map); store_direct and segments as asked. With
  * `indirect`, the same trace also fills a new *indirect with the photons without their first
- * flight (rd_trace_photons_split), which a second trace would otherwise repeat. */
+ * flight (rd_trace_photons_split), which a second trace would otherwise repeat. Several ranks
+ * (o->comm): collective, and a failure is every rank's. */
 static rd_status trace_new_map(const rd_scene *s, const rd_bake_opts *o, int store_direct, int segments,
                                pm_map **map, pm_map **indirect, rd_photon_stats *ps, char *err,
                                size_t errlen)
@@ -227,19 +228,43 @@ static rd_status trace_new_map(const rd_scene *s, const rd_bake_opts *o, int sto
                          .max_depth = s->photons.max_depth,
                          .seed = o->seed >= 0 ? (uint64_t)o->seed : s->photons.seed,
                          .threads = o->threads,
-                         .cancel = o->cancel};
+                         .cancel = o->cancel,
+                         .comm = o->comm};
     memset(ps, 0, sizeof *ps);
     if (!(*map = pm_map_new()) || (indirect && !(*indirect = pm_map_new()))) {
         snprintf(err, errlen, "%s: out of memory for the photon map", s->path);
-        return RD_ERR_NOMEM;
+        return rd_comm_agree(o->comm, RD_ERR_NOMEM, "photon tracing", err, errlen); /* as the trace would */
     }
     return rd_trace_photons_split(s, &po, *map, indirect ? *indirect : NULL, ps, err, errlen);
+}
+
+/* Several ranks (rd_bake_opts.comm): the traces are collective, the loads, index builds and
+ * guide bakes are each rank's own. So that a failure on one rank cannot leave the others waiting
+ * in a trace, the ranks agree (rd_comm_agree) before each trace and at the end, and a rank that
+ * fails agrees once, at its failure, which the others meet at their next agreement; an agreement
+ * that reports a failure ends the bake on every rank. (The traces agree inside themselves, so a
+ * failure there is already every rank's.) */
+typedef struct {
+    const rd_comm *comm;
+    const char *path;
+    int agreed; /* the failure being returned was agreed by every rank */
+} bake_ranks;
+
+/* A checkpoint: every rank's outcome so far (st), the worst of them returned. */
+static rd_status bake_agree(bake_ranks *br, rd_status st, char *err, size_t errlen)
+{
+    char what[1100];
+    snprintf(what, sizeof what, "%s: bake", br->path);
+    st = rd_comm_agree(br->comm, st, what, err, errlen);
+    br->agreed = st != RD_OK;
+    return st;
 }
 
 rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char *err,
                   size_t errlen)
 {
     *out = NULL;
+    bake_ranks br = {o->comm && o->comm->size > 1 ? o->comm : NULL, s->path, 0};
     double t_start = bake_now();
     rd_baked *b = calloc(1, sizeof *b);
     if (!b) {
@@ -250,6 +275,7 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
     char pmerr[RD_ERRLEN];
     rd_status st = RD_OK;
     /* 1. Photons: traced through the scene (THEORY.md §3), or a saved map. */
+    if (!o->load_photons && (st = bake_agree(&br, RD_OK, err, errlen)) != RD_OK) goto fail;
     if (o->load_photons) {
         if (pm_map_load(&b->map, o->load_photons, pmerr, sizeof pmerr) != PM_OK) {
             snprintf(err, errlen, "%s", pmerr);
@@ -260,8 +286,10 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
     } else {
         rd_photon_stats ps;
         pm_map **ind = o->indirect && !o->load_indirect ? &b->indirect : NULL;
-        if ((st = trace_new_map(s, o, s->photons.store_direct, s->photons.segments, &b->map, ind, &ps, err, errlen)) != RD_OK)
+        if ((st = trace_new_map(s, o, s->photons.store_direct, s->photons.segments, &b->map, ind, &ps, err, errlen)) != RD_OK) {
+            br.agreed = 1; /* a failed trace failed on every rank */
             goto fail;
+        }
         bs->emitted = ps.emitted;
         bs->trace_seconds = ps.seconds;
         bs->collisions_per_photon = ps.emitted ? (double)ps.collisions / ps.emitted : 0.0;
@@ -270,6 +298,9 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
         bs->power_escaped = lum3(ps.power_escaped);
         bs->power_cut = lum3(ps.power_carried);
         bs->power_absorbed_surfaces = lum3(ps.power_absorbed_surfaces);
+        bs->ranks = br.comm ? br.comm->size : 1;
+        bs->gather_seconds = ps.gather_seconds;
+        bs->gather_bytes = ps.gather_bytes;
     }
     /* 2. The FLANN kd-tree over the photons. */
     if (pm_map_build(b->map, pmerr, sizeof pmerr) != PM_OK) {
@@ -292,7 +323,11 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
     } else if (o->indirect && !b->indirect) {
         /* (with a loaded main map: the indirect photons need a trace of their own) */
         rd_photon_stats ps;
-        if ((st = trace_new_map(s, o, 0, 0, &b->indirect, NULL, &ps, err, errlen)) != RD_OK) goto fail;
+        if ((st = bake_agree(&br, RD_OK, err, errlen)) != RD_OK) goto fail;
+        if ((st = trace_new_map(s, o, 0, 0, &b->indirect, NULL, &ps, err, errlen)) != RD_OK) {
+            br.agreed = 1;
+            goto fail;
+        }
     }
     if (b->indirect && pm_map_build(b->indirect, pmerr, sizeof pmerr) != PM_OK) {
         snprintf(err, errlen, "photon map: %s", pmerr);
@@ -341,52 +376,60 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
         bs->guide_bytes = gst.memory_bytes;
         bs->guide_seconds = gst.bake_seconds;
     }
+    if ((st = bake_agree(&br, RD_OK, err, errlen)) != RD_OK) goto fail;
     bs->seconds = bake_now() - t_start;
     *out = b;
     return RD_OK;
 fail:
+    if (br.comm && !br.agreed) st = bake_agree(&br, st, err, errlen);
     rd_baked_free(b);
     return st;
 }
 
 rd_status rd_bake_photon_pass(const rd_scene *s, unsigned maps, int pass, uint64_t render_seed,
-                              int threads, rd_baked **out, char *err, size_t errlen)
+                              int threads, const volatile int *cancel, const rd_comm *comm, rd_baked **out,
+                              char *err, size_t errlen)
 {
     *out = NULL;
     double t_start = bake_now();
     rd_baked *b = calloc(1, sizeof *b);
     if (!b) {
         snprintf(err, errlen, "%s: out of memory for photon pass %d", s->path, pass);
-        return RD_ERR_NOMEM;
+        return rd_comm_agree(comm, RD_ERR_NOMEM, "photon pass", err, errlen);
     }
     rd_bake_opts o = {0};
     o.photons = s->photons.pass_count > 0 ? s->photons.pass_count : s->photons.count;
     o.seed = (long long)rd_ppm_pass_seed(s->photons.seed, render_seed, pass);
     o.threads = threads;
+    o.cancel = cancel;
+    o.comm = comm;
     char pmerr[RD_ERRLEN];
     rd_status st = RD_OK;
     rd_photon_stats ps;
-    /* The same two maps as rd_bake makes, from this pass's photons (one trace for both). */
-    if (maps & RD_NEEDS_PHOTONS) {
-        pm_map **ind = maps & RD_NEEDS_INDIRECT ? &b->indirect : NULL;
-        if ((st = trace_new_map(s, &o, s->photons.store_direct, 0, &b->map, ind, &ps, err, errlen)) != RD_OK) goto fail;
-        b->stats.emitted = ps.emitted;
-        if (pm_map_build(b->map, pmerr, sizeof pmerr) != PM_OK) goto fail_build;
+    /* The same two maps as rd_bake makes, from this pass's photons: one trace for both (a
+     * collective one on several ranks, whose failure is every rank's). */
+    pm_map **ind = maps & RD_NEEDS_INDIRECT ? &b->indirect : NULL;
+    if (maps & RD_NEEDS_PHOTONS) st = trace_new_map(s, &o, s->photons.store_direct, 0, &b->map, ind, &ps, err, errlen);
+    else if (maps & RD_NEEDS_INDIRECT) st = trace_new_map(s, &o, 0, 0, &b->indirect, NULL, &ps, err, errlen);
+    if (st != RD_OK) {
+        rd_baked_free(b);
+        return st;
     }
-    if (maps & RD_NEEDS_INDIRECT) {
-        if (!b->indirect && (st = trace_new_map(s, &o, 0, 0, &b->indirect, NULL, &ps, err, errlen)) != RD_OK) goto fail;
-        b->stats.emitted = ps.emitted;
-        if (pm_map_build(b->indirect, pmerr, sizeof pmerr) != PM_OK) goto fail_build;
+    b->stats.emitted = ps.emitted;
+    if ((b->map && pm_map_build(b->map, pmerr, sizeof pmerr) != PM_OK) ||
+        (b->indirect && pm_map_build(b->indirect, pmerr, sizeof pmerr) != PM_OK)) {
+        snprintf(err, errlen, "photon map of pass %d: %s", pass, pmerr);
+        st = RD_ERR_INTERNAL;
+    }
+    char what[64];
+    snprintf(what, sizeof what, "photon pass %d", pass);
+    if ((st = rd_comm_agree(comm, st, what, err, errlen)) != RD_OK) {
+        rd_baked_free(b);
+        return st;
     }
     b->stats.seconds = bake_now() - t_start;
     *out = b;
     return RD_OK;
-fail_build:
-    snprintf(err, errlen, "photon map of pass %d: %s", pass, pmerr);
-    st = RD_ERR_INTERNAL;
-fail:
-    rd_baked_free(b);
-    return st;
 }
 
 /* ---- Files: a photon map or a guide through core/files.c's temporary and rename ---------- */
@@ -431,35 +474,58 @@ rd_status rd_bake_cached(const rd_scene *s, const rd_bake_opts *o, const char *d
     if (have && o->indirect) { have = (f = fopen(ind, "rb")) != NULL; if (f) fclose(f); }
     if (have && !o->no_guide) { have = (f = fopen(guide, "rb")) != NULL; if (f) fclose(f); }
     if (have && o->indirect_guide) { have = (f = fopen(iguide, "rb")) != NULL; if (f) fclose(f); }
+    /* Several ranks: the cache serves only when every rank loads it (a node's own folder may
+     * lack it), else every rank bakes, together, and rank 0 alone saves. */
+    const rd_comm *comm = o->comm && o->comm->size > 1 ? o->comm : NULL;
+    rd_baked *loaded = NULL;
     if (have) {
         rd_bake_opts lo = *o;
         lo.load_photons = pmap;
         lo.load_indirect = o->indirect ? ind : NULL;
         lo.load_guide = o->no_guide ? NULL : guide;
         lo.load_indirect_guide = o->indirect_guide ? iguide : NULL;
-        if (rd_bake(s, &lo, out, msg, sizeof msg) == RD_OK) {
-            *hit = 1;
-            return RD_OK;
+        lo.comm = NULL; /* loads only: each rank its own */
+        if (rd_bake(s, &lo, &loaded, msg, sizeof msg) != RD_OK) loaded = NULL;
+        /* (a damaged or foreign cache file: bake anew and replace it) */
+    }
+    if (comm) {
+        int all = loaded != NULL;
+        comm->reduce(comm->user, &all, 1, RD_COMM_INT, RD_COMM_MIN, -1);
+        if (!all) {
+            rd_baked_free(loaded);
+            loaded = NULL;
         }
-        /* A damaged or foreign cache file: bake anew and replace it. */
+    }
+    if (loaded) {
+        *out = loaded;
+        *hit = 1;
+        return RD_OK;
     }
     rd_status st = rd_bake(s, o, out, err, errlen);
     if (st != RD_OK) return st;
     const rd_baked *b = *out;
     const volatile int *c = o->cancel;
-    if ((st = rd_make_parent_dirs(pmap, msg, sizeof msg)) != RD_OK ||
-        (st = save_file(b->map, NULL, pmap, c, msg, sizeof msg)) != RD_OK ||
-        (b->indirect && (st = save_file(b->indirect, NULL, ind, c, msg, sizeof msg)) != RD_OK) ||
-        (b->guide && (st = save_file(NULL, b->guide, guide, c, msg, sizeof msg)) != RD_OK) ||
-        (b->guide_indirect && (st = save_file(NULL, b->guide_indirect, iguide, c, msg, sizeof msg)) != RD_OK)) {
-        if (st == RD_ERR_CANCELLED) { /* interrupted while saving: no bake, no more files */
-            rd_baked_free(*out);
-            *out = NULL;
-            snprintf(err, errlen, "%s: bake interrupted while saving the cache (%s)", s->path, msg);
-            return RD_ERR_CANCELLED;
+    if (!comm || comm->rank == 0) {
+        if ((st = rd_make_parent_dirs(pmap, msg, sizeof msg)) != RD_OK ||
+            (st = save_file(b->map, NULL, pmap, c, msg, sizeof msg)) != RD_OK ||
+            (b->indirect && (st = save_file(b->indirect, NULL, ind, c, msg, sizeof msg)) != RD_OK) ||
+            (b->guide && (st = save_file(NULL, b->guide, guide, c, msg, sizeof msg)) != RD_OK) ||
+            (b->guide_indirect && (st = save_file(NULL, b->guide_indirect, iguide, c, msg, sizeof msg)) != RD_OK)) {
+            if (st != RD_ERR_CANCELLED) {
+                snprintf(err, errlen, "bake cache not saved: %s", msg); /* the bake itself is good */
+                *hit = -1;
+            }
         }
-        snprintf(err, errlen, "bake cache not saved: %s", msg); /* the bake itself is good */
-        *hit = -1;
+    }
+    /* Interrupted while saving (on rank 0): no bake, no more files, on every rank. */
+    int cancelled = st == RD_ERR_CANCELLED;
+    if (comm) comm->reduce(comm->user, &cancelled, 1, RD_COMM_INT, RD_COMM_MAX, -1);
+    if (cancelled) {
+        rd_baked_free(*out);
+        *out = NULL;
+        if (st == RD_ERR_CANCELLED) snprintf(err, errlen, "%s: bake interrupted while saving the cache (%s)", s->path, msg);
+        else snprintf(err, errlen, "%s: bake interrupted while rank 0 saved the cache", s->path);
+        return RD_ERR_CANCELLED;
     }
     return RD_OK;
 }

@@ -12,10 +12,12 @@
  *
  * Determinism: photon i draws from the PCG32 stream (i, seed); photons are traced in blocks
  * whose results are concatenated in block order, so the map is the same whatever the thread
- * count. */
+ * count. Several ranks (rd_photon_opts.comm) trace contiguous ranges of the blocks and gather
+ * them in block order (gather_blocks), so the map is the same whatever the rank count too. */
 #include "scene/rd_geom.h"
 #include "transport/rd_path.h"
 #include "bake/rd_photons.h"
+#include "core/rd_core.h"
 
 #include <omp.h>
 #include <stdlib.h>
@@ -241,6 +243,110 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
     }
 }
 
+/* The power sums a block keeps, in the order gather_blocks sends them. */
+enum { BLOCK_SUMS = 15 };
+static void block_sums_get(const block_out *b, double *v)
+{
+    const double *src[5] = {b->emitted, b->absorbed, b->escaped, b->carried, b->absorbed_surf};
+    for (int k = 0; k < 5; k++) memcpy(v + 3 * k, src[k], 3 * sizeof(double));
+}
+static void block_sums_set(block_out *b, const double *v)
+{
+    double *dst[5] = {b->emitted, b->absorbed, b->escaped, b->carried, b->absorbed_surf};
+    for (int k = 0; k < 5; k++) memcpy(dst[k], v + 3 * k, 3 * sizeof(double));
+}
+
+/* Copy the records of blocks [b0, b1) into one array (NULL when there are none), freeing each
+ * block's own; *oom on failure. `which` 0: photons, 1: segments, 2: indirect photons. */
+static void *concat_records(block_out *blocks, size_t b0, size_t b1, int which, size_t n, int *oom)
+{
+    size_t es = which == 1 ? sizeof(pm_segment) : sizeof(pm_photon);
+    char *out = n ? malloc(n * es) : NULL;
+    if (n && !out) *oom = 1;
+    size_t at = 0;
+    for (size_t bi = b0; bi < b1; bi++) {
+        block_out *b = &blocks[bi];
+        const void *src = which == 0 ? (const void *)b->ph : which == 1 ? (const void *)b->seg : (const void *)b->ind;
+        size_t m = which == 0 ? b->n_ph : which == 1 ? b->n_seg : b->n_ind;
+        if (out && m) memcpy(out + at * es, src, m * es);
+        at += m;
+        if (which == 0) free(b->ph), b->ph = NULL;
+        else if (which == 1) free(b->seg), b->seg = NULL;
+        else free(b->ind), b->ind = NULL;
+    }
+    return out;
+}
+
+/* Several ranks: this rank traced blocks [b0, b1) of nblocks. Gather every rank's photons,
+ * segments and indirect photons, in block order, into blocks[0] (the other blocks then hold
+ * none) and every block's power sums into blocks[bi], and sum the counters, so that the caller
+ * adds to the map and sums the power exactly as one process would (power in block order: the
+ * same additions in the same order, whatever the rank count). v (3 K + 2) and counts (K) are
+ * the caller's scratch. Collective: a reduce of the counts, an agreement on the allocations,
+ * four gathers. */
+static rd_status gather_blocks(const rd_comm *c, block_out *blocks, size_t nblocks, size_t b0, size_t b1,
+                               uint64_t *v, size_t *counts, uint64_t *coll, uint64_t *look, rd_photon_stats *ps,
+                               char *err, size_t errlen)
+{
+    const int K = c->size, r = c->rank;
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    memset(v, 0, (3 * (size_t)K + 2) * sizeof *v);
+    for (size_t bi = b0; bi < b1; bi++) {
+        v[3 * r] += blocks[bi].n_ph;
+        v[3 * r + 1] += blocks[bi].n_seg;
+        v[3 * r + 2] += blocks[bi].n_ind;
+    }
+    v[3 * K] = *coll, v[3 * K + 1] = *look;
+    c->reduce(c->user, v, 3 * (size_t)K + 2, RD_COMM_UINT64, RD_COMM_SUM, -1);
+    size_t tot[3] = {0, 0, 0};
+    for (int k = 0; k < K; k++)
+        for (int j = 0; j < 3; j++) tot[j] += v[3 * k + j];
+    int oom = 0;
+    void *mine[3] = {NULL, NULL, NULL}, *all[3] = {NULL, NULL, NULL};
+    double *sums_mine = NULL, *sums_all = NULL;
+    for (int j = 0; !oom && j < 3; j++) {
+        mine[j] = concat_records(blocks, b0, b1, j, v[3 * r + j], &oom);
+        size_t es = j == 1 ? sizeof(pm_segment) : sizeof(pm_photon);
+        if (tot[j] && !(all[j] = malloc(tot[j] * es))) oom = 1;
+    }
+    if (!oom) {
+        sums_mine = malloc((b1 - b0 + 1) * BLOCK_SUMS * sizeof *sums_mine);
+        sums_all = malloc(nblocks * BLOCK_SUMS * sizeof *sums_all);
+        oom = !sums_mine || !sums_all;
+    }
+    if (oom)
+        snprintf(err, errlen, "photon tracing: out of memory gathering the ranks' photons (%zu photons, %zu "
+                              "segments)", tot[0], tot[1]);
+    rd_status st = rd_comm_agree(c, oom ? RD_ERR_NOMEM : RD_OK, "photon tracing: gathering the photons", err, errlen);
+    if (st == RD_OK) {
+        for (int j = 0; j < 3; j++) {
+            for (int k = 0; k < K; k++) counts[k] = v[3 * k + j];
+            c->allgatherv(c->user, mine[j], all[j], counts, j == 1 ? sizeof(pm_segment) : sizeof(pm_photon));
+        }
+        for (size_t bi = b0; bi < b1; bi++) block_sums_get(&blocks[bi], sums_mine + (bi - b0) * BLOCK_SUMS);
+        for (int k = 0; k < K; k++) counts[k] = nblocks * (size_t)(k + 1) / K - nblocks * (size_t)k / K;
+        c->allgatherv(c->user, sums_mine, sums_all, counts, BLOCK_SUMS * sizeof(double));
+        for (size_t bi = 0; bi < nblocks; bi++) {
+            block_sums_set(&blocks[bi], sums_all + bi * BLOCK_SUMS);
+            blocks[bi].n_ph = blocks[bi].n_seg = blocks[bi].n_ind = 0;
+        }
+        blocks[0].ph = all[0], blocks[0].seg = all[1], blocks[0].ind = all[2];
+        blocks[0].n_ph = tot[0], blocks[0].n_seg = tot[1], blocks[0].n_ind = tot[2];
+        *coll = v[3 * K], *look = v[3 * K + 1];
+        clock_gettime(CLOCK_MONOTONIC, &t1);
+        ps->gather_seconds = (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec);
+        ps->gather_bytes = (tot[0] + tot[2]) * sizeof(pm_photon) + tot[1] * sizeof(pm_segment) +
+                           nblocks * BLOCK_SUMS * sizeof(double);
+    } else {
+        for (int j = 0; j < 3; j++) free(all[j]);
+    }
+    for (int j = 0; j < 3; j++) free(mine[j]);
+    free(sums_mine);
+    free(sums_all);
+    return st;
+}
+
 rd_status rd_trace_photons(const rd_scene *s, const rd_photon_opts *o, pm_map *map,
                            rd_photon_stats *st, char *err, size_t errlen)
 {
@@ -282,7 +388,7 @@ rd_status rd_trace_photons_split(const rd_scene *s, const rd_photon_opts *o, pm_
     if (!cdf) {
         snprintf(err, errlen, "photon tracing: out of memory for the light selection table "
                               "(%d lights)", s->n_lights);
-        return RD_ERR_NOMEM;
+        return rd_comm_agree(o->comm, RD_ERR_NOMEM, "photon tracing", err, errlen);
     }
     double R = rd_scene_radius(s);
     for (int i = 0; i < s->n_lights; i++) cdf[i + 1] = cdf[i] + rd_light_power(&s->lights[i], R);
@@ -294,12 +400,21 @@ rd_status rd_trace_photons_split(const rd_scene *s, const rd_photon_opts *o, pm_
     for (int i = 1; i <= s->n_lights; i++) cdf[i] /= cdf[s->n_lights];
 
     size_t nblocks = o->count / BLOCK + (o->count % BLOCK != 0); /* no overflow at SIZE_MAX */
+    /* Several ranks: this rank's contiguous range of blocks, and the gather's scratch. */
+    const rd_comm *comm = o->comm && o->comm->size > 1 ? o->comm : NULL;
+    size_t b0 = comm ? nblocks * (size_t)comm->rank / comm->size : 0;
+    size_t b1 = comm ? nblocks * (size_t)(comm->rank + 1) / comm->size : nblocks;
     block_out *blocks = calloc(nblocks, sizeof *blocks);
-    if (!blocks) {
+    uint64_t *gv = comm ? calloc(3 * (size_t)comm->size + 2, sizeof *gv) : NULL;
+    size_t *gcounts = comm ? calloc((size_t)comm->size, sizeof *gcounts) : NULL;
+    if (!blocks || (comm && (!gv || !gcounts))) {
         free(cdf);
+        free(blocks);
+        free(gv);
+        free(gcounts);
         snprintf(err, errlen, "photon tracing: out of memory for the %zu work blocks of %zu photons",
                  nblocks, o->count);
-        return RD_ERR_NOMEM;
+        return rd_comm_agree(comm, RD_ERR_NOMEM, "photon tracing", err, errlen);
     }
     for (size_t bi = 0; bi < nblocks; bi++) {
         blocks[bi].origin = origin;
@@ -310,7 +425,7 @@ rd_status rd_trace_photons_split(const rd_scene *s, const rd_photon_opts *o, pm_
     clock_gettime(CLOCK_MONOTONIC, &t0);
     uint64_t coll = 0, look = 0;
 #pragma omp parallel for num_threads(nthreads) schedule(dynamic, 1) reduction(+ : coll, look)
-    for (size_t bi = 0; bi < nblocks; bi++) {
+    for (size_t bi = b0; bi < b1; bi++) {
         if (o->cancel && *o->cancel) continue; /* cancelled: skip the blocks not begun */
         size_t first = bi * BLOCK, cnt = first + BLOCK <= o->count ? BLOCK : o->count - first;
         rd_track_counters tc = {0};
@@ -329,13 +444,27 @@ rd_status rd_trace_photons_split(const rd_scene *s, const rd_photon_opts *o, pm_
         snprintf(err, errlen, "%s: photon tracing interrupted", s->path);
         status = RD_ERR_CANCELLED; /* nothing is added to the maps; the blocks are freed below */
     }
-    for (size_t bi = 0; bi < nblocks; bi++) {
-        block_out *b = &blocks[bi];
-        if (status == RD_OK && b->oom) {
+    for (size_t bi = b0; status == RD_OK && bi < b1; bi++)
+        if (blocks[bi].oom) {
             snprintf(err, errlen, "photon tracing: out of memory for the photons and segments of "
-                                  "block %zu (%zu photons, %zu segments so far)", bi, b->n_ph, b->n_seg);
+                                  "block %zu (%zu photons, %zu segments so far)", bi, blocks[bi].n_ph,
+                     blocks[bi].n_seg);
             status = RD_ERR_NOMEM;
         }
+    if (comm) { /* every rank's outcome, then every rank's records in block order */
+        char what[1100];
+        snprintf(what, sizeof what, "%s: photon tracing", s->path);
+        status = rd_comm_agree(comm, status, what, err, errlen);
+        if (status == RD_OK) status = gather_blocks(comm, blocks, nblocks, b0, b1, gv, gcounts, &coll, &look, st, err, errlen);
+        st->collisions = coll;
+        st->lookups = look;
+        clock_gettime(CLOCK_MONOTONIC, &t1); /* the wait for the slowest rank and the gather too */
+        st->seconds = (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec);
+    }
+    free(gv);
+    free(gcounts);
+    for (size_t bi = 0; bi < nblocks; bi++) {
+        block_out *b = &blocks[bi];
         pm_status ps = PM_OK;
         if (status == RD_OK) ps = pm_map_add_photons(map, b->ph, b->n_ph, pmerr, sizeof pmerr);
         if (status == RD_OK && ps == PM_OK) ps = pm_map_add_segments(map, b->seg, b->n_seg, pmerr, sizeof pmerr);

@@ -20,6 +20,12 @@ typedef struct {
     int threads;       /* 0 = all */
     const volatile int *cancel; /* non-NULL: read before each block of 4096 photons; once it is
                                    non-zero the trace stops and returns RD_ERR_CANCELLED */
+    /* Several ranks trace one map together (NULL or one rank: this process alone): rank r traces
+     * the blocks [nblocks r / K, nblocks (r + 1) / K), then the ranks agree on the outcome (a
+     * cancel or a failure on one rank fails all) and gather every rank's records and every
+     * block's power sums in block order, so that the map and the statistics are one process's,
+     * bit for bit, on every rank. Collective: every rank calls it with the same options. */
+    const rd_comm *comm;
 } rd_photon_opts;
 
 typedef struct {
@@ -32,6 +38,10 @@ typedef struct {
      * surfaces, so the balance is a check of the Russian roulette. */
     double power_emitted[3], power_absorbed[3], power_escaped[3], power_carried[3];
     double power_absorbed_surfaces[3];
+    /* Several ranks: the gather's wall time (the counts' reduce, the agreement and the gathers)
+     * and the bytes each rank received in it (every rank's records, its own included). */
+    double gather_seconds;
+    size_t gather_bytes;
 } rd_photon_stats;
 
 /* Sample one photon leaving light l (THEORY.md §3): its ray r (origin, unit direction) and
@@ -96,9 +106,12 @@ uint64_t rd_ppm_pass_seed(uint64_t photon_seed, uint64_t render_seed, int pass);
  * collision; RD_NEEDS_INDIRECT: the map without first flights) traced with
  * photons.pass_count (else photons.count) photons and rd_ppm_pass_seed(photons.seed,
  * render_seed, pass), and indexed; no guide. *out is freed with rd_baked_free; its stats say
- * the photons emitted and the seconds. */
+ * the photons emitted and the seconds. cancel (NULL: none) is polled while tracing:
+ * RD_ERR_CANCELLED. comm (NULL: alone): the ranks trace the pass together (rd_photon_opts.comm)
+ * and return the same status on every rank. */
 rd_status rd_bake_photon_pass(const rd_scene *s, unsigned maps, int pass, uint64_t render_seed,
-                              int threads, rd_baked **out, char *err, size_t errlen);
+                              int threads, const volatile int *cancel, const rd_comm *comm, rd_baked **out,
+                              char *err, size_t errlen);
 
 /* The phase-function callback for pm_map_radiance: Henyey-Greenstein with g = *(double *)user. */
 double rd_phase_hg_cb(double cos_theta, void *user);

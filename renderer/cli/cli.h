@@ -28,8 +28,12 @@ int cli_cmd_render_on(int argc, char **argv, rd_dist *d);
 int cli_cmd_info(int argc, char **argv);
 int cli_cmd_voxelize(int argc, char **argv);
 int cli_cmd_bake(int argc, char **argv);
+/* bake on the ranks of d (NULL: alone, as cli_cmd_bake): every rank calls it. */
+int cli_cmd_bake_on(int argc, char **argv, rd_dist *d);
 int cli_cmd_explain(int argc, char **argv);
 int cli_cmd_compare(int argc, char **argv);
+/* compare on the ranks of d (NULL: alone, as cli_cmd_compare): every rank calls it. */
+int cli_cmd_compare_on(int argc, char **argv, rd_dist *d);
 
 /* ---- options (common.c) ------------------------------------------------------------------ */
 
@@ -115,6 +119,11 @@ int cli_exit_interrupted(int sig);
  * and the others nothing. Returns 0 when every rank went well, else this rank's code or, on a
  * rank that did not fail, the largest code of those that did. */
 int cli_ranks_agree(rd_dist *d, int code, const char *msg);
+/* The same after a library step that agrees itself (rd_bake with comm: every rank returns the
+ * failure): a rank whose msg ends in RD_ON_ANOTHER_RANK did not fail itself and stays silent,
+ * the ranks that did fail speak as in cli_ranks_agree. Returns code (the same on every rank
+ * after such a step). */
+int cli_ranks_agree_shared(rd_dist *d, int code, const char *msg);
 /* Around the options' parsing: on the ranks other than 0, stdout and stderr go to /dev/null
  * (rank 0 says what every rank would say); cli_ranks_unmute restores them and returns rank 0's
  * `code` (a rank whose code differs, its options not rank 0's, says so in one line). */
@@ -123,8 +132,12 @@ int cli_ranks_unmute(rd_dist *d, int saved, int code);
 /* 0 when every rank read the same bytes at `path` (every rank loads its own copy of the scene),
  * else CLI_EXIT_INPUT after one line from rank 0. */
 int cli_ranks_same_file(rd_dist *d, const char *path);
-/* 0 when every rank passed the same `text` (its options that decide the image, as text), else
- * CLI_EXIT_USAGE after one line from rank 0. */
-int cli_ranks_same_options(rd_dist *d, const char *text);
+/* 0 when every rank passed the same `text` (its options that decide the outcome, as text) and
+ * the same --set overrides in `a` (NULL: none), else CLI_EXIT_USAGE after one line from rank 0. */
+int cli_ranks_same_options(rd_dist *d, const char *text, const cli_scene_args *a);
+/* Load a's scene on every rank (*scene; the caller frees it, also after a failure) and agree:
+ * 0 when every rank loaded it and read the same file, else the exit code after one line
+ * (cli_ranks_agree, cli_ranks_same_file). */
+int cli_ranks_load_scene(rd_dist *d, const cli_scene_args *a, rd_scene **scene);
 
 #endif

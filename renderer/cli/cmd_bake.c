@@ -62,6 +62,10 @@ static void print_bake_stats(const rd_bake_stats *b)
     if (!b->loaded) {
         printf("tracing    %.3f s, %.0f photons/s emitted, %.2f tentative collisions per photon\n", b->trace_seconds,
                b->trace_seconds > 0 ? b->emitted / b->trace_seconds : 0.0, b->collisions_per_photon);
+        if (b->ranks > 1)
+            printf("gather     %d ranks traced a range each: %.3f s to gather, %.2f MiB received by each rank "
+                   "(%.1f bytes per photon emitted)\n", b->ranks, b->gather_seconds, b->gather_bytes / 1048576.0,
+                   b->emitted ? (double)b->gather_bytes / b->emitted : 0.0);
         if (b->power_absorbed_surfaces > 0.0)
             printf("power      emitted %.4g W = absorbed %.4g + by surfaces %.4g + escaped %.4g + cut at max depth %.4g (luminance)\n",
                    b->power_emitted, b->power_absorbed, b->power_absorbed_surfaces, b->power_escaped, b->power_cut);
@@ -101,91 +105,141 @@ static int parse_toward(const char *v, double t[3])
     return 1;
 }
 
-int cli_cmd_bake(int argc, char **argv)
+/* The command line of bake, parsed. */
+typedef struct {
+    cli_scene_args a;
+    const char *prefix;
+    int stats, quiet;
+    rd_bake_opts bo;
+    rd_bake_write_opts wo;
+    char defprefix[1024];
+} bake_args;
+
+/* Parse argv into *r: -1 to go on, else the exit code (after a message, or --help). */
+static int parse_bake(int argc, char **argv, bake_args *r)
 {
-    cli_scene_args a = {0};
+    cli_scene_args *a = &r->a;
+    rd_bake_opts *bo = &r->bo;
+    rd_bake_write_opts *wo = &r->wo;
     const char *prefix = NULL;
     long photons = -1, seed = -1, threads = 0;
-    int stats = 0, quiet = 0;
-    rd_bake_opts bo = {0};
-    rd_bake_write_opts wo = {0};
     for (int i = 0; i < argc; i++) {
         const char *o = argv[i];
-        int t = cli_take_set(&a, argc, argv, &i);
+        int t = cli_take_set(a, argc, argv, &i);
         if (t < 0) return CLI_EXIT_USAGE;
         if (t) continue;
         int has_val = i + 1 < argc;
         if (!strcmp(o, "-h") || !strcmp(o, "--help")) { fputs(usage_bake, stdout); return 0; }
-        else if (!strcmp(o, "-q") || !strcmp(o, "--quiet")) quiet = 1;
-        else if (!strcmp(o, "--stats")) stats = 1;
-        else if (!strcmp(o, "--no-guide")) bo.no_guide = 1;
+        else if (!strcmp(o, "-q") || !strcmp(o, "--quiet")) r->quiet = 1;
+        else if (!strcmp(o, "--stats")) r->stats = 1;
+        else if (!strcmp(o, "--no-guide")) bo->no_guide = 1;
         else if ((!strcmp(o, "-o") || !strcmp(o, "--output")) && has_val) prefix = argv[++i];
-        else if (!strcmp(o, "--load-photons") && has_val) bo.load_photons = argv[++i];
+        else if (!strcmp(o, "--load-photons") && has_val) bo->load_photons = argv[++i];
         else if (!strcmp(o, "--photons") && has_val) { if (!cli_parse_int(o, argv[++i], 1, 1000000000L, &photons)) return CLI_EXIT_USAGE; }
         else if (!strcmp(o, "--seed") && has_val) { if (!cli_parse_int(o, argv[++i], 0, 0x7fffffffL, &seed)) return CLI_EXIT_USAGE; }
         else if (!strcmp(o, "--threads") && has_val) { if (!cli_parse_int(o, argv[++i], 1, 1024, &threads)) return CLI_EXIT_USAGE; }
         else if (!strcmp(o, "--toward") && has_val) {
-            if (!parse_toward(argv[++i], wo.toward)) return CLI_EXIT_USAGE;
-            wo.has_toward = 1;
+            if (!parse_toward(argv[++i], wo->toward)) return CLI_EXIT_USAGE;
+            wo->has_toward = 1;
         } else if (!strcmp(o, "--slice") && has_val) {
             const char *v = argv[++i];
-            int k = wo.nslices;
+            int k = wo->nslices;
             if (k >= 8 || !v[0] || !strchr("xyz", v[0]) || (v[1] && v[1] != '=')) {
                 fprintf(stderr, "photonmarch bake: --slice %s: expected x, y or z, optionally =COORD (at most 8)\n", v);
                 return CLI_EXIT_USAGE;
             }
-            wo.slice_axis[k] = v[0];
-            wo.slice_has_at[k] = v[1] == '=';
-            if (wo.slice_has_at[k] && !cli_parse_double("--slice", v + 2, -1e9, 1e9, &wo.slice_at[k])) return CLI_EXIT_USAGE;
-            wo.nslices++;
-        } else if (cli_take_positional(&a, "bake", o)) return CLI_EXIT_USAGE;
+            wo->slice_axis[k] = v[0];
+            wo->slice_has_at[k] = v[1] == '=';
+            if (wo->slice_has_at[k] && !cli_parse_double("--slice", v + 2, -1e9, 1e9, &wo->slice_at[k])) return CLI_EXIT_USAGE;
+            wo->nslices++;
+        } else if (cli_take_positional(a, "bake", o)) return CLI_EXIT_USAGE;
     }
-    if (cli_need_scene(&a, "bake")) return CLI_EXIT_USAGE;
-    char defprefix[1024];
+    if (cli_need_scene(a, "bake")) return CLI_EXIT_USAGE;
     if (!prefix) {
-        cli_default_output(a.scene, "", defprefix, sizeof defprefix);
-        prefix = defprefix;
+        cli_default_output(a->scene, "", r->defprefix, sizeof r->defprefix);
+        prefix = r->defprefix;
     }
     if (strlen(prefix) > 1000) {
         fprintf(stderr, "photonmarch bake: -o: path too long\n");
         return CLI_EXIT_USAGE;
     }
-    if (refuse_bake_outputs(prefix, a.scene)) return CLI_EXIT_USAGE;
+    if (refuse_bake_outputs(prefix, a->scene)) return CLI_EXIT_USAGE;
+    r->prefix = prefix;
+    bo->photons = photons > 0 ? (size_t)photons : 0;
+    bo->seed = seed;
+    bo->threads = (int)threads;
+    wo->write_map = !bo->load_photons;
+    return -1;
+}
+
+int cli_cmd_bake(int argc, char **argv) { return cli_cmd_bake_on(argc, argv, NULL); }
+
+/* Several ranks (d, docs/cluster.md): every rank parses and loads the scene, the ranks trace the
+ * photons together (rd_bake_opts.comm: each a range of them, gathered on every rank) and each
+ * builds the same index and guide; rank 0 alone prints and writes the files. After each step
+ * that can fail the ranks agree, so a failure anywhere ends every rank with a non-zero exit. */
+int cli_cmd_bake_on(int argc, char **argv, rd_dist *d)
+{
+    bake_args *r = calloc(1, sizeof *r);
+    if (!r) {
+        fprintf(stderr, "photonmarch bake: out of memory\n");
+        return CLI_EXIT_INTERNAL;
+    }
+    int muted = cli_ranks_mute(d);
+    int pc = cli_ranks_unmute(d, muted, parse_bake(argc, argv, r));
+    if (pc >= 0) {
+        free(r);
+        return pc;
+    }
+    const int lead = rd_dist_rank(d) == 0;
+    const char *prefix = r->prefix;
+    int stats = r->stats, quiet = r->quiet || !lead;
+    rd_bake_opts bo = r->bo;
     cli_on_signal_quit(); /* while the scene loads, a signal ends the process at once */
-    bo.photons = photons > 0 ? (size_t)photons : 0;
-    bo.seed = seed;
-    bo.threads = (int)threads;
-    wo.write_map = !bo.load_photons;
 
     char err[RD_ERRLEN];
-    rd_scene *s;
-    rd_status st = rd_scene_load(&s, a.scene, a.ov, a.nov, err, sizeof err);
-    if (st) return cli_report_error(st, err);
+    rd_scene *s = NULL;
+    rd_status st;
+    int code = cli_ranks_load_scene(d, &r->a, &s);
+    if (!code && rd_dist_size(d) > 1) { /* the ranks must bake one map: the options that decide it agree */
+        char opts[2048];
+        snprintf(opts, sizeof opts, "%zu|%lld|%d|%s", bo.photons, bo.seed, bo.no_guide,
+                 bo.load_photons ? bo.load_photons : "");
+        code = cli_ranks_same_options(d, opts, &r->a);
+    }
     rd_baked *b = NULL;
-    int code = 0;
+    if (code) goto done;
     cli_on_signal_cancel(); /* a signal stops the tracing and the guide bake: nothing written */
     bo.cancel = cli_cancel_flag();
+    bo.comm = rd_dist_comm(d);
     if (!quiet) fprintf(stderr, "photonmarch bake: tracing and baking (Ctrl-C stops and writes nothing)\n");
-    if ((st = rd_make_parent_dirs(prefix, err, sizeof err)) != RD_OK ||
-        (st = rd_bake(s, &bo, &b, err, sizeof err)) != RD_OK) {
-        code = st == RD_ERR_CANCELLED ? cli_report_cancelled("bake", "while baking")
-                                      : cli_report_error(st, err);
+    st = lead ? rd_make_parent_dirs(prefix, err, sizeof err) : RD_OK;
+    if ((code = cli_ranks_agree(d, cli_exit_for(st), err)) != 0) goto done;
+    st = rd_bake(s, &bo, &b, err, sizeof err); /* several ranks: the same status on every rank */
+    if (st == RD_ERR_CANCELLED || (st == RD_OK && cli_interrupted())) {
+        /* (after the bake's last check: still nothing written) */
+        code = lead ? cli_report_cancelled("bake", "while baking")
+                    : cli_exit_interrupted(cli_interrupted() ? cli_interrupted() : SIGINT);
+        code = cli_ranks_agree(d, code, NULL);
         goto done;
     }
-    if (cli_interrupted()) { /* after the bake's last check: still nothing written */
-        code = cli_report_cancelled("bake", "while baking");
-        goto done;
-    }
+    if ((code = cli_ranks_agree_shared(d, cli_exit_for(st), err)) != 0) goto done;
     const rd_bake_stats *bs = rd_baked_stats(b);
-    if (stats) print_bake_stats(bs);
-    if (bs->has_guide && (stats || !quiet)) print_guide_line(bs);
+    if (stats && lead) print_bake_stats(bs);
+    if (bs->has_guide && (stats || !quiet) && lead) print_guide_line(bs);
     cli_on_signal_stop(); /* a signal now lets the files being written finish */
-    if ((st = rd_baked_write(b, s, prefix, &wo, err, sizeof err)) != RD_OK) {
-        code = st == RD_ERR_ARG ? (fprintf(stderr, "%s\n", err), CLI_EXIT_USAGE) : cli_report_error(st, err);
-        goto done;
+    st = lead ? rd_baked_write(b, s, prefix, &r->wo, err, sizeof err) : RD_OK;
+    if (st != RD_OK) {
+        code = st == RD_ERR_ARG ? CLI_EXIT_USAGE : cli_exit_for(st);
+        if (rd_dist_size(d) <= 1) fprintf(stderr, "%s\n", err);
     }
+    if (rd_dist_size(d) > 1) { /* rank 0's outcome to the others */
+        int c = cli_ranks_agree(d, code, code ? err : NULL);
+        if (!code) code = c;
+    }
+    if (code) goto done;
     if (!quiet) {
-        if (wo.write_map) printf("photons    %s.pmap\n", prefix);
+        if (r->wo.write_map) printf("photons    %s.pmap\n", prefix);
         printf("picture    %s-photons.png\n", prefix);
         if (bs->has_guide) printf("guide      %s.guide\nslices     %s-slice-*.png, %s-cells-*.png\n", prefix, prefix, prefix);
     }
@@ -193,5 +247,6 @@ int cli_cmd_bake(int argc, char **argv)
 done:
     rd_baked_free(b);
     rd_scene_free(s);
+    free(r);
     return code;
 }

@@ -5,6 +5,7 @@
 #include <math.h>
 #include <signal.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
@@ -154,66 +155,99 @@ static int compare_parse(compare_args *ca, int argc, char **argv)
     return 0;
 }
 
-int cli_cmd_compare(int argc, char **argv)
+int cli_cmd_compare(int argc, char **argv) { return cli_cmd_compare_on(argc, argv, NULL); }
+
+/* Several ranks (d, docs/compare.md "On several ranks"): every rank parses and loads the scene;
+ * the runs are dealt round the ranks, the reference is rendered by all together
+ * (rd_cmp_opts.comm); rank 0 alone prints and writes the report. After each step that can fail
+ * the ranks agree, so a failure anywhere ends every rank with a non-zero exit. */
+int cli_cmd_compare_on(int argc, char **argv, rd_dist *d)
 {
-    compare_args ca; /* 44 KB, most of it the --set and --add buffers */
-    memset(&ca, 0, sizeof ca);
-    ca.seed = -1;
-    ca.o.runs = 2;
-    int code = compare_parse(&ca, argc, argv);
-    if (code) return code < 0 ? 0 : code;
+    compare_args *ca = calloc(1, sizeof *ca); /* 44 KB, most of it the --set and --add buffers */
+    if (!ca) {
+        fprintf(stderr, "photonmarch compare: out of memory\n");
+        return CLI_EXIT_INTERNAL;
+    }
+    ca->seed = -1;
+    ca->o.runs = 2;
+    int muted = cli_ranks_mute(d);
+    int pc = compare_parse(ca, argc, argv);
+    pc = cli_ranks_unmute(d, muted, pc == 0 ? -1 : pc < 0 ? 0 : pc);
+    if (pc >= 0) {
+        free(ca);
+        return pc;
+    }
+    const int lead = rd_dist_rank(d) == 0;
     char defout[1024], cache[1100];
-    if (!ca.outdir) {
+    if (!ca->outdir) {
         char name[1024];
-        cli_default_output(ca.a.scene, "", name, sizeof name); /* out/<scene name> */
+        cli_default_output(ca->a.scene, "", name, sizeof name); /* out/<scene name> */
         snprintf(defout, sizeof defout, "out/compare-%.900s", name + 4);
-        ca.outdir = defout;
+        ca->outdir = defout;
     }
     /* The reference cache: beside the report folder unless --cache says otherwise. */
-    if (!ca.cache) {
-        const char *slash = strrchr(ca.outdir, '/');
-        snprintf(cache, sizeof cache, "%.*s.photonmarch-cache", slash ? (int)(slash - ca.outdir + 1) : 0, ca.outdir);
-        ca.cache = cache;
+    if (!ca->cache) {
+        const char *slash = strrchr(ca->outdir, '/');
+        snprintf(cache, sizeof cache, "%.*s.photonmarch-cache", slash ? (int)(slash - ca->outdir + 1) : 0, ca->outdir);
+        ca->cache = cache;
     }
-    ca.o.cache_dir = ca.no_cache ? NULL : ca.cache;
+    ca->o.cache_dir = ca->no_cache ? NULL : ca->cache;
 
     char err[RD_ERRLEN];
-    rd_scene *scene;
-    rd_status st = rd_scene_load(&scene, ca.a.scene, ca.a.ov, ca.a.nov, err, sizeof err);
-    if (st) return cli_report_error(st, err);
-    ca.o.seed = ca.seed >= 0 ? (uint64_t)ca.seed : rd_scene_seed(scene);
-    ca.o.cancel = cli_cancel_flag();
-    cli_progress_state ps = {0.0, isatty(2), 0.0};
-    if (!ca.quiet) {
-        ca.o.progress = compare_progress;
-        ca.o.progress_user = &ps;
-    }
+    rd_scene *scene = NULL;
     rd_comparison *cmp = NULL;
-    cli_on_signal_stop(); /* a signal ends the run in progress; the report is written */
-    st = rd_compare_run(scene, &ca.o, &cmp, err, sizeof err);
-    if (!ca.quiet && ps.tty) fputc('\n', stderr);
-    if (st) {
-        code = cli_report_error(st, err);
-        goto out;
+    rd_status st;
+    int code = cli_ranks_load_scene(d, &ca->a, &scene);
+    if (!code && rd_dist_size(d) > 1) { /* the ranks must run one comparison: its options agree */
+        char opts[8192];
+        const rd_cmp_opts *o = &ca->o;
+        int len = snprintf(opts, sizeof opts, "%d|%a|%d|%ld|%s|%d|%a|%s|%d", o->equal_spp, o->budget, o->runs,
+                           ca->seed, o->reference ? o->reference : "", o->ref_spp, o->ref_time,
+                           o->cache_dir ? o->cache_dir : "", o->n_methods);
+        for (int i = 0; i < o->n_methods && len >= 0 && (size_t)len < sizeof opts; i++)
+            len += snprintf(opts + len, sizeof opts - (size_t)len, "|%s", o->methods[i]);
+        for (int i = 0; i < o->n_extras && len >= 0 && (size_t)len < sizeof opts; i++)
+            len += snprintf(opts + len, sizeof opts - (size_t)len, "|%s=%s", o->extras[i].label, o->extras[i].path);
+        code = cli_ranks_same_options(d, opts, &ca->a);
     }
+    if (code) goto out;
+    ca->o.seed = ca->seed >= 0 ? (uint64_t)ca->seed : rd_scene_seed(scene);
+    ca->o.cancel = cli_cancel_flag();
+    ca->o.comm = rd_dist_comm(d);
+    cli_progress_state ps = {0.0, isatty(2), 0.0};
+    if (!ca->quiet && lead) {
+        ca->o.progress = compare_progress;
+        ca->o.progress_user = &ps;
+    }
+    cli_on_signal_stop(); /* a signal ends the run in progress; the report is written */
+    st = rd_compare_run(scene, &ca->o, &cmp, err, sizeof err); /* several ranks: the same status everywhere */
+    if (ca->o.progress && ps.tty) fputc('\n', stderr);
+    if ((code = cli_ranks_agree_shared(d, cli_exit_for(st), err)) != 0) goto out;
     const rd_cmp_summary *sum = rd_comparison_summary(cmp);
-    if (sum->cancelled && sum->n_rows == 0) {
-        fprintf(stderr, "photonmarch compare: interrupted before any run finished; nothing written\n");
+    if (sum->cancelled && sum->n_rows == 0) { /* (the same on every rank) */
+        if (lead) fprintf(stderr, "photonmarch compare: interrupted before any run finished; nothing written\n");
         code = cli_exit_interrupted(cli_interrupted() ? cli_interrupted() : SIGINT);
         goto out;
     }
-    if ((st = rd_compare_write_report(cmp, scene, ca.outdir, err, sizeof err)) != RD_OK) {
-        code = cli_report_error(st, err);
-        goto out;
+    st = lead ? rd_compare_write_report(cmp, scene, ca->outdir, err, sizeof err) : RD_OK;
+    code = cli_exit_for(st);
+    if (code && rd_dist_size(d) <= 1) fprintf(stderr, "%s\n", err);
+    if (rd_dist_size(d) > 1) { /* rank 0's outcome to the others */
+        int c = cli_ranks_agree(d, code, code ? err : NULL);
+        if (!code) code = c;
     }
-    rd_compare_print_table(cmp, stdout);
-    printf("report %s/index.html\n", ca.outdir);
+    if (code) goto out;
+    if (lead) {
+        rd_compare_print_table(cmp, stdout);
+        printf("report %s/index.html\n", ca->outdir);
+    }
     if (sum->cancelled) {
-        fprintf(stderr, "photonmarch compare: interrupted; the report holds the runs that finished\n");
+        if (lead) fprintf(stderr, "photonmarch compare: interrupted; the report holds the runs that finished\n");
         code = cli_exit_interrupted(cli_interrupted() ? cli_interrupted() : SIGINT);
     }
 out:
     rd_comparison_free(cmp);
     rd_scene_free(scene);
+    free(ca);
     return code;
 }

@@ -186,9 +186,8 @@ int cli_cmd_render_on(int argc, char **argv, rd_dist *d)
 
     char err[RD_ERRLEN];
     rd_scene *scene = NULL;
-    rd_status st = rd_scene_load(&scene, a->scene, a->ov, a->nov, err, sizeof err);
-    int code = cli_ranks_agree(d, cli_exit_for(st), err);
-    if (!code) code = cli_ranks_same_file(d, a->scene);
+    rd_status st;
+    int code = cli_ranks_load_scene(d, a, &scene);
     rd_image ref = {0, 0, NULL, 0};
     if (!code && refpath) {
         st = rd_image_read(refpath, &ref, err, sizeof err);
@@ -220,12 +219,10 @@ int cli_cmd_render_on(int argc, char **argv, rd_dist *d)
     rd_baked *baked = NULL; /* before the first goto out, which frees it */
     if (ranks > 1) { /* the ranks must render one image: the options that decide it agree */
         char opts[8192];
-        int len = snprintf(opts, sizeof opts, "%s|%d|%llu|%a|%d|%s|%s|%s", ro.method, ro.spp,
-                           (unsigned long long)ro.seed, ro.time_limit, no_cache, photons_path ? photons_path : "",
-                           guide_path ? guide_path : "", refpath ? refpath : "");
-        for (int i = 0; i < a->nov && len >= 0 && (size_t)len < sizeof opts; i++)
-            len += snprintf(opts + len, sizeof opts - (size_t)len, "|%s=%s", a->ov[i].key, a->ov[i].value);
-        if ((code = cli_ranks_same_options(d, opts)) != 0) goto out;
+        snprintf(opts, sizeof opts, "%s|%d|%llu|%a|%d|%s|%s|%s", ro.method, ro.spp, (unsigned long long)ro.seed,
+                 ro.time_limit, no_cache, photons_path ? photons_path : "", guide_path ? guide_path : "",
+                 refpath ? refpath : "");
+        if ((code = cli_ranks_same_options(d, opts, a)) != 0) goto out;
     }
     /* Only rank 0 writes. */
     st = lead ? rd_make_parent_dirs(outpath, err, sizeof err) : RD_OK;
@@ -243,14 +240,13 @@ int cli_cmd_render_on(int argc, char **argv, rd_dist *d)
         int fresh = photons_path || guide_path || no_cache;
         cli_on_signal_cancel(); /* a signal stops the bake, which removes its cache temporaries */
         bo.cancel = cli_cancel_flag();
+        /* Several ranks trace the photons together (each a range, gathered on every rank); they
+         * use the cache when every rank can read it, and rank 0 alone saves it. */
+        bo.comm = rd_dist_comm(d);
         if (!quiet && lead)
             fprintf(stderr, "photonmarch render: preparing the photon map and guide (Ctrl-C stops and writes nothing)\n");
-        /* Several ranks, each needing the whole bake: rank 0 first (it bakes or finds the cache,
-         * and saves it), then the others, who find it in the cache; so one process writes it. */
-        st = lead ? cli_bake_beside(scene, &bo, outpath, fresh, quiet, &baked, err, sizeof err) : RD_OK;
-        if ((code = cli_ranks_agree(d, bake_outcome(st, err, sizeof err), err)) != 0) goto out;
-        st = lead ? RD_OK : cli_bake_beside(scene, &bo, outpath, fresh, quiet, &baked, err, sizeof err);
-        if ((code = cli_ranks_agree(d, bake_outcome(st, err, sizeof err), err)) != 0) goto out;
+        st = cli_bake_beside(scene, &bo, outpath, fresh, quiet, &baked, err, sizeof err);
+        if ((code = cli_ranks_agree_shared(d, bake_outcome(st, err, sizeof err), err)) != 0) goto out;
         ro.baked = baked;
         ro.baked_seconds = cli_wall_seconds() - t0;
     }
@@ -264,7 +260,9 @@ int cli_cmd_render_on(int argc, char **argv, rd_dist *d)
         code = cli_ranks_agree(d, CLI_EXIT_INPUT, msg);
         goto out;
     }
-    if ((code = cli_ranks_agree(d, cli_exit_for(st), err)) != 0) goto out;
+    /* (a cancel while tracing the first progressive photon pass: nothing rendered) */
+    code = st == RD_ERR_CANCELLED ? bake_outcome(st, err, sizeof err) : cli_exit_for(st);
+    if ((code = cli_ranks_agree_shared(d, code, err)) != 0) goto out;
     if (!lead) { /* rank 0 writes; the others end with its status */
         code = cli_ranks_agree(d, 0, NULL);
         if (!code && cli_interrupted()) code = cli_exit_interrupted(cli_interrupted());

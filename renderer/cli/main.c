@@ -32,7 +32,7 @@ static const char *const usage_main =
     "            3 output not written, 4 internal error, 130 / 143 interrupted by SIGINT (Ctrl-C)\n"
     "            / SIGTERM (the image so far written)\n"
     "\n"
-    "several processes: mpirun -n K photonmarch render ... (docs/cluster.md)\n"
+    "several processes: mpirun -n K photonmarch render|bake|compare ... (docs/cluster.md)\n"
     "\n"
     "docs: docs/cli.md (this reference), docs/scene-format.md (the scene file)\n";
 
@@ -47,19 +47,21 @@ static const struct {
     {"voxelize", cli_cmd_voxelize}, {"explain", cli_cmd_explain}, {"compare", cli_cmd_compare},
 };
 
-/* The command under an MPI launcher (rd_dist.h): render shares its work between the ranks; the
- * others do not yet, and refuse to run on several ranks (each would do the whole job). One rank
- * runs every command as a plain process would. */
+/* The command under an MPI launcher (rd_dist.h): render, bake and compare share their work
+ * between the ranks; the others do not yet, and refuse to run on several ranks (each would do the whole
+ * job). One rank runs every command as a plain process would. */
 static int run_on_ranks(int argc, char **argv, rd_dist *d)
 {
     if (argc < 2) return run(argc, argv);
     if (!strcmp(argv[1], "render")) return cli_cmd_render_on(argc - 2, argv + 2, d);
+    if (!strcmp(argv[1], "bake")) return cli_cmd_bake_on(argc - 2, argv + 2, d);
+    if (!strcmp(argv[1], "compare")) return cli_cmd_compare_on(argc - 2, argv + 2, d);
     if (rd_dist_size(d) > 1) {
         for (size_t k = 0; k < sizeof commands / sizeof commands[0]; k++)
             if (!strcmp(argv[1], commands[k].name)) {
                 if (rd_dist_rank(d) == 0)
                     fprintf(stderr, "photonmarch %s: runs on one process only (mpirun -n 1, or without mpirun); "
-                                    "only render is shared between ranks (docs/cluster.md)\n", argv[1]);
+                                    "only render, bake and compare are shared between ranks (docs/cluster.md)\n", argv[1]);
                 return CLI_EXIT_USAGE;
             }
     }

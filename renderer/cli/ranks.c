@@ -28,6 +28,14 @@ int cli_ranks_agree(rd_dist *d, int code, const char *msg)
     return code ? code : v[1];
 }
 
+int cli_ranks_agree_shared(rd_dist *d, int code, const char *msg)
+{
+    size_t n = msg ? strlen(msg) : 0, k = strlen(RD_ON_ANOTHER_RANK);
+    int own = code && msg && !(n >= k && !strcmp(msg + n - k, RD_ON_ANOTHER_RANK));
+    int c = cli_ranks_agree(d, own ? code : 0, own ? msg : NULL);
+    return code ? code : c;
+}
+
 int cli_ranks_mute(rd_dist *d)
 {
     if (rd_dist_size(d) <= 1 || rd_dist_rank(d) == 0) return -1;
@@ -72,10 +80,17 @@ static uint64_t fnv1a(uint64_t h, const void *p, size_t n)
     return h;
 }
 
-int cli_ranks_same_options(rd_dist *d, const char *text)
+int cli_ranks_same_options(rd_dist *d, const char *text, const cli_scene_args *a)
 {
     if (rd_dist_size(d) <= 1) return 0;
-    if (rd_dist_same(d, fnv1a(1469598103934665603ULL, text, strlen(text)))) return 0;
+    uint64_t h = fnv1a(1469598103934665603ULL, text, strlen(text));
+    for (int i = 0; a && i < a->nov; i++) { /* "|key=value" for every --set */
+        h = fnv1a(h, "|", 1);
+        h = fnv1a(h, a->ov[i].key, strlen(a->ov[i].key));
+        h = fnv1a(h, "=", 1);
+        h = fnv1a(h, a->ov[i].value, strlen(a->ov[i].value));
+    }
+    if (rd_dist_same(d, h)) return 0;
     if (rd_dist_rank(d) == 0)
         fprintf(stderr, "photonmarch: the ranks' options differ (method, samples, seed, time, --set, files): every "
                         "rank runs the same command\n");
@@ -104,4 +119,13 @@ int cli_ranks_same_file(rd_dist *d, const char *path)
         fprintf(stderr, "%s: not the same file on every rank (the ranks must render one scene; copy it to every "
                         "node)\n", path);
     return CLI_EXIT_INPUT;
+}
+
+int cli_ranks_load_scene(rd_dist *d, const cli_scene_args *a, rd_scene **scene)
+{
+    char err[RD_ERRLEN];
+    *scene = NULL;
+    rd_status st = rd_scene_load(scene, a->scene, a->ov, a->nov, err, sizeof err);
+    int code = cli_ranks_agree(d, cli_exit_for(st), err);
+    return code ? code : cli_ranks_same_file(d, a->scene);
 }

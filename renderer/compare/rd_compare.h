@@ -59,6 +59,12 @@ struct rd_comparison {
     char ref_base[1200];  /* ... and its cache path without extension ("": not cached) */
 };
 
+/* The comparison's ranks (opts.comm with several ranks; NULL alone). */
+static inline const rd_comm *cmp_ranks(const rd_comparison *c)
+{
+    return c->opts.comm && c->opts.comm->size > 1 ? c->opts.comm : NULL;
+}
+
 /* The report's file names (report.c writes them; a --add label that would overwrite one is
  * refused, reference.c): per row, each pattern with the row's label; once, the fixed ones. */
 enum { ROW_EXR, ROW_PNG, ROW_ERROR, ROW_CROP, ROW_CURVE, ROW_FILES };
@@ -94,6 +100,9 @@ static inline int cmp_double(const void *a, const void *b)
  * opts.reference, else the cache (opts.cache_dir), else rendered by delta and cached.
  * Cancelled while rendering: RD_OK with c->sum.cancelled = 1 and no reference. */
 rd_status rd_cmp_reference_get(rd_comparison *c, const rd_scene *s, char *err, size_t errlen);
+/* Several ranks (comm; NULL or one rank: nothing to do): rank root's w x h image into img on
+ * every rank (allocated where img->rgb is NULL). Collective; the same status on every rank. */
+rd_status rd_cmp_share_image(const rd_comm *comm, rd_image *img, int w, int h, int root, char *err, size_t errlen);
 /* 1 when opts ask for the default reference (none given, neither --ref-spp nor --ref-time). */
 int rd_cmp_reference_is_auto(const rd_cmp_opts *o);
 /* Render `more` samples per pixel of the default reference's stream onto c->ref (the samples

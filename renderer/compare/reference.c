@@ -121,11 +121,12 @@ static int reference_from_cache(rd_comparison *c, const char *base, uint64_t key
 }
 
 /* Save the reference in the cache (c->ref_base); a failed save is not an error: the
- * comparison goes on, and ref_source says the reference was not cached. */
+ * comparison goes on, and ref_source says the reference was not cached. Several ranks: rank 0
+ * alone saves. */
 static void reference_save(rd_comparison *c)
 {
     snprintf(c->sum.ref_source, sizeof c->sum.ref_source, "rendered now (not cached)");
-    if (!c->ref_base[0]) return;
+    if (!c->ref_base[0] || (cmp_ranks(c) && cmp_ranks(c)->rank != 0)) return;
     const char *base = c->ref_base;
     char path[1200], msg[RD_ERRLEN], meta[256];
     snprintf(path, sizeof path, "%.1000s.exr", base);
@@ -139,6 +140,22 @@ static void reference_save(rd_comparison *c)
                 snprintf(c->sum.ref_source, sizeof c->sum.ref_source, "%.1000s.exr", base);
         }
     }
+}
+
+rd_status rd_cmp_share_image(const rd_comm *comm, rd_image *img, int w, int h, int root, char *err, size_t errlen)
+{
+    if (!comm || comm->size <= 1) return RD_OK;
+    rd_status st = RD_OK;
+    if (!img->rgb) {
+        img->w = w, img->h = h, img->channels = 0;
+        if (!(img->rgb = malloc((size_t)w * h * 3 * sizeof(float)))) {
+            snprintf(err, errlen, "compare: out of memory for a %dx%d image from another rank", w, h);
+            st = RD_ERR_NOMEM;
+        }
+    }
+    if ((st = rd_comm_agree(comm, st, "compare: sharing an image", err, errlen)) != RD_OK) return st;
+    rd_comm_bcast(comm, img->rgb, (size_t)w * h * 3 * sizeof(float), root);
+    return RD_OK;
 }
 
 /* Progress of the reference's render: samples done in all (earlier parts included), the
@@ -175,9 +192,18 @@ static rd_status reference_part(rd_comparison *c, const rd_scene *s, int first, 
     rd_render_opts ro = {.method = "delta", .spp = spp, .time_limit = time_limit, .seed = REF_SEED(o->seed),
                          .threads = o->threads, .cancel = o->cancel, .progress = reference_progress,
                          .progress_user = pc, .first_sample = first, .clock = o->clock,
-                         .clock_user = o->clock_user};
+                         .clock_user = o->clock_user, .comm = cmp_ranks(c)};
     reference_progress(pc, 0, spp, 0.0);
-    return rd_render(s, &ro, res, err, errlen);
+    rd_status st = rd_render(s, &ro, res, err, errlen);
+    if (st || !ro.comm) return st; /* (several ranks: rd_render's status is every rank's) */
+    /* Several ranks rendered it together and rank 0 holds the image: every rank takes rank 0's
+     * images and statistics, so that every rank decides what comes next alike (the seconds
+     * included) and measures its runs against the same reference. */
+    rd_comm_bcast(ro.comm, &res->stats, sizeof res->stats, 0);
+    if ((st = rd_cmp_share_image(ro.comm, &res->image, c->w, c->h, 0, err, errlen)) == RD_OK)
+        st = rd_cmp_share_image(ro.comm, &res->stderr_img, c->w, c->h, 0, err, errlen);
+    if (st) rd_render_result_free(res);
+    return st;
 }
 
 /* Merge a render of n2 more samples per pixel (mean m2, standard error se2) into the reference
@@ -317,13 +343,28 @@ int rd_cmp_reference_is_auto(const rd_cmp_opts *o)
 rd_status rd_cmp_reference_get(rd_comparison *c, const rd_scene *s, char *err, size_t errlen)
 {
     const rd_cmp_opts *o = &c->opts;
-    if (o->reference) return reference_given(c, err, errlen);
+    const rd_comm *comm = cmp_ranks(c);
+    if (o->reference) /* several ranks: each reads the file, as it loads the scene */
+        return rd_comm_agree(comm, reference_given(c, err, errlen), "compare: the reference", err, errlen);
     int auto_ref = rd_cmp_reference_is_auto(o);
     c->ref_key = reference_key(s, auto_ref, auto_ref ? 0 : o->ref_spp, auto_ref ? 0.0 : o->ref_time, REF_SEED(o->seed));
     c->ref_base[0] = 0;
     if (o->cache_dir) {
         snprintf(c->ref_base, sizeof c->ref_base, "%.900s/reference-%016llx", o->cache_dir, (unsigned long long)c->ref_key);
-        if (reference_from_cache(c, c->ref_base, c->ref_key)) {
+        /* Several ranks: rank 0 looks in the cache (it alone saves there) and gives the others
+         * what it found. */
+        int hit = !comm || comm->rank == 0 ? reference_from_cache(c, c->ref_base, c->ref_key) : 0;
+        rd_comm_bcast(comm, &hit, sizeof hit, 0);
+        if (hit && comm) {
+            double v[2] = {c->sum.ref_spp, c->sum.ref_seconds};
+            rd_comm_bcast(comm, v, sizeof v, 0);
+            c->sum.ref_spp = v[0], c->sum.ref_seconds = v[1];
+            rd_comm_bcast(comm, c->sum.ref_source, sizeof c->sum.ref_source, 0);
+            rd_status st = rd_cmp_share_image(comm, &c->ref, c->w, c->h, 0, err, errlen);
+            if (st == RD_OK) st = rd_cmp_share_image(comm, &c->ref_se, c->w, c->h, 0, err, errlen);
+            if (st) return st;
+        }
+        if (hit) {
             c->sum.ref_rendered = 2;
             return RD_OK;
         }

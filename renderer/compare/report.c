@@ -353,6 +353,8 @@ static rd_status write_json(const rd_comparison *c, const rd_scene *s, const cha
     cJSON_AddNumberToObject(j, "runs", o->runs);
     cJSON_AddNumberToObject(j, "seed", (double)o->seed);
     cJSON_AddBoolToObject(j, "cancelled", S->cancelled);
+    cJSON_AddNumberToObject(j, "ranks", S->ranks); /* several ranks: docs/compare.md */
+    cJSON_AddStringToObject(j, "hosts", S->hosts);
     cJSON *ref = cJSON_AddObjectToObject(j, "reference");
     cJSON_AddStringToObject(ref, "source", S->ref_source);
     cJSON_AddStringToObject(ref, "origin", S->ref_rendered == 1 ? "rendered" : S->ref_rendered == 2 ? "cache" : "given");
@@ -450,6 +452,7 @@ void rd_compare_print_table(const rd_comparison *c, FILE *out)
     if (isfinite(S->ref_var)) fprintf(out, "; variance %.3g", S->ref_var);
     if (isfinite(S->ref_share)) fprintf(out, " = %.0f%% of the best MSE", 100.0 * S->ref_share);
     fprintf(out, "%s\n", S->ref_too_noisy ? "; TOO NOISY to rank the methods (see the report)" : "");
+    if (S->ranks > 1) fprintf(out, "ranks: %d (%s): each run on one, the reference on all\n", S->ranks, S->hosts);
     /* The summary in words (summary.c). */
     char line[512];
     rd_cmp_verdict(S, line, sizeof line);

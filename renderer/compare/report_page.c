@@ -123,6 +123,11 @@ static void page_head(rd_text *b, const rd_comparison *c, const rd_scene *s)
                  "bake time charged to every run of a method that needs it.</p>\n",
               c->w, c->h, o->equal_spp ? "samples" : "time", o->budget, o->equal_spp ? "spp" : "s", o->runs,
               o->runs > 1 ? "s" : "", (unsigned long long)RUN_SEED(o->seed, 0), (unsigned long long)RUN_SEED(o->seed, o->runs - 1));
+    if (c->sum.ranks > 1) {
+        rd_text_printf(b, "<p>On %d ranks (", c->sum.ranks);
+        sb_escape(b, c->sum.hosts);
+        rd_text_printf(b, "): each run rendered whole by one rank, the reference by all together (docs/compare.md).</p>\n");
+    }
     rd_text_printf(b, "<p>Reference: ");
     sb_escape(b, S->ref_source);
     if (S->ref_rendered) rd_text_printf(b, " (delta, %.6g spp, %.1f s%s%s)", S->ref_spp, S->ref_seconds,

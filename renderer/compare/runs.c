@@ -13,6 +13,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 /* At most this many methods, and this many --add images. */
 #define RD_CMP_MAX_METHODS 8
@@ -318,9 +319,23 @@ static rd_status alloc_methods(rd_comparison *c)
 }
 
 
-static rd_status run_all(rd_comparison *c, const rd_scene *s, char *err, size_t errlen)
+/* The rank that renders run k of method mi: the runs in order, dealt round the ranks. */
+static int run_owner(const rd_comparison *c, int mi, int k)
 {
+    const rd_comm *comm = cmp_ranks(c);
+    return comm ? (mi * c->opts.runs + k) % comm->size : 0;
+}
+
+/* This rank's runs, each whole (its own bake of the method's needs, shared by its runs of the
+ * methods with those needs). local[mi runs + k] gets the run's index in m->img (-1: not run
+ * here, or cut short). */
+static rd_status run_all(rd_comparison *c, const rd_scene *s, int *local, char *err, size_t errlen)
+{
+    const rd_comm *comm = cmp_ranks(c);
     for (int mi = 0; mi < c->n_methods && !c->sum.cancelled; mi++) {
+        int mine = 0;
+        for (int k = 0; k < c->opts.runs; k++) mine |= run_owner(c, mi, k) == (comm ? comm->rank : 0);
+        if (!mine) continue;
         rd_status st = bake_for(c, s, mi, err, errlen);
         if (st == RD_ERR_CANCELLED) { /* Ctrl-C while baking: the rows hold what finished */
             c->sum.cancelled = 1;
@@ -328,11 +343,110 @@ static rd_status run_all(rd_comparison *c, const rd_scene *s, char *err, size_t 
         }
         if (st) return st;
         for (int k = 0; k < c->opts.runs && !c->sum.cancelled; k++) {
+            if (run_owner(c, mi, k) != (comm ? comm->rank : 0)) continue;
             if (c->opts.cancel && *c->opts.cancel) { c->sum.cancelled = 1; break; }
+            int before = c->m[mi].done;
             if ((st = run_one(c, s, mi, k, err, errlen)) != RD_OK) return st;
+            if (c->m[mi].done > before) local[mi * c->opts.runs + k] = before;
         }
     }
     return RD_OK;
+}
+
+/* What the rank of a run tells the others before its images. */
+typedef struct {
+    int ok, n_curve;
+    double bake_seconds;
+    rd_render_stats stats;
+} run_head;
+
+/* Several ranks, after the runs: every run's images, statistics and curve from the rank that
+ * rendered it to every rank, in run order (a run cut short is left out, as in one process), so
+ * every rank holds the comparison one process would have made of the same images. A method's
+ * bake time is the one measured by the rank of its first run. Collective. */
+static rd_status gather_runs(rd_comparison *c, const int *local, char *err, size_t errlen)
+{
+    const rd_comm *comm = cmp_ranks(c);
+    int K = c->opts.runs;
+    rd_status st = RD_OK;
+    for (int mi = 0; mi < c->n_methods && st == RD_OK; mi++) {
+        cmp_method *m = &c->m[mi];
+        /* the gathered runs go to new arrays, in run order; this rank's own are moved there */
+        rd_image *img = calloc((size_t)K, sizeof *img), *se = calloc((size_t)K, sizeof *se);
+        rd_render_stats *stats = calloc((size_t)K, sizeof *stats);
+        rd_conv_point **curve = calloc((size_t)K, sizeof *curve);
+        int *n_curve = calloc((size_t)K, sizeof *n_curve), done = 0, have_bake = 0;
+        st = img && se && stats && curve && n_curve ? RD_OK : RD_ERR_NOMEM;
+        if (st) snprintf(err, errlen, "compare: out of memory gathering the runs");
+        st = rd_comm_agree(comm, st, "compare: gathering the runs", err, errlen);
+        for (int k = 0; k < K && st == RD_OK; k++) {
+            int owner = run_owner(c, mi, k), li = comm->rank == owner ? local[mi * K + k] : -1;
+            run_head h = {0};
+            if (li >= 0) h = (run_head){1, m->n_curve[li], m->bake_seconds, m->stats[li]};
+            rd_comm_bcast(comm, &h, sizeof h, owner);
+            if (!h.ok) continue;
+            if (li >= 0) { /* this rank's run: moved */
+                img[done] = m->img[li], se[done] = m->se[li], curve[done] = m->curve[li];
+                m->img[li].rgb = m->se[li].rgb = NULL;
+                m->curve[li] = NULL;
+            } else if (h.n_curve > 0 && !(curve[done] = malloc((size_t)h.n_curve * sizeof **curve))) {
+                st = RD_ERR_NOMEM;
+                snprintf(err, errlen, "compare: out of memory gathering the runs");
+            }
+            if ((st = rd_comm_agree(comm, st, "compare: gathering the runs", err, errlen)) != RD_OK) break;
+            if (h.n_curve > 0) rd_comm_bcast(comm, curve[done], (size_t)h.n_curve * sizeof **curve, owner);
+            if ((st = rd_cmp_share_image(comm, &img[done], c->w, c->h, owner, err, errlen)) != RD_OK ||
+                (st = rd_cmp_share_image(comm, &se[done], c->w, c->h, owner, err, errlen)) != RD_OK) {
+                done++; /* (freed below with the others) */
+                break;
+            }
+            stats[done] = h.stats;
+            n_curve[done] = h.n_curve;
+            if (!have_bake) m->bake_seconds = h.bake_seconds, have_bake = 1;
+            done++;
+        }
+        /* the old arrays (what is left in them: nothing but runs not moved) and the new */
+        for (int k = 0; k < m->done; k++) {
+            rd_image_free_pixels(&m->img[k]);
+            rd_image_free_pixels(&m->se[k]);
+            free(m->curve[k]);
+        }
+        free(m->img), free(m->se), free(m->stats), free(m->curve), free(m->n_curve);
+        m->img = img, m->se = se, m->stats = stats, m->curve = curve, m->n_curve = n_curve;
+        m->done = done;
+        if (st != RD_OK && (!img || !se || !stats || !curve || !n_curve)) m->done = 0;
+    }
+    return st;
+}
+
+/* Several ranks: their host names into c->sum.hosts ("a x2, b": each name once, in rank order
+ * of first appearance, with its rank count; past 32 names, "..."), one broadcast a rank.
+ * Collective. */
+static void gather_hosts(rd_comparison *c)
+{
+    const rd_comm *comm = cmp_ranks(c);
+    enum { HOST = 64, NAMES = 32 };
+    char names[NAMES][HOST];
+    int times[NAMES], n = 0, more = 0;
+    c->sum.ranks = comm ? comm->size : 1;
+    for (int k = 0; k < c->sum.ranks; k++) {
+        char h[HOST] = {0};
+        if ((!comm || comm->rank == k) && gethostname(h, HOST - 1) != 0) snprintf(h, HOST, "?");
+        rd_comm_bcast(comm, h, HOST, k);
+        int j = 0;
+        while (j < n && strcmp(names[j], h)) j++;
+        if (j < n) times[j]++;
+        else if (n < NAMES) memcpy(names[n], h, HOST), times[n++] = 1;
+        else more = 1;
+    }
+    size_t at = 0;
+    c->sum.hosts[0] = 0;
+    for (int j = 0; j < n && at < sizeof c->sum.hosts; j++) {
+        int w = times[j] > 1 ? snprintf(c->sum.hosts + at, sizeof c->sum.hosts - at, "%s%s x%d", j ? ", " : "", names[j], times[j])
+                             : snprintf(c->sum.hosts + at, sizeof c->sum.hosts - at, "%s%s", j ? ", " : "", names[j]);
+        at += w > 0 ? (size_t)w : 0;
+    }
+    if (more && at < sizeof c->sum.hosts) snprintf(c->sum.hosts + at, sizeof c->sum.hosts - at, ", ...");
 }
 
 rd_status rd_compare_run(const rd_scene *scene, const rd_cmp_opts *opts, rd_comparison **out,
@@ -344,7 +458,12 @@ rd_status rd_compare_run(const rd_scene *scene, const rd_cmp_opts *opts, rd_comp
     rd_status st = check_opts(opts, err, errlen);
     if (st) return st;
     rd_comparison *c = calloc(1, sizeof *c);
-    if (!c) return fail(err, errlen, RD_ERR_NOMEM, "%s: out of memory", "compare");
+    if (!c) fail(err, errlen, RD_ERR_NOMEM, "%s: out of memory", "compare");
+    const rd_comm *comm = opts->comm && opts->comm->size > 1 ? opts->comm : NULL;
+    if ((st = rd_comm_agree(comm, c ? RD_OK : RD_ERR_NOMEM, "compare", err, errlen)) != RD_OK) {
+        free(c);
+        return st;
+    }
     c->opts = *opts;
     c->n_methods = opts->n_methods;
     c->w = rd_scene_width(scene);
@@ -353,17 +472,29 @@ rd_status rd_compare_run(const rd_scene *scene, const rd_cmp_opts *opts, rd_comp
     c->sum.ref_var = NAN;
     c->sum.ref_share = NAN;
     c->sum.ref_cap_seconds = NAN;
-    if ((st = alloc_methods(c)) != RD_OK) {
-        fail(err, errlen, st, "%s: out of memory", "compare");
-        goto bad;
-    }
+    gather_hosts(c);
+    if ((st = alloc_methods(c)) != RD_OK) fail(err, errlen, st, "%s: out of memory", "compare");
+    /* (several ranks: every step that can fail on one rank alone ends in an agreement) */
+    if ((st = rd_comm_agree(comm, st, "compare", err, errlen)) != RD_OK) goto bad;
     /* Every input is checked before anything long runs. */
-    if ((st = rd_cmp_extras_load(c, err, errlen)) != RD_OK) goto bad;
+    st = rd_cmp_extras_load(c, err, errlen);
+    if ((st = rd_comm_agree(comm, st, "compare: --add", err, errlen)) != RD_OK) goto bad;
     c->planned_seconds = opts->equal_spp ? 0.0 : opts->budget * opts->runs * opts->n_methods;
     if ((st = rd_cmp_reference_get(c, scene, err, errlen)) != RD_OK) goto bad;
     if (!c->sum.cancelled) {
         if (c->ref_se.rgb) c->sum.ref_var = image_mean_sq(&c->ref_se);
-        if ((st = run_all(c, scene, err, errlen)) != RD_OK) goto bad;
+        int *local = calloc((size_t)c->n_methods * opts->runs + 1, sizeof *local);
+        if (!local) st = fail(err, errlen, RD_ERR_NOMEM, "%s: out of memory", "compare");
+        for (int i = 0; local && i < c->n_methods * opts->runs; i++) local[i] = -1;
+        if (st == RD_OK) st = run_all(c, scene, local, err, errlen);
+        if (comm) {
+            if ((st = rd_comm_agree(comm, st, "compare: a run", err, errlen)) == RD_OK) st = gather_runs(c, local, err, errlen);
+            int cancelled = c->sum.cancelled; /* a run cut short anywhere: the comparison was cut */
+            comm->reduce(comm->user, &cancelled, 1, RD_COMM_INT, RD_COMM_MAX, -1);
+            c->sum.cancelled = cancelled;
+        }
+        free(local);
+        if (st != RD_OK) goto bad;
         make_rows(c);
         c->sum.ref_auto = rd_cmp_reference_is_auto(opts);
         c->planned_seconds = 0.0;

@@ -38,6 +38,17 @@ rd_status rd_write_file(const char *path, rd_file_writer write, void *user, cons
                         char *err, size_t errlen);
 /* Write n bytes to path (rd_write_file); RD_ERR_OUTPUT naming the path. */
 rd_status rd_write_atomic(const char *path, const void *data, size_t n, char *err, size_t errlen);
+
+/* ---- Collectives on the rd_comm hooks (core/comm.c; renderer.h, docs/cluster.md). Each is
+ * collective when c has several ranks (every rank calls it, in the same order) and does the
+ * one-process thing when c is NULL or has one rank. */
+
+/* The worst outcome over the ranks (the largest rd_status), the same on every rank. A rank whose
+ * own st was RD_OK and that gets a failure writes "WHAT: failed " RD_ON_ANOTHER_RANK (or
+ * "interrupted ...") into err. */
+rd_status rd_comm_agree(const rd_comm *c, rd_status st, const char *what, char *err, size_t errlen);
+/* Rank root's `bytes` bytes at buf into every rank's buf (bytes the same on every rank). */
+void rd_comm_bcast(const rd_comm *c, void *buf, size_t bytes, int root);
 /* For writers that need a file name (OpenImageIO, OpenVDB): the temporary name of path for this
  * process into out (n bytes); -1 when it does not fit. Write it, then rd_commit_temp (or
  * remove it on failure). */

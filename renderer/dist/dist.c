@@ -6,6 +6,7 @@
  * are the same everywhere by the hooks' contract), so the calls match one to one. */
 #include "dist/rd_dist.h"
 
+#include <limits.h>
 #include <mpi.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -60,6 +61,49 @@ static void comm_reduce(void *user, void *buf, size_t count, rd_comm_type type, 
     }
 }
 
+/* rd_comm.allgatherv: counts[r] elements of elem_bytes from every rank r, in rank order, into
+ * recv on every rank. MPI counts and displacements are ints: in units of one element (a
+ * contiguous type of elem_bytes) they fit one MPI_Allgatherv up to INT_MAX elements in all (2e9
+ * photons); beyond that each rank's part is broadcast from it in pieces of at most CHUNK
+ * elements (the same calls on every rank). */
+static void comm_allgatherv(void *user, const void *send, void *recv, const size_t *counts, size_t elem_bytes)
+{
+    const rd_dist *d = user;
+    int K = d->size;
+    size_t total = 0;
+    for (int k = 0; k < K; k++) total += counts[k];
+    if (total == 0) return;
+    MPI_Datatype et;
+    MPI_Type_contiguous((int)elem_bytes, MPI_BYTE, &et);
+    MPI_Type_commit(&et);
+    if (total <= (size_t)INT_MAX) {
+        int *cn = malloc(2 * (size_t)K * sizeof *cn);
+        if (!cn) MPI_Abort(MPI_COMM_WORLD, 4); /* (as a failed collective: the job ends) */
+        int *displ = cn + K;
+        size_t at = 0;
+        for (int k = 0; k < K; k++) {
+            cn[k] = (int)counts[k];
+            displ[k] = (int)at;
+            at += counts[k];
+        }
+        /* in place when send is this rank's own place in recv (MPI forbids aliased buffers) */
+        const void *sb = send == (const char *)recv + (size_t)displ[d->rank] * elem_bytes ? MPI_IN_PLACE : send;
+        MPI_Allgatherv(sb, cn[d->rank], et, recv, cn, displ, et, MPI_COMM_WORLD);
+        free(cn);
+    } else {
+        char *at = recv;
+        for (int k = 0; k < K; k++) {
+            if (k == d->rank && counts[k] && at != send) memcpy(at, send, counts[k] * elem_bytes);
+            for (size_t i = 0; i < counts[k]; i += CHUNK) {
+                int n = (int)(counts[k] - i < CHUNK ? counts[k] - i : CHUNK);
+                MPI_Bcast(at + i * elem_bytes, n, et, k, MPI_COMM_WORLD);
+            }
+            at += counts[k] * elem_bytes;
+        }
+    }
+    MPI_Type_free(&et);
+}
+
 /* Launched by an MPI launcher? OpenMPI's mpirun sets OMPI_COMM_WORLD_SIZE in every rank; a PMIx
  * launcher (srun --mpi=pmix, prterun) sets PMIX_RANK. A plain run has neither. */
 static int launched_by_mpi(void)
@@ -84,7 +128,8 @@ rd_status rd_dist_start(int *argc, char ***argv, rd_dist **out, char *err, size_
     }
     MPI_Comm_rank(MPI_COMM_WORLD, &d->rank);
     MPI_Comm_size(MPI_COMM_WORLD, &d->size);
-    d->comm = (rd_comm){.rank = d->rank, .size = d->size, .user = d, .reduce = comm_reduce};
+    d->comm = (rd_comm){.rank = d->rank, .size = d->size, .user = d, .reduce = comm_reduce,
+                       .allgatherv = comm_allgatherv};
     *out = d;
     return RD_OK;
 }

@@ -201,7 +201,7 @@ static rd_status fail(char *err, size_t errlen, rd_status st, const char *msg)
 }
 
 /* Attach what ctx's method needs baked to ctx: `given`, or a bake made here (*own, which the
- * caller frees). */
+ * caller frees), by the ranks of ctx->comm together when there are several. */
 static rd_status attach_bake(rd_render_ctx *ctx, const rd_baked *given, int threads, const volatile int *cancel,
                              rd_baked **own, char *err, size_t errlen)
 {
@@ -216,6 +216,7 @@ static rd_status attach_bake(rd_render_ctx *ctx, const rd_baked *given, int thre
         bo.seed = -1;
         bo.threads = threads;
         bo.cancel = cancel; /* a cancel during the bake: RD_ERR_CANCELLED, nothing rendered */
+        bo.comm = ctx->comm; /* (the same status on every rank) */
         rd_bake_opts_for(&bo, needs);
         rd_status st = rd_bake(s, &bo, own, err, errlen);
         if (st != RD_OK) return st;
@@ -240,13 +241,15 @@ static rd_status attach_bake(rd_render_ctx *ctx, const rd_baked *given, int thre
 
 /* Progressive photon passes (bake/passes.c): trace pass `pass`'s photon maps and hand them to
  * ctx in place of the previous pass's (*cur, freed here unless it is pass 1's, which sets every
- * later pass's radius and lives until the render ends). The guide stays the first bake's. */
-static rd_status photon_pass(rd_render_ctx *ctx, unsigned maps, int pass, rd_baked **cur,
-                             const rd_baked *first, rd_render_stats *rs, char *err, size_t errlen)
+ * later pass's radius and lives until the render ends). The guide stays the first bake's. The
+ * ranks of ctx->comm trace each pass together; a cancel flag stops the tracing
+ * (RD_ERR_CANCELLED, on every rank). */
+static rd_status photon_pass(rd_render_ctx *ctx, unsigned maps, int pass, rd_baked **cur, const rd_baked *first,
+                             const volatile int *cancel, rd_render_stats *rs, char *err, size_t errlen)
 {
     const rd_scene *s = ctx->scene;
     rd_baked *next = NULL;
-    rd_status st = rd_bake_photon_pass(s, maps, pass, ctx->seed, ctx->threads, &next, err, errlen);
+    rd_status st = rd_bake_photon_pass(s, maps, pass, ctx->seed, ctx->threads, cancel, ctx->comm, &next, err, errlen);
     if (st != RD_OK) return st;
     if (pass == 1) {
         ctx->photons_first = rd_baked_map(next);
@@ -298,13 +301,11 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
     const rd_comm *comm = ctx.comm;
     res->stats.threads = ctx.threads;
 
-    /* What the method needs baked: given, or baked here (its time is part of the render). */
+    /* What the method needs baked: given, or baked here (its time is part of the render). A
+     * cancel stops the bake: RD_ERR_CANCELLED, on every rank (the ranks bake together and agree
+     * on the bake's outcome). */
     rd_baked *own = NULL;
-    /* One process: a cancel stops its bake. Several ranks bake alike and must reach the
-     * passes' agreement together, so their bake runs to its end and the first agreement stops
-     * them all. */
-    const volatile int *bake_cancel = ctx.comm ? NULL : o->cancel;
-    rd_status st = attach_bake(&ctx, o->baked, o->threads, bake_cancel, &own, err, errlen);
+    rd_status st = attach_bake(&ctx, o->baked, o->threads, o->cancel, &own, err, errlen);
     if (st != RD_OK) return st;
     /* Progressive photon passes: pass 1's maps are traced here (the bake's own maps serve its
      * guide); the passes go on between render passes, pass i for samples
@@ -314,7 +315,7 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
     rd_baked *pass_bake = NULL, *first_bake = NULL;
     ctx.radius_scale = 1.0;
     if (pass_maps) {
-        if ((st = photon_pass(&ctx, pass_maps, 1, &pass_bake, NULL, &res->stats, err, errlen)) != RD_OK) {
+        if ((st = photon_pass(&ctx, pass_maps, 1, &pass_bake, NULL, o->cancel, &res->stats, err, errlen)) != RD_OK) {
             rd_baked_free(own);
             return st;
         }
@@ -375,8 +376,13 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
             /* Samples [done, done + n) stay within one photon pass. */
             int ip = (s0 + done) / s->photons.pass_spp + 1;
             if (ip != ctx.photon_pass &&
-                (st = photon_pass(&ctx, pass_maps, ip, &pass_bake, first_bake, &res->stats, err, errlen)) != RD_OK)
-                goto done;
+                (st = photon_pass(&ctx, pass_maps, ip, &pass_bake, first_bake, o->cancel, &res->stats, err, errlen)) != RD_OK) {
+                /* A cancel while tracing a later pass ends the render with what it has. */
+                if (st != RD_ERR_CANCELLED) goto done;
+                st = RD_OK;
+                res->stats.cancelled = 1;
+                break;
+            }
             if (n > ip * s->photons.pass_spp - (s0 + done)) n = ip * s->photons.pass_spp - (s0 + done);
             /* (Several ranks: the pass below finds the deadline at its first pixel, and they agree.) */
             if (!comm && deadline < INFINITY && now_seconds(clk) >= deadline) { res->stats.timed_out = 1; break; }
