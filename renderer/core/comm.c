@@ -2,10 +2,9 @@
  * bake, the render and the comparison share: agreeing on an outcome, and a broadcast. */
 #include "core/rd_core.h"
 
+#include <stdint.h>
 #include <stdio.h>
-#include <stdlib.h>
-
-enum { RD_COMM_BCAST_MAX_RANKS_ON_STACK = 64 };
+#include <string.h>
 
 rd_status rd_comm_agree(const rd_comm *c, rd_status st, const char *what, char *err, size_t errlen)
 {
@@ -17,17 +16,20 @@ rd_status rd_comm_agree(const rd_comm *c, rd_status st, const char *what, char *
     return (rd_status)v;
 }
 
+/* A broadcast as an all-reduce sum to which every rank but the root adds zeros: exact (unsigned
+ * integers), and in pieces of a buffer on the stack, so it allocates nothing (an allocation that
+ * failed on one rank between collectives would leave the others waiting for it). */
 void rd_comm_bcast(const rd_comm *c, void *buf, size_t bytes, int root)
 {
     if (!c || c->size <= 1 || bytes == 0) return;
-    size_t counts[RD_COMM_BCAST_MAX_RANKS_ON_STACK], *cn = counts;
-    if (c->size > RD_COMM_BCAST_MAX_RANKS_ON_STACK) cn = NULL;
-    /* (more ranks than the stack array: one count at a time would not match the hook's
-     * contract, so the counts go on the heap; a failed allocation ends the job, as a failed
-     * collective does) */
-    if (!cn && !(cn = calloc((size_t)c->size, sizeof *cn))) abort();
-    for (int k = 0; k < c->size; k++) cn[k] = k == root ? bytes : 0;
-    /* the root's part is buf itself, in place; the others send nothing */
-    c->allgatherv(c->user, buf, buf, cn, 1);
-    if (cn != counts) free(cn);
+    uint32_t piece[4096];
+    unsigned char *b = buf;
+    for (size_t off = 0; off < bytes; off += sizeof piece) {
+        size_t n = bytes - off < sizeof piece ? bytes - off : sizeof piece;
+        size_t words = (n + sizeof *piece - 1) / sizeof *piece;
+        memset(piece, 0, words * sizeof *piece);
+        if (c->rank == root) memcpy(piece, b + off, n);
+        c->reduce(c->user, piece, words, RD_COMM_UINT32, RD_COMM_SUM, -1);
+        memcpy(b + off, piece, n);
+    }
 }
