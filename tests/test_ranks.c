@@ -96,8 +96,10 @@ static void fake_allgatherv(void *user, const void *send, void *recv, const size
     pthread_barrier_wait(&w->bar);
     char *at = recv;
     for (int k = 0; k < w->size; k++) {
-        if (counts[k] && at != w->bufs[k]) memcpy(at, w->bufs[k], counts[k] * elem_bytes); /* (else in place) */
-        at += counts[k] * elem_bytes;
+        size_t bytes = counts[k] * elem_bytes;
+        if (!bytes) continue; /* (recv may be NULL when every count is 0: no arithmetic on it) */
+        if (at != w->bufs[k]) memcpy(at, w->bufs[k], bytes); /* (else in place) */
+        at += bytes;
     }
     pthread_barrier_wait(&w->bar);
 }
