@@ -1,19 +1,24 @@
 #!/usr/bin/env bash
-# Make the gallery (docs/gallery.md): every scene in scenes/ rendered by `delta` and by `guided`
-# at equal time, each measured against a longer `delta` reference, by `photonmarch compare`
-# (docs/compare.md). For each scene it runs
+# Make the gallery (docs/gallery.md): every scene in scenes/ rendered by `delta`, `guided` and
+# `guided-unbiased` at equal time (the guided bakes charged), each measured against a longer
+# `delta` reference, by `photonmarch compare` (docs/compare.md). For each scene it runs
 #
-#   photonmarch compare scenes/NAME.json --methods delta,guided --equal time --budget B --runs 1
-#       --ref-time R --ref-spp 1000000 --threads 2 --set camera.resolution=[W/2,H/2] -o out/gallery/NAME
+#   photonmarch compare scenes/NAME.json --methods delta,guided,guided-unbiased --equal time
+#       --budget B --runs 1 --ref-time R --ref-spp 1000000 --threads 2
+#       --set camera.resolution=[W/D,H/D] -o out/gallery/NAME
 #
-# (W x H the scene's own resolution, halved so that the budget buys more samples per pixel),
-# then copies the three pictures (delta, guided, reference; PNG) into docs/images/gallery/
-# and writes the tables between the markers <!-- gallery:begin --> and <!-- gallery:end --> of
-# docs/gallery.md (the text around them is kept).
+# (W x H the scene's own resolution, divided by D = 2, or 4 when W/2 is over 160, so that every
+# picture is at most 160 pixels wide and the budget buys more samples per pixel),
+# recording its wall time and the load average (/proc/loadavg) at its start and its end, then
+# copies the four pictures (delta, guided, guided-unbiased, reference; PNG) into
+# docs/images/gallery/ and writes, between the markers <!-- gallery:begin --> and
+# <!-- gallery:end --> of docs/gallery.md (the text around them is kept), a summary table (one
+# row per scene: guided's and guided-unbiased's efficiency relative to delta, the winner,
+# guided's bias share, the load) and below it each scene's pictures and table.
 #
 # Usage: scripts/make-gallery.sh [options] [NAME...]     (default: every scene in scenes/)
-#   --budget B     seconds per run, the guided bake included (default 40)
-#   --ref-time R   seconds of the delta reference (default 150)
+#   --budget B     seconds per run, the guided bakes included (default 10)
+#   --ref-time R   seconds of the delta reference (default 60)
 #   --bin PATH     the photonmarch binary (default build/photonmarch; built with make if stale)
 #   --force        render again even when out/gallery/NAME holds this very comparison
 #   --table-only   render nothing: rebuild the pictures and tables from out/gallery/
@@ -26,8 +31,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-B=40
-R=150
+B=10
+R=60
+METHODS=delta,guided,guided-unbiased
 BIN=build/photonmarch
 FORCE=0
 TABLE_ONLY=0
@@ -37,16 +43,22 @@ PAGE=docs/gallery.md
 MAX_KB=150
 # Scenes left out of the default run, with the reason (shown in the page).
 declare -A SKIP=(
-    [dense-512]="its 0.57 GB grid (scripts/make-volumes.sh) is noise-block.json voxelised at 512^3, made for the free-path benchmark; noise-block.json, the same medium, is in the gallery. Loading it alone (\`photonmarch info scenes/dense-512.json\`) took 305 s of wall time on the gallery's machine, more than a whole scene's budget"
-    [plume-1024]="its 0.22 GB sparse grid (scripts/make-volumes.sh) loads in 36 s here, but a comparison of it would have taken the gallery past its hour (the other scenes used it up)"
+    [dense-512]="its 0.57 GB grid (scripts/make-volumes.sh) is noise-block.json voxelised at 512^3, made for the free-path benchmark; noise-block.json, the same medium, is in the gallery. Loading it alone (\`photonmarch info scenes/dense-512.json\`) took 305 s of wall time when the gallery was first made (load average about 11), more than a whole scene's run; the grid was not made again for this gallery"
+    [plume-1024]="its 0.22 GB sparse grid (scripts/make-volumes.sh) loaded in 36 s when the gallery was first made, and a comparison of it did not fit that gallery's hour; the grid was not made again for this gallery, so that figure was not measured again"
 )
 
 # Scenes that get a longer budget than B, with the reason (shown in the page). The budget must
-# buy guided its bake and one full pass over the image (compare refuses less).
+# buy each guided method its bake and one full pass over the image (compare refuses less).
+# Measured for this gallery with `photonmarch render SCENE --method M --spp 1 --no-cache
+# --threads 2 --set camera.resolution=[W/2,H/2]` under nice 19 (load average 4-7): on every
+# scene without glass but one, bake and pass took 0.1-5.8 s, so the budgets that clouds-low,
+# hetero-forward and plume-env-dense had when bakes took tens of seconds under a load of 11
+# are gone. noise-block and the three scenes with glass need more.
 declare -A LONGER=(
-    [clouds-low]="120:at 40 s guided could not finish one pass over the 128x96 image (its bake took 4.0 s; load average 11): compare refused the run"
-    [hetero-forward]="150:at 40 s guided's bake alone took 64.7 s (142 s in a first attempt with another comparison running beside it; hetero-isotropic's, the same scene with g = 0, took 15.3 s): compare refused the run"
-    [plume-env-dense]="120:at 40 s guided's bake alone took 36.6 s, leaving too little for one pass over the image: compare refused the run"
+    [noise-block]="20:guided's bake and one pass took 22.6 s (14.9 s of bake) when measured, while a benchmark ran beside it at normal priority; its bake was 11.7 s in the first gallery: the procedural noise is evaluated at every photon step"
+    [exp1-point]="40:guided's bake and one pass at 320x240 took 17 s, guided-unbiased's 25 s, mostly the preparation before the bake (9.8 s and 23.4 s), which does not shrink with the image"
+    [glass-fog]="60:guided's bake and one pass at 320x240 took 43.5 s (30 s of preparation, 13.4 s of bake); guided-unbiased's 3.0 s"
+    [exp2-directional]="120:at 320x240 one pass of guided did not finish within 60 s after its 7.4-s bake, and guided-unbiased's bake alone took 45.6 s: the dense medium inside the glass knot (the budget is a guess for 160x120, a quarter of those pixels)"
 )
 
 NAMES=()
@@ -68,6 +80,7 @@ for f in scenes/*.json; do ALL+=("$(basename "$f" .json)"); done
 command -v jq >/dev/null || { echo "make-gallery.sh: needs jq" >&2; exit 2; }
 
 say() { echo "make-gallery: $*" >&2; }
+IFS=, read -r -a WHO <<< "$METHODS"
 
 build_if_stale() {
     if [ "$BIN" = build/photonmarch ] && ! make -q build/photonmarch 2>/dev/null; then
@@ -92,16 +105,17 @@ budget_of() {
 
 # The compare command for one scene, as one line (also what the page shows).
 compare_cmd() {
-    local name=$1 w h
+    local name=$1 w h d=2
     w=$(jq '.camera.resolution[0]' "scenes/$name.json")
     h=$(jq '.camera.resolution[1]' "scenes/$name.json")
-    echo "$BIN compare scenes/$name.json --methods delta,guided --equal time --budget $(budget_of "$name")" \
+    while [ $((w / d)) -gt 160 ]; do d=$((d * 2)); done
+    echo "$BIN compare scenes/$name.json --methods $METHODS --equal time --budget $(budget_of "$name")" \
          "--runs 1 --ref-time $R --ref-spp 1000000 --threads 2" \
-         "--set camera.resolution=[$((w / 2)),$((h / 2))] -o $OUT/$name"
+         "--set camera.resolution=[$((w / d)),$((h / d))] -o $OUT/$name"
 }
 
 run_one() {
-    local name=$1 cmd dir=$OUT/$1 t0 t1 rc
+    local name=$1 cmd dir=$OUT/$1 t0 t1 l0 rc
     cmd=$(compare_cmd "$name")
     if [ $FORCE = 0 ] && [ -f "$dir/metrics.json" ] && [ -f "$dir/command.txt" ] \
         && [ "$(cat "$dir/command.txt")" = "$cmd" ] \
@@ -112,11 +126,13 @@ run_one() {
     say "$name: $cmd"
     mkdir -p "$dir"
     t0=$(date +%s)
+    l0=$(cut -d' ' -f1-3 /proc/loadavg)
     rc=0
     # shellcheck disable=SC2086  # the command is one line of words without spaces inside
     nice -n 19 $cmd -q > "$dir/table.txt" 2> "$dir/stderr.txt" || rc=$?
     t1=$(date +%s)
-    echo "$((t1 - t0)) $(cut -d' ' -f1-3 /proc/loadavg)" > "$dir/wall.txt"
+    # wall seconds, then the load average (1, 5, 15 min) at the start and at the end
+    echo "$((t1 - t0)) $l0 $(cut -d' ' -f1-3 /proc/loadavg)" > "$dir/wall.txt"
     if [ $rc = 0 ]; then
         echo "$cmd" > "$dir/command.txt"
         say "$name: done in $((t1 - t0)) s; report $dir/index.html"
@@ -127,7 +143,7 @@ run_one() {
 }
 
 # A PNG of compare's into docs/images/gallery/, checked against MAX_KB (at these sizes, at most
-# 160x120 pixels, a PNG is under 60 KB: 3 bytes a pixel before compression).
+# 160x128 pixels, a PNG is under 60 KB: 3 bytes a pixel before compression).
 copy_png() {
     local src=$1 dst=$2
     cp "$src" "$dst"
@@ -151,47 +167,58 @@ section() {
         echo
         return
     fi
-    for who in delta guided reference; do
+    local who w h dw
+    for who in "${WHO[@]}" reference; do
         copy_png "$dir/$who.png" "$IMG/$name-$who.png"
     done
-    local w h
     w=$(jq .width "$m"); h=$(jq .height "$m")
-    echo "| delta | guided | reference (delta, $(num .reference.seconds "$m") s, $(spp .reference.spp "$m") spp) |"
-    echo "|---|---|---|"
-    echo "| <img src=\"images/gallery/$name-delta.png\" width=\"$((w * 2))\" alt=\"$name: delta\"> |" \
-         "<img src=\"images/gallery/$name-guided.png\" width=\"$((w * 2))\" alt=\"$name: guided\"> |" \
-         "<img src=\"images/gallery/$name-reference.png\" width=\"$((w * 2))\" alt=\"$name: reference\"> |"
+    dw=$((w * 2))
+    echo "| delta | guided | guided-unbiased | reference (delta, $(num .reference.seconds "$m") s, $(spp .reference.spp "$m") spp) |"
+    echo "|---|---|---|---|"
+    echo "|$(for who in "${WHO[@]}" reference; do
+        printf ' <img src="images/gallery/%s-%s.png" width="%d" alt="%s: %s"> |' "$name" "$who" "$dw" "$name" "$who"
+    done)"
     echo
-    echo "| method | time (s, bake included) | bake (s) | spp | RMSE | bias² | variance |"
-    echo "|---|---|---|---|---|---|---|"
-    for who in delta guided; do
+    echo "| method | time (s, bake included) | bake (s) | spp | RMSE | bias² | variance | efficiency / delta's | bias share |"
+    echo "|---|---|---|---|---|---|---|---|---|"
+    for who in "${WHO[@]}"; do
         local q=".methods[] | select(.label == \"$who\")"
         echo "| $who | $(num "$q.seconds" "$m") | $(num "$q.bake_seconds" "$m") | $(spp "$q.spp" "$m")" \
-             "| $(num "$q.rmse" "$m") | $(num "$q.bias2" "$m") | $(num "$q.variance" "$m") |"
+             "| $(num "$q.rmse" "$m") | $(num "$q.bias2" "$m") | $(num "$q.variance" "$m")" \
+             "| $(jq -r "($q.efficiency_vs_baseline) // \"–\" | if type == \"number\" then (. * 100 | round / 100 | tostring) + \"x\" else . end" "$m")" \
+             "| $(jq -r "($q.bias_share) // \"–\" | if type == \"number\" then (. * 100 | round | tostring) + \"%\" else . end" "$m") |"
     done
+    echo
+    echo "compare's verdict: $(jq -r '.summary.verdict // "none"' "$m")."
     echo
     [ -n "${LONGER[$name]:-}" ] && \
         echo "**Budget $(budget_of "$name") s, not $B s:** ${LONGER[$name]#*:}." && echo
-    echo "${w}x$h pixels. Made by \`$(cat "$dir/command.txt")\` ($(cut -d' ' -f1 "$dir/wall.txt") s of wall time," \
-         "load average $(cut -d' ' -f2-4 "$dir/wall.txt") at the end)."
+    echo "${w}x$h pixels. Made by \`$(cat "$dir/command.txt")\` ($(cut -d' ' -f1 "$dir/wall.txt") s of wall time;" \
+         "load average (1, 5, 15 min) $(cut -d' ' -f2-4 "$dir/wall.txt") at the start, $(cut -d' ' -f5-7 "$dir/wall.txt") at the end)."
     [ "$(jq .reference.too_noisy "$m")" = true ] && \
-        echo "compare flags the reference as **too noisy to rank** the two methods on this scene (its variance is over a quarter of the smaller MSE)."
+        echo "compare flags the reference as **too noisy to rank** the methods on this scene (its variance is $(jq -r '.reference.variance_share * 100 | round' "$m")% of the smallest MSE, over the limit of $(jq -r '.reference.variance_limit * 100 | round' "$m")%)."
     echo
 }
 
-# The summary row of one scene: samples, RMSEs and their ratio, guided's bias share.
+# The summary row of one scene: guided's and guided-unbiased's efficiency over delta's (compare's
+# efficiency_vs_baseline), the winner (compare's; none when the reference is too noisy to rank,
+# then the highest efficiency is named), guided's bias share, the 1-min load average at the
+# start and the end of the scene's run.
 summary_row() {
-    local name=$1 m=$OUT/$1/metrics.json label=$1
-    [ -f "$m" ] || { echo "| [$name](#$name) | not rendered (below) | | | | | | |"; return; }
+    local name=$1 m=$OUT/$1/metrics.json label=$1 load
+    [ -f "$m" ] || { echo "| [$name](#$name) | not rendered (below) | | | | |"; return; }
     [ -n "${LONGER[$name]:-}" ] && label="$name (B = $(budget_of "$name") s)"
-    jq -r --arg lab "$label" --arg n "$name" '
-        (.methods[] | select(.label == "delta")) as $d | (.methods[] | select(.label == "guided")) as $g
-        | [$lab, $n, $d.spp, $g.spp, $g.bake_seconds, $d.rmse, $g.rmse, $g.bias2, $g.mse,
-           (if .reference.too_noisy then "yes" else "no" end)] | @tsv' "$m" |
-    awk -F'\t' '{
-        r = $6 / $7
-        printf "| [%s](#%s) | %.0f | %.3g (%.1f s) | %.3g | %.3g | %.2f (%s lower) | %.0f%% | %s |\n",
-            $1, $2, $3, $4, $5, $6, $7, r, (r > 1 ? "guided" : "delta"), 100 * ($8 > 0 ? $8 : 0) / $9, $10 }'
+    load=$(awk '{ printf "%s → %s", $2, $5 }' "$OUT/$name/wall.txt")
+    jq -r --arg lab "$label" --arg n "$name" --arg load "$load" '
+        def m($l): .methods[] | select(.label == $l);
+        def x: if type == "number" then (. * 100 | round / 100 | tostring) + "x" else "–" end;
+        def pc: if type == "number" then (. * 100 | round | tostring) + "%" else "–" end;
+        ([.methods[] | select(.efficiency != null)] | max_by(.efficiency) | .label) as $best
+        | "| [\($lab)](#\($n)) | \(m("guided").efficiency_vs_baseline | x) | \(m("guided-unbiased").efficiency_vs_baseline | x)"
+          + " | \(if .summary.winner then .summary.winner
+                  elif .reference.too_noisy then "none: reference too noisy (highest: \($best))"
+                  else "none (highest: \($best))" end)"
+          + " | \(m("guided").bias_share | pc) | \($load) |"' "$m"
 }
 
 write_page() {
@@ -202,12 +229,14 @@ write_page() {
     {
         sed -n '1,/^<!-- gallery:begin -->$/p' "$PAGE"
         echo
-        echo "Budget B = $B s per run (the guided bake included), reference R = $R s of \`delta\`;"
+        echo "Budget B = $B s of wall time per run (the guided bakes included) unless a scene says otherwise," \
+             "one run per method (\`--runs 1\`), reference R = $R s of \`delta\`;" \
+             "each scene at half its own resolution (a quarter for the 640x480 ones), as each section says;"
         echo "machine: $(nproc) cores ($(lscpu | sed -n 's/^Model name: *//p' | head -1)), $(free -g | awk '/^Mem:/ {print $2}') GB;"
         echo "load average (1, 5, 15 min) when the renders began: $(cat "$OUT/load-start.txt" 2>/dev/null || echo unknown)."
         echo
-        echo "| scene | delta spp | guided spp (its bake) | delta RMSE | guided RMSE | delta / guided RMSE | guided bias² / MSE | reference too noisy to rank |"
-        echo "|---|---|---|---|---|---|---|---|"
+        echo "| scene | guided: efficiency / delta's | guided-unbiased: efficiency / delta's | winner | guided: bias share of its error | load (1 min) at start → end |"
+        echo "|---|---|---|---|---|---|"
         for name in "${ALL[@]}"; do
             [ -n "${SKIP[$name]:-}" ] && continue
             [ -n "$(missing_volume "scenes/$name.json")" ] && continue
