@@ -56,9 +56,6 @@ declare -A SKIP=(
 # are gone. noise-block, the three scenes with glass, and (found by this gallery's first
 # attempt at 10 s) cloud, clouds-high and hard-dense-block need more.
 declare -A LONGER=(
-    [cloud]="30:at 10 s compare refused the run: guided's bake took 2.9 s and no pass over the 128x128 image was done in the rest; the tile selection's pilot (8 samples of each estimator on a quarter of the pixels) is expensive here, where a delta sample costs much (max_depth 64 in a dense cloud): \`render --spp 4\` spent 48 s preparing on one thread under load"
-    [clouds-high]="30:at 10 s compare refused the run as on cloud (guided's bake 2.6 s, then no full pass): the same pilot cost in a dense, high-variation cloud"
-    [hard-dense-block]="30:at 10 s compare refused the run: guided-unbiased's bake took 18.4 s beside another worktree's tests (4.6 s when measured alone at load 6)"
     [noise-block]="20:guided's bake and one pass took 22.6 s (14.9 s of bake) when measured, while a benchmark ran beside it at normal priority; its bake was 11.7 s in the first gallery: the procedural noise is evaluated at every photon step"
     [exp1-point]="40:guided's bake and one pass at 320x240 took 17 s, guided-unbiased's 25 s, mostly the preparation before the bake (9.8 s and 23.4 s), which does not shrink with the image"
     [glass-fog]="60:guided's bake and one pass at 320x240 took 43.5 s (30 s of preparation, 13.4 s of bake); guided-unbiased's 3.0 s"
