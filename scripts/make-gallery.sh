@@ -53,8 +53,10 @@ declare -A SKIP=(
 # --threads 2 --set camera.resolution=[W/2,H/2]` under nice 19 (load average 4-7): on every
 # scene without glass but one, bake and pass took 0.1-5.8 s, so the budgets that clouds-low,
 # hetero-forward and plume-env-dense had when bakes took tens of seconds under a load of 11
-# are gone. noise-block, the three scenes with glass, and (found by this gallery's first
-# attempt at 10 s) cloud, clouds-high and hard-dense-block need more.
+# are gone. noise-block and the three scenes with glass need more. (A first attempt at 10 s,
+# starved by other work at normal priority, also had cloud, clouds-high and hard-dense-block
+# refused; with the machine to itself hard-dense-block's bakes take under 1.2 s, so they keep B
+# until a quiet run shows otherwise.)
 declare -A LONGER=(
     [noise-block]="20:guided's bake and one pass took 22.6 s (14.9 s of bake) when measured, while a benchmark ran beside it at normal priority; its bake was 11.7 s in the first gallery: the procedural noise is evaluated at every photon step"
     [exp1-point]="40:guided's bake and one pass at 320x240 took 17 s, guided-unbiased's 25 s, mostly the preparation before the bake (9.8 s and 23.4 s), which does not shrink with the image"
