@@ -65,6 +65,10 @@ Test(guided_unbiased, equals_delta_forward_scattering_spot_and_environment, .tim
     rd_render_result d = rt_render(s, "delta", 256, 11, NULL);
     rd_render_result g = rt_render(s, "guided-unbiased", 128, 12, NULL);
     rt_expect_same(&d, &g, "g = 0.9, spot + environment");
+    /* The report's guide reads (guided_paths): counted for the guided paths, none for delta. */
+    cr_expect(g.stats.flight_segments > 0 && g.stats.guide_vertices > 0, "guided-unbiased: %llu segments, %llu vertices",
+              (unsigned long long)g.stats.flight_segments, (unsigned long long)g.stats.guide_vertices);
+    cr_expect(d.stats.flight_segments == 0 && d.stats.guide_vertices == 0, "delta counted guide reads");
     /* The camera ray's flights guided, the secondary ones by delta tracking. */
     rd_scene *s1 = rt_scene("gu_fwd1.json", scene_json(0.9, -2.5, ENV, ",\"secondary\":false"));
     rd_render_result g1 = rt_render(s1, "guided-unbiased", 128, 13, NULL);
