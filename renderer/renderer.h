@@ -557,6 +557,15 @@ double rd_cmp_ref_spp_needed(double spp, double ref_var, double best_mse);
  * one or the reference is too noisy to rank them. */
 int rd_cmp_baseline(const rd_cmp_summary *S);
 int rd_cmp_winner(const rd_cmp_summary *S);
+/* Why a row's efficiency is what it is (docs/compare.md, "Per sample"): per sample per pixel,
+ * its render time, the bake left out ((seconds - bake_seconds) / spp; the pilot and the method's
+ * other set-up stay in), and the variance of one sample (variance x spp). For an unbiased row
+ * at equal time T, 1 / efficiency = MSE T = (variance per sample x time per sample) x T / (T -
+ * bake), so its efficiency over another's is the inverse of the product of these two ratios,
+ * times the ratio of the shares of T left after the bake. NaN when unknown (no samples, an
+ * added image, no variance). */
+double rd_cmp_time_per_sample(const rd_cmp_row *r);
+double rd_cmp_variance_per_sample(const rd_cmp_row *r);
 /* Share of one run's own error that is bias: max(bias2, 0) / (max(bias2, 0) + variance), in
  * [0, 1]; NaN when unknown (an added image). */
 double rd_cmp_bias_share(const rd_cmp_row *r);

@@ -316,7 +316,9 @@ static cJSON *json_row(const rd_comparison *c, const rd_cmp_row *r, int i)
     int b = rd_cmp_baseline(&c->sum);
     json_num(o, "efficiency_vs_baseline", b >= 0 ? r->efficiency / c->rows[b].efficiency : NAN);
     json_num(o, "bias_share", rd_cmp_bias_share(r));
-    char line[256];
+    json_num(o, "seconds_per_sample", rd_cmp_time_per_sample(r));
+    json_num(o, "variance_per_sample", rd_cmp_variance_per_sample(r));
+    char line[512];
     rd_cmp_sentence(&c->sum, i, line, sizeof line);
     cJSON_AddStringToObject(o, "summary", line);
     cJSON *im = cJSON_AddObjectToObject(o, "images");
