@@ -841,11 +841,36 @@ static int lines_after(const char *text, const char *marker)
  * minutes of tracing, which a prompt cancel cuts to a fraction of a second. */
 #define LONG_TRACE "--set", "photons.max_depth=1", "--set", "photons.store_direct=false"
 
-/* Ctrl-C or SIGTERM while `bake` traces (the event: its line saying so, printed once the
- * cancelling handler is in place): the trace stops promptly (the child's CPU time, not the
- * clock's, so the machine's load does not matter), one line says nothing was written, the exit
- * status is 128 + the signal, the previous bake's files are as they were and no temporary is
- * left. */
+/* The line a command prints once its cancelling handler is in place, before a bake. */
+#define CANCEL_READY "Ctrl-C stops and writes nothing"
+
+/* Start `argv` (a long bake), wait for its CANCEL_READY line (the event), send it `sig` and wait
+ * for it. Checks what every cancelled bake owes: exit 128 + sig; a prompt stop (the child's CPU
+ * time, not the clock's, so the machine's load does not matter); one line after the ready line,
+ * the last, starting with `last`. The child's stderr is left in err. */
+static void cancel_bake(char *const argv[], int sig, const char *last, char *err, size_t errlen)
+{
+    child c = spawn_until(argv, CANCEL_READY, err, errlen);
+    kill(c.pid, sig);
+    double cpu = 0;
+    int code = child_wait_cpu(&c, err, errlen, &cpu);
+    cr_expect(code == 128 + sig, "signal %d: exit %d (expected %d): %s", sig, code, 128 + sig, err);
+    cr_expect(cpu < 30.0, "signal %d: the bake went on for %.1f CPU s after it", sig, cpu);
+    cr_expect(strstr(last_line(err), last) == last_line(err), "signal %d: the last line is not the cancel's: %s", sig,
+              err);
+    cr_expect(lines_after(err, CANCEL_READY) == 1, "signal %d: not one line: %s", sig, err);
+}
+
+/* Nothing was written into the bake cache `cache` (it may not even exist). */
+static void expect_cache_untouched(const char *cache)
+{
+    cr_expect(access(cache, F_OK) != 0 || (count_entries(cache, ".pmap") == 0 && count_entries(cache, ".guide") == 0 &&
+                                            count_entries(cache, ".tmp") == 0),
+              "the cancelled bake wrote into the cache %s", cache);
+}
+
+/* Ctrl-C or SIGTERM while `bake` traces: it stops promptly (cancel_bake), one line says nothing
+ * was written, the previous bake's files are as they were and no temporary is left. */
 Test(cli, bake_signal_while_tracing_stops_and_writes_nothing, .timeout = 240)
 {
     const char *bin = getenv("PHOTONMARCH_BIN");
@@ -865,15 +890,7 @@ Test(cli, bake_signal_while_tracing_stops_and_writes_nothing, .timeout = 240)
     for (int i = 0; i < 2; i++) {
         char *argv[] = {(char *)bin, "bake", (char *)tiny_scene(), "-o", prefix, "--photons", "1000000000",
                         "--threads", "2", LONG_TRACE, NULL};
-        child c = spawn_until(argv, "Ctrl-C stops and writes nothing", err, sizeof err);
-        kill(c.pid, sigs[i]);
-        double cpu = 0;
-        int code = child_wait_cpu(&c, err, sizeof err, &cpu);
-        cr_expect(code == 128 + sigs[i], "signal %d: exit %d (expected %d): %s", sigs[i], code, 128 + sigs[i], err);
-        cr_expect(cpu < 30.0, "signal %d: the bake went on for %.1f CPU s after it", sigs[i], cpu);
-        cr_expect(strstr(last_line(err), "photonmarch bake: interrupted while baking; nothing written") == last_line(err),
-                  "signal %d: the last line is not the cancel's: %s", sigs[i], err);
-        cr_expect(lines_after(err, "Ctrl-C stops and writes nothing") == 1, "signal %d: not one line: %s", sigs[i], err);
+        cancel_bake(argv, sigs[i], "photonmarch bake: interrupted while baking; nothing written", err, sizeof err);
         cr_expect(same_bytes(pmap, pmap0) && same_bytes(guide, guide0), "signal %d: the previous bake was changed", sigs[i]);
         cr_expect(count_entries(dir, ".tmp") == 0, "signal %d: a temporary was left", sigs[i]);
     }
@@ -895,7 +912,7 @@ Test(cli, compare_signal_while_baking_stops_promptly, .timeout = 240)
     char *argv[] = {(char *)bin, "compare", (char *)tiny_scene(), "--methods", "guided,delta", "--reference", ref,
                     "--budget", "1", "--runs", "1", "--threads", "2", "-o", dir, "-q",
                     "--set", "photons.count=1000000000", LONG_TRACE, NULL};
-    child c = spawn_until(argv, "", err, sizeof err); /* started; the event is below */
+    child c = spawn_until(argv, "", err, sizeof err); /* started; the event is below (-q: no ready line) */
     wait_until_catching_sigterm(c.pid);
     kill(c.pid, SIGTERM);
     double cpu = 0;
@@ -906,9 +923,8 @@ Test(cli, compare_signal_while_baking_stops_promptly, .timeout = 240)
     cr_expect(access(dir, F_OK) != 0, "a report was written");
 }
 
-/* The same during `explain`'s bake (through the bake cache beside its outputs; the event: its
- * line saying Ctrl-C stops it): it stops promptly, says so in one line, and writes neither its
- * report nor into the cache. */
+/* The same during `explain`'s bake (through the bake cache beside its outputs): it stops
+ * promptly, says so in one line, and writes neither its report nor into the cache. */
 Test(cli, explain_signal_while_baking_stops_and_writes_nothing, .timeout = 240)
 {
     const char *bin = getenv("PHOTONMARCH_BIN");
@@ -920,19 +936,9 @@ Test(cli, explain_signal_while_baking_stops_and_writes_nothing, .timeout = 240)
     snprintf(cache, sizeof cache, "%s/.photonmarch-cache", dir);
     char *argv[] = {(char *)bin, "explain", (char *)tiny_scene(), "--pixel", "4,4", "-o", prefix, "--threads", "2",
                     "--set", "photons.count=1000000000", LONG_TRACE, NULL};
-    child c = spawn_until(argv, "Ctrl-C stops and writes nothing", err, sizeof err);
-    kill(c.pid, SIGINT);
-    double cpu = 0;
-    int code = child_wait_cpu(&c, err, sizeof err, &cpu);
-    cr_expect(code == 128 + SIGINT, "exit %d (expected %d): %s", code, 128 + SIGINT, err);
-    cr_expect(cpu < 30.0, "the bake went on for %.1f CPU s after SIGINT", cpu);
-    cr_expect(strstr(last_line(err), "photonmarch explain: interrupted while baking") == last_line(err),
-              "the last line is not the cancel's: %s", err);
-    cr_expect(lines_after(err, "Ctrl-C stops and writes nothing") == 1, "not one line: %s", err);
+    cancel_bake(argv, SIGINT, "photonmarch explain: interrupted while baking", err, sizeof err);
     cr_expect(access(report, F_OK) != 0, "a report was written");
-    cr_expect(access(cache, F_OK) != 0 || (count_entries(cache, ".pmap") == 0 && count_entries(cache, ".guide") == 0 &&
-                                            count_entries(cache, ".tmp") == 0),
-              "the cancelled bake wrote into the cache %s", cache);
+    expect_cache_untouched(cache);
 }
 
 /* The same during `render`'s bake (a guided method, through the bake cache beside the output):
@@ -952,18 +958,8 @@ Test(cli, render_signal_while_baking_stops_and_writes_nothing, .timeout = 240)
     copy_file(exr, exr0);
     char *argv[] = {(char *)bin, "render", (char *)tiny_scene(), "-o", exr, "--method", "guided", "--spp", "1",
                     "--threads", "2", "--set", "photons.count=1000000000", LONG_TRACE, NULL};
-    child c = spawn_until(argv, "Ctrl-C stops and writes nothing", err, sizeof err);
-    kill(c.pid, SIGTERM);
-    double cpu = 0;
-    int code = child_wait_cpu(&c, err, sizeof err, &cpu);
-    cr_expect(code == 128 + SIGTERM, "exit %d (expected %d): %s", code, 128 + SIGTERM, err);
-    cr_expect(cpu < 30.0, "the bake went on for %.1f CPU s after SIGTERM", cpu);
-    cr_expect(strstr(last_line(err), "photonmarch render: interrupted while baking") == last_line(err),
-              "the last line is not the cancel's: %s", err);
-    cr_expect(lines_after(err, "Ctrl-C stops and writes nothing") == 1, "not one line: %s", err);
+    cancel_bake(argv, SIGTERM, "photonmarch render: interrupted while baking", err, sizeof err);
     cr_expect(same_bytes(exr, exr0), "the previous image was changed");
     cr_expect(count_entries(dir, ".tmp") == 0, "a temporary was left beside the image");
-    cr_expect(access(cache, F_OK) != 0 || (count_entries(cache, ".pmap") == 0 && count_entries(cache, ".guide") == 0 &&
-                                            count_entries(cache, ".tmp") == 0),
-              "the cancelled bake wrote into the cache %s", cache);
+    expect_cache_untouched(cache);
 }
