@@ -29,15 +29,17 @@ static rd_baked *bake(const rd_scene *s)
     return b;
 }
 
-/* The tests guide every flight's distance, however thick (the default distance_tau_max
- * leaves the thick ones to delta tracking, which would hide the guided sampler from them);
- * the rule itself has its own test. */
-#define ALL_FLIGHTS ",\"distance_tau_max\":1e9"
+/* The tests guide every flight's distance, however thick and however deep in the path (the
+ * default distance_tau_max leaves the thick ones to delta tracking, and the default
+ * secondary = false the ones after a scattering event, which would hide the guided sampler
+ * from them); each rule has its own test. */
+#define THICK_FLIGHTS ",\"distance_tau_max\":1e9"
+#define DEEP_FLIGHTS ",\"secondary\":true"
+#define ALL_FLIGHTS THICK_FLIGHTS DEEP_FLIGHTS
 
 /* A heterogeneous medium (noise in an ellipsoid) of asymmetry g, lit by a spot at x = spot_x
- * aimed at it, and `lights` more. The guide keys in `extra` follow ALL_FLIGHTS unless they set
- * distance_tau_max themselves. */
-static const char *scene_json(double g, double spot_x, const char *lights, const char *extra)
+ * aimed at it, and `lights` more; `keys` are the guide's keys after "bands", as they are. */
+static const char *scene_json_exact(double g, double spot_x, const char *lights, const char *keys)
 {
     static char buf[4096];
     snprintf(buf, sizeof buf,
@@ -47,10 +49,20 @@ static const char *scene_json(double g, double spot_x, const char *lights, const
              "\"shape\":\"ellipsoid\",\"edge\":0.5},\"sigma_t\":2.5,\"albedo\":0.9,\"g\":%g}],"
              "\"lights\":[{\"type\":\"spot\",\"position\":[%g,2,1.5],\"look_at\":[-0.2,0,0],\"angle\":30,"
              "\"falloff\":8,\"intensity\":[20,16,12]}%s],"
-             "\"photons\":{\"count\":40000},\"guide\":{\"bands\":4%s%s},"
+             "\"photons\":{\"count\":40000},\"guide\":{\"bands\":4%s},"
              "\"settings\":{\"max_depth\":64,\"rr_depth\":3}}",
-             g, spot_x, lights, strstr(extra, "distance_tau_max") ? "" : ALL_FLIGHTS, extra);
+             g, spot_x, lights, keys);
     return buf;
+}
+
+/* The same with the guide keys in `extra` after ALL_FLIGHTS' two, each unless `extra` sets it
+ * itself (cJSON reads the first of two equal keys). */
+static const char *scene_json(double g, double spot_x, const char *lights, const char *extra)
+{
+    char keys[512];
+    snprintf(keys, sizeof keys, "%s%s%s", strstr(extra, "distance_tau_max") ? "" : THICK_FLIGHTS,
+             strstr(extra, "secondary") ? "" : DEEP_FLIGHTS, extra);
+    return scene_json_exact(g, spot_x, lights, keys);
 }
 
 static const char ENV[] = ",{\"type\":\"environment\",\"radiance\":[0.2,0.25,0.3]}";
@@ -70,7 +82,7 @@ Test(guided_unbiased, equals_delta_forward_scattering_spot_and_environment, .tim
               (unsigned long long)g.stats.flight_segments, (unsigned long long)g.stats.guide_vertices);
     cr_expect(d.stats.flight_segments == 0 && d.stats.guide_vertices == 0, "delta counted guide reads");
     /* The camera ray's flights guided, the secondary ones by delta tracking. */
-    rd_scene *s1 = rt_scene("gu_fwd1.json", scene_json(0.9, -2.5, ENV, ",\"secondary\":false"));
+    rd_scene *s1 = rt_scene("gu_fwd1.json", scene_json(0.9, -2.5, ENV, ",\"distance_tau_max\":1e9,\"secondary\":false"));
     rd_render_result g1 = rt_render(s1, "guided-unbiased", 128, 13, NULL);
     rt_expect_same(&d, &g1, "g = 0.9, spot + environment, camera flights only");
     /* The guide read through its band 0 alone (guide.eval_bands 1): other flights and
@@ -85,6 +97,29 @@ Test(guided_unbiased, equals_delta_forward_scattering_spot_and_environment, .tim
     rd_render_result_free(&g);
     rd_render_result_free(&d);
     rd_scene_free(s);
+}
+
+/* guide.secondary's default is false (docs/guided-unbiased.md, "Camera flights only"): with the
+ * key absent the render is the one with "secondary": false, bit for bit, and not the one with
+ * true (the selection off, so that every pixel is the method's; 16 samples, one seed). */
+Test(guided_unbiased, secondary_flights_are_delta_tracking_s_by_default, .timeout = 300)
+{
+    static const char *const extra[3] = {",\"distance_tau_max\":1e9", ",\"distance_tau_max\":1e9,\"secondary\":false",
+                                         ",\"distance_tau_max\":1e9,\"secondary\":true"};
+    static const char *const files[3] = {"gu_sec0.json", "gu_sec1.json", "gu_sec2.json"};
+    rd_render_result r[3];
+    for (int k = 0; k < 3; k++) {
+        rd_scene *s = rt_scene(files[k], scene_json_exact(0.9, -2.5, ENV, extra[k]));
+        s->settings.select = RD_SELECT_OFF;
+        r[k] = rt_render(s, "guided-unbiased", 16, 5, NULL);
+        rd_scene_free(s);
+    }
+    size_t bytes = sizeof(float) * 3 * r[0].image.w * r[0].image.h;
+    cr_expect(memcmp(r[0].image.rgb, r[1].image.rgb, bytes) == 0, "the default is not \"secondary\": false");
+    cr_expect(memcmp(r[0].image.rgb, r[2].image.rgb, bytes) != 0, "secondary true gives the default's image");
+    cr_expect(r[0].stats.flight_segments < r[2].stats.flight_segments, "%llu segments by default, %llu with secondary",
+              (unsigned long long)r[0].stats.flight_segments, (unsigned long long)r[2].stats.flight_segments);
+    for (int k = 0; k < 3; k++) rd_render_result_free(&r[k]);
 }
 
 Test(guided_unbiased, equals_delta_backward_scattering_every_light_type, .timeout = 600)

@@ -149,7 +149,7 @@ rd_status ld_parse_guide(ld_ctx *c, const cJSON *j, rd_guide_settings *g)
     g->distance_alpha = 0.2;
     g->pass_floor = 0.1;
     g->majorant_weight = 0.2;
-    g->secondary = 1;
+    g->secondary = 0; /* docs/guided-unbiased.md, "Camera flights only" (session 12) */
     g->distance_tau_max = 0.5; /* these three calibrated on hetero-forward and smoke-vdb */
     g->directions = 1;
     g->direction_weight = 0.25;
@@ -187,7 +187,7 @@ rd_status ld_parse_guide(ld_ctx *c, const cJSON *j, rd_guide_settings *g)
     LD_TRY(ld_get_num(c, j, path, "distance_alpha", 0, 0.2, 0, 1, 1, 0, &g->distance_alpha));
     LD_TRY(ld_get_num(c, j, path, "pass_floor", 0, 0.1, 0, 1, 0.5, 0, &g->pass_floor));
     LD_TRY(ld_get_num(c, j, path, "majorant_weight", 0, 0.2, 0, 0, 1, 1, &g->majorant_weight));
-    LD_TRY(ld_get_bool(c, j, path, "secondary", 1, &g->secondary));
+    LD_TRY(ld_get_bool(c, j, path, "secondary", 0, &g->secondary));
     /* The phase function keeps a share 1 - direction_weight > 0 of the continuations, so a
      * direction the guide's lobe misses is still drawn (p > 0 wherever the phase is). */
     LD_TRY(ld_get_num(c, j, path, "distance_tau_max", 0, 0.5, 0, 1, 1e300, 0, &g->distance_tau_max));

@@ -78,7 +78,8 @@ typedef struct {
     double distance_alpha; /* defensive weight of the distance pdf's uniform part, in (0, 1] */
     double pass_floor;   /* the guide strategy's least probability of scatter and of pass, (0, 0.5] */
     double majorant_weight; /* weight of the majorant (delta-tracking) strategy, in [0, 1) */
-    int secondary;       /* 1 (default): guide secondary flights too; 0: the camera ray's only */
+    int secondary;       /* 0 (default): guide the camera ray's flights only; 1: the flights
+                          * after a scattering event too */
     double distance_tau_max; /* guide a flight's distance only where its majorant optical depth
                               * is at most this (thicker flights: delta tracking's), > 0 */
     int directions;      /* 1 (default): continue from a vertex by a mixture of the guide's
