@@ -4,8 +4,8 @@
  *     guided: 1.4x delta's efficiency; 68% of its error is bias; per sample 3.1x the time and
  *     0.45x the variance
  * (the last part, why the ratio is what it is, when both rows have samples and a variance:
- * rd_cmp_time_per_sample, rd_cmp_variance_per_sample), and a verdict line naming the winner (the highest efficiency 1/(MSE x time), THEORY.md §7),
- * or why the methods are not ranked. Pure functions of the rows: report.c prints them under
+ * rd_cmp_time_per_sample, rd_cmp_variance_per_sample), and a verdict line naming the winner
+ * (the highest efficiency 1/(MSE x time), THEORY.md §7), or why the methods are not ranked. Pure functions of the rows: report.c prints them under
  * the table and writes them to metrics.json, report_page.c puts them in the page's header. */
 #include "compare/rd_compare.h"
 
