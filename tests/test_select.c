@@ -127,6 +127,39 @@ Test(select, an_epoch_takes_the_method_when_delta_s_paths_rarely_find_the_light)
     rd_select_free(&sel);
 }
 
+/* ---- Pooling: a tile's neighbours steady its estimate ---------------------------------------- */
+
+/* A 5x5-tile selection (40x40 pixels) whose every tile has the pilot statistics of fake_pilot:
+ * delta variance 1 at cost 1, the method variance 0.67 at cost 2.75 (V C 1.84 > 1: delta; the
+ * lens caustic's per-sample figures, docs/benchmarks.md "Session 13"), except where delta_v
+ * gives delta's variance in a tile. */
+static void pool_scene(rd_select *sel, const double *delta_v)
+{
+    char err[RD_ERRLEN];
+    cr_assert(rd_select_init(sel, 40, 40, 1.0, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(sel->tiles_x == 5 && sel->tiles_y == 5);
+    for (int k = 0; k < 25; k++) {
+        fake_pilot(sel, 2 * k, 1.0, delta_v[k], 1.0, 1.0);
+        fake_pilot(sel, 2 * k + 1, 1.0, 0.67, 1.0, 2.75);
+    }
+    rd_select_epoch(sel, NULL); /* no samples: the choice from these statistics */
+}
+
+Test(select, a_beam_across_the_tiles_still_goes_to_the_method)
+{
+    /* delta's variance 50x along the middle row of tiles (a thin beam its paths rarely find):
+     * every row tile's window holds two or three beam tiles of its six or nine, a pooled
+     * variance of 17 > 1.84, so the row goes to the method. A pooling robust to one tile's
+     * outlier must not lose this: a median of the window would drop the beam (three of nine). */
+    double v[25];
+    for (int k = 0; k < 25; k++) v[k] = k / 5 == 2 ? 50.0 : 1.0;
+    rd_select sel;
+    pool_scene(&sel, v);
+    for (int x = 0; x < 5; x++)
+        cr_assert(sel.guided[2 * 5 + x] == 1, "beam tile %d stayed with delta", x);
+    rd_select_free(&sel);
+}
+
 Test(select, epochs_end_at_4_16_64_and_only_with_epochs_on)
 {
     rd_select sel;
