@@ -9,6 +9,12 @@
     same settings does not remove (compare's bias^2 already has the reference's variance and
     the runs' variance / K taken out; it can come out slightly negative when there is none).
 
+  - per sample: each method's time per sample (seconds_per_sample, the bake left out) and
+    variance per sample (variance_per_sample, variance x spp) over delta's, so that a reader
+    sees whether an efficiency ratio comes from cost or from variance. For an unbiased method
+    the efficiency ratio is about ((T - bake) / T) / (time ratio x variance ratio).
+    (metrics.json files from before these fields existed give n/a.)
+
 then the per-scene details. A scene whose reference compare calls too noisy to rank is
 marked *; an MSE not above ref_var is "<ref" (the reference's noise hides the method's error).
 
@@ -126,7 +132,24 @@ def main():
     for suite, name, cells in out:
         print(f"| {suite} | {name} | " + " | ".join(fmt(v, ".2f") for v in cells) + " |")
     print()
-    print("n/a: not measurable (the method's MSE is not above the reference's variance, or the method is missing).")
+    print(f"## Per sample: time and variance over {a.base}'s (time per sample excludes the bake)")
+    print()
+    print(header)
+    print(rule)
+
+    def per_sample(x, base, rv):
+        keys = ("seconds_per_sample", "variance_per_sample")
+        if base is None or any(not isinstance(x.get(k), (int, float)) or not isinstance(base.get(k), (int, float))
+                               or not base.get(k) > 0 for k in keys):
+            return None
+        return tuple(x[k] / base[k] for k in keys)
+
+    out, _ = rows(per_sample)
+    for suite, name, cells in out:
+        print(f"| {suite} | {name} | "
+              + " | ".join("n/a" if v is None else f"{v[0]:.3g}x time, {v[1]:.3g}x var" for v in cells) + " |")
+    print()
+    print("n/a: not measurable (the method's MSE is not above the reference's variance, the method is missing, or its metrics.json predates the per-sample fields).")
     if any(m["reference"].get("too_noisy") for _, _, m in scenes):
         print("*: compare calls the reference too noisy to rank the methods (its variance > 1/10 of the best MSE, docs/compare.md).")
     print()

@@ -154,6 +154,18 @@ copy_png() {
 }
 
 num() { printf '%.3g' "$(jq -r "$1" "$2")"; }
+# A method's time per sample (its bake left out) and variance per sample over delta's
+# (compare's seconds_per_sample and variance_per_sample; docs/compare.md "Per sample").
+per_sample() {
+    local r
+    r=$(jq -r --arg who "$1" '
+        (.methods[] | select(.label == "delta")) as $b | (.methods[] | select(.label == $who)) as $x
+        | if ($x.seconds_per_sample | type) == "number" and ($b.seconds_per_sample | type) == "number"
+             and $b.seconds_per_sample > 0 and $b.variance_per_sample > 0
+          then "\($x.seconds_per_sample / $b.seconds_per_sample) \($x.variance_per_sample / $b.variance_per_sample)"
+          else "-" end' "$2")
+    if [ "$r" = - ]; then echo "–"; else awk -v t="${r% *}" -v v="${r#* }" 'BEGIN { printf "%.3gx, %.3gx", t, v }'; fi
+}
 # samples per pixel: whole numbers from 100 on (1160, not 1.16e+03)
 spp() { awk -v v="$(jq -r "$1" "$2")" 'BEGIN { printf (v >= 100 ? "%.0f" : "%.3g"), v }'; }
 
@@ -189,14 +201,15 @@ section() {
         printf ' <img src="images/gallery/%s-%s.png" width="%d" alt="%s: %s"> |' "$name" "$who" "$dw" "$name" "$who"
     done)"
     echo
-    echo "| method | time (s, bake included) | bake (s) | spp | RMSE | bias² | variance | efficiency / delta's | bias share |"
-    echo "|---|---|---|---|---|---|---|---|---|"
+    echo "| method | time (s, bake included) | bake (s) | spp | RMSE | bias² | variance | efficiency / delta's | bias share | per sample: time, variance / delta's |"
+    echo "|---|---|---|---|---|---|---|---|---|---|"
     for who in "${WHO[@]}"; do
         local q=".methods[] | select(.label == \"$who\")"
         echo "| $who | $(num "$q.seconds" "$m") | $(num "$q.bake_seconds" "$m") | $(spp "$q.spp" "$m")" \
              "| $(num "$q.rmse" "$m") | $(num "$q.bias2" "$m") | $(num "$q.variance" "$m")" \
              "| $(jq -r "($q.efficiency_vs_baseline) // \"–\" | if type == \"number\" then (. * 100 | round / 100 | tostring) + \"x\" else . end" "$m")" \
-             "| $(jq -r "($q.bias_share) // \"–\" | if type == \"number\" then (. * 100 | round | tostring) + \"%\" else . end" "$m") |"
+             "| $(jq -r "($q.bias_share) // \"–\" | if type == \"number\" then (. * 100 | round | tostring) + \"%\" else . end" "$m")" \
+             "| $(per_sample "$who" "$m") |"
     done
     echo
     echo "compare's verdict: $(jq -r '.summary.verdict // "none"' "$m")."
