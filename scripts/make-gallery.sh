@@ -164,7 +164,7 @@ per_sample() {
              and $b.seconds_per_sample > 0 and $b.variance_per_sample > 0
           then "\($x.seconds_per_sample / $b.seconds_per_sample) \($x.variance_per_sample / $b.variance_per_sample)"
           else "-" end' "$2")
-    if [ "$r" = - ]; then echo "–"; else awk -v t="${r% *}" -v v="${r#* }" 'BEGIN { printf "%.3gx, %.3gx", t, v }'; fi
+    if [ -z "$r" ] || [ "$r" = - ]; then echo "–"; else awk -v t="${r% *}" -v v="${r#* }" 'BEGIN { printf "%.3gx, %.3gx", t, v }'; fi
 }
 # samples per pixel: whole numbers from 100 on (1160, not 1.16e+03)
 spp() { awk -v v="$(jq -r "$1" "$2")" 'BEGIN { printf (v >= 100 ? "%.0f" : "%.3g"), v }'; }
