@@ -248,7 +248,7 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
     size_t n = (size_t)sel->tiles_x * sel->tiles_y;
     sel->guided = calloc(n, 1);
     sel->stats = calloc(2 * n, sizeof *sel->stats);
-    sel->pixels = calloc((size_t)width * height, sizeof *sel->pixels);
+    sel->pixels = rd_alloc_lines((size_t)width * height * sizeof *sel->pixels);
     if (sel->guided && sel->stats && sel->pixels) return RD_OK;
     rd_select_free(sel);
     snprintf(err, errlen, "out of memory for the tile selection (%dx%d pixels)", width, height);
@@ -286,15 +286,8 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, doubl
     sel->epochs = ctx->scene->settings.select != RD_SELECT_PILOT;
     int n = sel->tiles_x * sel->tiles_y;
     int threads = ctx->threads > 0 ? ctx->threads : 1;
-    rd_thread *th = calloc((size_t)threads, sizeof *th);
-    size_t bytes = ctx->method->scratch_bytes ? ctx->method->scratch_bytes(ctx) : 0;
+    rd_thread *th = rd_threads_new(ctx, threads);
     int ok = th != NULL;
-    for (int i = 0; ok && bytes && i < threads; i++) {
-        th[i].index = i;
-        th[i].scratch = aligned_alloc(16, (bytes + 15) / 16 * 16);
-        th[i].scratch_bytes = bytes;
-        ok = th[i].scratch != NULL;
-    }
     if (ok) {
         /* One thread a tile: its statistics are summed in pixel order whatever the threads. */
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 1)
@@ -308,8 +301,7 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, doubl
         }
         choose_tiles(sel);
     }
-    for (int i = 0; th && i < threads; i++) free(th[i].scratch);
-    free(th);
+    rd_threads_free(th, threads);
     if (!ok) {
         rd_select_free(sel);
         snprintf(err, errlen, "out of memory for the tile selection's pilot");

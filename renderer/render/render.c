@@ -83,9 +83,9 @@ static int film_alloc(film *f, int w, int h)
     size_t np = (size_t)w * h;
     f->w = w;
     f->h = h;
-    f->sum = calloc(np * 3, sizeof *f->sum);
-    f->sum2 = calloc(np * 3, sizeof *f->sum2);
-    f->n = calloc(np, sizeof *f->n);
+    f->sum = rd_alloc_lines(np * 3 * sizeof *f->sum);
+    f->sum2 = rd_alloc_lines(np * 3 * sizeof *f->sum2);
+    f->n = rd_alloc_lines(np * sizeof *f->n);
     if (f->sum && f->sum2 && f->n) return 1;
     film_free(f);
     return 0;
@@ -161,7 +161,10 @@ static int render_pass(const rd_render_ctx *ctx, rd_thread *th, film *f, int s0,
             for (int x = x0; x < x0 + TILE && x < cam->width; x++) {
                 if (stopped || should_stop(deadline, cancel, clk)) { stopped = 1; continue; }
                 uint64_t pix = (uint64_t)y * cam->width + x;
-                double *acc = &f->sum[3 * pix], *acc2 = &f->sum2[3 * pix];
+                /* The pixel's sums in registers for its samples, stored once after them. */
+                double acc[3] = {f->sum[3 * pix], f->sum[3 * pix + 1], f->sum[3 * pix + 2]};
+                double acc2[3] = {f->sum2[3 * pix], f->sum2[3 * pix + 1], f->sum2[3 * pix + 2]};
+                uint32_t count = f->n[pix];
                 for (int i = s0; i < s1; i++) {
                     rd_sampler smp = rd_sampler_start(pix, (uint64_t)i, ctx->seed);
                     double jx = rd_sampler_1d(&smp), jy = rd_sampler_1d(&smp); /* RD_DIM_FILM */
@@ -173,8 +176,11 @@ static int render_pass(const rd_render_ctx *ctx, rd_thread *th, film *f, int s0,
                     if (!v3_finite(L)) { bad++; continue; }
                     acc[0] += L.x; acc[1] += L.y; acc[2] += L.z;
                     acc2[0] += L.x * L.x; acc2[1] += L.y * L.y; acc2[2] += L.z * L.z;
-                    f->n[pix]++;
+                    count++;
                 }
+                memcpy(&f->sum[3 * pix], acc, sizeof acc);
+                memcpy(&f->sum2[3 * pix], acc2, sizeof acc2);
+                f->n[pix] = count;
             }
     }
     *invalid += bad;
@@ -330,15 +336,9 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
     res->stats.prepare_seconds = now_seconds(clk) - t_start - res->stats.bake_seconds;
 
     /* Per-thread contexts with the method's scratch, and the film. */
-    size_t scratch = m->scratch_bytes ? m->scratch_bytes(&ctx) : 0;
-    rd_thread *th = calloc((size_t)ctx.threads, sizeof *th);
+    rd_thread *th = rd_threads_new(&ctx, ctx.threads);
     film f = {0};
     int ok = th && film_alloc(&f, w, h);
-    for (int i = 0; ok && i < ctx.threads; i++) {
-        th[i].index = i;
-        th[i].scratch_bytes = scratch;
-        if (scratch && !(th[i].scratch = aligned_alloc(16, (scratch + 15) / 16 * 16))) ok = 0;
-    }
     size_t npix = (size_t)w * h;
     if (ok) {
         res->image.rgb = malloc(npix * 3 * sizeof(float));
@@ -482,8 +482,7 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
 done:
     if (st != RD_OK) rd_render_result_free(res);
     film_free(&f);
-    for (int i = 0; th && i < ctx.threads; i++) free(th[i].scratch);
-    free(th);
+    rd_threads_free(th, ctx.threads);
     if (m->release) m->release(&ctx);
     if (pass_bake != first_bake) rd_baked_free(pass_bake);
     rd_baked_free(first_bake);
