@@ -1,10 +1,13 @@
 /* The render core: the keyed sampler, the light sampler, sphere-light sampling at tiny angles,
  * the film's standard error, the convergence curve and the time limit (on a virtual clock and
- * in CPU seconds, never on the wall clock: the suite's result must not depend on the load).
+ * in CPU seconds, never on the wall clock: the suite's result must not depend on the load), the
+ * worker threads' cache lines.
  * Statistical tolerances are derived from the standard error (5 sigma) or a chi-square quantile
  * at an upper tail of 1e-4; seeds are fixed. */
 #include "support/rd_test.h"
+#include "integrators/rd_method.h"
 
+#include <stdint.h>
 #include <time.h>
 
 /* Chi-square of observed counts against expected ones, pooling cells with expectation < 5
@@ -465,4 +468,31 @@ Test(render, a_cancel_stops_the_bake_rd_render_makes, .timeout = 60)
     rd_status st = rd_render(s, &o, &r, err, sizeof err);
     cr_assert(st == RD_ERR_CANCELLED, "status %d (%s): the bake ran on under a set cancel flag", (int)st, err);
     rd_scene_free(s);
+}
+
+/* Each worker thread's context and its scratch start a cache line of their own
+ * (integrators/threads.c): two threads' counters in one line made every density lookup a miss on
+ * the other core, and a sample 7-48% dearer from run to run (docs/benchmarks.md, "Session 14"). */
+static size_t odd_scratch(const rd_render_ctx *ctx)
+{
+    (void)ctx;
+    return 100; /* not a whole number of lines */
+}
+
+Test(render, worker_threads_and_their_scratch_start_cache_lines)
+{
+    rd_method m = {.name = "lines", .scratch_bytes = odd_scratch};
+    rd_render_ctx ctx = {.method = &m};
+    enum { N = 3 };
+    rd_thread *th = rd_threads_new(&ctx, N);
+    cr_assert_not_null(th);
+    for (int i = 0; i < N; i++) {
+        cr_assert_eq((uintptr_t)&th[i] % RD_CACHE_LINE, 0, "thread %d at %p", i, (void *)&th[i]);
+        cr_assert_eq((uintptr_t)th[i].scratch % RD_CACHE_LINE, 0, "thread %d's scratch", i);
+        cr_assert_eq(th[i].index, i);
+        cr_assert_eq(th[i].scratch_bytes, 100u);
+        cr_assert_eq(th[i].counters.lookups, 0u);
+        memset(th[i].scratch, 0xab, th[i].scratch_bytes); /* the whole scratch is ours (ASan) */
+    }
+    rd_threads_free(th, N);
 }

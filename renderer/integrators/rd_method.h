@@ -22,8 +22,9 @@ struct sh_guide;
  * method->scratch_bytes(ctx) bytes (aligned to a cache line) allocated once per thread, or NULL.
  * Each starts a cache line of its own (RD_CACHE_LINE; rd_threads_new): the counters are
  * written at every density lookup, and two threads' counters in one line would make each
- * write a miss on the other core (on hard-narrow-spot, a camera sample of guided-unbiased took
- * 8-50% longer from run to run, as the allocations fell). */
+ * write a miss on the other core (on hard-narrow-spot, with every tile forced to delta's path,
+ * a camera sample of guided-unbiased took 7-48% longer than delta's own, from run to run as
+ * the allocations fell; docs/benchmarks.md, "Session 14"). */
 #define RD_CACHE_LINE 64
 typedef struct rd_thread {
     _Alignas(RD_CACHE_LINE) int index;
@@ -95,14 +96,16 @@ typedef struct rd_method {
 
 /* The table (methods.c). NULL for an unknown name. */
 const rd_method *rd_method_find(const char *name);
-/* n zeroed per-thread contexts for ctx's method (index set, scratch allocated, each scratch on
- * cache lines of its own), or NULL when out of memory; rd_threads_free frees all. */
+
+/* The worker threads (threads.c). rd_threads_new: n zeroed per-thread contexts for ctx's
+ * method (index set, scratch allocated, each scratch on cache lines of its own), or NULL when
+ * out of memory; rd_threads_free frees them and their scratch. */
 rd_thread *rd_threads_new(const rd_render_ctx *ctx, int n);
-/* `bytes` of zeroed memory starting a cache line (free with free()), or NULL: per-pixel arrays
- * that two threads write at neighbouring pixels, so that a tile boundary is a line boundary
- * whenever a tile row's bytes are a whole number of lines. */
-void *rd_alloc_lines(size_t bytes);
 void rd_threads_free(rd_thread *th, int n);
+/* `bytes` of zeroed memory starting a cache line (free with free()), or NULL: for per-pixel
+ * arrays that two threads write at neighbouring pixels, so that a tile boundary is a line
+ * boundary whenever a tile row's bytes are a whole number of lines. */
+void *rd_alloc_lines(size_t bytes);
 
 /* guided-unbiased (integrators/guided_unbiased.c), for the sampler's tests, on a context prepared for the
  * method (scratch: method->scratch_bytes(ctx) bytes). rd_gu_flight draws one free flight
