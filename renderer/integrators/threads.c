@@ -3,11 +3,13 @@
  * integrators/select.c allocate through it. */
 #include "integrators/rd_method.h"
 
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
 void *rd_alloc_lines(size_t bytes)
 {
+    if (bytes > SIZE_MAX - RD_CACHE_LINE) return NULL; /* no wrap in the rounding below */
     size_t whole = (bytes + RD_CACHE_LINE - 1) / RD_CACHE_LINE * RD_CACHE_LINE; /* C11 asks a multiple */
     void *p = aligned_alloc(RD_CACHE_LINE, whole ? whole : RD_CACHE_LINE);
     if (p) memset(p, 0, whole);
