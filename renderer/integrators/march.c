@@ -56,6 +56,19 @@ static int march_default_samples(placement p)
     return n[p];
 }
 
+/* The chance that a sample continues its path (march.paths, nee+paths) when the scene does not
+ * set it. Each of guided's N samples per ray ran a full path of delta's from it: N paths per
+ * camera ray where delta runs one, for multiple scattering that is a small part of what guided
+ * places its samples for. 0.5, one path per ray on average at guided's N_mean of 2, is guided's
+ * best of 1, 0.5 and 0.25 (and of min(1, 1 / N) per ray) at equal time on the calibration
+ * scenes, not on the benchmark's (bench/bench_calibrate.sh; docs/benchmarks.md "Session 15").
+ * The other placements keep 1: not calibrated. */
+static double march_default_paths(placement p)
+{
+    static const double q[PLACE_COUNT] = {[PLACE_GUIDED] = 0.5, [PLACE_TRANSMITTANCE] = 1.0, [PLACE_UNIFORM] = 1.0};
+    return q[p];
+}
+
 size_t rd_march_scratch_layout(const march_state *st, march_scratch *ms, void *base)
 {
     size_t off = 0;
@@ -369,7 +382,8 @@ static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int r
     th->ray_samples += (uint64_t)N;
     th->cells += (uint64_t)pdf.n;
     rd_guide_pdf_sample_stratified(&pdf, N, u, ms.t, ms.p);
-    double q_path = s->march.paths; /* nee+paths: the chance of a path from each sample */
+    const march_state *st = ctx->state;
+    double q_path = st->q_path[place]; /* nee+paths: the chance of a path from each sample */
     vec3 L = v3(0, 0, 0);
     double T = 1.0, tp = t0;
     for (int n = 0; n < N && T != 0.0; n++) {
@@ -485,6 +499,7 @@ rd_status rd_march_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
     ms->k_steps = 0;
     for (int p = 0; p < PLACE_COUNT; p++) {
         ms->n_mean[p] = m->samples > 0 ? m->samples : march_default_samples((placement)p);
+        ms->q_path[p] = m->paths > 0.0 ? m->paths : march_default_paths((placement)p);
         if (ms->n_mean[p] > ms->n_max) ms->n_max = ms->n_mean[p];
         if (4 * ms->n_mean[p] > ms->k_steps) ms->k_steps = 4 * ms->n_mean[p];
     }

@@ -16,6 +16,8 @@ typedef enum { PLACE_GUIDED, PLACE_UNIFORM, PLACE_TRANSMITTANCE, PLACE_COUNT } p
 typedef struct {
     double mean_I;   /* mean over the pilot's rays of I_ray, 0 when unknown */
     int n_mean[PLACE_COUNT]; /* N_mean of each placement: march.samples, or its default */
+    double q_path[PLACE_COUNT]; /* nee+paths: the chance that a sample continues its path:
+                                   march.paths, or the placement's default */
     int seg_cap;     /* PDF segments per ray */
     int n_max;       /* samples per ray at most */
     int k_steps;     /* extinction lookups per ray at most: 4 N_mean (transmittance; guided

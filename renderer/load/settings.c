@@ -224,7 +224,7 @@ rd_status ld_parse_march(ld_ctx *c, const cJSON *j, rd_march_settings *m)
     m->alpha = 0.2;
     m->ls = RD_LS_NEE_PATHS; /* unbiased; the photon sources measured against it: docs/guided-marching.md */
     m->detail = 0; /* "cells": lookups mislead where the photon estimate dominates (cloud) */
-    m->paths = 1.0;
+    m->paths = 0.0; /* per placement (integrators/march.c, march_default_paths) */
     if (!j) return RD_OK;
     const char *path = "march";
     LD_TRY(ld_need_object(c, j, path));
@@ -244,7 +244,7 @@ rd_status ld_parse_march(ld_ctx *c, const cJSON *j, rd_march_settings *m)
     int k = RD_LS_NEE_PATHS;
     LD_TRY(ld_get_enum(c, j, path, "ls", 0, ls, RD_LS_NEE_PATHS, &k));
     m->ls = (rd_ls_kind)k;
-    LD_TRY(ld_get_num(c, j, path, "paths", 0, 1.0, 0, 1, 1, 0, &m->paths));
+    LD_TRY(ld_get_num(c, j, path, "paths", 0, 0.0, 0, 1, 1, 0, &m->paths));
     static const char *const detail[] = {"cells", "lookups", NULL};
     LD_TRY(ld_get_enum(c, j, path, "detail", 0, detail, 0, &m->detail));
     return RD_OK;

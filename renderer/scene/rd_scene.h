@@ -105,7 +105,8 @@ typedef struct {
     double alpha;        /* defensive weight of the mixture, in (0, 1] */
     rd_ls_kind ls;       /* source of sigma_s L_s at a sample */
     double paths;        /* nee+paths: the probability, in (0, 1], that a sample continues
-                          * its path (weight 1 / paths) */
+                          * its path (weight 1 / paths); 0 (key absent): each placement's
+                          * own default (integrators/march.c, march_default_paths) */
     int detail;          /* guided: 1 scales each cell's f_j by sigma_t(t) / sigma_j from lookups
                           * along the ray; 0 (default) uses the cells alone (seed 001 eq. 16) */
 } rd_march_settings;
