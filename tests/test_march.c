@@ -265,37 +265,33 @@ Test(march, gap_to_delta_shrinks_as_photons_grow, .timeout = 300)
     rd_scene_free(s);
 }
 
-Test(march, guided_continues_half_its_samples_paths_or_what_its_tiles_learned, .timeout = 300)
+Test(march, guided_continues_half_its_samples_paths_unless_told_otherwise, .timeout = 300)
 {
-    /* march.paths absent: guided continues a path from a sample with probability 0.5
-     * (march_default_paths) without the tile selection, and with it, from the selection's pilot
-     * on, with each tile's learned probability (select.c); uniform with 1. Same seed, same random
-     * numbers, 4 spp: guided's image without the selection is that of march.paths 0.5 to the
-     * bit and not that of 1, uniform's that of 1; guided's with the selection is neither. Whether
-     * the learned probabilities keep the image unbiased is
-     * select/tiles_of_both_kinds_give_delta_s_image's. */
+    /* march.paths absent: guided takes its calibrated 0.5 (march_default_paths), the other
+     * placements 1. Same seed, same random numbers: guided's image is that of march.paths 0.5 to
+     * the bit and not that of 1 (which runs a path from every sample); uniform's is that of 1.
+     * Whether 0.5 is unbiased is nee_paths_marchers_equal_delta_with_multiple_scattering's. */
     const char *sets[] = {"\"march\":{\"ls\":\"nee+paths\"}", "\"march\":{\"ls\":\"nee+paths\",\"paths\":0.5}",
                           "\"march\":{\"ls\":\"nee+paths\",\"paths\":1}"};
-    const struct { const char *method, *settings; int same_as; } want[] = {
-        {"guided", "{\"select\":\"off\"}", 1}, {"uniform", "{\"select\":\"off\"}", 2}, {"guided", "{\"select\":\"tiles\"}", 0}};
-    for (int m = 0; m < 3; m++) {
+    const char *methods[] = {"guided", "uniform"};
+    for (int m = 0; m < 2; m++) {
         rd_render_result r[3];
         for (int i = 0; i < 3; i++) {
-            char name[64], extra[256];
+            char name[64];
             snprintf(name, sizeof name, "qp%d_%d_march.json", m, i);
-            snprintf(extra, sizeof extra, "%s,\"settings\":%s", sets[i], want[m].settings);
-            rd_scene *s = rt_scene(name, scene_json(extra, -2.5));
-            r[i] = rt_render(s, want[m].method, 4, 91, NULL);
+            rd_scene *s = rt_scene(name, scene_json(sets[i], -2.5));
+            r[i] = rt_render(s, methods[m], 4, 91, NULL);
             rd_scene_free(s);
         }
         size_t n = (size_t)r[0].image.w * r[0].image.h * 3;
-        int same[3] = {1, memcmp(r[0].image.rgb, r[1].image.rgb, n * sizeof(float)) == 0,
-                       memcmp(r[0].image.rgb, r[2].image.rgb, n * sizeof(float)) == 0};
-        for (int k = 1; k < 3; k++)
-            cr_expect(same[k] == (want[m].same_as == k),
-                      "%s, settings %s, march.paths absent: %s the image of march.paths %s (delta's share %.3f)",
-                      want[m].method, want[m].settings, same[k] ? "the same as" : "not", k == 1 ? "0.5" : "1",
-                      (double)r[0].stats.delta_samples / (double)r[0].stats.paths);
+        int same_half = memcmp(r[0].image.rgb, r[1].image.rgb, n * sizeof(float)) == 0;
+        int same_one = memcmp(r[0].image.rgb, r[2].image.rgb, n * sizeof(float)) == 0;
+        if (m == 0)
+            cr_expect(same_half && !same_one, "guided's default is not march.paths 0.5 (same as 0.5: %d, as 1: %d)",
+                      same_half, same_one);
+        else
+            cr_expect(same_one && !same_half, "uniform's default is not march.paths 1 (same as 1: %d, as 0.5: %d)",
+                      same_one, same_half);
         for (int i = 0; i < 3; i++) rd_render_result_free(&r[i]);
     }
 }
@@ -305,8 +301,8 @@ Test(march, nee_paths_marchers_equal_delta_with_multiple_scattering, .timeout = 
     /* march.ls = nee+paths: delta's own vertex at every marching sample (next-event estimation
      * plus one phase-sampled path tracked by delta), so every placement is unbiased for the
      * whole image, multiple scattering included (max_depth 32). Each of guided (a path from
-     * half its samples: march.paths absent, and no selection here), uniform and transmittance
-     * (a path from every sample) against delta; guided also with march.paths 0.4. */
+     * half its samples, its default march.paths, weighted 2), uniform and transmittance (a path
+     * from every sample) against delta; guided also with march.paths 0.4. */
     rd_scene *s = rt_scene("np_march.json", scene_json("\"march\":{\"ls\":\"nee+paths\",\"samples\":4}", -2.5));
     rd_render_result d = rt_render(s, "delta", 512, 81, NULL);
     const char *methods[] = {"guided", "uniform", "transmittance"};

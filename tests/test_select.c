@@ -12,7 +12,6 @@
 #include "integrators/rd_select.h"
 
 #include <limits.h>
-#include <math.h>
 #include <string.h>
 
 /* ---- The rule ---------------------------------------------------------------------------- */
@@ -125,59 +124,6 @@ Test(select, an_epoch_takes_the_method_when_delta_s_paths_rarely_find_the_light)
     rd_select_epoch(&sel, NULL);
     cr_assert(sel.guided[0] == 1, "after delta's rare hits, the method (delta's variance %g)",
               sel.stats[0].dev2[0] / sel.stats[0].dof);
-    rd_select_free(&sel);
-}
-
-/* ---- The continued paths' probability (guided's march.paths, learned per tile) -------------- */
-
-Test(select, the_paths_probability_minimises_variance_plus_lambda_cost)
-{
-    /* Roulette at q gives a camera sample the variance A + m2 / q at the cost B + q cp; the rule
-     * must pick the q in [RD_SELECT_Q_MIN, 1] that minimises V + lambda C, checked here against a
-     * grid search of that objective (which does not use the rule's closed form), including
-     * cases clamped at either end. */
-    const double cases[][3] = {{0.02, 1.0, 0.05}, {1.0, 1.0, 1.0}, {5.0, 0.5, 0.1}, {1e-4, 3.0, 2.0},
-                               {0.3, 2.0, 0.7}, {0.0, 1.0, 1.0}, {0.8, 0.01, 3.0}};
-    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
-        double m2 = cases[i][0], cp = cases[i][1], lambda = cases[i][2];
-        double best = 0.0, fbest = INFINITY;
-        for (int j = 0; j <= 90000; j++) {
-            double q = RD_SELECT_Q_MIN + (1.0 - RD_SELECT_Q_MIN) * j / 90000.0;
-            double f = m2 / q + lambda * cp * q;
-            if (f < fbest) fbest = f, best = q;
-        }
-        double q = rd_select_q_rule(m2, cp, lambda);
-        cr_expect(fabs(q - best) <= 2e-5, "m2 %g, cp %g, lambda %g: the rule gives q = %.6f, the objective's minimum is at %.6f",
-                  m2, cp, lambda, q, best);
-    }
-}
-
-Test(select, an_epoch_learns_each_tile_s_paths_probability_at_the_image_s_lambda)
-{
-    rd_select sel;
-    char err[RD_ERRLEN];
-    cr_assert(rd_select_init(&sel, 8, 8, 1.0, err, sizeof err) == RD_OK, "%s", err);
-    cr_assert(rd_select_tile_q(&sel, 0) == 0.0, "nothing learned before an epoch");
-    /* The method wins the tile (V C 0.1 x 2 < 1 x 1); its paths showed E[sum Y^2] = 0.02 and
-     * a cost of 1 per camera sample. lambda = V / C of the chosen estimator: the tile's pooled
-     * variance (64 pixels x 0.1, and the Cauchy-Schwarz bound is below it) over its cost (64 x 2). */
-    fake_pilot(&sel, 0, 1.0, 1.0, 1.0, 1.0);
-    fake_pilot(&sel, 1, 1.0, 0.1, 1.0, 2.0);
-    sel.stats[1].path_m2 = 0.02 * 128, sel.stats[1].path_cost = 1.0 * 128;
-    rd_select_epoch(&sel, NULL);
-    cr_assert(sel.guided[0] == 1, "the method wins the tile");
-    double want = sqrt(0.02 / (0.1 / 2.0 * 1.0)); /* 0.632 */
-    for (uint64_t p = 0; p < 64; p++)
-        cr_assert(fabs(rd_select_tile_q(&sel, p) - want) < 1e-6, "pixel %d: q = %g, want %g", (int)p,
-                  rd_select_tile_q(&sel, p), want);
-    /* The image's samples of the method: paths that carry 50x as much, at the same cost. */
-    for (uint64_t p = 0; p < 64; p++) {
-        for (int i = 0; i < 16; i++) rd_select_observe(&sel, p, v3(1, 1, 1), 2.0);
-        sel.pixels[p].path_m2 = 16 * 1.0, sel.pixels[p].path_cost = 16 * 1.0;
-    }
-    rd_select_epoch(&sel, NULL);
-    cr_assert(rd_select_tile_q(&sel, 0) > want && rd_select_tile_q(&sel, 0) <= 1.0,
-              "paths that carry more are taken more often: q %g after %g", rd_select_tile_q(&sel, 0), want);
     rd_select_free(&sel);
 }
 

@@ -54,9 +54,6 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
         /* 1.52 lookups: the time of one of the marcher's PDF segments (select.c, the fit) */
         st = rd_select_prepare(ctx, march_guided, 1.52, &mst->sel, err, errlen);
         if (st != RD_OK) rd_march_release(ctx);
-        /* The pilot ran with march_default_paths; from here on each tile's own, learned from
-         * the pilot and then at every epoch (select.c). */
-        else mst->learn_paths = s->march.ls == RD_LS_NEE_PATHS && !(s->march.paths > 0.0);
     }
     return st;
 }

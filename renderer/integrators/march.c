@@ -57,14 +57,12 @@ static int march_default_samples(placement p)
 }
 
 /* The chance that a sample continues its path (march.paths, nee+paths) when the scene does not
- * set it. With 1, each of guided's N samples per ray ran a full path of delta's from it: N paths
- * per camera ray where delta runs one, for multiple scattering that is often a small part of
- * what guided places its samples for. 0.5, one path per ray on average at guided's N_mean of 2,
- * was guided's best fixed value of 1, 0.5 and 0.25 (and of min(1, 1 / N) per ray) at equal time
- * on the calibration scenes (bench/bench_calibrate.sh; docs/benchmarks.md "Session 15"). With
- * the tile selection, guided learns each tile's own from the pilot on (select.c, "The continued
- * paths"); 0.5 is the pilot's, and the value without the selection. The other placements keep 1:
- * not calibrated. */
+ * set it. Each of guided's N samples per ray ran a full path of delta's from it: N paths per
+ * camera ray where delta runs one, for multiple scattering that is a small part of what guided
+ * places its samples for. 0.5, one path per ray on average at guided's N_mean of 2, is guided's
+ * best of 1, 0.5 and 0.25 (and of min(1, 1 / N) per ray) at equal time on the calibration
+ * scenes, not on the benchmark's (bench/bench_calibrate.sh; docs/benchmarks.md "Session 15").
+ * The other placements keep 1: not calibrated. */
 static double march_default_paths(placement p)
 {
     static const double q[PLACE_COUNT] = {[PLACE_GUIDED] = 0.5, [PLACE_TRANSMITTANCE] = 1.0, [PLACE_UNIFORM] = 1.0};
@@ -295,10 +293,8 @@ static double pass_radius(const rd_render_ctx *ctx, const pm_map *first, vec3 x)
 }
 
 vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, vec3 x, vec3 d,
-                   double sigma_t, int event, double q_path, pcg32 *rng, rd_track_counters *c,
-                   rd_march_path *path)
+                   double sigma_t, int event, double q_path, pcg32 *rng, rd_track_counters *c)
 {
-    if (path) *path = (rd_march_path){0};
     const rd_scene *s = ctx->scene;
     vec3 S = v3(0, 0, 0);
     vec3 w = v3_scale(d, -1.0);
@@ -330,13 +326,8 @@ vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, v
             (q_path >= 1.0 || pcg32_uniform(rng) < q_path)) {
             vec3 wo = rd_hg_sample(m->g, d, pcg32_uniform(rng), pcg32_uniform(rng));
             ray3 next = {x, wo};
-            rd_track_counters c0 = *c;
             vec3 Li = rd_delta_continue(s, next, region, rd_hg_eval(m->g, v3_dot(d, wo)), event, 0, rng, c);
-            double wq = q_path >= 1.0 ? 1.0 : 1.0 / q_path;
-            Ls = v3_madd(Ls, Li, wq);
-            if (path)
-                *path = (rd_march_path){1, v3_scale(v3_mul(sigma_s, Li), wq), c->lookups - c0.lookups,
-                                        c->shadow_rays - c0.shadow_rays};
+            Ls = v3_madd(Ls, Li, q_path >= 1.0 ? 1.0 : 1.0 / q_path);
         }
         return v3_mul(sigma_s, Ls);
     }
@@ -392,13 +383,7 @@ static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int r
     th->cells += (uint64_t)pdf.n;
     rd_guide_pdf_sample_stratified(&pdf, N, u, ms.t, ms.p);
     const march_state *st = ctx->state;
-    /* nee+paths: the chance of a path from each sample; guided's own, where the scene does not
-     * set it, is learned per tile by the selection (select.c, rd_select_tile_q) */
-    double q_path = st->q_path[place];
-    if (place == PLACE_GUIDED && st->learn_paths) {
-        double q = rd_select_tile_q(&st->sel, th->pixel);
-        if (q > 0.0) q_path = q;
-    }
+    double q_path = st->q_path[place]; /* nee+paths: the chance of a path from each sample */
     vec3 L = v3(0, 0, 0);
     double T = 1.0, tp = t0;
     for (int n = 0; n < N && T != 0.0; n++) {
@@ -414,17 +399,8 @@ static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int r
         double sigma_t = rd_medium_sigma_t(m, x);
         c->lookups++;
         if (sigma_t <= 0.0) continue;
-        rd_march_path path;
-        vec3 S = rd_march_source(ctx, m, region, x, r.d, sigma_t, event, q_path, rng, c, &path);
-        double w = T / (N * ms.p[n]);
-        L = v3_madd(L, S, w);
-        if (path.taken) {
-            /* Its contribution with every path taken is Y = w q S_path; the selection learns
-             * E[sum Y^2] and the paths' cost from Y^2 / q and cost / q (rd_thread.path_m2). */
-            vec3 Y = v3_scale(path.S, w * q_path);
-            th->path_m2 += (Y.x * Y.x + Y.y * Y.y + Y.z * Y.z) / 3.0 / q_path;
-            th->path_cost += rd_select_work_cost((double)path.lookups, (double)path.shadow_rays) / q_path;
-        }
+        vec3 S = rd_march_source(ctx, m, region, x, r.d, sigma_t, event, q_path, rng, c);
+        L = v3_madd(L, S, T / (N * ms.p[n]));
     }
     /* nee+delta: the samples estimated the single scattering's next-event part; one path of
      * delta's along the segment adds everything else that scatters on it (rd_delta_scattered:

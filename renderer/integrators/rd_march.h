@@ -24,8 +24,6 @@ typedef struct {
                       * detail lattice), over the placements */
     int piece_cap;   /* entries of the tb/f/sig tables: k_steps, or cells + k_steps (detail) */
     rd_select sel;   /* guided with settings.select: the tiles it marches (integrators/select.c) */
-    int learn_paths; /* guided, nee+paths, march.paths absent: each tile's q_path learned by the
-                        selection (rd_select_tile_q) */
 } march_state;
 
 /* Scratch of one thread: PDF segments, sample positions and densities, extinction table. */
@@ -49,20 +47,11 @@ void rd_march_build_guided(const rd_render_ctx *ctx, const march_scratch *ms, in
 int rd_march_build_pdf(const rd_render_ctx *ctx, placement place, const march_scratch *ms,
                        int region, ray3 r, double t0, double t1, rd_guide_pdf *pdf,
                        rd_track_counters *c);
-/* nee+paths's continued path at one sample: its part of S (weighted 1 / q_path, as in S), and
- * the work it did (taken 0: not taken, the rest 0). */
-typedef struct {
-    int taken;
-    vec3 S;
-    uint64_t lookups, shadow_rays;
-} rd_march_path;
 /* The in-scattered radiance source S = sigma_s L_s at x toward -d, from march.ls; `event` is
  * the scattering event x would be (1 on the camera's first segment): nee+paths's path from x
- * counts its events on from there, as delta's does, and is taken with probability q_path.
- * path (may be NULL) gets that path's part. */
+ * counts its events on from there, as delta's does, and is taken with probability q_path. */
 vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, vec3 x, vec3 d,
-                     double sigma_t, int event, double q_path, pcg32 *rng, rd_track_counters *c,
-                     rd_march_path *path);
+                     double sigma_t, int event, double q_path, pcg32 *rng, rd_track_counters *c);
 /* Radiance along camera ray r with the samples of `place` (the estimator of THEORY.md §6). */
 vec3 rd_march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp,
                        placement place);

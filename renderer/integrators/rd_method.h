@@ -38,11 +38,6 @@ typedef struct rd_thread {
     uint64_t guide_vertices; /* guided-unbiased: path vertices whose policy read the guide */
     uint32_t samples_min, samples_max;
     uint64_t delta_samples; /* settings.select: camera samples given to delta's path */
-    /* guided's continued paths (march.paths) in the current camera sample, for the selection's
-     * learned probability (select.c): the sum of their squared contributions and of their
-     * counted cost, each over the probability that took them (unbiased for the sums with every
-     * path taken). */
-    double path_m2, path_cost;
     void *scratch;
     size_t scratch_bytes;
 } rd_thread;

@@ -15,21 +15,19 @@
  * counted cost. */
 typedef struct {
     double n, nonzero, dof, sum[3], dev2[3], cost;
-    double path_m2, path_cost; /* the method's continued paths (rd_thread.path_m2), summed */
 } rd_select_stats;
 
 /* One pixel's samples since the last epoch (all of one estimator: the tile's choice does not
  * change within an epoch). Plain doubles, so that several ranks' arrays are summed as one array
- * of doubles (rd_select_epoch): 11 a pixel, 88 bytes. sum and sum2 are accumulated in float
+ * of doubles (rd_select_epoch): 9 a pixel, 72 bytes. sum and sum2 are accumulated in float
  * precision (each sum rounded to a float; the sums feed a choice, not the image) and n and
  * nonzero are counts, all exact in a double. */
 typedef struct {
     double n, nonzero;
     double sum[3], sum2[3];
     double cost;
-    double path_m2, path_cost;
 } rd_select_pixel;
-#define RD_SELECT_PIXEL_DOUBLES 11
+#define RD_SELECT_PIXEL_DOUBLES 9
 
 typedef struct {
     uint8_t *guided;         /* per tile, 1 where the method renders, 0 where delta's path does;
@@ -40,8 +38,6 @@ typedef struct {
                                 in density lookups (select.c) */
     rd_select_stats *stats;  /* per tile, [2k] delta's and [2k + 1] the method's */
     rd_select_pixel *pixels; /* per pixel, the current epoch's samples */
-    float *q;                /* per tile, the probability that the method's marching samples
-                                continue their paths (rd_select_tile_q); 0: not learned */
 } rd_select;
 
 /* A method's own estimate of the radiance along camera ray r (what its radiance() does
@@ -77,18 +73,6 @@ int rd_select_epoch_next(const rd_select *sel, int sample);
  * pixel's), so every rank folds the same statistics and makes the same choice as one process.
  * Collective then: every rank calls it at the same epoch. comm NULL: this process alone. */
 void rd_select_epoch(rd_select *sel, const rd_comm *comm);
-/* The probability, learned at the epochs, that a marching sample of `pixel`'s tile continues its
- * path (guided's march.paths; select.c, "The continued paths"); 0 where nothing is learned
- * (selection off, no epoch yet, or the tile's method never took a path). */
-double rd_select_tile_q(const rd_select *sel, uint64_t pixel);
-/* Counted work (select.c's units, density lookups) of `lookups` lookups and `shadow_rays`
- * shadow rays. */
-double rd_select_work_cost(double lookups, double shadow_rays);
-/* The learned probability for a window whose method samples show E[sum Y^2] = m2 and a path
- * cost cp per camera sample, at the image's lambda = sum V / sum C: sqrt(m2 / (lambda cp)),
- * clamped to [RD_SELECT_Q_MIN, 1]. */
-#define RD_SELECT_Q_MIN 0.25
-double rd_select_q_rule(double m2, double cp, double lambda);
 /* The rule: for n tiles with the per-sample variance and cost of delta (var[2k], cost[2k]) and
  * of the method (var[2k+1], cost[2k+1]), the choices that minimise (sum V)(sum C);
  * use_method[k] = 1 for the method. */

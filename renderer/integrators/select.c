@@ -57,22 +57,7 @@
  * (guide.eval_bands), its two weights were fitted again on the same six scenes, the other
  * weights held (the render report's guided_paths gives the counts): flight segment 0.37 ->
  * 0.41, guided vertex 4.65 -> 3.91 lookups. On the two checks: 19.96 / 7.30 measured, 19.3 /
- * 7.8 modelled (the old weights: 21.1 / 8.1).
- *
- * The continued paths (guided, march.ls = nee+paths, march.paths not set). Each marching sample
- * continues a path of delta's with probability q, weighted 1 / q: unbiased for any q chosen
- * before the sample. Roulette at q adds (1/q - 1) E[sum Y^2] to a camera sample's variance (Y a
- * path's contribution with every path taken, summed over the ray's samples) and saves (1 - q) of
- * the paths' cost Cp; the q that minimises V + lambda C, with lambda = sum V / sum C of the
- * image's choices as in the rule above, is sqrt(E[sum Y^2] / (lambda Cp)): the efficiency-aware
- * roulette of Rath et al. 2022 (EARS), without its splitting. Per tile, from the method's samples
- * so far (pooled over 3x3 like the variance), at every epoch; the paths taken report Y^2 / q and
- * their counted cost / q (rd_thread.path_m2, path_cost), unbiased for the sums at q = 1. Clamped
- * to [RD_SELECT_Q_MIN, 1]. The floor matters where the paths are heavy-tailed (light through
- * glass): the estimate of E[sum Y^2] misses the tail it has not seen, q falls, fewer paths are
- * taken to see it, and those that find the light carry weight 1 / q. 0.25 was the best of 0.1,
- * 0.25 and 0.5 on the calibration scenes (docs/benchmarks.md "Session 15"). The pilot runs with
- * march_default_paths (0.5); its statistics give the first q. */
+ * 7.8 modelled (the old weights: 21.1 / 8.1). */
 #include "integrators/rd_select.h"
 #include "transport/rd_path.h"
 
@@ -121,8 +106,6 @@ static void pixel_fold(rd_select_stats *st, const rd_select_pixel *px)
     st->dof += n - 1.0;
     st->nonzero += px->nonzero;
     st->cost += px->cost;
-    st->path_m2 += px->path_m2;
-    st->path_cost += px->path_cost;
 }
 
 /* The counted cost of one sample, from th's counters before it (c0) and after (see the head). */
@@ -133,11 +116,6 @@ typedef struct {
 static work work_now(const rd_thread *th)
 {
     return (work){th->counters.lookups, th->counters.shadow_rays, th->cells, th->guide_vertices};
-}
-
-double rd_select_work_cost(double lookups, double shadow_rays)
-{
-    return lookups + SEL_COST_SHADOW * shadow_rays;
 }
 
 static double sample_cost(const rd_select *sel, const rd_thread *th, work c0)
@@ -164,10 +142,8 @@ static void pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, const rd_select
         work c0 = work_now(th);
         vec3 L;
         th->pixel = pix;
-        th->path_m2 = th->path_cost = 0.0;
         if (use_method) {
             L = method(ctx, th, r, &smp);
-            px.path_m2 += th->path_m2, px.path_cost += th->path_cost;
         } else {
             pcg32 rng = rd_sampler_stream(&smp);
             L = rd_delta_radiance(s, r, &rng, &th->counters);
@@ -273,8 +249,7 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
     sel->guided = calloc(n, 1);
     sel->stats = calloc(2 * n, sizeof *sel->stats);
     sel->pixels = rd_alloc_lines((size_t)width * height * sizeof *sel->pixels);
-    sel->q = calloc(n, sizeof *sel->q);
-    if (sel->guided && sel->stats && sel->pixels && sel->q) return RD_OK;
+    if (sel->guided && sel->stats && sel->pixels) return RD_OK;
     rd_select_free(sel);
     snprintf(err, errlen, "out of memory for the tile selection (%dx%d pixels)", width, height);
     return RD_ERR_NOMEM;
@@ -285,7 +260,6 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
 static void choose_tiles(rd_select *sel)
 {
     int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny;
-    if (n <= 0) return;
     double *var = malloc(4 * (size_t)n * sizeof *var), *cost = var ? var + 2 * (size_t)n : NULL;
     if (!var) return; /* the choices stay as they are */
     for (int k = 0; k < n; k++) {
@@ -300,36 +274,7 @@ static void choose_tiles(rd_select *sel)
     }
     pool(var, cost, nx, ny);
     rd_select_choose(var, cost, n, sel->guided);
-    /* The continued paths' probability per tile (see the head), at the chosen lambda. */
-    double V = 0.0, C = 0.0;
-    for (int k = 0; k < n; k++) V += var[2 * k + sel->guided[k]], C += cost[2 * k + sel->guided[k]];
-    double lambda = C > 0.0 ? V / C : 0.0;
-    for (int ty = 0; ty < ny; ty++)
-        for (int tx = 0; tx < nx; tx++) {
-            double m2 = 0.0, cp = 0.0;
-            for (int y = ty - 1; y <= ty + 1; y++)
-                for (int x = tx - 1; x <= tx + 1; x++) {
-                    if (x < 0 || y < 0 || x >= nx || y >= ny) continue;
-                    const rd_select_stats *st = &sel->stats[2 * (y * nx + x) + 1];
-                    m2 += st->path_m2, cp += st->path_cost;
-                }
-            sel->q[ty * nx + tx] = cp > 0.0 && lambda > 0.0 ? (float)rd_select_q_rule(m2, cp, lambda) : 0.0f;
-        }
     free(var);
-}
-
-double rd_select_q_rule(double m2, double cp, double lambda)
-{
-    double q = sqrt(m2 / (lambda * cp));
-    if (!(q >= RD_SELECT_Q_MIN)) return RD_SELECT_Q_MIN; /* also NaN */
-    return q < 1.0 ? q : 1.0;
-}
-
-double rd_select_tile_q(const rd_select *sel, uint64_t pixel)
-{
-    if (!sel->q || !sel->guided) return 0.0;
-    int x = (int)(pixel % (uint64_t)sel->width), y = (int)(pixel / (uint64_t)sel->width);
-    return sel->q[(y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE];
 }
 
 rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, double cell_cost,
@@ -370,7 +315,6 @@ void rd_select_free(rd_select *sel)
     free(sel->guided);
     free(sel->stats);
     free(sel->pixels);
-    free(sel->q);
     memset(sel, 0, sizeof *sel);
 }
 
@@ -419,7 +363,6 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
     int use = sel->guided[(y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE];
     work c0 = work_now(th);
     vec3 L;
-    th->path_m2 = th->path_cost = 0.0;
     if (use) {
         L = method(ctx, th, r, smp);
     } else {
@@ -427,10 +370,6 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
         pcg32 rng = rd_sampler_stream(smp);
         L = rd_delta_radiance(ctx->scene, r, &rng, &th->counters);
     }
-    if (v3_finite(L)) {
-        rd_select_observe(sel, th->pixel, L, sample_cost(sel, th, c0));
-        sel->pixels[th->pixel].path_m2 += th->path_m2;
-        sel->pixels[th->pixel].path_cost += th->path_cost;
-    }
+    if (v3_finite(L)) rd_select_observe(sel, th->pixel, L, sample_cost(sel, th, c0));
     return L;
 }
