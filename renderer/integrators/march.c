@@ -62,7 +62,9 @@ static int march_default_samples(placement p)
  * places its samples for. 0.5, one path per ray on average at guided's N_mean of 2, is guided's
  * best of 1, 0.5 and 0.25 (and of min(1, 1 / N) per ray) at equal time on the calibration
  * scenes, not on the benchmark's (bench/bench_calibrate.sh; docs/benchmarks.md "Session 15").
- * The other placements keep 1: not calibrated. */
+ * A probability learned per tile from the paths' second moment and cost (98e8645) tied with it
+ * there and lost the lens caustic on the benchmark's check, and was reverted. The other
+ * placements keep 1: not calibrated. */
 static double march_default_paths(placement p)
 {
     static const double q[PLACE_COUNT] = {[PLACE_GUIDED] = 0.5, [PLACE_TRANSMITTANCE] = 1.0, [PLACE_UNIFORM] = 1.0};
