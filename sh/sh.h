@@ -288,7 +288,7 @@ void sh_guide_stats_get(const sh_guide *g, sh_guide_stats *st);
  * [max(tmin, t_enter), min(tmax, t_exit)] of the box exactly, in increasing t, t0 of one
  * segment equal to t1 of the previous, each t1 > t0 (zero-length crossings at corners are
  * skipped). A ray missing the box returns no segment. Uniform grids: 3D-DDA (Amanatides-Woo)
- * with boundary parameters recomputed from the plane positions at each step (no drift);
+ * with boundary parameters recomputed from the plane position of the axis crossed (no drift);
  * adaptive: neighbour stepping, descending from the root at each step with the crossed
  * plane snapped exactly, so rounding can never send the walk back. Value type, no
  * allocation; the fields are private. The guide must outlive the iterator. */
@@ -306,6 +306,7 @@ typedef struct {
     double t, tend;
     int done;
     int ijk[3], step[3];  /* uniform */
+    double tx[3];         /* uniform: the walk's exit of the current cell's slab per axis */
     int snap_mask;        /* adaptive: axes whose coordinate is snapped to snap[] */
     double snap[3];
 } sh_guide_ray;

@@ -24,6 +24,7 @@ static void dda_load(const sh_guide_ray *it, wk_dda *w)
         w->lo[a] = g->lo[a], w->hi[a] = g->hi[a], w->h[a] = g->h[a], w->res[a] = g->res[a];
         w->o[a] = it->o[a], w->d[a] = it->d[a];
         w->ijk[a] = it->ijk[a], w->step[a] = it->step[a];
+        w->tx[a] = it->tx[a];
     }
     w->t = it->t, w->tend = it->tend, w->done = it->done;
 }
@@ -31,7 +32,7 @@ static void dda_load(const sh_guide_ray *it, wk_dda *w)
 static void dda_store(const wk_dda *w, sh_guide_ray *it)
 {
     for (int a = 0; a < 3; a++)
-        it->ijk[a] = w->ijk[a], it->step[a] = w->step[a];
+        it->ijk[a] = w->ijk[a], it->step[a] = w->step[a], it->tx[a] = w->tx[a];
     it->t = w->t, it->tend = w->tend, it->done = w->done;
 }
 

@@ -47,6 +47,29 @@ int wk_box_clip(const double lo[3], const double hi[3], const double o[3], const
 
 /* ---- Uniform-grid 3D-DDA -------------------------------------------------------------------- */
 
+/* Parameter at which the ray leaves the current cell's slab on axis a (+inf when the ray is
+ * parallel to it): Amanatides & Woo's tMax, evaluated afresh from the plane index (no
+ * incremental tDelta, so no drift). */
+static double slab_exit(const wk_dda *w, int a)
+{
+    if (w->step[a] == 0)
+        return INFINITY;
+    int i = w->ijk[a] + (w->step[a] > 0 ? 1 : 0);
+    return (wk_plane(w->lo[a], w->hi[a], w->h[a], w->res[a], i) - w->o[a]) / w->d[a];
+}
+
+/* The nearest of the three slab exits and its axis (-1 when the ray is parallel to every axis);
+ * the first axis wins a tie. */
+static double dda_exit(const wk_dda *w, int *axis)
+{
+    double tn = INFINITY;
+    *axis = -1;
+    for (int a = 0; a < 3; a++)
+        if (w->step[a] != 0 && w->tx[a] < tn)
+            tn = w->tx[a], *axis = a;
+    return tn;
+}
+
 void wk_dda_begin(wk_dda *w, const double lo[3], const double hi[3], const int res[3],
                   const double o[3], const double d[3], double t0, double t1, int enter_axis)
 {
@@ -73,27 +96,11 @@ void wk_dda_begin(wk_dda *w, const double lo[3], const double hi[3], const int r
         else
             w->ijk[a] = wk_cell_of(lo[a], hi[a], w->h[a], res[a], o[a] + t0 * d[a]);
     }
+    for (int a = 0; a < 3; a++)
+        w->tx[a] = slab_exit(w, a);
     w->t = t0;
     w->tend = t1;
     w->done = 0;
-}
-
-/* Parameter at which the ray leaves the current cell and the axis of that plane (-1 when the
- * ray is parallel to every axis). Recomputed from the plane index (no incremental tMax, so no
- * drift; Amanatides & Woo's tMax, evaluated afresh). */
-static double dda_exit(const wk_dda *w, int *axis)
-{
-    double tn = INFINITY;
-    *axis = -1;
-    for (int a = 0; a < 3; a++) {
-        if (w->step[a] == 0)
-            continue;
-        int i = w->ijk[a] + (w->step[a] > 0 ? 1 : 0);
-        double ta = (wk_plane(w->lo[a], w->hi[a], w->h[a], w->res[a], i) - w->o[a]) / w->d[a];
-        if (ta < tn)
-            tn = ta, *axis = a;
-    }
-    return tn;
 }
 
 int wk_dda_next(wk_dda *w, wk_dda_seg *s)
@@ -115,6 +122,7 @@ int wk_dda_next(wk_dda *w, wk_dda_seg *s)
                 w->done = 1;
             } else {
                 w->ijk[axis] = ni;
+                w->tx[axis] = slab_exit(w, axis); /* only the crossed axis's exit moves */
             }
         }
         w->t = t1;

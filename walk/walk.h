@@ -59,9 +59,10 @@ static inline int wk_cell_of(double lo, double hi, double h, int n, double p)
  * lookup; on the others, and for -1, the first cell is the one holding x(t0) (wk_cell_of).
  * The segments tile [t0, t1] exactly in increasing t (ta of one = tb of the previous, the first
  * ta = t0, the last tb = t1) and never have zero length (crossings through an edge or corner
- * are skipped). The exit parameter of each cell is recomputed from the plane index at every
- * step, never accumulated, so there is no drift. If rounding takes the walk out of the grid
- * before t1, the rest of [t0, t1] goes to the last cell. */
+ * are skipped). Each axis's exit parameter is computed from the plane index when the walk
+ * steps on that axis (one division per step, not three), never accumulated, so there is no
+ * drift. If rounding takes the walk out of the grid before t1, the rest of [t0, t1] goes to the
+ * last cell. */
 typedef struct {
     double ta, tb; /* the cell's piece of the ray, ta < tb */
     int ijk[3];    /* cell indices */
@@ -75,6 +76,7 @@ typedef struct {
     double o[3], d[3];
     double t, tend;
     int ijk[3], step[3];
+    double tx[3]; /* where the ray leaves the current cell's slab on each axis (inf: parallel) */
     int done;
 } wk_dda;
 
