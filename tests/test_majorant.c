@@ -75,7 +75,8 @@ Test(majorant, dda_visits_exactly_the_brute_force_cells)
         if (!rd_box_intersect(m->bmin, m->bmax, r, 0, INFINITY, &t0, &t1)) continue;
         checked++;
         for (int q = 0; q < nc; q++) len[q] = 0.0;
-        rd_maj_iter it = rd_majorant_iter(mj, r, t0, t1, m->sigma_maj, 0);
+        rd_maj_iter it;
+        rd_majorant_iter_begin(&it, mj, r, t0, t1, m->sigma_maj, 0);
         rd_maj_seg seg;
         double tprev = t0;
         while (rd_majorant_next(&it, &seg)) {
@@ -130,7 +131,8 @@ Test(majorant, octree_walk_matches_point_location)
         ray3 r = random_ray(&g, m->bmin, m->bmax);
         double t0, t1;
         if (!rd_box_intersect(m->bmin, m->bmax, r, 0, INFINITY, &t0, &t1)) continue;
-        rd_maj_iter it = rd_majorant_iter(mj, r, t0, t1, m->sigma_maj, 0);
+        rd_maj_iter it;
+        rd_majorant_iter_begin(&it, mj, r, t0, t1, m->sigma_maj, 0);
         rd_maj_seg seg;
         double tprev = t0;
         int guard = 0;
@@ -228,7 +230,8 @@ Test(majorant, cost_model_equals_direct_evaluation_of_eq14)
             ray3 r = {v3_add(v3_madd(c, w, -2 * R), v3_add(v3_scale(a, rr * cos(ph)), v3_scale(b, rr * sin(ph)))), w};
             double t0, t1;
             if (!rd_box_intersect(m->bmin, m->bmax, r, 0, INFINITY, &t0, &t1)) continue;
-            rd_maj_iter it = rd_majorant_iter(mj, r, t0, t1, m->sigma_maj, 0);
+            rd_maj_iter it;
+        rd_majorant_iter_begin(&it, mj, r, t0, t1, m->sigma_maj, 0);
             rd_maj_seg seg;
             double x = -1.0; /* planes crossed = segments - 1 */
             while (rd_majorant_next(&it, &seg)) {

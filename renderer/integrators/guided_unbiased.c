@@ -124,7 +124,8 @@ static void build_majorant_pdf(const gu_scratch *sc, int cap, const rd_scene *s,
     for (int i = 0; i < n_iv && ok; i++) {
         const rd_medium *m = iv[i].m;
         double smin = fmin(m->density_min * m->sigma_t_scale, m->sigma_maj);
-        rd_maj_iter it = rd_majorant_iter(m->majorant, r, iv[i].t0, iv[i].t1, m->sigma_maj, smin);
+        rd_maj_iter it;
+        rd_majorant_iter_begin(&it, m->majorant, r, iv[i].t0, iv[i].t1, m->sigma_maj, smin);
         rd_maj_seg g;
         while (ok && rd_majorant_next(&it, &g)) {
             if (!(g.t1 > g.t0)) continue;

@@ -37,20 +37,23 @@ static int medium_above_cb(const void *ctx, vec3 x, double scale, double thr)
 
 rd_fp_medium rd_fp_view(const rd_medium *m)
 {
-    rd_fp_medium v;
-    memset(&v, 0, sizeof v);
-    v.density = medium_density_cb;
-    v.above = medium_above_cb;
-    v.ctx = m;
-    v.sigma_t_scale = m->sigma_t_scale;
-    v.sigma_global = m->sigma_maj;
-    v.sigma_global_min = fmin(m->density_min * m->sigma_t_scale, m->sigma_maj);
-    v.maj = m->majorant;
-    v.grid = m->kind == RD_DENSITY_GRID ? &m->grid : NULL;
-    v.constant = m->kind == RD_DENSITY_CONSTANT ? m->constant : -1.0;
-    v.bmin = m->bmin;
-    v.bmax = m->bmax;
-    return v;
+    /* Built per tracking call: every field named (the rest zero), no memset and no libm call;
+     * this sits on the path of every free flight and shadow ray. */
+    double smin = m->density_min * m->sigma_t_scale;
+    return (rd_fp_medium){
+        .density = medium_density_cb,
+        .above = medium_above_cb,
+        .ctx = m,
+        .sigma_t_scale = m->sigma_t_scale,
+        .sigma_global = m->sigma_maj,
+        .sigma_global_min = smin < m->sigma_maj ? smin : m->sigma_maj,
+        .maj = m->majorant,
+        .grid = m->kind == RD_DENSITY_GRID ? &m->grid : NULL,
+        .constant = m->kind == RD_DENSITY_CONSTANT ? m->constant : -1.0,
+        .bmin = m->bmin,
+        .bmax = m->bmax,
+        .segments = NULL,
+    };
 }
 
 static inline double sigma_at(const rd_fp_medium *fm, ray3 r, double t, rd_track_counters *c)
@@ -97,7 +100,8 @@ static inline int walk(const rd_fp_medium *fm, const rd_majorant *maj, ray3 r, d
                        double t1, double b, int residual, pcg32 *rng, rd_track_counters *c,
                        rd_walk_fn fn, void *user, double *tau_c)
 {
-    rd_maj_iter it = rd_majorant_iter(maj, r, t0, t1, fm->sigma_global, fm->sigma_global_min);
+    rd_maj_iter it;
+    rd_majorant_iter_begin(&it, maj, r, t0, t1, fm->sigma_global, fm->sigma_global_min);
     rd_maj_seg g;
     rd_walk_point pt;
     pt.seg = &g;

@@ -627,27 +627,27 @@ static int entry_axis(const rd_majorant *m, const double o[3], const double d[3]
     return axis;
 }
 
-rd_maj_iter rd_majorant_iter(const rd_majorant *m, ray3 r, double t0, double t1,
-                             double sigma_global, double sigma_min_global)
+void rd_majorant_iter_begin(rd_maj_iter *it, const rd_majorant *m, ray3 r, double t0, double t1,
+                            double sigma_global, double sigma_min_global)
 {
-    rd_maj_iter it;
-    memset(&it, 0, sizeof it);
-    it.m = (m && m->kind != RD_MAJ_NONE) ? m : NULL;
-    it.r = r;
-    it.t = t0;
-    it.tmax = t1;
-    it.sigma_global = sigma_global;
-    it.sigma_global_min = sigma_min_global;
-    it.done = !(t0 < t1);
-    if (!it.m || it.done) return it;
+    /* Set in place, field by field: the iterator is large (the walk's state), and building it
+     * on the stack to return by value copied all of it on every free flight and shadow ray.
+     * The walk's state is set by its begin, when there is a walk. */
+    it->m = (m && m->kind != RD_MAJ_NONE) ? m : NULL;
+    it->r = r;
+    it->t = t0;
+    it->tmax = t1;
+    it->sigma_global = sigma_global;
+    it->sigma_global_min = sigma_min_global;
+    it->done = !(t0 < t1);
+    if (!it->m || it->done) return;
     const double lo[3] = {m->bmin.x, m->bmin.y, m->bmin.z}, hi[3] = {m->bmax.x, m->bmax.y, m->bmax.z};
     const double o[3] = {r.o.x, r.o.y, r.o.z}, d[3] = {r.d.x, r.d.y, r.d.z};
     int enter = entry_axis(m, o, d, t0, t1);
     if (m->kind == RD_MAJ_GRID) /* 3D-DDA (Amanatides and Woo 1987) over the super-voxels */
-        wk_dda_begin(&it.walk.grid, lo, hi, m->n, o, d, t0, t1, enter);
+        wk_dda_begin(&it->walk.grid, lo, hi, m->n, o, d, t0, t1, enter);
     else /* octree: neighbour finding by descent from the root (walk/) */
-        wk_tree_begin(&it.walk.tree, oct_locate, m, lo, hi, o, d, t0, t1, enter, m->depth);
-    return it;
+        wk_tree_begin(&it->walk.tree, oct_locate, m, lo, hi, o, d, t0, t1, enter, m->depth);
 }
 
 /* Coefficients of the trilinear function with corner values v[8] (index x + 2y + 4z) along the

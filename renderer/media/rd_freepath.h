@@ -119,8 +119,8 @@ typedef struct {
 
 /* Walk r over [t0, t1] (already clipped to the medium's box). m == NULL or kind NONE gives one
  * segment with sigma_global (and minorant sigma_min_global). */
-rd_maj_iter rd_majorant_iter(const rd_majorant *m, ray3 r, double t0, double t1,
-                             double sigma_global, double sigma_min_global);
+void rd_majorant_iter_begin(rd_maj_iter *it, const rd_majorant *m, ray3 r, double t0, double t1,
+                            double sigma_global, double sigma_min_global);
 int rd_majorant_next(rd_maj_iter *it, rd_maj_seg *seg);
 
 /* Optical depth of the majorant over the segment from normalised s0 to s1 (exact integral of

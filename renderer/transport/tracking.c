@@ -149,8 +149,8 @@ static int flight_next(flight_iter *k, rd_maj_seg *g)
         if (!k->started) {
             const rd_medium *m = k->iv[k->i].m;
             double smin = fmin(m->density_min * m->sigma_t_scale, m->sigma_maj);
-            k->it = rd_majorant_iter(k->global ? NULL : m->majorant, k->r, k->iv[k->i].t0, k->iv[k->i].t1,
-                                     m->sigma_maj, smin);
+            rd_majorant_iter_begin(&k->it, k->global ? NULL : m->majorant, k->r, k->iv[k->i].t0,
+                                   k->iv[k->i].t1, m->sigma_maj, smin);
             k->started = 1;
         }
         while (rd_majorant_next(&k->it, g))
