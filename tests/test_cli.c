@@ -187,19 +187,25 @@ Test(cli, render_writes_exr_png_and_report, .timeout = 120)
     rd_image_free_pixels(&img);
     cJSON *rep = read_report(js);
     cr_expect(report_num(rep, "spp") == 3, "report: spp %g", report_num(rep, "spp"));
-    cJSON_Delete(rep);
     /* The per-pixel standard error beside the image: same size, finite, non-negative, and
      * non-zero somewhere (3 samples of a lit medium are not all equal). */
     char se[300];
     snprintf(se, sizeof se, "%s/img/a-stderr.exr", rt_tmpdir());
     cr_assert(rd_image_read(se, &img, msg, sizeof msg) == RD_OK, "%s", msg);
     cr_expect(img.w == 24 && img.h == 16);
-    double se_sum = 0;
+    double se_sum = 0, se2_sum = 0;
     for (int i = 0; i < img.w * img.h * 3; i++) {
         cr_expect(isfinite(img.rgb[i]) && img.rgb[i] >= 0.0f);
         se_sum += img.rgb[i];
+        se2_sum += (double)img.rgb[i] * img.rgb[i];
     }
     cr_expect(se_sum > 0.0);
+    /* The report's variance per sample is that file's squared errors, averaged over pixels and
+     * channels, times the 3 samples each pixel took (the EXR stores floats, as the report's sum
+     * read them: agreement to float rounding). */
+    double vps = se2_sum / (img.w * img.h * 3) * 3.0, rep_vps = report_num(rep, "variance_per_sample");
+    cr_expect(vps > 0.0 && fabs(rep_vps - vps) <= 1e-5 * vps, "variance_per_sample %g, from the file %g", rep_vps, vps);
+    cJSON_Delete(rep);
     rd_image_free_pixels(&img);
     /* No temporary files are left beside the outputs. */
     char cmd[512];

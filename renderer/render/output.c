@@ -89,6 +89,13 @@ static char *report_json(const rd_scene *s, const rd_render_opts *o, const rd_re
         se += 0.2126 * res->stderr_img.rgb[3 * p] + 0.7152 * res->stderr_img.rgb[3 * p + 1] +
               0.0722 * res->stderr_img.rgb[3 * p + 2];
     cJSON_AddNumberToObject(j, "mean_pixel_stderr", np ? se / np : 0.0);
+    /* Variance per sample: the mean over pixels and channels of stderr^2 x n, the sample
+     * variance of one camera sample (n = spp_mean: a stopped pass leaves some pixels one sample
+     * behind, a relative error under 1 / spp). With the render seconds per sample, the two
+     * halves of an efficiency, reported apart. */
+    double v = 0.0;
+    for (size_t q = 0; q < 3 * np; q++) v += (double)res->stderr_img.rgb[q] * res->stderr_img.rgb[q];
+    cJSON_AddNumberToObject(j, "variance_per_sample", np ? v / (3.0 * np) * st->spp_mean : 0.0);
     if (res->n_curve > 0) {
         cJSON *c = cJSON_AddArrayToObject(j, "convergence");
         for (int i = 0; c && i < res->n_curve; i++) {
