@@ -1,0 +1,100 @@
+#!/usr/bin/env bash
+# bench_cost_fit.sh: the tile selection's cost weights (renderer/integrators/select.c, the head),
+# fitted again on this build (run by hand after a change to what a sample costs;
+# docs/guided-marching.md "Where marching pays", docs/benchmarks.md).
+#
+# The selection counts a camera sample's cost as work, in units of one density lookup:
+#     C = lookups + w_S shadow rays + w_M marcher PDF segments + w_F flight segments
+#         + w_V guided vertices + w_0,
+# so that the same seed gives the same choices on any machine. The weights come from a
+# least-squares fit of time per camera sample on the calibration scenes, which are not in the
+# benchmark's tables: each scene rendered by delta, guided and guided-unbiased with select off
+# (every sample of the method), one thread, ROUNDS interleaved rounds, the median time. Each
+# render gives one equation,
+#     t / samples = a_L lookups + a_S shadow rays + a_M marcher segments + a_F flight segments
+#                   + a_V guided vertices + a_0         (all per camera sample, a in us),
+# fitted for relative error (each row divided by its t). The weights are the a over a_L.
+# It prints the fit, the weights, and each render's measured and modelled time.
+#
+#   bench/bench_cost_fit.sh [BIN]
+#       environment: SCENES (the six below), SPP (16), RES ([160,120]), ROUNDS (3),
+#                    OUT (bench/results/cost_fit)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+. bench/machine.sh
+bench_machine_note
+BIN=${1:-build/photonmarch}
+SCENES=${SCENES:-cloud smoke-vdb glass-fog sphere-in-fog hetero-forward noise-block}
+SPP=${SPP:-16}
+RES=${RES:-[160,120]}
+ROUNDS=${ROUNDS:-3}
+OUT=${OUT:-bench/results/cost_fit}
+mkdir -p "$OUT"
+log=$OUT/runs.txt
+: > "$log"
+for r in $(seq "$ROUNDS"); do
+  for name in $SCENES; do
+    for m in delta guided guided-unbiased; do
+      o=$OUT/$name-$m.exr
+      "$BIN" render "scenes/$name.json" --method "$m" --spp "$SPP" --threads 1 \
+        --set settings.select='"off"' --set camera.resolution="$RES" -o "$o" > /dev/null 2>&1
+      jq -c --arg s "$name" --arg m "$m" '{scene: $s, method: $m, t: .render_seconds, n: .paths,
+          L: .density_lookups, S: .shadow_rays,
+          M: ((.march.rays // 0) * (.march.pdf_segments_per_ray // 0)),
+          F: ((.guided_paths.flight_segments_per_path // 0) * .paths),
+          V: ((.guided_paths.guide_vertices_per_path // 0) * .paths)}' "${o%.exr}.json" >> "$log"
+    done
+  done
+done
+
+python3 - "$log" <<'EOF'
+import json, statistics, sys, collections
+runs = collections.defaultdict(list)
+for line in open(sys.argv[1]):
+    j = json.loads(line)
+    runs[(j['scene'], j['method'])].append(j)
+names = ['lookup', 'shadow ray', 'marcher segment', 'flight segment', 'guided vertex', 'camera sample']
+rows, keys = [], []
+for k, js in sorted(runs.items()):
+    j = js[0]  # the counts are the same every round (same seed); the time is the median
+    n = j['n']
+    t = statistics.median(x['t'] for x in js) / n * 1e6  # us per camera sample
+    x = [j['L'] / n, j['S'] / n, j['M'] / n, j['F'] / n, j['V'] / n, 1.0]
+    rows.append((x, t))
+    keys.append(k)
+# Least squares for relative error: rows scaled by 1/t; normal equations, Gaussian elimination.
+p = len(names)
+A = [[0.0] * p for _ in range(p)]
+b = [0.0] * p
+for x, t in rows:
+    xs = [v / t for v in x]
+    for i in range(p):
+        b[i] += xs[i]  # (t / t) = 1
+        for k in range(p):
+            A[i][k] += xs[i] * xs[k]
+for c in range(p):
+    piv = max(range(c, p), key=lambda r: abs(A[r][c]))
+    A[c], A[piv] = A[piv], A[c]
+    b[c], b[piv] = b[piv], b[c]
+    for r in range(p):
+        if r != c and A[c][c] != 0.0:
+            f = A[r][c] / A[c][c]
+            for k in range(c, p):
+                A[r][k] -= f * A[c][k]
+            b[r] -= f * b[c]
+a = [b[i] / A[i][i] for i in range(p)]
+print('| weight | us | in lookups |')
+print('|---|---|---|')
+for nm, v in zip(names, a):
+    print('| %s | %.4f | %.3f |' % (nm, v, v / a[0]))
+print()
+# What the selection compares within a tile is a method's cost over delta's: measured and modelled.
+model = {k: sum(ai * xi for ai, xi in zip(a, x)) for (x, t), k in zip(rows, keys)}
+meas = {k: t for (x, t), k in zip(rows, keys)}
+print('| scene | method | us per sample | model | model / measured | over delta: measured | model |')
+print('|---|---|---|---|---|---|---|')
+for (s, m) in keys:
+    d = (s, 'delta')
+    over = '| %.2f | %.2f' % (meas[(s, m)] / meas[d], model[(s, m)] / model[d]) if m != 'delta' and d in meas else '| | '
+    print('| %s | %s | %.3f | %.3f | %.3f %s |' % (s, m, meas[(s, m)], model[(s, m)], model[(s, m)] / meas[(s, m)], over))
+EOF
