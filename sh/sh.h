@@ -45,6 +45,7 @@
 #include <stdio.h>
 
 #include "photonmap.h"
+#include "walk.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -300,15 +301,13 @@ typedef struct {
 } sh_guide_seg;
 
 typedef struct {
-    /* private */
+    /* private: the walk itself (walk/walk.h), stepped in place */
     const sh_guide *g;
-    double o[3], d[3], inv[3];
-    double t, tend;
     int done;
-    int ijk[3], step[3];  /* uniform */
-    double tx[3];         /* uniform: the walk's exit of the current cell's slab per axis */
-    int snap_mask;        /* adaptive: axes whose coordinate is snapped to snap[] */
-    double snap[3];
+    union {
+        wk_dda grid;       /* uniform */
+        wk_tree_walk tree; /* adaptive */
+    } w;
 } sh_guide_ray;
 
 void sh_guide_ray_begin(const sh_guide *g, const double o[3], const double d[3], double tmin,
