@@ -8,8 +8,6 @@
  * arithmetic). The track-length bake (sh_bake.c) uses the same iterator for its overlap lengths.
  *
  * sh_guide_ray (sh.h) holds the wk_ iterator itself, stepped in place. */
-#include <math.h>
-#include <string.h>
 
 #include "sh_internal.h"
 #include "walk.h"
@@ -29,8 +27,7 @@ static long guide_locate(const void *tree, const double p[3], const double d[3],
 void sh_guide_ray_begin(const sh_guide *g, const double o[3], const double d[3], double tmin,
                         double tmax, sh_guide_ray *it)
 {
-    memset(it, 0, sizeof *it);
-    it->g = g;
+    it->g = g; /* the walk's begin below sets (and clears) its own state */
     it->done = 1;
     if (!g)
         return;
@@ -39,7 +36,8 @@ void sh_guide_ray_begin(const sh_guide *g, const double o[3], const double d[3],
     if (!wk_box_clip(g->lo, g->hi, o, d, tmin, tmax, &t0, &t1, &enter_axis))
         return;
     /* The walk's own state lives in the cursor and is stepped in place: copying it in and out
-     * at every cell cost `guided` 4-8% of its time on hard-narrow-spot (select off). */
+     * at every cell cost `guided` about 7% of its time on hard-narrow-spot with select off
+     * (docs/benchmarks.md, "Session 16"). */
     it->done = 0;
     if (g->kind == SH_GRID_UNIFORM)
         wk_dda_begin(&it->w.grid, g->lo, g->hi, g->res, o, d, t0, t1, enter_axis);
