@@ -87,6 +87,24 @@ static void observe_rare(rd_select *sel, int n, double mu, double q, double c, u
         }
 }
 
+/* An epoch of a one-tile selection (8x8 pixels) on trial: n samples of every pixel, those with
+ * x + y odd the method's (X = mu / q_m with probability q_m, else 0, at cost c_m), the others
+ * delta's (q_d, c_d). */
+static void observe_trial(rd_select *sel, int n, double mu, double q_d, double c_d, double q_m, double c_m,
+                          uint64_t seed)
+{
+    pcg32 rng = pcg32_seed(seed, 3, 1);
+    for (int p = 0; p < 64; p++) {
+        int m = rd_select_uses(sel, p % 8, p / 8);
+        cr_assert(m == ((p % 8 + p / 8) & 1), "pixel %d on trial: a checkerboard", p);
+        double q = m ? q_m : q_d, c = m ? c_m : c_d;
+        for (int i = 0; i < n; i++) {
+            double x = pcg32_uniform(&rng) < q ? mu / q : 0.0;
+            rd_select_observe(sel, (uint64_t)p, v3(x, x, x), c);
+        }
+    }
+}
+
 Test(select, an_epoch_drops_the_method_when_the_image_shows_its_heavy_tail)
 {
     rd_select sel;
@@ -101,10 +119,18 @@ Test(select, an_epoch_drops_the_method_when_the_image_shows_its_heavy_tail)
      * 1 / 0.002 - 1 = 499 per sample over 64 x 256 samples. */
     observe_rare(&sel, 256, 1.0, 0.002, 2.0, 11);
     rd_select_epoch(&sel, NULL);
-    cr_assert(sel.guided[0] == 0, "after the method's heavy tail, delta (variance %g over %g samples)",
-              sel.stats[1].dev2[0] / sel.stats[1].dof, sel.stats[1].n);
     cr_assert(sel.stats[1].n == 128 + 64 * 256 && sel.stats[0].n == 128,
               "the samples go to the estimator that drew them: %g and %g", sel.stats[0].n, sel.stats[1].n);
+    /* delta's 128 samples against the method's 16512: delta goes on trial, not in at once. */
+    cr_assert(sel.guided[0] == 1 && sel.trial[0] == 1, "delta on trial (method %d, trial %d)", sel.guided[0],
+              sel.trial[0]);
+    /* The trial: delta's half shows variance 1 at cost 1, the method's half its heavy tail. */
+    observe_trial(&sel, 256, 1.0, 0.5, 1.0, 0.002, 2.0, 13);
+    rd_select_epoch(&sel, NULL);
+    cr_assert(sel.guided[0] == 0 && sel.trial[0] == 0, "after the trial, delta (method's variance %g over %g samples)",
+              sel.stats[1].dev2[0] / sel.stats[1].dof, sel.stats[1].n);
+    cr_assert(sel.stats[0].n == 128 + 32 * 256 && sel.stats[1].n == 128 + 64 * 256 + 32 * 256,
+              "the trial's samples go to the estimator of their pixel: %g and %g", sel.stats[0].n, sel.stats[1].n);
     rd_select_free(&sel);
 }
 
@@ -122,8 +148,37 @@ Test(select, an_epoch_takes_the_method_when_delta_s_paths_rarely_find_the_light)
     /* The image: delta's paths find the light once in 200 (variance 199 per sample). */
     observe_rare(&sel, 256, 1.0, 0.005, 1.0, 12);
     rd_select_epoch(&sel, NULL);
-    cr_assert(sel.guided[0] == 1, "after delta's rare hits, the method (delta's variance %g)",
-              sel.stats[0].dev2[0] / sel.stats[0].dof);
+    /* The method's 128 samples against delta's 16512: on trial first. */
+    cr_assert(sel.guided[0] == 0 && sel.trial[0] == 1, "the method on trial (method %d, trial %d; delta's variance %g)",
+              sel.guided[0], sel.trial[0], sel.stats[0].dev2[0] / sel.stats[0].dof);
+    /* The trial: the method's half keeps its variance 0.2 (X = 1.2 with probability 1 / 1.2),
+     * delta's half its rare hits. */
+    observe_trial(&sel, 256, 1.0, 0.005, 1.0, 1.0 / 1.2, 8.0, 14);
+    rd_select_epoch(&sel, NULL);
+    cr_assert(sel.guided[0] == 1 && sel.trial[0] == 0, "after the trial, the method (its variance %g over %g samples)",
+              sel.stats[1].dev2[0] / sel.stats[1].dof, sel.stats[1].n);
+    rd_select_free(&sel);
+}
+
+Test(select, a_trial_keeps_delta_where_the_method_s_tail_is_delta_s)
+{
+    /* The lens caustic (docs/benchmarks.md, "Session 13"): both estimators carry the same rare
+     * firefly, the method at 8x the cost. delta's 16512 samples show it, the method's pilot of
+     * 128 does not; without the trial the tile went to the method. On trial the method's half
+     * shows the same tail, and the tile stays with delta. */
+    rd_select sel;
+    char err[RD_ERRLEN];
+    cr_assert(rd_select_init(&sel, 8, 8, 1.0, err, sizeof err) == RD_OK, "%s", err);
+    fake_pilot(&sel, 0, 1.0, 1.0, 0.5, 1.0);
+    fake_pilot(&sel, 1, 1.0, 0.2, 1.0, 8.0);
+    rd_select_epoch(&sel, NULL);
+    observe_rare(&sel, 256, 1.0, 0.005, 1.0, 12);
+    rd_select_epoch(&sel, NULL);
+    cr_assert(sel.guided[0] == 0 && sel.trial[0] == 1, "the method on trial");
+    observe_trial(&sel, 256, 1.0, 0.005, 1.0, 0.005, 8.0, 15);
+    rd_select_epoch(&sel, NULL);
+    cr_assert(sel.guided[0] == 0 && sel.trial[0] == 0, "after the trial, delta (the method's variance %g)",
+              sel.stats[1].dev2[0] / sel.stats[1].dof);
     rd_select_free(&sel);
 }
 

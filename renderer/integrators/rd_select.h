@@ -32,6 +32,9 @@ typedef struct {
 typedef struct {
     uint8_t *guided;         /* per tile, 1 where the method renders, 0 where delta's path does;
                                 NULL: the method everywhere (selection off, or not run) */
+    uint8_t *trial;          /* per tile, 1 while the other estimator is on trial: for one epoch
+                                the tile's pixels with x + y odd use the method, the others
+                                delta's path (rd_select_uses) */
     int tiles_x, tiles_y, width, height;
     int epochs;              /* choose again at the epochs (settings.select "tiles"; "pilot": 0) */
     double cell_cost;        /* the method's cost per PDF segment it counts in rd_thread.cells,
@@ -39,6 +42,10 @@ typedef struct {
     rd_select_stats *stats;  /* per tile, [2k] delta's and [2k + 1] the method's */
     rd_select_pixel *pixels; /* per pixel, the current epoch's samples */
 } rd_select;
+
+/* 1 where the selection gives pixel (x, y) to the method: its tile's choice, or on a tile on
+ * trial, the pixel's square of the checkerboard. */
+int rd_select_uses(const rd_select *sel, int x, int y);
 
 /* A method's own estimate of the radiance along camera ray r (what its radiance() does
  * where the selection gives it the pixel). */
@@ -73,6 +80,11 @@ int rd_select_epoch_next(const rd_select *sel, int sample);
  * pixel's), so every rank folds the same statistics and makes the same choice as one process.
  * Collective then: every rank calls it at the same epoch. comm NULL: this process alone. */
 void rd_select_epoch(rd_select *sel, const rd_comm *comm);
+/* The trial (see select.c, "Evidence of unequal size"): a tile's choice moves to the other
+ * estimator at once only when that estimator's samples in the tile's window are at least
+ * 1 / RD_SELECT_TRIAL_RATIO of the current one's; else the tile goes on trial first. */
+#define RD_SELECT_TRIAL_RATIO 4
+
 /* The rule: for n tiles with the per-sample variance and cost of delta (var[2k], cost[2k]) and
  * of the method (var[2k+1], cost[2k+1]), the choices that minimise (sum V)(sum C);
  * use_method[k] = 1 for the method. */

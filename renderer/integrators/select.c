@@ -28,6 +28,21 @@
  * the two estimators' means (both unbiased for the tile's mean), is not, and p, by Laplace's
  * rule (non-zero + 1) / (n + 2), falls as the zeros pile up.
  *
+ * Evidence of unequal size. At an epoch the tile's current estimator has the image's thousands of
+ * samples and the other only its pilot's hundred or so. A heavy tail is seen in proportion to
+ * the samples drawn, so the comparison favours the estimator with fewer: where both carry the
+ * same rare firefly (the lens caustic's path through the glass to the small light, which the
+ * method's paths find no more often than delta's), delta's thousands show it and the method's
+ * hundred do not, and the tile went to the method at 3x the cost for no less variance
+ * (docs/benchmarks.md, "Session 13"). So a tile moves to the other estimator at once only when
+ * that estimator's samples in the tile's window are at least 1 / RD_SELECT_TRIAL_RATIO of the
+ * current one's (4, the epochs' own growth: an epoch's choice never rests on evidence more
+ * lopsided than one epoch's growth); else the tile goes on trial: for the next epoch half its
+ * pixels (a checkerboard) take the other estimator, whose samples then grow as fast as the
+ * current one's, and the next epoch decides on comparable evidence. Where the other estimator
+ * is truly better (a narrow beam that delta's paths rarely find), the trial shows it and the
+ * tile moves one epoch later; where it only looked better, the trial shows its tail too.
+ *
  * The rule. At equal time the image's MSE is (sum_k V_k)(sum_k C_k) / time for the choices
  * m_k of the tiles k, so the best choices minimise the product. Its stationary point is where
  * every tile takes the m minimising V_k,m + lambda C_k,m with lambda = sum V / sum C of the
@@ -211,32 +226,29 @@ void rd_select_choose(const double *var, const double *cost, int n, uint8_t *use
     }
 }
 
-/* Each tile's statistics replaced by the mean over its 3x3 neighbourhood (clipped at the image's
- * edge). A tile's own pilot has 16 pixels x SEL_SPP samples, and delta's variance is
- * heavy-tailed (a rare path that finds the light): alone, one tile's estimate swings the choice
- * from seed to seed; nine tiles' pooled steady it, at the price of a one-tile blur of the map. */
-static void pool(double *var, double *cost, int nx, int ny)
+/* Each tile's pair of figures a[2k], a[2k + 1] (delta's, the method's) replaced by the mean over
+ * its 3x3 neighbourhood (clipped at the image's edge), in tmp's room of 2 nx ny doubles. A
+ * tile's own pilot has 16 pixels x SEL_SPP samples, and delta's variance is heavy-tailed (a rare
+ * path that finds the light): alone, one tile's estimate swings the choice from seed to seed;
+ * nine tiles' pooled steady it, at the price of a one-tile blur of the map. */
+static void pool(double *a, double *tmp, int nx, int ny)
 {
     size_t n = (size_t)nx * ny;
-    double *tmp = malloc(4 * n * sizeof *tmp);
-    if (!tmp) return; /* the tiles' own statistics, then */
-    memcpy(tmp, var, 2 * n * sizeof *tmp);
-    memcpy(tmp + 2 * n, cost, 2 * n * sizeof *tmp);
+    memcpy(tmp, a, 2 * n * sizeof *tmp);
     for (int ty = 0; ty < ny; ty++)
         for (int tx = 0; tx < nx; tx++) {
             size_t k = (size_t)ty * nx + tx;
-            double sv[2] = {0, 0}, sc[2] = {0, 0};
+            double sv[2] = {0, 0};
             int cnt = 0;
             for (int y = ty - 1; y <= ty + 1; y++)
                 for (int x = tx - 1; x <= tx + 1; x++) {
                     if (x < 0 || y < 0 || x >= nx || y >= ny) continue;
                     size_t j = (size_t)y * nx + x;
-                    for (int e = 0; e < 2; e++) sv[e] += tmp[2 * j + e], sc[e] += tmp[2 * n + 2 * j + e];
+                    for (int e = 0; e < 2; e++) sv[e] += tmp[2 * j + e];
                     cnt++;
                 }
-            for (int e = 0; e < 2; e++) var[2 * k + e] = sv[e] / cnt, cost[2 * k + e] = sc[e] / cnt;
+            for (int e = 0; e < 2; e++) a[2 * k + e] = sv[e] / cnt;
         }
-    free(tmp);
 }
 
 rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost, char *err, size_t errlen)
@@ -247,21 +259,25 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
     sel->tiles_y = (height + RD_SELECT_TILE - 1) / RD_SELECT_TILE;
     size_t n = (size_t)sel->tiles_x * sel->tiles_y;
     sel->guided = calloc(n, 1);
+    sel->trial = calloc(n, 1);
     sel->stats = calloc(2 * n, sizeof *sel->stats);
     sel->pixels = rd_alloc_lines((size_t)width * height * sizeof *sel->pixels);
-    if (sel->guided && sel->stats && sel->pixels) return RD_OK;
+    if (sel->guided && sel->trial && sel->stats && sel->pixels) return RD_OK;
     rd_select_free(sel);
     snprintf(err, errlen, "out of memory for the tile selection (%dx%d pixels)", width, height);
     return RD_ERR_NOMEM;
 }
 
 /* Choose every tile's estimator from the statistics so far: each tile's V and C (as sums over
- * its pixels, which is what the image's error and time add up), pooled, then the rule. */
+ * its pixels, which is what the image's error and time add up), pooled, then the rule; a move
+ * to the estimator with far fewer samples goes on trial first (see the head). */
 static void choose_tiles(rd_select *sel)
 {
     int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny;
-    double *var = malloc(4 * (size_t)n * sizeof *var), *cost = var ? var + 2 * (size_t)n : NULL;
+    double *var = malloc(8 * (size_t)n * sizeof *var + (size_t)n);
     if (!var) return; /* the choices stay as they are */
+    double *cost = var + 2 * (size_t)n, *count = cost + 2 * (size_t)n, *tmp = count + 2 * (size_t)n;
+    uint8_t *want = (uint8_t *)(tmp + 2 * (size_t)n);
     for (int k = 0; k < n; k++) {
         int tx = k % nx, ty = k / nx;
         int w = sel->width - tx * RD_SELECT_TILE, h = sel->height - ty * RD_SELECT_TILE;
@@ -270,10 +286,22 @@ static void choose_tiles(rd_select *sel)
             const rd_select_stats *st = &sel->stats[2 * k + e];
             var[2 * k + e] = pixels * tile_variance(&sel->stats[2 * k], e);
             cost[2 * k + e] = st->n > 0.0 ? pixels * st->cost / st->n : 0.0;
+            count[2 * k + e] = st->n;
         }
     }
-    pool(var, cost, nx, ny);
-    rd_select_choose(var, cost, n, sel->guided);
+    pool(var, tmp, nx, ny);
+    pool(cost, tmp, nx, ny);
+    pool(count, tmp, nx, ny);
+    rd_select_choose(var, cost, n, want);
+    for (int k = 0; k < n; k++) {
+        int cur = sel->guided[k], w = want[k];
+        if (w == cur || count[2 * k + w] * RD_SELECT_TRIAL_RATIO >= count[2 * k + cur]) {
+            sel->guided[k] = (uint8_t)w; /* the same, or a move on comparable evidence */
+            sel->trial[k] = 0;
+        } else {
+            sel->trial[k] = 1; /* lopsided evidence: half the pixels try w for an epoch */
+        }
+    }
     free(var);
 }
 
@@ -313,9 +341,16 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, doubl
 void rd_select_free(rd_select *sel)
 {
     free(sel->guided);
+    free(sel->trial);
     free(sel->stats);
     free(sel->pixels);
     memset(sel, 0, sizeof *sel);
+}
+
+int rd_select_uses(const rd_select *sel, int x, int y)
+{
+    int k = (y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE;
+    return sel->trial[k] ? (x + y) & 1 : sel->guided[k];
 }
 
 void rd_select_observe(rd_select *sel, uint64_t pixel, vec3 L, double cost)
@@ -348,7 +383,7 @@ void rd_select_epoch(rd_select *sel, const rd_comm *comm)
         for (int x = 0; x < sel->width; x++) {
             int k = (y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE;
             rd_select_pixel *px = &sel->pixels[(size_t)y * sel->width + x];
-            pixel_fold(&sel->stats[2 * k + sel->guided[k]], px);
+            pixel_fold(&sel->stats[2 * k + rd_select_uses(sel, x, y)], px);
             memset(px, 0, sizeof *px);
         }
     choose_tiles(sel);
@@ -360,7 +395,7 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
     if (!sel->guided) return method(ctx, th, r, smp);
     int w = ctx->scene->camera.width;
     int x = (int)(th->pixel % (uint64_t)w), y = (int)(th->pixel / (uint64_t)w);
-    int use = sel->guided[(y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE];
+    int use = rd_select_uses(sel, x, y);
     work c0 = work_now(th);
     vec3 L;
     if (use) {
