@@ -134,23 +134,28 @@ Test(select, an_epoch_drops_the_method_when_the_image_shows_its_heavy_tail)
     rd_select_free(&sel);
 }
 
+/* A one-tile selection whose pilot favours delta (delta saw the light in half its samples,
+ * variance 1 at cost 1; the method variance 0.2 at cost 8: V C 1.6 > 1), then an epoch in which
+ * delta's paths find the light once in 200 (variance 199 per sample). The method has 128
+ * samples against delta's 16512: the tile goes on trial, not to the method at once. */
+static void rare_light_tile_on_trial(rd_select *sel)
+{
+    char err[RD_ERRLEN];
+    cr_assert(rd_select_init(sel, 8, 8, 1.0, err, sizeof err) == RD_OK, "%s", err);
+    fake_pilot(sel, 0, 1.0, 1.0, 0.5, 1.0);
+    fake_pilot(sel, 1, 1.0, 0.2, 1.0, 8.0);
+    rd_select_epoch(sel, NULL);
+    cr_assert(sel->guided[0] == 0, "the pilot's statistics favour delta");
+    observe_rare(sel, 256, 1.0, 0.005, 1.0, 12);
+    rd_select_epoch(sel, NULL);
+    cr_assert(sel->guided[0] == 0 && sel->trial[0] == 1, "the method on trial (method %d, trial %d; delta's variance %g)",
+              sel->guided[0], sel->trial[0], sel->stats[0].dev2[0] / sel->stats[0].dof);
+}
+
 Test(select, an_epoch_takes_the_method_when_delta_s_paths_rarely_find_the_light)
 {
     rd_select sel;
-    char err[RD_ERRLEN];
-    cr_assert(rd_select_init(&sel, 8, 8, 1.0, err, sizeof err) == RD_OK, "%s", err);
-    /* The pilot: delta saw the light in half its samples, variance 1 at cost 1; the method
-     * variance 0.2 at cost 8 (V C 1.6 > 1: delta). */
-    fake_pilot(&sel, 0, 1.0, 1.0, 0.5, 1.0);
-    fake_pilot(&sel, 1, 1.0, 0.2, 1.0, 8.0);
-    rd_select_epoch(&sel, NULL);
-    cr_assert(sel.guided[0] == 0, "the pilot's statistics favour delta");
-    /* The image: delta's paths find the light once in 200 (variance 199 per sample). */
-    observe_rare(&sel, 256, 1.0, 0.005, 1.0, 12);
-    rd_select_epoch(&sel, NULL);
-    /* The method's 128 samples against delta's 16512: on trial first. */
-    cr_assert(sel.guided[0] == 0 && sel.trial[0] == 1, "the method on trial (method %d, trial %d; delta's variance %g)",
-              sel.guided[0], sel.trial[0], sel.stats[0].dev2[0] / sel.stats[0].dof);
+    rare_light_tile_on_trial(&sel);
     /* The trial: the method's half keeps its variance 0.2 (X = 1.2 with probability 1 / 1.2),
      * delta's half its rare hits. */
     observe_trial(&sel, 256, 1.0, 0.005, 1.0, 1.0 / 1.2, 8.0, 14);
@@ -167,14 +172,7 @@ Test(select, a_trial_keeps_delta_where_the_method_s_tail_is_delta_s)
      * 128 does not; without the trial the tile went to the method. On trial the method's half
      * shows the same tail, and the tile stays with delta. */
     rd_select sel;
-    char err[RD_ERRLEN];
-    cr_assert(rd_select_init(&sel, 8, 8, 1.0, err, sizeof err) == RD_OK, "%s", err);
-    fake_pilot(&sel, 0, 1.0, 1.0, 0.5, 1.0);
-    fake_pilot(&sel, 1, 1.0, 0.2, 1.0, 8.0);
-    rd_select_epoch(&sel, NULL);
-    observe_rare(&sel, 256, 1.0, 0.005, 1.0, 12);
-    rd_select_epoch(&sel, NULL);
-    cr_assert(sel.guided[0] == 0 && sel.trial[0] == 1, "the method on trial");
+    rare_light_tile_on_trial(&sel);
     observe_trial(&sel, 256, 1.0, 0.005, 1.0, 0.005, 8.0, 15);
     rd_select_epoch(&sel, NULL);
     cr_assert(sel.guided[0] == 0 && sel.trial[0] == 0, "after the trial, delta (the method's variance %g)",
