@@ -165,6 +165,19 @@ Test(select, an_epoch_takes_the_method_when_delta_s_paths_rarely_find_the_light)
     rd_select_free(&sel);
 }
 
+Test(select, a_trial_lasts_one_epoch)
+{
+    /* Even an epoch that brings no samples ends the trial: the rule then decides alone (here
+     * for the method: delta's rare hits, variance 199 at cost 1, against 0.2 at cost 8). A
+     * trial that the counts could keep open would leave the tile half and half for good. */
+    rd_select sel;
+    rare_light_tile_on_trial(&sel);
+    rd_select_epoch(&sel, NULL);
+    cr_assert(sel.trial[0] == 0 && sel.guided[0] == 1, "the trial ended (method %d, trial %d)", sel.guided[0],
+              sel.trial[0]);
+    rd_select_free(&sel);
+}
+
 Test(select, a_trial_keeps_delta_where_the_method_s_tail_is_delta_s)
 {
     /* The lens caustic (docs/benchmarks.md, "Session 13"): both estimators carry the same rare

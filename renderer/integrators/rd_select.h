@@ -17,8 +17,8 @@ typedef struct {
     double n, nonzero, dof, sum[3], dev2[3], cost;
 } rd_select_stats;
 
-/* One pixel's samples since the last epoch (all of one estimator: the tile's choice does not
- * change within an epoch). Plain doubles, so that several ranks' arrays are summed as one array
+/* One pixel's samples since the last epoch (all of one estimator: the pixel's, rd_select_uses, does
+ * not change within an epoch). Plain doubles, so that several ranks' arrays are summed as one array
  * of doubles (rd_select_epoch): 9 a pixel, 72 bytes. sum and sum2 are accumulated in float
  * precision (each sum rounded to a float; the sums feed a choice, not the image) and n and
  * nonzero are counts, all exact in a double. */
@@ -81,8 +81,9 @@ int rd_select_epoch_next(const rd_select *sel, int sample);
  * Collective then: every rank calls it at the same epoch. comm NULL: this process alone. */
 void rd_select_epoch(rd_select *sel, const rd_comm *comm);
 /* The trial (see select.c, "Evidence of unequal size"): a tile's choice moves to the other
- * estimator at once only when that estimator's samples in the tile's window are at least
- * 1 / RD_SELECT_TRIAL_RATIO of the current one's; else the tile goes on trial first. */
+ * estimator at once only when that estimator's samples in the tile are at least
+ * 1 / RD_SELECT_TRIAL_RATIO of the current one's; else the tile goes on trial for one epoch
+ * first. */
 #define RD_SELECT_TRIAL_RATIO 4
 
 /* The rule: for n tiles with the per-sample variance and cost of delta (var[2k], cost[2k]) and

@@ -13,7 +13,8 @@
  * cost C per sample. They come first from a pilot, on random numbers of its own: every other
  * pixel each way, SEL_SPP samples of each estimator. Then the image itself teaches: at samples
  * 4, 16, 64, ... of every pixel (the epochs) the samples the image took since the last epoch,
- * all of the tile's current estimator, are added to that estimator's statistics and the choice
+ * each pixel's of the estimator its tile gave it (rd_select_uses), are added to that
+ * estimator's statistics and the choice
  * is made again. A pilot of a few hundred samples a tile misjudges heavy tails (the rare delta
  * path that finds a narrow beam, the rare guided path that carries a firefly); the image's
  * thousands do not, and the estimator a tile uses is the one whose statistics grow. Each
@@ -35,11 +36,12 @@
  * method's paths find no more often than delta's), delta's thousands show it and the method's
  * hundred do not, and the tile went to the method at 3x the cost for no less variance
  * (docs/benchmarks.md, "Session 13"). So a tile moves to the other estimator at once only when
- * that estimator's samples in the tile's window are at least 1 / RD_SELECT_TRIAL_RATIO of the
- * current one's (4, the epochs' own growth: an epoch's choice never rests on evidence more
- * lopsided than one epoch's growth); else the tile goes on trial: for the next epoch half its
- * pixels (a checkerboard) take the other estimator, whose samples then grow as fast as the
- * current one's, and the next epoch decides on comparable evidence. Where the other estimator
+ * that estimator's samples in the tile are at least 1 / RD_SELECT_TRIAL_RATIO of the current
+ * one's (4, the epochs' own growth: an epoch's choice never rests on evidence more lopsided
+ * than one epoch's growth); else the tile goes on trial: for the next epoch half its pixels (a
+ * checkerboard) take the other estimator, whose samples then grow as fast as the current
+ * one's, and the next epoch decides by the rule alone, on evidence of comparable size (a trial
+ * from the epoch at 16 ends at 64 with about 26 samples a pixel against 42). Where the other estimator
  * is truly better (a narrow beam that delta's paths rarely find), the trial shows it and the
  * tile moves one epoch later; where it only looked better, the trial shows its tail too.
  *
@@ -274,9 +276,9 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
 static void choose_tiles(rd_select *sel)
 {
     int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny;
-    double *var = malloc(8 * (size_t)n * sizeof *var + (size_t)n);
+    double *var = malloc(6 * (size_t)n * sizeof *var + (size_t)n);
     if (!var) return; /* the choices stay as they are */
-    double *cost = var + 2 * (size_t)n, *count = cost + 2 * (size_t)n, *tmp = count + 2 * (size_t)n;
+    double *cost = var + 2 * (size_t)n, *tmp = cost + 2 * (size_t)n;
     uint8_t *want = (uint8_t *)(tmp + 2 * (size_t)n);
     for (int k = 0; k < n; k++) {
         int tx = k % nx, ty = k / nx;
@@ -286,17 +288,19 @@ static void choose_tiles(rd_select *sel)
             const rd_select_stats *st = &sel->stats[2 * k + e];
             var[2 * k + e] = pixels * tile_variance(&sel->stats[2 * k], e);
             cost[2 * k + e] = st->n > 0.0 ? pixels * st->cost / st->n : 0.0;
-            count[2 * k + e] = st->n;
         }
     }
     pool(var, tmp, nx, ny);
     pool(cost, tmp, nx, ny);
-    pool(count, tmp, nx, ny);
     rd_select_choose(var, cost, n, want);
+    /* The evidence is the tile's own samples (its neighbours, committed to one estimator,
+     * would outweigh its trial in a pooled count for ever). A trial lasts one epoch: then the
+     * rule decides. */
     for (int k = 0; k < n; k++) {
         int cur = sel->guided[k], w = want[k];
-        if (w == cur || count[2 * k + w] * RD_SELECT_TRIAL_RATIO >= count[2 * k + cur]) {
-            sel->guided[k] = (uint8_t)w; /* the same, or a move on comparable evidence */
+        const rd_select_stats *st = &sel->stats[2 * k];
+        if (w == cur || sel->trial[k] || st[w].n * RD_SELECT_TRIAL_RATIO >= st[cur].n) {
+            sel->guided[k] = (uint8_t)w; /* the same, after a trial, or on comparable evidence */
             sel->trial[k] = 0;
         } else {
             sel->trial[k] = 1; /* lopsided evidence: half the pixels try w for an epoch */
