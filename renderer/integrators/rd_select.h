@@ -17,11 +17,11 @@ typedef struct {
     double n, nonzero, dof, sum[3], dev2[3], cost;
 } rd_select_stats;
 
-/* One pixel's samples since the last epoch (all of one estimator: the pixel's, rd_select_uses, does
- * not change within an epoch). Plain doubles, so that several ranks' arrays are summed as one array
- * of doubles (rd_select_epoch): 9 a pixel, 72 bytes. sum and sum2 are accumulated in float
- * precision (each sum rounded to a float; the sums feed a choice, not the image) and n and
- * nonzero are counts, all exact in a double. */
+/* One pixel's samples since the last epoch (all of one estimator: the pixel's, rd_select_uses,
+ * does not change within an epoch). Plain doubles, so that several ranks' arrays are summed as
+ * one array of doubles (rd_select_epoch): 9 a pixel, 72 bytes. sum and sum2 are accumulated in
+ * float precision (each sum rounded to a float; the sums feed a choice, not the image) and n
+ * and nonzero are counts, all exact in a double. */
 typedef struct {
     double n, nonzero;
     double sum[3], sum2[3];

@@ -14,8 +14,7 @@
  * pixel each way, SEL_SPP samples of each estimator. Then the image itself teaches: at samples
  * 4, 16, 64, ... of every pixel (the epochs) the samples the image took since the last epoch,
  * each pixel's of the estimator its tile gave it (rd_select_uses), are added to that
- * estimator's statistics and the choice
- * is made again. A pilot of a few hundred samples a tile misjudges heavy tails (the rare delta
+ * estimator's statistics and the choice is made again. A pilot of a few hundred samples a tile misjudges heavy tails (the rare delta
  * path that finds a narrow beam, the rare guided path that carries a firefly); the image's
  * thousands do not, and the estimator a tile uses is the one whose statistics grow. Each
  * epoch's choice depends only on samples drawn before it, so every sample is still an unbiased
@@ -41,9 +40,10 @@
  * than one epoch's growth); else the tile goes on trial: for the next epoch half its pixels (a
  * checkerboard) take the other estimator, whose samples then grow as fast as the current
  * one's, and the next epoch decides by the rule alone, on evidence of comparable size (a trial
- * from the epoch at 16 ends at 64 with about 26 samples a pixel against 42). Where the other estimator
- * is truly better (a narrow beam that delta's paths rarely find), the trial shows it and the
- * tile moves one epoch later; where it only looked better, the trial shows its tail too.
+ * from the epoch at 16 ends at 64 with about 26 samples a pixel against 42: 2 + 24 against
+ * 2 + 16 + 24, the pilot's and the image's). Where the other estimator is truly better (a
+ * narrow beam that delta's paths rarely find), the trial shows it and the tile moves one epoch
+ * later; where it only looked better, the trial shows its tail too.
  *
  * The rule. At equal time the image's MSE is (sum_k V_k)(sum_k C_k) / time for the choices
  * m_k of the tiles k, so the best choices minimise the product. Its stationary point is where
