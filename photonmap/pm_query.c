@@ -279,14 +279,25 @@ int pm_map_radius(const pm_map *map, const double world[3], float r, int max, in
     int cap = m < count ? m + 1 : m; /* one extra to detect a tie at the max-th */
 
     pm_scratch s;
-    if (!scratch_get(&s, cap))
-        return -1;
-    fill_empty(s.fi, s.fd, (size_t)cap);
     struct FLANNParameters p = pmi_flann_params(0);
     float q[3] = {x[0], x[1], x[2]};
-    int out = -1;
-    /* FLANN keeps the cap nearest photons strictly inside the slack radius. */
-    int c = pm_flann_radius(map->index, q, s.fi, s.fd, cap, tie_slack(r2), &p, NULL);
+    int out = -1, c = -1;
+    /* FLANN keeps the cap nearest photons strictly inside the slack radius, and its result set
+     * reserves room for cap of them on every query (64 KB at the renderer's cap of 4097, most of
+     * a gather's time). A gather usually holds far fewer: ask for the stack's PM_STACK_K first;
+     * unless that fills, FLANN has returned every photon inside the slack radius, the same set
+     * the full cap finds, and only a full first try asks again with the whole cap. */
+    if (cap > PM_STACK_K) {
+        scratch_get(&s, PM_STACK_K);
+        c = pm_flann_radius(map->index, q, s.fi, s.fd, PM_STACK_K, tie_slack(r2), &p, NULL);
+        if (c >= PM_STACK_K)
+            c = -1; /* filled: ask again below */
+    }
+    if (c < 0) {
+        if (!scratch_get(&s, cap))
+            return -1;
+        c = pm_flann_radius(map->index, q, s.fi, s.fd, cap, tie_slack(r2), &p, NULL);
+    }
     if (c >= 0) {
         int n = c < cap ? c : cap;
         pmi_rows_to_photons(map, s.fi, (size_t)n);
