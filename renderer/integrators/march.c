@@ -276,22 +276,31 @@ static vec3 photon_estimate(const rd_scene *s, const pm_map *map, vec3 x, vec3 w
     return v3_scale(sum, 1.0 / (4.0 / 3.0 * M_PI * r * r * r));
 }
 
-/* The gather radius of the current progressive pass at x (bake/passes.c): r_1(x), the distance
- * to the guide.k-th nearest photon of pass 1's map (the k-NN bandwidth of seed 001's fixed map),
- * times the pass's scale. r_1 depends on pass 1's photons only, so every later pass's estimate
- * is a fixed-kernel estimate, independent of its own photons. 0 with one fixed map (then the
- * k-NN estimate); -1 where pass 1 has no photon at all (nothing to gather). */
+/* The gather radius of the current progressive pass at x (bake/passes.c): r_1(x) times the
+ * pass's scale. r_1 is the k-NN bandwidth of seed 001's fixed map (k = guide.k) in pass 1's map,
+ * read from a nearer neighbour: under a locally uniform photon density the distance d_j to the
+ * j-th nearest grows as j^(1/3), so
+ *     r_1(x) = d_j(x) (k / j)^(1/3),   j = ceil(k / PASS_RADIUS_DIV).
+ * The query is a quarter of the k-NN's work (FLANN keeps its j best in a sorted list): the
+ * renders' camera time fell by a third at the default k = 64, j = 16 (docs/benchmarks.md
+ * "Session 18"), and the radius of 16 photons spreads by about 1 / (3 sqrt(16)) = 8% from point
+ * to point where that of 64 spreads by 4%. Any r_1 > 0 fixed by pass 1 keeps the passes'
+ * average consistent: r_1 depends on pass 1's photons only, so every later pass's estimate is a
+ * fixed-kernel estimate, independent of its own photons. 0 with one fixed map (then the k-NN
+ * estimate); -1 where pass 1 has no photon at all (nothing to gather). */
+#define PASS_RADIUS_DIV 4
 static double pass_radius(const rd_render_ctx *ctx, const pm_map *first, vec3 x)
 {
     if (ctx->photon_pass < 1 || !first) return 0.0;
     int k = ctx->scene->guide.k;
     if (k > MAX_GATHER) k = MAX_GATHER;
+    int j = (k + PASS_RADIUS_DIV - 1) / PASS_RADIUS_DIV;
     int idx[MAX_GATHER];
     float d2[MAX_GATHER];
     double xd[3] = {x.x, x.y, x.z};
-    int n = pm_map_knn(first, xd, k, idx, d2);
+    int n = pm_map_knn(first, xd, j, idx, d2); /* n < j only when pass 1 holds fewer photons */
     if (n <= 0 || !(d2[n - 1] > 0.0f)) return -1.0;
-    return sqrt((double)d2[n - 1]) * ctx->radius_scale;
+    return sqrt((double)d2[n - 1]) * cbrt((double)k / n) * ctx->radius_scale;
 }
 
 vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, vec3 x, vec3 d,
