@@ -10,7 +10,9 @@
 #       environment: SCENES (the benchmark's eight), METHODS (guided,guided-unbiased),
 #                    BUDGET (10), RUNS (4), SEED (7), RES (160,120),
 #                    REFS (/work/ref: the reference of NAME is the first REFS/NAME-*ref.exr),
-#                    OUT (bench/results/ab)
+#                    OUT (bench/results/ab),
+#                    SET (scene overrides for both builds' runs, space-separated KEY=VALUE:
+#                    e.g. "march.ls=nee+photons photons.progressive=true")
 #   e.g. bench/bench_ab.sh /tmp/old/photonmarch build/photonmarch
 # A reference is an image of the scene at RES from a long render (e.g. `render --method delta
 # --time 200 --spp 16777216 --seed 99 --set camera.resolution=[160,120] -o REFS/NAME-dref.exr`,
@@ -29,6 +31,7 @@ SEED=${SEED:-7}
 RES=${RES:-160,120}
 REFS=${REFS:-/work/ref}
 OUT=${OUT:-bench/results/ab}
+SET=${SET:-}
 
 eff() { # efficiency of method $2 in compare folder $1
   jq -r --arg m "$2" '.methods[] | select(.label == $m) | .efficiency' "$1/metrics.json"
@@ -42,6 +45,7 @@ for name in $SCENES; do
     exit 2
   fi
   common=(--budget "$BUDGET" --runs "$RUNS" --seed "$SEED" --set "camera.resolution=[$RES]" --reference "$ref")
+  for kv in $SET; do common+=(--set "$kv"); done
   mkdir -p "$OUT"
   "$B" compare "scenes/$name.json" --methods "delta,$METHODS" "${common[@]}" -o "$OUT/$name-B" > "$OUT/$name-B.txt" 2>&1
   "$A" compare "scenes/$name.json" --methods "$METHODS" "${common[@]}" -o "$OUT/$name-A" > "$OUT/$name-A.txt" 2>&1
