@@ -39,11 +39,7 @@ eff() { # efficiency of method $2 in compare folder $1
 
 printf '%-18s %-16s %8s %8s\n' scene method A B
 for name in $SCENES; do
-  ref=$(ls "$REFS/$name"-*ref.exr 2>/dev/null | grep -v -- -stderr | head -1 || true)
-  if [ -z "$ref" ]; then
-    echo "bench_ab: no reference $REFS/$name-*ref.exr" >&2
-    exit 2
-  fi
+  ref=$(bench_reference bench_ab "$name")
   common=(--budget "$BUDGET" --runs "$RUNS" --seed "$SEED" --set "camera.resolution=[$RES]" --reference "$ref")
   for kv in $SET; do common+=(--set "$kv"); done
   mkdir -p "$OUT"

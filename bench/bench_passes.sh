@@ -35,11 +35,7 @@ field() { # field $3 of method $2 in compare folder $1
 
 printf '%-16s %-10s %8s %8s %10s %10s\n' scene size "x delta" spp bias2 variance
 for name in $SCENES; do
-  ref=$(ls "$REFS/$name"-*ref.exr 2>/dev/null | grep -v -- -stderr | head -1 || true)
-  if [ -z "$ref" ]; then
-    echo "bench_passes: no reference $REFS/$name-*ref.exr" >&2
-    exit 2
-  fi
+  ref=$(bench_reference bench_passes "$name")
   common=(--budget "$BUDGET" --runs "$RUNS" --seed "$SEED" --set "camera.resolution=[$RES]" --reference "$ref")
   mkdir -p "$OUT"
   "$BIN" compare "scenes/$name.json" --methods delta "${common[@]}" -o "$OUT/$name-delta" > "$OUT/$name-delta.txt" 2>&1

@@ -12,3 +12,16 @@ bench_machine_note() {
          "with this benchmark as equals; times may move several-fold (bench/machine.sh says how to turn it off)" >&2
   fi
 }
+
+# bench_reference SCRIPT NAME: the reference image of scene NAME for the equal-time scripts
+# (bench_ab.sh, bench_passes.sh), the first $REFS/NAME-*ref.exr that is not a standard-error
+# image; exits naming SCRIPT when there is none.
+bench_reference() {
+  local ref
+  ref=$(ls "$REFS/$2"-*ref.exr 2>/dev/null | grep -v -- -stderr | head -1 || true)
+  if [ -z "$ref" ]; then
+    echo "$1: no reference $REFS/$2-*ref.exr" >&2
+    exit 2
+  fi
+  echo "$ref"
+}
