@@ -280,21 +280,26 @@ static vec3 photon_estimate(const rd_scene *s, const pm_map *map, vec3 x, vec3 w
  * pass's scale. r_1 is the k-NN bandwidth of seed 001's fixed map (k = guide.k) in pass 1's map,
  * read from a nearer neighbour: under a locally uniform photon density the distance d_j to the
  * j-th nearest grows as j^(1/3), so
- *     r_1(x) = d_j(x) (k / j)^(1/3),   j = ceil(k / PASS_RADIUS_DIV).
- * The query is a quarter of the k-NN's work (FLANN keeps its j best in a sorted list): the
- * renders' camera time fell by a third at the default k = 64, j = 16 (docs/benchmarks.md
- * "Session 18"), and the radius of 16 photons spreads by about 1 / (3 sqrt(16)) = 8% from point
- * to point where that of 64 spreads by 4%. Any r_1 > 0 fixed by pass 1 keeps the passes'
- * average consistent: r_1 depends on pass 1's photons only, so every later pass's estimate is a
- * fixed-kernel estimate, independent of its own photons. 0 with one fixed map (then the k-NN
- * estimate); -1 where pass 1 has no photon at all (nothing to gather). */
-#define PASS_RADIUS_DIV 4
+ *     r_1(x) = d_j(x) (k / j)^(1/3),   j = min(k, max(PASS_RADIUS_MIN_J, ceil(k / 4))).
+ * At the default k = 64 (j = 16) the renders' camera time fell by 29% against the 64-NN query
+ * (docs/benchmarks.md "Session 18"; j = 8 took no less), and the radius of 16 photons spreads by
+ * about 1 / (3 sqrt(16)) = 8% from point to point where that of 64 spreads by 4%. j never falls
+ * below 8 (below k = 8, j = k as before): the ball through the nearest photon alone has a
+ * volume V with E[1/V] infinite, and a later pass's variance grows as 1/V. Where pass 1 holds
+ * fewer than j photons in all, the farthest of them stands in for the j-th.
+ * Any r_1 > 0 fixed by pass 1 keeps the passes' average consistent: r_1 depends on pass 1's
+ * photons only, so every later pass's estimate is a fixed-kernel estimate, independent of its
+ * own photons. 0 with one fixed map (then the k-NN estimate); -1 where pass 1 has no photon at
+ * all (nothing to gather). */
+#define PASS_RADIUS_MIN_J 8
 static double pass_radius(const rd_render_ctx *ctx, const pm_map *first, vec3 x)
 {
     if (ctx->photon_pass < 1 || !first) return 0.0;
     int k = ctx->scene->guide.k;
     if (k > MAX_GATHER) k = MAX_GATHER;
-    int j = (k + PASS_RADIUS_DIV - 1) / PASS_RADIUS_DIV;
+    int j = (k + 3) / 4;
+    if (j < PASS_RADIUS_MIN_J) j = PASS_RADIUS_MIN_J;
+    if (j > k) j = k;
     int idx[MAX_GATHER];
     float d2[MAX_GATHER];
     double xd[3] = {x.x, x.y, x.z};

@@ -57,7 +57,7 @@ typedef struct rd_render_ctx {
      * between its passes, never while a pass runs. */
     int photon_pass;
     double radius_scale;
-    const struct pm_map *photons_first;          /* pass 1's maps, whose k-NN radius is r_1 */
+    const struct pm_map *photons_first;          /* pass 1's maps: r_1 from their nearest photons */
     const struct pm_map *photons_indirect_first;
     uint64_t seed;
     int threads;
