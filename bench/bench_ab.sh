@@ -41,7 +41,8 @@ printf '%-18s %-16s %8s %8s\n' scene method A B
 for name in $SCENES; do
   ref=$(bench_reference bench_ab "$name")
   common=(--budget "$BUDGET" --runs "$RUNS" --seed "$SEED" --set "camera.resolution=[$RES]" --reference "$ref")
-  for kv in $SET; do common+=(--set "$kv"); done
+  read -ra sets <<< "$SET" # split on spaces only: a value such as [320,240] is no glob
+  for kv in "${sets[@]}"; do common+=(--set "$kv"); done
   mkdir -p "$OUT"
   "$B" compare "scenes/$name.json" --methods "delta,$METHODS" "${common[@]}" -o "$OUT/$name-B" > "$OUT/$name-B.txt" 2>&1
   "$A" compare "scenes/$name.json" --methods "$METHODS" "${common[@]}" -o "$OUT/$name-A" > "$OUT/$name-A.txt" 2>&1
