@@ -23,7 +23,7 @@ cd "$(dirname "$0")/.."
 bench_machine_note
 A=${1:?usage: bench/bench_ab.sh A_BIN B_BIN}
 B=${2:?usage: bench/bench_ab.sh A_BIN B_BIN}
-SCENES=${SCENES:-beam default homogeneous plume-env hard-window-beam hard-narrow-spot hard-dense-block hard-lens-caustic}
+SCENES=${SCENES:-$BENCH_EIGHT}
 METHODS=${METHODS:-guided,guided-unbiased}
 BUDGET=${BUDGET:-10}
 RUNS=${RUNS:-4}
@@ -44,8 +44,8 @@ for name in $SCENES; do
   read -ra sets <<< "$SET" # split on spaces only: a value such as [320,240] is no glob
   for kv in "${sets[@]}"; do common+=(--set "$kv"); done
   mkdir -p "$OUT"
-  "$B" compare "scenes/$name.json" --methods "delta,$METHODS" "${common[@]}" -o "$OUT/$name-B" > "$OUT/$name-B.txt" 2>&1
-  "$A" compare "scenes/$name.json" --methods "$METHODS" "${common[@]}" -o "$OUT/$name-A" > "$OUT/$name-A.txt" 2>&1
+  bench_compare bench_ab "$OUT/$name-B.txt" "$B" compare "scenes/$name.json" --methods "delta,$METHODS" "${common[@]}" -o "$OUT/$name-B"
+  bench_compare bench_ab "$OUT/$name-A.txt" "$A" compare "scenes/$name.json" --methods "$METHODS" "${common[@]}" -o "$OUT/$name-A"
   d=$(eff "$OUT/$name-B" delta)
   for m in ${METHODS//,/ }; do
     printf '%-18s %-16s %8.3f %8.3f\n' "$name" "$m" \

@@ -38,14 +38,14 @@ for name in $SCENES; do
   ref=$(bench_reference bench_passes "$name")
   common=(--budget "$BUDGET" --runs "$RUNS" --seed "$SEED" --set "camera.resolution=[$RES]" --reference "$ref")
   mkdir -p "$OUT"
-  "$BIN" compare "scenes/$name.json" --methods delta "${common[@]}" -o "$OUT/$name-delta" > "$OUT/$name-delta.txt" 2>&1
+  bench_compare bench_passes "$OUT/$name-delta.txt" "$BIN" compare "scenes/$name.json" --methods delta "${common[@]}" -o "$OUT/$name-delta"
   d=$(field "$OUT/$name-delta" delta efficiency)
   for size in $SIZES; do
     pc=${size%x*} ps=${size#*x}
     o="$OUT/$name-$size"
-    "$BIN" compare "scenes/$name.json" --methods "$METHOD" "${common[@]}" --set march.ls=nee+photons \
-      --set photons.progressive=true --set "photons.pass_count=$pc" --set "photons.pass_spp=$ps" \
-      -o "$o" > "$o.txt" 2>&1
+    bench_compare bench_passes "$o.txt" "$BIN" compare "scenes/$name.json" --methods "$METHOD" "${common[@]}" \
+      --set march.ls=nee+photons --set photons.progressive=true --set "photons.pass_count=$pc" \
+      --set "photons.pass_spp=$ps" -o "$o"
     printf '%-16s %-10s %8.3f %8.1f %10.3g %10.3g\n' "$name" "$size" \
       "$(awk -v x="$(field "$o" "$METHOD" efficiency)" -v d="$d" 'BEGIN { print x / d }')" \
       "$(field "$o" "$METHOD" spp)" "$(field "$o" "$METHOD" bias2)" "$(field "$o" "$METHOD" variance)"

@@ -17,7 +17,7 @@ cd "$(dirname "$0")/.."
 bench_machine_note
 A=${1:?usage: bench/bench_speed.sh BIN_A BIN_B}
 B=${2:?usage: bench/bench_speed.sh BIN_A BIN_B}
-SCENES=${SCENES:-beam default homogeneous plume-env hard-window-beam hard-narrow-spot hard-dense-block hard-lens-caustic}
+SCENES=${SCENES:-$BENCH_EIGHT}
 METHODS=${METHODS:-delta guided guided-unbiased}
 SPP=${SPP:-32}
 RES=${RES:-[160,120]}

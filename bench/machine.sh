@@ -13,6 +13,23 @@ bench_machine_note() {
   fi
 }
 
+# The benchmark's eight scenes (the hard-light and easy suites with beam.json), the default
+# SCENES of the scripts that compare builds (bench_ab.sh, bench_speed.sh).
+BENCH_EIGHT="beam default homogeneous plume-env hard-window-beam hard-narrow-spot hard-dense-block hard-lens-caustic"
+
+# bench_compare SCRIPT LOG BIN ARGS...: one `BIN compare ARGS...` with its output in LOG; on
+# failure, says so naming SCRIPT and LOG, shows LOG's last lines and exits (set -e alone would
+# stop the script without a word, the output being in LOG).
+bench_compare() {
+  local script=$1 log=$2
+  shift 2
+  if ! "$@" > "$log" 2>&1; then
+    echo "$script: compare failed (log $log):" >&2
+    tail -n 5 "$log" >&2
+    exit 1
+  fi
+}
+
 # bench_reference SCRIPT NAME: the reference image of scene NAME for the equal-time scripts
 # (bench_ab.sh, bench_passes.sh), the first $REFS/NAME-*ref.exr that is not a standard-error
 # image; exits naming SCRIPT when there is none.

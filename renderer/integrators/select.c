@@ -14,9 +14,9 @@
  * pixel each way, SEL_SPP samples of each estimator. Then the image itself teaches: at samples
  * 4, 16, 64, ... of every pixel (the epochs) the samples the image took since the last epoch,
  * each pixel's of the estimator its tile gave it (rd_select_uses), are added to that
- * estimator's statistics and the choice is made again. A pilot of a few hundred samples a tile misjudges heavy tails (the rare delta
- * path that finds a narrow beam, the rare guided path that carries a firefly); the image's
- * thousands do not, and the estimator a tile uses is the one whose statistics grow. Each
+ * estimator's statistics and the choice is made again. A pilot of a few hundred samples a tile
+ * misjudges heavy tails (the rare delta path that finds a narrow beam, the rare guided path
+ * that carries a firefly); the image's thousands do not, and the estimator a tile uses is the one whose statistics grow. Each
  * epoch's choice depends only on samples drawn before it, so every sample is still an unbiased
  * estimate given the past, and so is each pixel's mean of a fixed number of them.
  *
