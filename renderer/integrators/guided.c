@@ -91,6 +91,7 @@ const rd_method rd_method_guided = {
     .needs = RD_MARCH_NEEDS,
     .needs_for = needs_guided,
     .pass_maps = rd_march_pass_maps,
+    .photons_changed = rd_march_photons_changed,
     .scratch_bytes = rd_march_scratch_bytes,
     .prepare = prepare_guided,
     .epoch_next = epoch_next_guided,

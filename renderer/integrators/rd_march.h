@@ -5,6 +5,7 @@
 #ifndef RD_MARCH_H
 #define RD_MARCH_H
 
+#include "integrators/rd_beams.h"
 #include "integrators/rd_guide_pdf.h"
 #include "integrators/rd_method.h"
 #include "integrators/rd_select.h"
@@ -24,6 +25,13 @@ typedef struct {
                       * detail lattice), over the placements */
     int piece_cap;   /* entries of the tb/f/sig tables: k_steps, or cells + k_steps (detail) */
     rd_select sel;   /* guided with settings.select: the tiles it marches (integrators/select.c) */
+    /* march.ls = nee+beams: the indirect photons as balls (rebuilt for every photon pass by
+     * rd_march_photons_changed), their radii, and the balls a segment keeps at most. */
+    rd_beams *beams;
+    float *beam_radius;
+    size_t beam_radius_cap;
+    int beam_cap;
+    double beam_weight; /* 1 / the share of the photons kept as balls */
 } march_state;
 
 /* Scratch of one thread: PDF segments, sample positions and densities, extinction table. */
@@ -31,6 +39,8 @@ typedef struct {
     rd_gpdf_seg *seg;
     double *t, *p;
     double *tb, *f, *sig;
+    rd_beam_hit *hits; /* nee+beams: the balls one segment crosses, */
+    double *cdf;       /* and the running sum of their picks' weights */
 } march_scratch;
 
 /* Lay the scratch out at base (NULL: only measure); returns its size in bytes. */
@@ -52,6 +62,11 @@ int rd_march_build_pdf(const rd_render_ctx *ctx, placement place, const march_sc
  * counts its events on from there, as delta's does, and is taken with probability q_path. */
 vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, vec3 x, vec3 d,
                      double sigma_t, int event, double q_path, pcg32 *rng, rd_track_counters *c);
+/* march.ls = nee+beams: the beam radiance estimate of the indirect in-scattering along [t0, t1]
+ * of r in `region` (the balls of the indirect photons, state's beams; march.c says how), the
+ * integral of T(t0, t) sigma_s L_s over the segment. */
+vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, ray3 r, int region,
+                            double t0, double t1, pcg32 *rng, rd_track_counters *c);
 /* Radiance along camera ray r with the samples of `place` (the estimator of THEORY.md §6). */
 vec3 rd_march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp,
                        placement place);
@@ -60,6 +75,9 @@ vec3 rd_march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampl
 size_t rd_march_scratch_bytes(const rd_render_ctx *ctx);
 rd_status rd_march_prepare(rd_render_ctx *ctx, char *err, size_t errlen);
 void rd_march_release(rd_render_ctx *ctx);
+/* The method table's photons_changed hook: with march.ls = nee+beams, the balls of the
+ * indirect photons ctx holds now, with their radii (a no-op for the other sources). */
+rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen);
 /* What the scene's source needs baked: the photon map (photons) or its indirect part
  * (nee+photons), and the indirect guide (nee+guide). */
 unsigned rd_march_source_needs(const rd_scene *s);

@@ -76,6 +76,9 @@ typedef struct rd_method {
      * (RD_NEEDS_PHOTONS, RD_NEEDS_INDIRECT; 0 = none: the method's estimate uses no map, and
      * photons.progressive changes nothing). NULL = none. */
     unsigned (*pass_maps)(const rd_scene *scene);
+    /* Optional: called when a progressive photon pass has put new maps into ctx (between the
+     * render's passes, after prepare; not for pass 1, whose maps prepare sees). */
+    rd_status (*photons_changed)(rd_render_ctx *ctx, char *err, size_t errlen);
     /* Optional: per-thread scratch size for this render. */
     size_t (*scratch_bytes)(const rd_render_ctx *ctx);
     /* Optional: once per render, after the bake, before the passes (e.g. a pilot pass). */

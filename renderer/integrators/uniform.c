@@ -13,6 +13,7 @@ const rd_method rd_method_uniform = {
     .needs = RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE,
     .needs_for = rd_march_source_needs,
     .pass_maps = rd_march_pass_maps,
+    .photons_changed = rd_march_photons_changed,
     .scratch_bytes = rd_march_scratch_bytes,
     .prepare = rd_march_prepare,
     .release = rd_march_release,

@@ -240,7 +240,7 @@ rd_status ld_parse_march(ld_ctx *c, const cJSON *j, rd_march_settings *m)
     if (m->max_samples < m->min_samples)
         return ld_fail(c, "march.max_samples", "must be >= march.min_samples (%d), found %d", m->min_samples, m->max_samples);
     LD_TRY(ld_get_num(c, j, path, "alpha", 0, 0.2, 0, 1, 1, 0, &m->alpha));
-    static const char *const ls[] = {"nee+photons", "photons", "nee", "nee+guide", "nee+paths", "nee+delta", NULL};
+    static const char *const ls[] = {"nee+photons", "photons", "nee", "nee+guide", "nee+paths", "nee+delta", "nee+beams", NULL};
     int k = RD_LS_NEE_PATHS;
     LD_TRY(ld_get_enum(c, j, path, "ls", 0, ls, RD_LS_NEE_PATHS, &k));
     m->ls = (rd_ls_kind)k;

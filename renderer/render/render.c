@@ -273,6 +273,7 @@ static rd_status photon_pass(rd_render_ctx *ctx, unsigned maps, int pass, rd_bak
     rs->photons_traced += bs->emitted;
     rs->photon_seconds += bs->seconds;
     rs->radius_scale = ctx->radius_scale;
+    if (pass > 1 && ctx->method->photons_changed) return ctx->method->photons_changed(ctx, err, errlen);
     return RD_OK;
 }
 

@@ -95,7 +95,8 @@ typedef struct {
 } rd_guide_settings;
 
 /* Ray-marching settings of the guided methods (scene key "march", docs/scene-format.md). */
-typedef enum { RD_LS_NEE_PHOTONS, RD_LS_PHOTONS, RD_LS_NEE, RD_LS_NEE_GUIDE, RD_LS_NEE_PATHS, RD_LS_NEE_DELTA } rd_ls_kind;
+typedef enum { RD_LS_NEE_PHOTONS, RD_LS_PHOTONS, RD_LS_NEE, RD_LS_NEE_GUIDE, RD_LS_NEE_PATHS, RD_LS_NEE_DELTA,
+               RD_LS_NEE_BEAMS } rd_ls_kind;
 typedef struct {
     int samples;         /* N_mean: samples per ray (uniform and transmittance: every ray);
                           * 0 (key absent): each placement's own calibrated default

@@ -1,0 +1,205 @@
+/* beams.c: photon balls crossed by a ray segment (rd_beams.h), on Embree's point spheres.
+ *
+ * The balls are held in the map's own frame (positions relative to its origin, float), so a
+ * query ray is moved into that frame in double first. Embree reports a sphere at its entry
+ * point and, when a filter rejects that, again at its exit; the filter here rejects every hit
+ * (so traversal goes on through all of them) and records a ball at its entry only. For every
+ * ball that meets [t0, t1] to have an entry inside the query, the query ray starts 2 r_max
+ * before t0 (a ball meeting [t0, t1] is entered at t >= t0 - 2 r); the chord is then clipped
+ * to [t0, t1] here. */
+#include "integrators/rd_beams.h"
+
+#include <embree3/rtcore.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+struct rd_beams {
+    RTCDevice device;
+    RTCScene scene; /* NULL: no balls */
+    const pm_map *map;
+    int *index;     /* Embree's primitive id -> the map's photon (balls with no radius are left out) */
+    const float *ball; /* Embree's vertex buffer: (x, y, z, r) per primitive */
+    double r_max;   /* the largest radius */
+};
+
+/* The per-query state, Embree's context first (the filter casts the context back). */
+typedef struct {
+    struct RTCIntersectContext ctx;
+    const float *ball;  /* Embree's vertex buffer: (x, y, z, r) per primitive */
+    const int *index;
+    double o[3], d[3];  /* the query ray as Embree has it (float origin, in double) */
+    double s0;          /* its start on the caller's ray: t = s0 + s */
+    double t0, t1;
+    rd_beam_hit *hits;
+    int cap, kept;
+    long long seen;     /* balls crossed so far */
+    pcg32 *rng;
+} cross_ctx;
+
+/* Embree's RTCRayN / RTCHitN are structures of arrays of N lanes: field k of lane i at k N + i
+ * (rtcore_ray.h's accessors are C++ only). */
+#define RAYN_TFAR(ray, N, i) (((float *)(ray))[8 * (N) + (i)])
+#define HITN_PRIM(hit, N, i) (((unsigned *)(hit))[5 * (N) + (i)])
+
+static void record(cross_ctx *q, unsigned prim, float s_hit)
+{
+    const float *v = q->ball + 4 * (size_t)prim;
+    double oc[3] = {v[0] - q->o[0], v[1] - q->o[1], v[2] - q->o[2]};
+    double sc = oc[0] * q->d[0] + oc[1] * q->d[1] + oc[2] * q->d[2]; /* the ball's centre, projected */
+    if ((double)s_hit > sc) return; /* the exit: the entry was (or will be) recorded */
+    double r = v[3], perp2 = oc[0] * oc[0] + oc[1] * oc[1] + oc[2] * oc[2] - sc * sc;
+    double h2 = r * r - perp2;
+    if (!(h2 > 0.0)) return;
+    double h = sqrt(h2), ta = q->s0 + sc - h, tb = q->s0 + sc + h;
+    if (ta < q->t0) ta = q->t0;
+    if (tb > q->t1) tb = q->t1;
+    if (!(tb > ta)) return;
+    rd_beam_hit hit = {q->index[prim], (float)ta, (float)tb};
+    if (!(hit.tb > hit.ta)) return;
+    q->seen++;
+    if (q->kept < q->cap) {
+        q->hits[q->kept++] = hit;
+        return;
+    }
+    /* Reservoir sampling (Vitter's algorithm R): the seen-th ball replaces a kept one with
+     * probability cap / seen, so the kept set is a uniform sample of all seen. */
+    long long j = (long long)(pcg32_uniform(q->rng) * (double)q->seen);
+    if (j < q->cap) q->hits[j] = hit;
+}
+
+static void cross_filter(const struct RTCFilterFunctionNArguments *args)
+{
+    cross_ctx *q = (cross_ctx *)args->context;
+    for (unsigned i = 0; i < args->N; i++) {
+        if (args->valid[i] == 0) continue;
+        record(q, HITN_PRIM(args->hit, args->N, i), RAYN_TFAR(args->ray, args->N, i));
+        args->valid[i] = 0; /* go on to the next ball */
+    }
+}
+
+rd_status rd_beams_new(rd_beams **out, char *err, size_t errlen)
+{
+    *out = NULL;
+    rd_beams *b = calloc(1, sizeof *b);
+    if (!b) {
+        snprintf(err, errlen, "out of memory for the photon balls");
+        return RD_ERR_NOMEM;
+    }
+    b->device = rtcNewDevice("verbose=0");
+    if (!b->device) {
+        snprintf(err, errlen, "Embree could not create a device for the photon balls (error %d)",
+                 (int)rtcGetDeviceError(NULL));
+        free(b);
+        return RD_ERR_INTERNAL;
+    }
+    if (!rtcGetDeviceProperty(b->device, RTC_DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED) ||
+        !rtcGetDeviceProperty(b->device, RTC_DEVICE_PROPERTY_POINT_GEOMETRY_SUPPORTED)) {
+        snprintf(err, errlen, "this Embree was built without filter functions or point geometry");
+        rd_beams_free(b);
+        return RD_ERR_INTERNAL;
+    }
+    *out = b;
+    return RD_OK;
+}
+
+void rd_beams_free(rd_beams *b)
+{
+    if (!b) return;
+    if (b->scene) rtcReleaseScene(b->scene);
+    if (b->device) rtcReleaseDevice(b->device);
+    free(b->index);
+    free(b);
+}
+
+const pm_map *rd_beams_map(const rd_beams *b) { return b ? b->map : NULL; }
+
+rd_status rd_beams_build(rd_beams *b, const pm_map *map, const float *radius, char *err, size_t errlen)
+{
+    if (b->scene) rtcReleaseScene(b->scene);
+    b->scene = NULL;
+    free(b->index);
+    b->index = NULL;
+    b->ball = NULL;
+    b->map = map;
+    b->r_max = 0.0;
+    size_t n = pm_map_photon_count(map), used = 0;
+    const pm_photon *ph = pm_map_photons(map);
+    for (size_t k = 0; k < n; k++) used += radius[k] > 0.0f && isfinite(radius[k]);
+    if (used == 0) return RD_OK;
+    if (used > 0xffffffffu) {
+        snprintf(err, errlen, "%zu photon balls: more than Embree's primitive ids hold", used);
+        return RD_ERR_ARG;
+    }
+    b->index = malloc(used * sizeof *b->index);
+    RTCScene scene = b->index ? rtcNewScene(b->device) : NULL;
+    RTCGeometry geo = scene ? rtcNewGeometry(b->device, RTC_GEOMETRY_TYPE_SPHERE_POINT) : NULL;
+    float *v = geo ? rtcSetNewGeometryBuffer(geo, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4,
+                                             4 * sizeof(float), used)
+                   : NULL;
+    if (!v) {
+        if (geo) rtcReleaseGeometry(geo);
+        if (scene) rtcReleaseScene(scene);
+        snprintf(err, errlen, "out of memory for %zu photon balls (Embree error %d)", used,
+                 (int)rtcGetDeviceError(b->device));
+        return RD_ERR_NOMEM;
+    }
+    size_t j = 0;
+    for (size_t k = 0; k < n; k++) {
+        if (!(radius[k] > 0.0f && isfinite(radius[k]))) continue;
+        v[4 * j + 0] = ph[k].pos[0];
+        v[4 * j + 1] = ph[k].pos[1];
+        v[4 * j + 2] = ph[k].pos[2];
+        v[4 * j + 3] = radius[k];
+        if (radius[k] > b->r_max) b->r_max = radius[k];
+        b->index[j++] = (int)k;
+    }
+    rtcSetGeometryIntersectFilterFunction(geo, cross_filter);
+    rtcCommitGeometry(geo);
+    rtcAttachGeometry(scene, geo);
+    rtcReleaseGeometry(geo);
+    rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_MEDIUM);
+    rtcCommitScene(scene);
+    if (rtcGetDeviceError(b->device) != RTC_ERROR_NONE) {
+        rtcReleaseScene(scene);
+        snprintf(err, errlen, "Embree could not build the BVH of %zu photon balls", used);
+        return RD_ERR_INTERNAL;
+    }
+    b->scene = scene;
+    b->ball = v;
+    return RD_OK;
+}
+
+int rd_beams_cross(const rd_beams *b, ray3 r, double t0, double t1, rd_beam_hit *hits, int cap,
+                   pcg32 *rng, double *weight)
+{
+    *weight = 1.0;
+    if (!b || !b->scene || !(t1 > t0) || cap < 1) return 0;
+    cross_ctx q;
+    rtcInitIntersectContext(&q.ctx);
+    q.ball = b->ball;
+    q.index = b->index;
+    q.t0 = t0, q.t1 = t1;
+    q.hits = hits, q.cap = cap, q.kept = 0, q.seen = 0, q.rng = rng;
+    /* The ray in the map's frame, starting 2 r_max before t0 (see the head comment). */
+    double org[3];
+    pm_map_origin(b->map, org);
+    q.s0 = t0 - 2.0 * b->r_max;
+    vec3 o = ray_at(r, q.s0);
+    struct RTCRayHit rh;
+    rh.ray.org_x = (float)(o.x - org[0]), rh.ray.org_y = (float)(o.y - org[1]), rh.ray.org_z = (float)(o.z - org[2]);
+    rh.ray.dir_x = (float)r.d.x, rh.ray.dir_y = (float)r.d.y, rh.ray.dir_z = (float)r.d.z;
+    q.o[0] = rh.ray.org_x, q.o[1] = rh.ray.org_y, q.o[2] = rh.ray.org_z;
+    q.d[0] = r.d.x, q.d[1] = r.d.y, q.d[2] = r.d.z;
+    rh.ray.tnear = 0.0f;
+    rh.ray.tfar = (float)(t1 - q.s0);
+    rh.ray.time = 0.0f;
+    rh.ray.mask = 0xffffffffu;
+    rh.ray.id = 0;
+    rh.ray.flags = 0;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(b->scene, &q.ctx, &rh);
+    if (q.seen > q.kept) *weight = (double)q.seen / q.kept;
+    return q.kept;
+}

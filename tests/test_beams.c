@@ -1,0 +1,220 @@
+/* The beam radiance estimate (march.ls = nee+beams; renderer/integrators/beams.c and march.c)
+ * against brute force:
+ *  - rd_beams_cross finds every ball a segment crosses exactly once, with its chord, for balls
+ *    in a map whose origin is far from the world's, segments that start, end or lie wholly inside
+ *    a ball, and balls left out (radius 0); checked against the chord of every ball in double;
+ *  - when more balls are crossed than it keeps, the kept one is a uniform pick of them (a
+ *    chi-square test on 12 balls) and the weight is their count;
+ *  - the estimate along a segment equals the point gather with the same balls integrated
+ *    exactly: sum_k p dPhi_k / V_k int_chord T dt, the chord integral of T = exp(-sigma_t t) in
+ *    closed form, over every photon of the map (no Embree, no picks). The estimator's mean over
+ *    independent draws must lie within 4.5 standard errors of it (a false alarm per ray well
+ *    under 1e-4). */
+#include "support/rd_test.h"
+
+#include "bake/rd_photons.h"
+#include "integrators/rd_beams.h"
+#include "integrators/rd_march.h"
+
+#include <math.h>
+
+static const double ORIGIN[3] = {10.0, -3.0, 2.0};
+
+/* n photons in the unit cube about ORIGIN, radii in [0.02, 0.15], every 10th left out. */
+static pm_map *random_map(int n, float *rad, pcg32 *rng)
+{
+    pm_map *m = pm_map_new();
+    char err[256];
+    cr_assert(pm_map_set_origin(m, ORIGIN, err, sizeof err) == PM_OK, "%s", err);
+    pm_photon *ph = calloc((size_t)n, sizeof *ph);
+    for (int i = 0; i < n; i++) {
+        for (int a = 0; a < 3; a++) ph[i].pos[a] = (float)(pcg32_uniform(rng) - 0.5);
+        ph[i].dir[2] = 1.0f;
+        ph[i].power[0] = ph[i].power[1] = ph[i].power[2] = 1.0f;
+        rad[i] = i % 10 == 9 ? 0.0f : (float)(0.02 + 0.13 * pcg32_uniform(rng));
+    }
+    cr_assert(pm_map_add_photons(m, ph, (size_t)n, err, sizeof err) == PM_OK, "%s", err);
+    free(ph);
+    return m;
+}
+
+/* The chord of ball (c, rad) on ray r clipped to [t0, t1]; 0 when it misses. */
+static int chord(ray3 r, vec3 c, double rad, double t0, double t1, double *ta, double *tb)
+{
+    vec3 oc = v3_sub(c, r.o);
+    double tc = v3_dot(oc, r.d), h2 = rad * rad - (v3_dot(oc, oc) - tc * tc);
+    if (!(h2 > 0.0)) return 0;
+    *ta = fmax(t0, tc - sqrt(h2));
+    *tb = fmin(t1, tc + sqrt(h2));
+    return *tb > *ta;
+}
+
+Test(beams, cross_finds_every_ball_once)
+{
+    enum { N = 3000, RAYS = 300, CAP = 4096 };
+    pcg32 rng = pcg32_seed(1, 2, 3);
+    static float rad[N];
+    pm_map *m = random_map(N, rad, &rng);
+    rd_beams *b;
+    char err[256];
+    cr_assert(rd_beams_new(&b, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_beams_build(b, m, rad, err, sizeof err) == RD_OK, "%s", err);
+    const pm_photon *ph = pm_map_photons(m);
+    static rd_beam_hit hits[CAP];
+    static int seen[N];
+    int total = 0;
+    for (int k = 0; k < RAYS; k++) {
+        /* From a random point of the box widened by 0.3 toward a random direction; every third
+         * segment short (0.01-0.1 m), often inside one ball. */
+        vec3 o = v3(ORIGIN[0] + 1.6 * (pcg32_uniform(&rng) - 0.5), ORIGIN[1] + 1.6 * (pcg32_uniform(&rng) - 0.5),
+                    ORIGIN[2] + 1.6 * (pcg32_uniform(&rng) - 0.5));
+        double z = 2.0 * pcg32_uniform(&rng) - 1.0, phi = 2.0 * M_PI * pcg32_uniform(&rng);
+        vec3 d = v3(sqrt(1.0 - z * z) * cos(phi), sqrt(1.0 - z * z) * sin(phi), z);
+        ray3 r = {o, d};
+        double t0 = 0.5 * pcg32_uniform(&rng);
+        double t1 = t0 + (k % 3 == 0 ? 0.01 + 0.09 * pcg32_uniform(&rng) : 2.0 * pcg32_uniform(&rng));
+        double w;
+        int n = rd_beams_cross(b, r, t0, t1, hits, CAP, &rng, &w);
+        cr_assert(n < CAP && w == 1.0, "ray %d: %d hits, weight %g", k, n, w);
+        memset(seen, 0, sizeof seen);
+        for (int i = 0; i < n; i++) {
+            int id = hits[i].idx;
+            cr_assert(id >= 0 && id < N && rad[id] > 0.0f, "ray %d: hit of ball %d, which was left out", k, id);
+            cr_assert(seen[id]++ == 0, "ray %d: ball %d reported twice", k, id);
+        }
+        for (int id = 0; id < N; id++) {
+            vec3 c = v3(ORIGIN[0] + ph[id].pos[0], ORIGIN[1] + ph[id].pos[1], ORIGIN[2] + ph[id].pos[2]);
+            double ta, tb;
+            int want = rad[id] > 0.0f && chord(r, c, rad[id], t0, t1, &ta, &tb);
+            /* Grazing chords (under 1e-4 m) may go either way in float. */
+            if (want && tb - ta < 1e-4) continue;
+            if (!want) {
+                if (seen[id]) {
+                    for (int i = 0; i < n; i++)
+                        if (hits[i].idx == id)
+                            cr_assert(hits[i].tb - hits[i].ta < 1e-4, "ray %d: ball %d reported, chord %g, but the segment misses it",
+                                      k, id, hits[i].tb - hits[i].ta);
+                }
+                continue;
+            }
+            cr_assert(seen[id], "ray %d: ball %d (chord %g m) missed", k, id, tb - ta);
+            for (int i = 0; i < n; i++)
+                if (hits[i].idx == id)
+                    cr_assert(fabs(hits[i].ta - ta) < 1e-4 && fabs(hits[i].tb - tb) < 1e-4,
+                              "ray %d: ball %d chord [%g, %g], brute force [%g, %g]", k, id, hits[i].ta, hits[i].tb, ta, tb);
+            total++;
+        }
+    }
+    cr_assert(total > 2 * RAYS, "too few crossings to test: %d", total);
+    rd_beams_free(b);
+    pm_map_free(m);
+}
+
+/* Twelve balls on the x axis; a segment through all of them keeps one: each with probability
+ * 1/12. Pearson's chi-square with 11 degrees of freedom against its 1 - 1e-5 quantile. */
+Test(beams, reservoir_keeps_a_uniform_pick)
+{
+    enum { M = 12, DRAWS = 60000 };
+    pm_map *m = pm_map_new();
+    char err[256];
+    pm_photon ph[M] = {0};
+    float rad[M];
+    for (int i = 0; i < M; i++) {
+        ph[i].pos[0] = (float)(0.1 * i);
+        ph[i].dir[2] = 1.0f;
+        rad[i] = 0.04f;
+    }
+    cr_assert(pm_map_add_photons(m, ph, M, err, sizeof err) == PM_OK, "%s", err);
+    rd_beams *b;
+    cr_assert(rd_beams_new(&b, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_beams_build(b, m, rad, err, sizeof err) == RD_OK, "%s", err);
+    ray3 r = {v3(-1, 0.01, 0), v3(1, 0, 0)};
+    long count[M] = {0};
+    pcg32 rng = pcg32_seed(7, 8, 9);
+    for (int k = 0; k < DRAWS; k++) {
+        rd_beam_hit h;
+        double w;
+        int n = rd_beams_cross(b, r, 0.0, 3.0, &h, 1, &rng, &w);
+        cr_assert(n == 1 && w == M, "kept %d of %d, weight %g", n, M, w);
+        count[h.idx]++;
+    }
+    double chi2 = 0.0, e = (double)DRAWS / M;
+    for (int i = 0; i < M; i++) chi2 += (count[i] - e) * (count[i] - e) / e;
+    double q = rt_chi2_quantile(M - 1, 4.265); /* z of 1 - 1e-5 */
+    cr_assert(chi2 < q, "chi-square %g >= %g: the kept ball is not a uniform pick", chi2, q);
+    rd_beams_free(b);
+    pm_map_free(m);
+}
+
+#define SIGMA_T 1.5
+static const char *scene_json(void)
+{
+    return "{\"camera\":{\"position\":[0,0,4],\"look_at\":[0,0,0],\"fov\":30,\"resolution\":[8,8]},"
+           "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
+           "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1.5,\"albedo\":0.9,\"g\":0.4}],"
+           "\"lights\":[{\"type\":\"point\",\"position\":[0.3,0.2,0.1],\"intensity\":[3,2,1]}],"
+           "\"photons\":{\"count\":3000,\"seed\":5},\"guide\":{\"k\":16},"
+           "\"march\":{\"ls\":\"nee+beams\"},\"settings\":{\"method\":\"uniform\"}}";
+}
+
+Test(beams, estimate_equals_the_exact_point_gather, .timeout = 300)
+{
+    rd_scene *s = rt_scene("beams.json", scene_json());
+    rd_bake_opts bo = {0};
+    bo.seed = -1;
+    bo.threads = 2;
+    rd_bake_opts_for(&bo, RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT);
+    rd_baked *bk;
+    char err[RD_ERRLEN];
+    cr_assert(rd_bake(s, &bo, &bk, err, sizeof err) == RD_OK, "%s", err);
+    rd_render_ctx ctx = {.scene = s, .method = rd_method_find("uniform"), .threads = 2, .radius_scale = 1.0};
+    ctx.photons = rd_baked_map(bk);
+    ctx.photons_indirect = rd_baked_indirect_map(bk);
+    cr_assert(rd_march_prepare(&ctx, err, sizeof err) == RD_OK, "%s", err);
+    const march_state *st = ctx.state;
+    const pm_map *map = ctx.photons_indirect;
+    size_t np = pm_map_photon_count(map);
+    cr_assert(np > 1000, "too few indirect photons: %zu", np);
+    march_scratch ms;
+    void *buf = aligned_alloc(16, (rd_march_scratch_layout(st, &ms, NULL) + 15) / 16 * 16);
+    rd_march_scratch_layout(st, &ms, buf);
+    const pm_photon *ph = pm_map_photons(map);
+    double org[3];
+    pm_map_origin(map, org);
+    const vec3 from[3] = {v3(0, 0, 4), v3(0.2, -0.3, 4), v3(3, 1, -2)};
+    const vec3 to[3] = {v3(0, 0, 0), v3(0.3, 0.2, 0.1), v3(-0.5, 0, 0.4)};
+    for (int k = 0; k < 3; k++) {
+        ray3 r = {from[k], v3_norm(v3_sub(to[k], from[k]))};
+        double t0, t1;
+        cr_assert(rd_box_intersect(s->bmin, s->bmax, r, 0.0, INFINITY, &t0, &t1) && t1 > t0);
+        /* The exact gather: every ball, its chord's integral of exp(-sigma_t (t - t0)). */
+        double want = 0.0;
+        vec3 w = v3_scale(r.d, -1.0);
+        for (size_t i = 0; i < np; i++) {
+            double rk = st->beam_radius[i], ta, tb;
+            vec3 c = v3(org[0] + ph[i].pos[0], org[1] + ph[i].pos[1], org[2] + ph[i].pos[2]);
+            if (!(rk > 0.0) || !chord(r, c, rk, t0, t1, &ta, &tb)) continue;
+            double cw = ph[i].dir[0] * w.x + ph[i].dir[1] * w.y + ph[i].dir[2] * w.z;
+            double Tint = (exp(-SIGMA_T * (ta - t0)) - exp(-SIGMA_T * (tb - t0))) / SIGMA_T;
+            want += ph[i].power[0] * rd_hg_eval(0.4, cw) / (4.0 / 3.0 * M_PI * rk * rk * rk) * Tint;
+        }
+        want *= st->beam_weight;
+        cr_assert(want > 0.0, "ray %d crosses no ball", k);
+        enum { DRAWS = 20000 };
+        double sum = 0.0, sum2 = 0.0;
+        rd_track_counters c = {0};
+        for (int j = 0; j < DRAWS; j++) {
+            pcg32 rng = pcg32_seed(11, (uint64_t)j, (uint64_t)k);
+            double v = rd_march_beam_estimate(&ctx, &ms, r, s->fill_medium, t0, t1, &rng, &c).x;
+            sum += v, sum2 += v * v;
+        }
+        double mean = sum / DRAWS, se = sqrt(fmax(0.0, sum2 / DRAWS - mean * mean) / DRAWS);
+        cr_log_info("beams: ray %d: estimate %.6g +- %.2g, exact gather %.6g", k, mean, se, want);
+        cr_expect(fabs(mean - want) < 4.5 * se + 1e-9 * want,
+                  "ray %d: the beam estimate %.6g +- %.2g is not the exact gather %.6g", k, mean, se, want);
+    }
+    free(buf);
+    rd_march_release(&ctx);
+    rd_baked_free(bk);
+    rd_scene_free(s);
+}
