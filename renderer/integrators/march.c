@@ -297,9 +297,7 @@ static vec3 photon_estimate(const rd_scene *s, const pm_map *map, vec3 x, vec3 w
  * own photons. 0 with one fixed map (then the k-NN estimate); -1 where pass 1 has no photon at
  * all (nothing to gather). */
 #define PASS_RADIUS_MIN_J 8
-/* r_1 at x in `first` for k photons per estimate (the rule above, without the pass's scale);
- * -1 where `first` holds no photon. */
-static double knn_bandwidth(const pm_map *first, int k, vec3 x)
+double rd_march_knn_bandwidth(const pm_map *first, int k, vec3 x)
 {
     if (k > MAX_GATHER) k = MAX_GATHER;
     int j = (k + 3) / 4;
@@ -316,165 +314,8 @@ static double knn_bandwidth(const pm_map *first, int k, vec3 x)
 static double pass_radius(const rd_render_ctx *ctx, const pm_map *first, vec3 x)
 {
     if (ctx->photon_pass < 1 || !first) return 0.0;
-    double r = knn_bandwidth(first, ctx->scene->guide.k, x);
+    double r = rd_march_knn_bandwidth(first, ctx->scene->guide.k, x);
     return r < 0.0 ? -1.0 : r * ctx->radius_scale;
-}
-
-/* ---- The beam radiance estimate (march.ls = nee+beams) -------------------------------------- */
-
-/* Balls a segment keeps at most (rd_beams_cross samples them beyond). */
-#define BEAM_CAP 4096
-
-/* The radii of the indirect photons' balls, and the balls (rd_beams): photon k gets the
- * bandwidth r_k = r_1(x_k) x the pass's scale, r_1 by knn_bandwidth in pass 1's indirect map
- * (with one fixed map: in that map). This is the sample-point form of the kernel estimate
- * (the radius belongs to the photon, not to the point that gathers): the ball of photon k adds
- *     p(w'_k . w) dPhi_k / ((4/3) pi r_k^3)
- * at every point inside it. r_1 depends on pass 1's photons only, so every later pass is a
- * fixed-kernel estimate as with the point gather, and the passes' average converges. */
-rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen)
-{
-    march_state *st = ctx->state;
-    if (!st || ctx->scene->march.ls != RD_LS_NEE_BEAMS) return RD_OK;
-    const pm_map *map = ctx->photons_indirect;
-    const pm_map *first = ctx->photon_pass >= 1 ? ctx->photons_indirect_first : map;
-    double scale = ctx->photon_pass >= 1 ? ctx->radius_scale : 1.0;
-    if (!map || !first) {
-        snprintf(err, errlen, "march.ls nee+beams: no indirect photon map");
-        return RD_ERR_INTERNAL;
-    }
-    size_t n = pm_map_photon_count(map);
-    if (n > st->beam_radius_cap) {
-        float *r = realloc(st->beam_radius, (n ? n : 1) * sizeof *r);
-        if (!r) {
-            snprintf(err, errlen, "out of memory for %zu photon radii", n);
-            return RD_ERR_NOMEM;
-        }
-        st->beam_radius = r, st->beam_radius_cap = n;
-    }
-    const pm_photon *ph = pm_map_photons(map);
-    double o[3];
-    pm_map_origin(map, o);
-    int k = ctx->scene->guide.k;
-    float *rad = st->beam_radius;
-    /* At most as many balls as photons emitted: a photon path in a dense medium stores a
-     * collision every mean free path, and its neighbouring collisions carry nearly the same
-     * light; each photon is kept with probability q and its power counted 1/q (unbiased given
-     * the kernel). The choice hashes (pass, index), so it does not depend on the threads. */
-    const rd_photon_settings *ps = &ctx->scene->photons;
-    size_t emitted = ps->pass_count > 0 && ctx->photon_pass >= 1 ? ps->pass_count : ps->count;
-    double q = n > emitted ? (double)emitted / n : 1.0;
-    st->beam_weight = 1.0 / q;
-    uint64_t key = 0x9e3779b97f4a7c15ULL * (uint64_t)(ctx->photon_pass + 1);
-#pragma omp parallel for schedule(dynamic, 1024) num_threads(ctx->threads)
-    for (size_t i = 0; i < n; i++) {
-        rad[i] = 0.0f;
-        if (q < 1.0 && (double)(rd_mix64(key + i) >> 11) * 0x1.0p-53 >= q) continue;
-        vec3 x = v3(o[0] + ph[i].pos[0], o[1] + ph[i].pos[1], o[2] + ph[i].pos[2]);
-        double r = knn_bandwidth(first, k, x);
-        rad[i] = r > 0.0 ? (float)(r * scale) : 0.0f;
-    }
-    if (!st->beams) {
-        rd_status s = rd_beams_new(&st->beams, err, errlen);
-        if (s != RD_OK) return s;
-    }
-    return rd_beams_build(st->beams, map, rad, err, errlen);
-}
-
-/* Points along a segment at which the beam estimate reads T (rd_march_beam_estimate). */
-#define BEAM_PICKS 16
-
-/* The beam radiance estimate of the indirect in-scattering along [t0, t1] of r (Jarosz,
- * Zwicker & Jensen 2008, with the 3-D ball of each photon): the integral of the sample-point
- * kernel estimate times the transmittance,
- *     int_t0^t1 T(t0, t) sum_k [|x(t) - x_k| < r_k] p(w'_k . w) dPhi_k / V_k dt
- *       = sum_k c_k (1 / L_k) int_{ta_k}^{tb_k} T(t0, t) dt,   c_k = p(w'_k . w) dPhi_k L_k / V_k,
- * over the balls the segment crosses ([ta_k, tb_k] its chord in ball k, L_k its length,
- * V_k = (4/3) pi r_k^3). A segment crosses hundreds of balls, and reading T at each costs a
- * tracking each; so the sum is estimated by BEAM_PICKS stratified picks k_j with probability
- * P_k = lum(c_k) / sum lum(c), each at u_j uniform on its chord:
- *     (1 / m) sum_j c_{k_j} T(t0, u_j) / P_{k_j},
- * with T from the free-path engine swept once over the sorted u_j (independent pieces, as the
- * samples' sweep in march_segment). Unbiased given the photons: the estimate equals the point
- * gather with the same balls marched with infinitely many samples. Segments that cross at most
- * BEAM_PICKS balls take every ball once (P = 1). c_k's phase is that of the medium at the
- * chord's middle; the pick re-weights by the phase at x(u_j). With shapes, ball k counts at
- * u_j only when no surface lies between x(u_j) and the photon (the point gather's rule). */
-vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, ray3 r, int region,
-                             double t0, double t1, pcg32 *rng, rd_track_counters *c)
-{
-    const rd_scene *s = ctx->scene;
-    const march_state *st = ctx->state;
-    double wgt;
-    int n = rd_beams_cross(st->beams, r, t0, t1, ms->hits, st->beam_cap, rng, &wgt);
-    if (n == 0) return v3(0, 0, 0);
-    const pm_map *map = rd_beams_map(st->beams);
-    const pm_photon *ph = pm_map_photons(map);
-    vec3 w = v3_scale(r.d, -1.0);
-    /* The picks' weights: cdf[i] = sum of lum(c_k) over the first i + 1 hits. */
-    double total = 0.0;
-    for (int i = 0; i < n; i++) {
-        const rd_beam_hit *h = &ms->hits[i];
-        const pm_photon *p = &ph[h->idx];
-        const rd_medium *m = rd_scene_medium_at(s, region, ray_at(r, 0.5 * (h->ta + h->tb)));
-        double rk = st->beam_radius[h->idx];
-        double cw = fmin(1.0, fmax(-1.0, p->dir[0] * w.x + p->dir[1] * w.y + p->dir[2] * w.z));
-        double lum = 0.2126 * p->power[0] + 0.7152 * p->power[1] + 0.0722 * p->power[2];
-        total += fmax(lum, 0.0) * rd_hg_eval(m ? m->g : 0.0, cw) * (h->tb - h->ta) / (rk * rk * rk);
-        ms->cdf[i] = total;
-    }
-    if (!(total > 0.0)) return v3(0, 0, 0);
-    /* The picks (hit, u, 1 / (m P)), stratified over the cdf; sorted by u. */
-    int npick = n <= BEAM_PICKS ? n : BEAM_PICKS;
-    int pk[BEAM_PICKS];
-    double pu[BEAM_PICKS], pw[BEAM_PICKS];
-    for (int j = 0, i = 0; j < npick; j++) {
-        int k = j;
-        double inv_mp = 1.0;
-        if (n > BEAM_PICKS) {
-            double x = (j + pcg32_uniform(rng)) / npick * total;
-            while (i < n - 1 && ms->cdf[i] <= x) i++;
-            k = i;
-            double ck = ms->cdf[k] - (k > 0 ? ms->cdf[k - 1] : 0.0);
-            if (!(ck > 0.0)) { npick--, j--; continue; } /* (cannot be picked: x lands on ck > 0) */
-            inv_mp = total / (ck * BEAM_PICKS);
-        }
-        const rd_beam_hit *h = &ms->hits[k];
-        double u = h->ta + pcg32_uniform(rng) * (h->tb - h->ta);
-        int at = j; /* insertion by u */
-        while (at > 0 && pu[at - 1] > u) {
-            pk[at] = pk[at - 1], pu[at] = pu[at - 1], pw[at] = pw[at - 1];
-            at--;
-        }
-        pk[at] = k, pu[at] = u, pw[at] = inv_mp;
-    }
-    double o[3];
-    pm_map_origin(map, o);
-    vec3 sum = v3(0, 0, 0);
-    double T = 1.0, tp = t0;
-    for (int j = 0; j < npick && T != 0.0; j++) {
-        double u = pu[j];
-        T *= rd_transmittance(s, region, r, tp, u, rng, c);
-        T *= rd_tr_roulette(T, rng);
-        tp = u;
-        if (T == 0.0) break;
-        const rd_beam_hit *h = &ms->hits[pk[j]];
-        const pm_photon *p = &ph[h->idx];
-        vec3 x = ray_at(r, u);
-        const rd_medium *m = rd_scene_medium_at(s, region, x);
-        if (!m) continue;
-        if (s->geom) {
-            vec3 q = v3(o[0] + p->pos[0], o[1] + p->pos[1], o[2] + p->pos[2]);
-            vec3 dq = v3_sub(q, x);
-            double len = v3_len(dq);
-            if (len > 0.0 && rd_geom_occluded(s->geom, (ray3){x, v3_scale(dq, 1.0 / len)}, 0.0, len, NULL)) continue;
-        }
-        double rk = st->beam_radius[h->idx];
-        double cw = fmin(1.0, fmax(-1.0, p->dir[0] * w.x + p->dir[1] * w.y + p->dir[2] * w.z));
-        double f = rd_hg_eval(m->g, cw) * (h->tb - h->ta) / (4.0 / 3.0 * M_PI * rk * rk * rk);
-        sum = v3_madd(sum, v3(p->power[0], p->power[1], p->power[2]), f * T * pw[j]);
-    }
-    return v3_scale(sum, wgt * st->beam_weight);
 }
 
 vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, vec3 x, vec3 d,
@@ -709,7 +550,7 @@ rd_status rd_march_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
         ms->piece_cap = ms->seg_cap + ms->k_steps;
         ms->seg_cap = ms->piece_cap + 2;
     }
-    ms->beam_cap = ctx->scene->march.ls == RD_LS_NEE_BEAMS ? BEAM_CAP : 0;
+    ms->beam_cap = ctx->scene->march.ls == RD_LS_NEE_BEAMS ? RD_BEAM_CAP : 0;
     ctx->state = ms;
     rd_status bs = rd_march_photons_changed(ctx, err, errlen);
     if (bs != RD_OK) rd_march_release(ctx);
@@ -721,8 +562,7 @@ void rd_march_release(rd_render_ctx *ctx)
     march_state *ms = ctx->state;
     if (ms) {
         rd_select_free(&ms->sel);
-        rd_beams_free(ms->beams);
-        free(ms->beam_radius);
+        rd_march_beams_free(ms);
     }
     free(ctx->state);
     ctx->state = NULL;

@@ -28,6 +28,7 @@ typedef struct {
     /* march.ls = nee+beams: the indirect photons as balls (rebuilt for every photon pass by
      * rd_march_photons_changed), their radii, and the balls a segment keeps at most. */
     rd_beams *beams;
+    struct beam_field *beam_field; /* r_1 on cells of pass 1 (march_beams.c) */
     float *beam_radius;
     size_t beam_radius_cap;
     int beam_cap;
@@ -75,6 +76,13 @@ vec3 rd_march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampl
 size_t rd_march_scratch_bytes(const rd_render_ctx *ctx);
 rd_status rd_march_prepare(rd_render_ctx *ctx, char *err, size_t errlen);
 void rd_march_release(rd_render_ctx *ctx);
+/* Balls a segment keeps at most (rd_beams_cross samples them beyond). */
+#define RD_BEAM_CAP 4096
+/* r_1(x), the k-NN bandwidth of seed 001's fixed map at x in `first` (pass 1's map, or the fixed
+ * map), read from a nearer neighbour (march.c says how); -1 where `first` holds no photon. */
+double rd_march_knn_bandwidth(const pm_map *first, int k, vec3 x);
+/* Free the beam source's parts of st (march_beams.c). */
+void rd_march_beams_free(march_state *st);
 /* The method table's photons_changed hook: with march.ls = nee+beams, the balls of the
  * indirect photons ctx holds now, with their radii (a no-op for the other sources). */
 rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen);

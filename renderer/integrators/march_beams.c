@@ -1,0 +1,311 @@
+/* march_beams.c: the beam radiance estimate of the marchers' source march.ls = nee+beams
+ * (Jarosz, Zwicker & Jensen 2008, with a 3-D ball per photon): the indirect photons' balls, their
+ * radii, and the estimate along a camera-ray segment (rd_march_beam_estimate). The balls
+ * themselves are integrators/beams.c's; the samples of march.c add the direct light. */
+#include "integrators/rd_march.h"
+#include "scene/rd_geom.h"
+#include "transport/rd_path.h"
+#include "photonmap.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+/* ---- The radii: r_1 on cells of pass 1 --------------------------------------------------- */
+
+/* A ball's radius is r_k = r_1(x_k) s_i: the pass's scale s_i (bake/passes.c) times pass 1's
+ * bandwidth r_1 (rd_march_knn_bandwidth: the guide.k-NN distance in pass 1's indirect map, or
+ * the fixed map's). A k-NN query per ball per pass cost more than tracing the pass (0.9 s a
+ * pass for 200000 balls on one thread, smoke-vdb), so r_1 is read from cells instead: the
+ * cells of edge h (the median r_1 over 4096 of pass 1's photons) that hold a photon of pass 1,
+ * each with r_1 at its centre, found by binary search on the sorted cell keys. A ball whose
+ * cell holds no photon of pass 1 gets its own query. r_1 stays a function of x fixed by pass 1
+ * alone (piecewise constant at the kernel's own scale), so every later pass is still a
+ * fixed-kernel estimate and the passes' average converges. */
+struct beam_field {
+    double lo[3], h;      /* world corner of cell (0, 0, 0), cell edge; h = 0: no cells */
+    size_t n;             /* cells held */
+    uint64_t *key;        /* their keys, sorted: ix | iy << 21 | iz << 42 */
+    float *r1;            /* r_1 at each one's centre (<= 0: pass 1 has no photon) */
+    const pm_map *first;
+    int k;
+};
+
+#define CELL_BITS 21
+#define CELL_MAX ((1u << CELL_BITS) - 1)
+
+static int cell_key(const struct beam_field *f, vec3 x, uint64_t *key)
+{
+    double c[3] = {(x.x - f->lo[0]) / f->h, (x.y - f->lo[1]) / f->h, (x.z - f->lo[2]) / f->h};
+    uint64_t k = 0;
+    for (int a = 0; a < 3; a++) {
+        if (!(c[a] >= 0.0 && c[a] < CELL_MAX)) return 0;
+        k |= (uint64_t)c[a] << (CELL_BITS * a);
+    }
+    *key = k;
+    return 1;
+}
+
+static int cmp_u64(const void *a, const void *b)
+{
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return (x > y) - (x < y);
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static void field_free(struct beam_field *f)
+{
+    if (!f) return;
+    free(f->key);
+    free(f->r1);
+    free(f);
+}
+
+/* r_1 at x: its cell's, or a query of its own. */
+static double field_r1(const struct beam_field *f, vec3 x)
+{
+    uint64_t key;
+    if (f->h > 0.0 && cell_key(f, x, &key)) {
+        size_t lo = 0, hi = f->n;
+        while (lo < hi) {
+            size_t mid = (lo + hi) / 2;
+            if (f->key[mid] < key) lo = mid + 1;
+            else hi = mid;
+        }
+        if (lo < f->n && f->key[lo] == key) return f->r1[lo];
+    }
+    return rd_march_knn_bandwidth(f->first, f->k, x);
+}
+
+/* The cells of pass 1's map `first` (see above). */
+static rd_status field_build(const pm_map *first, int k, int threads, struct beam_field **out, char *err,
+                             size_t errlen)
+{
+    struct beam_field *f = calloc(1, sizeof *f);
+    size_t n = pm_map_photon_count(first);
+    size_t m = n < 4096 ? n : 4096;
+    double *sample = malloc((m ? m : 1) * sizeof *sample);
+    if (f) f->key = malloc((n ? n : 1) * sizeof *f->key);
+    if (!f || !sample || !f->key) {
+        free(sample);
+        field_free(f);
+        snprintf(err, errlen, "out of memory for the photon balls' radius cells (%zu photons)", n);
+        return RD_ERR_NOMEM;
+    }
+    f->first = first, f->k = k;
+    const pm_photon *ph = pm_map_photons(first);
+    double o[3];
+    pm_map_origin(first, o);
+    size_t got = 0;
+    for (size_t i = 0; i < m; i++) {
+        const pm_photon *p = &ph[i * n / m];
+        double r = rd_march_knn_bandwidth(first, k, v3(o[0] + p->pos[0], o[1] + p->pos[1], o[2] + p->pos[2]));
+        if (r > 0.0) sample[got++] = r;
+    }
+    if (got > 0) {
+        qsort(sample, got, sizeof *sample, cmp_double);
+        float lo[3], hi[3];
+        pm_map_bounds(first, lo, hi);
+        f->h = sample[got / 2];
+        for (int a = 0; a < 3; a++) {
+            f->lo[a] = o[a] + lo[a] - 0.5 * f->h;
+            /* Never more cells along an axis than the keys hold. */
+            double span = (double)hi[a] - lo[a] + f->h;
+            if (span / f->h > 0.5 * CELL_MAX) f->h = span / (0.5 * CELL_MAX);
+        }
+    }
+    free(sample);
+    if (f->h > 0.0) {
+        size_t nk = 0;
+        for (size_t i = 0; i < n; i++) {
+            uint64_t key;
+            if (cell_key(f, v3(o[0] + ph[i].pos[0], o[1] + ph[i].pos[1], o[2] + ph[i].pos[2]), &key)) f->key[nk++] = key;
+        }
+        qsort(f->key, nk, sizeof *f->key, cmp_u64);
+        size_t u = 0;
+        for (size_t i = 0; i < nk; i++)
+            if (u == 0 || f->key[i] != f->key[u - 1]) f->key[u++] = f->key[i];
+        f->n = u;
+        f->r1 = malloc((u ? u : 1) * sizeof *f->r1);
+        if (!f->r1) {
+            field_free(f);
+            snprintf(err, errlen, "out of memory for %zu radius cells", u);
+            return RD_ERR_NOMEM;
+        }
+#pragma omp parallel for schedule(dynamic, 256) num_threads(threads)
+        for (size_t i = 0; i < u; i++) {
+            uint64_t key = f->key[i];
+            vec3 c = v3(f->lo[0] + ((double)(key & CELL_MAX) + 0.5) * f->h,
+                        f->lo[1] + ((double)((key >> CELL_BITS) & CELL_MAX) + 0.5) * f->h,
+                        f->lo[2] + ((double)(key >> (2 * CELL_BITS)) + 0.5) * f->h);
+            f->r1[i] = (float)rd_march_knn_bandwidth(first, k, c);
+        }
+    }
+    *out = f;
+    return RD_OK;
+}
+
+/* ---- The balls ----------------------------------------------------------------------------- */
+
+void rd_march_beams_free(march_state *st)
+{
+    rd_beams_free(st->beams);
+    free(st->beam_radius);
+    field_free(st->beam_field);
+    st->beams = NULL, st->beam_radius = NULL, st->beam_field = NULL;
+}
+
+/* The balls of the indirect photons ctx holds now: photon k with radius r_1(x_k) s_i (above).
+ * This is the sample-point form of the kernel estimate (the radius belongs to the photon, not
+ * to the point that gathers): the ball of photon k adds
+ *     p(w'_k . w) dPhi_k / ((4/3) pi r_k^3)
+ * at every point inside it. At most as many balls as photons emitted: a photon path in a dense
+ * medium stores a collision every mean free path, and neighbouring collisions carry nearly the
+ * same light; each photon is kept with probability q and its power counted 1/q (unbiased given
+ * the kernel). The choice hashes (pass, index), so it does not depend on the threads. */
+rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen)
+{
+    march_state *st = ctx->state;
+    if (!st || ctx->scene->march.ls != RD_LS_NEE_BEAMS) return RD_OK;
+    const pm_map *map = ctx->photons_indirect;
+    const pm_map *first = ctx->photon_pass >= 1 ? ctx->photons_indirect_first : map;
+    double scale = ctx->photon_pass >= 1 ? ctx->radius_scale : 1.0;
+    if (!map || !first) {
+        snprintf(err, errlen, "march.ls nee+beams: no indirect photon map");
+        return RD_ERR_INTERNAL;
+    }
+    int k = ctx->scene->guide.k;
+    rd_status s;
+    if (!st->beam_field && (s = field_build(first, k, ctx->threads, &st->beam_field, err, errlen)) != RD_OK) return s;
+    size_t n = pm_map_photon_count(map);
+    if (n > st->beam_radius_cap) {
+        float *r = realloc(st->beam_radius, (n ? n : 1) * sizeof *r);
+        if (!r) {
+            snprintf(err, errlen, "out of memory for %zu photon radii", n);
+            return RD_ERR_NOMEM;
+        }
+        st->beam_radius = r, st->beam_radius_cap = n;
+    }
+    const pm_photon *ph = pm_map_photons(map);
+    double o[3];
+    pm_map_origin(map, o);
+    float *rad = st->beam_radius;
+    const rd_photon_settings *ps = &ctx->scene->photons;
+    size_t emitted = ps->pass_count > 0 && ctx->photon_pass >= 1 ? ps->pass_count : ps->count;
+    double q = n > emitted ? (double)emitted / n : 1.0;
+    st->beam_weight = 1.0 / q;
+    uint64_t key = 0x9e3779b97f4a7c15ULL * (uint64_t)(ctx->photon_pass + 1);
+    const struct beam_field *f = st->beam_field;
+#pragma omp parallel for schedule(dynamic, 1024) num_threads(ctx->threads)
+    for (size_t i = 0; i < n; i++) {
+        rad[i] = 0.0f;
+        if (q < 1.0 && (double)(rd_mix64(key + i) >> 11) * 0x1.0p-53 >= q) continue;
+        double r = field_r1(f, v3(o[0] + ph[i].pos[0], o[1] + ph[i].pos[1], o[2] + ph[i].pos[2]));
+        rad[i] = r > 0.0 ? (float)(r * scale) : 0.0f;
+    }
+    if (!st->beams && (s = rd_beams_new(&st->beams, err, errlen)) != RD_OK) return s;
+    return rd_beams_build(st->beams, map, rad, err, errlen);
+}
+
+/* ---- The estimate -------------------------------------------------------------------------- */
+
+/* Points along a segment at which the beam estimate reads T (rd_march_beam_estimate). */
+#define BEAM_PICKS 16
+
+/* The beam radiance estimate of the indirect in-scattering along [t0, t1] of r (Jarosz,
+ * Zwicker & Jensen 2008, with the 3-D ball of each photon): the integral of the sample-point
+ * kernel estimate times the transmittance,
+ *     int_t0^t1 T(t0, t) sum_k [|x(t) - x_k| < r_k] p(w'_k . w) dPhi_k / V_k dt
+ *       = sum_k c_k (1 / L_k) int_{ta_k}^{tb_k} T(t0, t) dt,   c_k = p(w'_k . w) dPhi_k L_k / V_k,
+ * over the balls the segment crosses ([ta_k, tb_k] its chord in ball k, L_k its length,
+ * V_k = (4/3) pi r_k^3). A segment crosses hundreds of balls, and reading T at each costs a
+ * tracking each; so the sum is estimated by BEAM_PICKS stratified picks k_j with probability
+ * P_k = lum(c_k) / sum lum(c), each at u_j uniform on its chord:
+ *     (1 / m) sum_j c_{k_j} T(t0, u_j) / P_{k_j},
+ * with T from the free-path engine swept once over the sorted u_j (independent pieces, as the
+ * samples' sweep in march_segment). Unbiased given the photons: the estimate equals the point
+ * gather with the same balls marched with infinitely many samples. Segments that cross at most
+ * BEAM_PICKS balls take every ball once (P = 1). c_k's phase is that of the medium at the
+ * chord's middle; the pick re-weights by the phase at x(u_j). With shapes, ball k counts at
+ * u_j only when no surface lies between x(u_j) and the photon (the point gather's rule). */
+vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, ray3 r, int region,
+                             double t0, double t1, pcg32 *rng, rd_track_counters *c)
+{
+    const rd_scene *s = ctx->scene;
+    const march_state *st = ctx->state;
+    double wgt;
+    int n = rd_beams_cross(st->beams, r, t0, t1, ms->hits, st->beam_cap, rng, &wgt);
+    if (n == 0) return v3(0, 0, 0);
+    const pm_map *map = rd_beams_map(st->beams);
+    const pm_photon *ph = pm_map_photons(map);
+    vec3 w = v3_scale(r.d, -1.0);
+    /* The picks' weights: cdf[i] = sum of lum(c_k) over the first i + 1 hits. */
+    double total = 0.0;
+    for (int i = 0; i < n; i++) {
+        const rd_beam_hit *h = &ms->hits[i];
+        const pm_photon *p = &ph[h->idx];
+        const rd_medium *m = rd_scene_medium_at(s, region, ray_at(r, 0.5 * (h->ta + h->tb)));
+        double rk = st->beam_radius[h->idx];
+        double cw = fmin(1.0, fmax(-1.0, p->dir[0] * w.x + p->dir[1] * w.y + p->dir[2] * w.z));
+        double lum = 0.2126 * p->power[0] + 0.7152 * p->power[1] + 0.0722 * p->power[2];
+        total += fmax(lum, 0.0) * rd_hg_eval(m ? m->g : 0.0, cw) * (h->tb - h->ta) / (rk * rk * rk);
+        ms->cdf[i] = total;
+    }
+    if (!(total > 0.0)) return v3(0, 0, 0);
+    /* The picks (hit, u, 1 / (m P)), stratified over the cdf; sorted by u. */
+    int npick = n <= BEAM_PICKS ? n : BEAM_PICKS;
+    int pk[BEAM_PICKS];
+    double pu[BEAM_PICKS], pw[BEAM_PICKS];
+    for (int j = 0, i = 0; j < npick; j++) {
+        int k = j;
+        double inv_mp = 1.0;
+        if (n > BEAM_PICKS) {
+            double x = (j + pcg32_uniform(rng)) / npick * total;
+            while (i < n - 1 && ms->cdf[i] <= x) i++;
+            k = i;
+            double ck = ms->cdf[k] - (k > 0 ? ms->cdf[k - 1] : 0.0);
+            if (!(ck > 0.0)) { npick--, j--; continue; } /* (cannot be picked: x lands on ck > 0) */
+            inv_mp = total / (ck * BEAM_PICKS);
+        }
+        const rd_beam_hit *h = &ms->hits[k];
+        double u = h->ta + pcg32_uniform(rng) * (h->tb - h->ta);
+        int at = j; /* insertion by u */
+        while (at > 0 && pu[at - 1] > u) {
+            pk[at] = pk[at - 1], pu[at] = pu[at - 1], pw[at] = pw[at - 1];
+            at--;
+        }
+        pk[at] = k, pu[at] = u, pw[at] = inv_mp;
+    }
+    double o[3];
+    pm_map_origin(map, o);
+    vec3 sum = v3(0, 0, 0);
+    double T = 1.0, tp = t0;
+    for (int j = 0; j < npick && T != 0.0; j++) {
+        double u = pu[j];
+        T *= rd_transmittance(s, region, r, tp, u, rng, c);
+        T *= rd_tr_roulette(T, rng);
+        tp = u;
+        if (T == 0.0) break;
+        const rd_beam_hit *h = &ms->hits[pk[j]];
+        const pm_photon *p = &ph[h->idx];
+        vec3 x = ray_at(r, u);
+        const rd_medium *m = rd_scene_medium_at(s, region, x);
+        if (!m) continue;
+        if (s->geom) {
+            vec3 q = v3(o[0] + p->pos[0], o[1] + p->pos[1], o[2] + p->pos[2]);
+            vec3 dq = v3_sub(q, x);
+            double len = v3_len(dq);
+            if (len > 0.0 && rd_geom_occluded(s->geom, (ray3){x, v3_scale(dq, 1.0 / len)}, 0.0, len, NULL)) continue;
+        }
+        double rk = st->beam_radius[h->idx];
+        double cw = fmin(1.0, fmax(-1.0, p->dir[0] * w.x + p->dir[1] * w.y + p->dir[2] * w.z));
+        double f = rd_hg_eval(m->g, cw) * (h->tb - h->ta) / (4.0 / 3.0 * M_PI * rk * rk * rk);
+        sum = v3_madd(sum, v3(p->power[0], p->power[1], p->power[2]), f * T * pw[j]);
+    }
+    return v3_scale(sum, wgt * st->beam_weight);
+}
+
