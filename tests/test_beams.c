@@ -1,10 +1,14 @@
-/* The beam radiance estimate (march.ls = nee+beams; renderer/integrators/beams.c and march.c)
+/* The beam radiance estimate (march.ls = nee+beams; renderer/integrators/beams.c and
+ * march_beams.c)
  * against brute force:
  *  - rd_beams_cross finds every ball a segment crosses exactly once, with its chord, for balls
  *    in a map whose origin is far from the world's, segments that start, end or lie wholly inside
  *    a ball, and balls left out (radius 0); checked against the chord of every ball in double;
  *  - when more balls are crossed than it keeps, the kept one is a uniform pick of them (a
  *    chi-square test on 12 balls) and the weight is their count;
+ *  - the balls of a map: about the share q = emitted / stored of the photons kept (binomial,
+ *    4.5 standard deviations), weighted 1/q, and every ball of the fixed map finds r_1 in the
+ *    cells (no query of its own) in a medium off the world's centre;
  *  - the estimate along a segment equals the point gather with the same balls integrated
  *    exactly: sum_k p dPhi_k / V_k int_chord T dt, the chord integral of T = exp(-sigma_t t) in
  *    closed form, over every photon of the map (no Embree, no picks). The estimator's mean over
@@ -57,7 +61,7 @@ Test(beams, cross_finds_every_ball_once)
     pm_map *m = random_map(N, rad, &rng);
     rd_beams *b;
     char err[256];
-    cr_assert(rd_beams_new(&b, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_beams_new(&b, 2, err, sizeof err) == RD_OK, "%s", err);
     cr_assert(rd_beams_build(b, m, rad, err, sizeof err) == RD_OK, "%s", err);
     const pm_photon *ph = pm_map_photons(m);
     static rd_beam_hit hits[CAP];
@@ -126,7 +130,7 @@ Test(beams, reservoir_keeps_a_uniform_pick)
     }
     cr_assert(pm_map_add_photons(m, ph, M, err, sizeof err) == PM_OK, "%s", err);
     rd_beams *b;
-    cr_assert(rd_beams_new(&b, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_beams_new(&b, 2, err, sizeof err) == RD_OK, "%s", err);
     cr_assert(rd_beams_build(b, m, rad, err, sizeof err) == RD_OK, "%s", err);
     ray3 r = {v3(-1, 0.01, 0), v3(1, 0, 0)};
     long count[M] = {0};
@@ -147,12 +151,15 @@ Test(beams, reservoir_keeps_a_uniform_pick)
 }
 
 #define SIGMA_T 1.5
+/* The medium's box is centred at (3, -2, 1), off the world's origin (the map's origin is its
+ * centre); every point below is given relative to that centre. */
+static const double C[3] = {3.0, -2.0, 1.0};
 static const char *scene_json(void)
 {
-    return "{\"camera\":{\"position\":[0,0,4],\"look_at\":[0,0,0],\"fov\":30,\"resolution\":[8,8]},"
-           "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
+    return "{\"camera\":{\"position\":[3,-2,5],\"look_at\":[3,-2,1],\"fov\":30,\"resolution\":[8,8]},"
+           "\"media\":[{\"bounds\":{\"min\":[2,-3,0],\"max\":[4,-1,2]},"
            "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1.5,\"albedo\":0.9,\"g\":0.4}],"
-           "\"lights\":[{\"type\":\"point\",\"position\":[0.3,0.2,0.1],\"intensity\":[3,2,1]}],"
+           "\"lights\":[{\"type\":\"point\",\"position\":[3.3,-1.8,1.1],\"intensity\":[3,2,1]}],"
            "\"photons\":{\"count\":3000,\"seed\":5},\"guide\":{\"k\":16},"
            "\"march\":{\"ls\":\"nee+beams\"},\"settings\":{\"method\":\"uniform\"}}";
 }
@@ -181,10 +188,20 @@ Test(beams, estimate_equals_the_exact_point_gather, .timeout = 300)
     const pm_photon *ph = pm_map_photons(map);
     double org[3];
     pm_map_origin(map, org);
+    /* The balls: a share q = 3000 emitted / stored of the photons, each weighted 1/q; and in
+     * the fixed map every ball is a photon of the map that sets r_1, so each finds its cell. */
+    size_t kept = 0;
+    for (size_t i = 0; i < np; i++) kept += st->beam_radius[i] > 0.0f;
+    double q = np > 3000 ? 3000.0 / np : 1.0;
+    cr_expect(fabs(st->beam_weight - 1.0 / q) < 1e-12, "balls weighted %g, not 1/q = %g", st->beam_weight, 1.0 / q);
+    cr_expect(fabs(kept - q * np) <= 4.5 * sqrt(np * q * (1.0 - q)) + 0.5,
+              "%zu balls kept of %zu photons, expected %.1f", kept, np, q * np);
+    cr_expect(st->beam_r1_queries == 0, "%zu balls of the fixed map missed their cells", st->beam_r1_queries);
     const vec3 from[3] = {v3(0, 0, 4), v3(0.2, -0.3, 4), v3(3, 1, -2)};
     const vec3 to[3] = {v3(0, 0, 0), v3(0.3, 0.2, 0.1), v3(-0.5, 0, 0.4)};
+    vec3 cw_ = v3(C[0], C[1], C[2]);
     for (int k = 0; k < 3; k++) {
-        ray3 r = {from[k], v3_norm(v3_sub(to[k], from[k]))};
+        ray3 r = {v3_add(from[k], cw_), v3_norm(v3_sub(to[k], from[k]))};
         double t0, t1;
         cr_assert(rd_box_intersect(s->bmin, s->bmax, r, 0.0, INFINITY, &t0, &t1) && t1 > t0);
         /* The exact gather: every ball, its chord's integral of exp(-sigma_t (t - t0)). */

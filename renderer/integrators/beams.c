@@ -10,6 +10,7 @@
 #include "integrators/rd_beams.h"
 
 #include <embree3/rtcore.h>
+#include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
 
@@ -77,7 +78,7 @@ static void cross_filter(const struct RTCFilterFunctionNArguments *args)
     }
 }
 
-rd_status rd_beams_new(rd_beams **out, char *err, size_t errlen)
+rd_status rd_beams_new(rd_beams **out, int threads, char *err, size_t errlen)
 {
     *out = NULL;
     rd_beams *b = calloc(1, sizeof *b);
@@ -85,7 +86,10 @@ rd_status rd_beams_new(rd_beams **out, char *err, size_t errlen)
         snprintf(err, errlen, "out of memory for the photon balls");
         return RD_ERR_NOMEM;
     }
-    b->device = rtcNewDevice("verbose=0");
+    char config[64];
+    if (threads > 0) snprintf(config, sizeof config, "verbose=0,threads=%d", threads);
+    else snprintf(config, sizeof config, "verbose=0");
+    b->device = rtcNewDevice(config);
     if (!b->device) {
         snprintf(err, errlen, "Embree could not create a device for the photon balls (error %d)",
                  (int)rtcGetDeviceError(NULL));
@@ -126,7 +130,7 @@ rd_status rd_beams_build(rd_beams *b, const pm_map *map, const float *radius, ch
     const pm_photon *ph = pm_map_photons(map);
     for (size_t k = 0; k < n; k++) used += radius[k] > 0.0f && isfinite(radius[k]);
     if (used == 0) return RD_OK;
-    if (used > 0xffffffffu) {
+    if (used > INT_MAX) {
         snprintf(err, errlen, "%zu photon balls: more than Embree's primitive ids hold", used);
         return RD_ERR_ARG;
     }

@@ -32,8 +32,9 @@
  *                direct light to them (rd_delta_scattered): unbiased, and a path costs only
  *                where delta's would scatter;
  *   nee+beams    the same direct light at the samples + multiple scattering from the beam
- *                radiance estimate: every indirect photon's ball the segment crosses, integrated
- *                with T along the whole segment (rd_march_beam_estimate; no placement noise),
+ *                radiance estimate: the indirect photons' balls the segment crosses (a sample of
+ *                them, unbiased), integrated with T along the whole segment
+ *                (march_beams.c, rd_march_beam_estimate; no placement noise),
  *   nee          sigma_s x next-event estimation only (single scattering; for tests).
  * Given S, the estimate is unbiased for every placement (the defensive mixture keeps p > 0
  * wherever the integrand can be non-zero, and every ray gets at least one sample); what the

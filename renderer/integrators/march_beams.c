@@ -65,9 +65,10 @@ static void field_free(struct beam_field *f)
     free(f);
 }
 
-/* r_1 at x: its cell's, or a query of its own. */
-static double field_r1(const struct beam_field *f, vec3 x)
+/* r_1 at x: its cell's, or a query of its own (*queried set). */
+static double field_r1(const struct beam_field *f, vec3 x, int *queried)
 {
+    *queried = 0;
     uint64_t key;
     if (f->h > 0.0 && cell_key(f, x, &key)) {
         size_t lo = 0, hi = f->n;
@@ -78,6 +79,7 @@ static double field_r1(const struct beam_field *f, vec3 x)
         }
         if (lo < f->n && f->key[lo] == key) return f->r1[lo];
     }
+    *queried = 1;
     return rd_march_knn_bandwidth(f->first, f->k, x);
 }
 
@@ -111,12 +113,13 @@ static rd_status field_build(const pm_map *first, int k, int threads, struct bea
         float lo[3], hi[3];
         pm_map_bounds(first, lo, hi);
         f->h = sample[got / 2];
+        /* Never more cells along an axis than the keys hold (h grows for a scene whose photons
+         * spread over a million median radii). pm_map_bounds is in world coordinates. */
         for (int a = 0; a < 3; a++) {
-            f->lo[a] = o[a] + lo[a] - 0.5 * f->h;
-            /* Never more cells along an axis than the keys hold. */
             double span = (double)hi[a] - lo[a] + f->h;
             if (span / f->h > 0.5 * CELL_MAX) f->h = span / (0.5 * CELL_MAX);
         }
+        for (int a = 0; a < 3; a++) f->lo[a] = lo[a] - 0.5 * f->h;
     }
     free(sample);
     if (f->h > 0.0) {
@@ -130,6 +133,8 @@ static rd_status field_build(const pm_map *first, int k, int threads, struct bea
         for (size_t i = 0; i < nk; i++)
             if (u == 0 || f->key[i] != f->key[u - 1]) f->key[u++] = f->key[i];
         f->n = u;
+        uint64_t *shrunk = realloc(f->key, (u ? u : 1) * sizeof *f->key);
+        if (shrunk) f->key = shrunk;
         f->r1 = malloc((u ? u : 1) * sizeof *f->r1);
         if (!f->r1) {
             field_free(f);
@@ -200,14 +205,18 @@ rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen)
     st->beam_weight = 1.0 / q;
     uint64_t key = 0x9e3779b97f4a7c15ULL * (uint64_t)(ctx->photon_pass + 1);
     const struct beam_field *f = st->beam_field;
-#pragma omp parallel for schedule(dynamic, 1024) num_threads(ctx->threads)
+    size_t queries = 0;
+#pragma omp parallel for schedule(dynamic, 1024) num_threads(ctx->threads) reduction(+ : queries)
     for (size_t i = 0; i < n; i++) {
         rad[i] = 0.0f;
         if (q < 1.0 && (double)(rd_mix64(key + i) >> 11) * 0x1.0p-53 >= q) continue;
-        double r = field_r1(f, v3(o[0] + ph[i].pos[0], o[1] + ph[i].pos[1], o[2] + ph[i].pos[2]));
+        int queried;
+        double r = field_r1(f, v3(o[0] + ph[i].pos[0], o[1] + ph[i].pos[1], o[2] + ph[i].pos[2]), &queried);
+        queries += (size_t)queried;
         rad[i] = r > 0.0 ? (float)(r * scale) : 0.0f;
     }
-    if (!st->beams && (s = rd_beams_new(&st->beams, err, errlen)) != RD_OK) return s;
+    st->beam_r1_queries = queries;
+    if (!st->beams && (s = rd_beams_new(&st->beams, ctx->threads, err, errlen)) != RD_OK) return s;
     return rd_beams_build(st->beams, map, rad, err, errlen);
 }
 
@@ -228,7 +237,9 @@ rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen)
  *     (1 / m) sum_j c_{k_j} T(t0, u_j) / P_{k_j},
  * with T from the free-path engine swept once over the sorted u_j (independent pieces, as the
  * samples' sweep in march_segment). Unbiased given the photons: the estimate equals the point
- * gather with the same balls marched with infinitely many samples. Segments that cross at most
+ * gather with the same balls marched with infinitely many samples (which skip empty voxels, as
+ * the picks do: sigma_t = 0 there). The ball sampling (rd_beams_cross's reservoir, and the 1/q of
+ * the balls kept) is unbiased too. Segments that cross at most
  * BEAM_PICKS balls take every ball once (P = 1). c_k's phase is that of the medium at the
  * chord's middle; the pick re-weights by the phase at x(u_j). With shapes, ball k counts at
  * u_j only when no surface lies between x(u_j) and the photon (the point gather's rule). */
@@ -264,11 +275,11 @@ vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, r
         int k = j;
         double inv_mp = 1.0;
         if (n > BEAM_PICKS) {
-            double x = (j + pcg32_uniform(rng)) / npick * total;
+            /* x < total, so the hit it lands on has cdf[k - 1] <= x < cdf[k]: ck > 0. */
+            double x = fmin((j + pcg32_uniform(rng)) / BEAM_PICKS * total, nextafter(total, 0.0));
             while (i < n - 1 && ms->cdf[i] <= x) i++;
             k = i;
             double ck = ms->cdf[k] - (k > 0 ? ms->cdf[k - 1] : 0.0);
-            if (!(ck > 0.0)) { npick--, j--; continue; } /* (cannot be picked: x lands on ck > 0) */
             inv_mp = total / (ck * BEAM_PICKS);
         }
         const rd_beam_hit *h = &ms->hits[k];
@@ -294,7 +305,11 @@ vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, r
         const pm_photon *p = &ph[h->idx];
         vec3 x = ray_at(r, u);
         const rd_medium *m = rd_scene_medium_at(s, region, x);
+        /* No scattering where the medium is empty (the samples skip sigma_t = 0 alike): a ball
+         * reaching into an empty voxel adds nothing there. */
         if (!m) continue;
+        c->lookups++;
+        if (!(rd_medium_sigma_t(m, x) > 0.0)) continue;
         if (s->geom) {
             vec3 q = v3(o[0] + p->pos[0], o[1] + p->pos[1], o[2] + p->pos[2]);
             vec3 dq = v3_sub(q, x);

@@ -20,8 +20,9 @@ typedef struct {
     float ta, tb;
 } rd_beam_hit;
 
-/* An empty set of balls (an Embree device; queries find nothing until rd_beams_build). */
-rd_status rd_beams_new(rd_beams **out, char *err, size_t errlen);
+/* An empty set of balls (an Embree device whose BVH builds use `threads` threads, 0: all;
+ * queries find nothing until rd_beams_build). */
+rd_status rd_beams_new(rd_beams **out, int threads, char *err, size_t errlen);
 /* Replace the balls with those of `map` (built or not), photon k with radius radius[k] > 0 (a
  * ball with radius <= 0 or not finite is left out). The map must outlive the balls' use: the
  * queries read its photons. Single-threaded caller; Embree builds with its own threads. */
