@@ -168,10 +168,14 @@ void rd_march_beams_free(march_state *st)
  * This is the sample-point form of the kernel estimate (the radius belongs to the photon, not
  * to the point that gathers): the ball of photon k adds
  *     p(w'_k . w) dPhi_k / ((4/3) pi r_k^3)
- * at every point inside it. Every photon of the map is a ball. (Keeping a random share q = emitted
- * / stored of them, counted 1/q, tied with keeping all on the calibration scenes cloud,
- * smoke-vdb and sphere-in-fog (0.87-1.08x), where few photons are thinned out; so the simpler
- * rule stays: docs/benchmarks.md "Session 19".) */
+ * at every point inside it. At most as many balls as photons emitted: a photon path in a dense
+ * medium stores a collision every mean free path, and neighbouring collisions carry nearly the
+ * same light; each photon is kept with probability q = emitted / stored and its power counted
+ * 1/q (unbiased given the kernel), so a pass's balls cost in proportion to the photons emitted
+ * however often they scatter. The choice hashes (pass, index), so it does not depend on the
+ * threads. Keeping every photon tied on the calibration scenes (cloud, smoke-vdb,
+ * sphere-in-fog: 0.87-1.08x, few photons thinned there) and lost 1.2x on a dense variant of
+ * hetero-forward (sigma_t 10, albedo 0.99; docs/benchmarks.md "Session 19"). */
 rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen)
 {
     march_state *st = ctx->state;
@@ -199,10 +203,17 @@ rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen)
     double o[3];
     pm_map_origin(map, o);
     float *rad = st->beam_radius;
+    const rd_photon_settings *ps = &ctx->scene->photons;
+    size_t emitted = ps->pass_count > 0 && ctx->photon_pass >= 1 ? ps->pass_count : ps->count;
+    double q = n > emitted ? (double)emitted / n : 1.0;
+    st->beam_weight = 1.0 / q;
+    uint64_t key = 0x9e3779b97f4a7c15ULL * (uint64_t)(ctx->photon_pass + 1);
     const struct beam_field *f = st->beam_field;
     size_t queries = 0;
 #pragma omp parallel for schedule(dynamic, 1024) num_threads(ctx->threads) reduction(+ : queries)
     for (size_t i = 0; i < n; i++) {
+        rad[i] = 0.0f;
+        if (q < 1.0 && (double)(rd_mix64(key + i) >> 11) * 0x1.0p-53 >= q) continue;
         int queried;
         double r = field_r1(f, v3(o[0] + ph[i].pos[0], o[1] + ph[i].pos[1], o[2] + ph[i].pos[2]), &queried);
         queries += (size_t)queried;
@@ -231,8 +242,8 @@ rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen)
  * with T from the free-path engine swept once over the sorted u_j (independent pieces, as the
  * samples' sweep in march_segment). Unbiased given the photons: the estimate equals the point
  * gather with the same balls marched with infinitely many samples (which skip empty voxels, as
- * the picks do: sigma_t = 0 there). rd_beams_cross's reservoir, beyond RD_BEAM_CAP balls, is
- * unbiased too. Segments that cross at most
+ * the picks do: sigma_t = 0 there). The ball sampling (rd_beams_cross's reservoir, and the 1/q of
+ * the balls kept) is unbiased too. Segments that cross at most
  * BEAM_PICKS balls take every ball once (P = 1). c_k's phase is that of the medium at the
  * chord's middle; the pick re-weights by the phase at x(u_j). With shapes, ball k counts at
  * u_j only when no surface lies between x(u_j) and the photon (the point gather's rule). */
@@ -314,6 +325,6 @@ vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, r
         double f = rd_hg_eval(m->g, cw) * (h->tb - h->ta) / (4.0 / 3.0 * M_PI * rk * rk * rk);
         sum = v3_madd(sum, v3(p->power[0], p->power[1], p->power[2]), f * T * pw[j]);
     }
-    return v3_scale(sum, wgt);
+    return v3_scale(sum, wgt * st->beam_weight);
 }
 

@@ -32,6 +32,7 @@ typedef struct {
     float *beam_radius;
     size_t beam_radius_cap;
     int beam_cap;
+    double beam_weight; /* 1 / the share of the photons kept as balls */
     size_t beam_r1_queries; /* balls of the last build whose r_1 took a query of its own */
 } march_state;
 
