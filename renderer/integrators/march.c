@@ -226,8 +226,7 @@ int rd_march_build_pdf(const rd_render_ctx *ctx, placement place, const march_sc
 
 static double phase_cb(double cos_theta, void *user) { return rd_hg_eval(*(const double *)user, cos_theta); }
 
-/* Largest k the scene allows (guide.k, load/settings.c). */
-#define MAX_GATHER 4096
+#define MAX_GATHER RD_MAX_GATHER
 
 /* sigma_s L_s(x, w) from the photons around x (THEORY.md §3, pm_map_radiance):
  *     sum_k p(w'_k . w) dPhi_k / ((4/3) pi r^3),
@@ -282,36 +281,11 @@ static vec3 photon_estimate(const rd_scene *s, const pm_map *map, vec3 x, vec3 w
     return v3_scale(sum, 1.0 / (4.0 / 3.0 * M_PI * r * r * r));
 }
 
-/* The gather radius of the current progressive pass at x (bake/passes.c): r_1(x) times the
- * pass's scale. r_1 is the k-NN bandwidth of seed 001's fixed map (k = guide.k) in pass 1's map,
- * read from a nearer neighbour: under a locally uniform photon density the distance d_j to the
- * j-th nearest grows as j^(1/3), so
- *     r_1(x) = d_j(x) (k / j)^(1/3),   j = min(k, max(PASS_RADIUS_MIN_J, ceil(k / 4))).
- * At the default k = 64 (j = 16) the renders' camera time fell by 29% against the 64-NN query
- * (docs/benchmarks.md "Session 18"; j = 8 took no less), and the radius of 16 photons spreads by
- * about 1 / (3 sqrt(16)) = 8% from point to point where that of 64 spreads by 4%. j never falls
- * below 8 (below k = 8, j = k as before): the ball through the nearest photon alone has a
- * volume V with E[1/V] infinite, and a later pass's variance grows as 1/V. Where pass 1 holds
- * fewer than j photons in all, the farthest of them stands in for the j-th.
- * Any r_1 > 0 fixed by pass 1 keeps the passes' average consistent: r_1 depends on pass 1's
- * photons only, so every later pass's estimate is a fixed-kernel estimate, independent of its
- * own photons. 0 with one fixed map (then the k-NN estimate); -1 where pass 1 has no photon at
- * all (nothing to gather). */
-#define PASS_RADIUS_MIN_J 8
-double rd_march_knn_bandwidth(const pm_map *first, int k, vec3 x)
-{
-    if (k > MAX_GATHER) k = MAX_GATHER;
-    int j = (k + 3) / 4;
-    if (j < PASS_RADIUS_MIN_J) j = PASS_RADIUS_MIN_J;
-    if (j > k) j = k;
-    int idx[MAX_GATHER];
-    float d2[MAX_GATHER];
-    double xd[3] = {x.x, x.y, x.z};
-    int n = pm_map_knn(first, xd, j, idx, d2); /* n < j only when pass 1 holds fewer photons */
-    if (n <= 0 || !(d2[n - 1] > 0.0f)) return -1.0;
-    return sqrt((double)d2[n - 1]) * cbrt((double)k / n);
-}
-
+/* The gather radius of the current progressive pass at x (bake/passes.c): r_1(x), pass 1's
+ * k-NN bandwidth (bandwidth.c, rd_march_knn_bandwidth), times the pass's scale. r_1 depends on
+ * pass 1's photons only, so every later pass's estimate is a fixed-kernel estimate, independent
+ * of its own photons, and the passes' average converges. 0 with one fixed map (then the k-NN
+ * estimate); -1 where pass 1 has no photon at all (nothing to gather). */
 static double pass_radius(const rd_render_ctx *ctx, const pm_map *first, vec3 x)
 {
     if (ctx->photon_pass < 1 || !first) return 0.0;

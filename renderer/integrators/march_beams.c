@@ -19,13 +19,14 @@
  * cells of edge h (the median r_1 over 4096 of pass 1's photons) that hold a photon of pass 1,
  * each with r_1 at its centre, found by binary search on the sorted cell keys. A ball whose
  * cell holds no photon of pass 1 gets its own query. r_1 stays a function of x fixed by pass 1
- * alone (piecewise constant at the kernel's own scale), so every later pass is still a
+ * alone (piecewise constant on cells of the median kernel's size: coarser than the kernel where
+ * photons are dense, finer where they are sparse), so every later pass is still a
  * fixed-kernel estimate and the passes' average converges. */
 struct beam_field {
     double lo[3], h;      /* world corner of cell (0, 0, 0), cell edge; h = 0: no cells */
     size_t n;             /* cells held */
     uint64_t *key;        /* their keys, sorted: ix | iy << 21 | iz << 42 */
-    float *r1;            /* r_1 at each one's centre (<= 0: pass 1 has no photon) */
+    float *r1;            /* r_1 at each one's centre (<= 0: none could be read; the ball queries) */
     const pm_map *first;
     int k;
 };
@@ -77,7 +78,7 @@ static double field_r1(const struct beam_field *f, vec3 x, int *queried)
             if (f->key[mid] < key) lo = mid + 1;
             else hi = mid;
         }
-        if (lo < f->n && f->key[lo] == key) return f->r1[lo];
+        if (lo < f->n && f->key[lo] == key && f->r1[lo] > 0.0f) return f->r1[lo];
     }
     *queried = 1;
     return rd_march_knn_bandwidth(f->first, f->k, x);
@@ -174,8 +175,8 @@ void rd_march_beams_free(march_state *st)
  * 1/q (unbiased given the kernel), so a pass's balls cost in proportion to the photons emitted
  * however often they scatter. The choice hashes (pass, index), so it does not depend on the
  * threads. Keeping every photon tied on the calibration scenes (cloud, smoke-vdb,
- * sphere-in-fog: 0.87-1.08x, few photons thinned there) and lost 1.2x on a dense variant of
- * hetero-forward (sigma_t 10, albedo 0.99; docs/benchmarks.md "Session 19"). */
+ * sphere-in-fog: 0.87-1.08x) and lost 1.2x on a dense variant of hetero-forward (sigma_t 10,
+ * albedo 0.99; docs/benchmarks.md "Session 19"). */
 rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen)
 {
     march_state *st = ctx->state;

@@ -65,7 +65,7 @@ int rd_march_build_pdf(const rd_render_ctx *ctx, placement place, const march_sc
 vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, vec3 x, vec3 d,
                      double sigma_t, int event, double q_path, pcg32 *rng, rd_track_counters *c);
 /* march.ls = nee+beams: the beam radiance estimate of the indirect in-scattering along [t0, t1]
- * of r in `region` (the balls of the indirect photons, state's beams; march.c says how), the
+ * of r in `region` (the balls of the indirect photons, state's beams; march_beams.c says how), the
  * integral of T(t0, t) sigma_s L_s over the segment. */
 vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, ray3 r, int region,
                             double t0, double t1, pcg32 *rng, rd_track_counters *c);
@@ -79,8 +79,10 @@ rd_status rd_march_prepare(rd_render_ctx *ctx, char *err, size_t errlen);
 void rd_march_release(rd_render_ctx *ctx);
 /* Balls a segment keeps at most (rd_beams_cross samples them beyond). */
 #define RD_BEAM_CAP 4096
+/* Largest k the scene allows (guide.k, load/settings.c): the photons one estimate gathers. */
+#define RD_MAX_GATHER 4096
 /* r_1(x), the k-NN bandwidth of seed 001's fixed map at x in `first` (pass 1's map, or the fixed
- * map), read from a nearer neighbour (march.c says how); -1 where `first` holds no photon. */
+ * map), read from a nearer neighbour (bandwidth.c says how); -1 where `first` holds no photon. */
 double rd_march_knn_bandwidth(const pm_map *first, int k, vec3 x);
 /* Free the beam source's parts of st (march_beams.c). */
 void rd_march_beams_free(march_state *st);
