@@ -16,9 +16,14 @@
 # fitted for relative error (each row divided by its t). The weights are the a over a_L.
 # It prints the fit, the weights, and each render's measured and modelled time.
 #
+# FIT=beams fits the weight of march.ls nee+beams' balls instead, the others held at
+# select.c's: guided with nee+beams (one fixed photon map, select off) on the same scenes,
+#     t / samples - (held terms) = a_H balls crossed    (per camera sample),
+# the held terms in us by select.c's weights times the lookup's 0.164 us.
+#
 #   bench/bench_cost_fit.sh [BIN]
 #       environment: SCENES (the six below), SPP (16), RES ([160,120]), ROUNDS (3),
-#                    OUT (bench/results/cost_fit)
+#                    FIT (all, or beams), OUT (bench/results/cost_fit)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . bench/machine.sh
@@ -29,23 +34,72 @@ SPP=${SPP:-16}
 RES=${RES:-[160,120]}
 ROUNDS=${ROUNDS:-3}
 OUT=${OUT:-bench/results/cost_fit}
+FIT=${FIT:-all}
 mkdir -p "$OUT"
 log=$OUT/runs.txt
 : > "$log"
+if [ "$FIT" = beams ]; then
+  methods=guided
+  extra=(--set march.ls='"nee+beams"' --set photons.progressive=false)
+else
+  methods="delta guided guided-unbiased"
+  extra=()
+fi
 for r in $(seq "$ROUNDS"); do
   for name in $SCENES; do
-    for m in delta guided guided-unbiased; do
+    for m in $methods; do
       o=$OUT/$name-$m.exr
       "$BIN" render "scenes/$name.json" --method "$m" --spp "$SPP" --threads 1 \
-        --set settings.select='"off"' --set camera.resolution="$RES" -o "$o" > /dev/null 2>&1
+        --set settings.select='"off"' --set camera.resolution="$RES" "${extra[@]}" -o "$o" > /dev/null 2>&1
       jq -c --arg s "$name" --arg m "$m" '{scene: $s, method: $m, t: .render_seconds, n: .paths,
           L: .density_lookups, S: .shadow_rays,
           M: ((.march.rays // 0) * (.march.pdf_segments_per_ray // 0)),
           F: ((.guided_paths.flight_segments_per_path // 0) * .paths),
-          V: ((.guided_paths.guide_vertices_per_path // 0) * .paths)}' "${o%.exr}.json" >> "$log"
+          V: ((.guided_paths.guide_vertices_per_path // 0) * .paths),
+          Q: (.march.beam_queries // 0),
+          H: ((.march.beam_queries // 0) * (.march.balls_per_query // 0))}' "${o%.exr}.json" >> "$log"
     done
   done
 done
+
+if [ "$FIT" = beams ]; then
+python3 - "$log" <<'EOF'
+import json, statistics, sys, collections
+# select.c's held weights, in lookups, and the lookup's time (us)
+LOOKUP, SHADOW, CELL, SAMPLE = 0.164, 1.96, 1.52, 2.18
+runs = collections.defaultdict(list)
+for line in open(sys.argv[1]):
+    j = json.loads(line)
+    runs[j['scene']].append(j)
+rows = []
+for s, js in sorted(runs.items()):
+    j = js[0]
+    n = j['n']
+    t = statistics.median(x['t'] for x in js) / n * 1e6
+    held = LOOKUP * (j['L'] / n + SHADOW * j['S'] / n + CELL * j['M'] / n + SAMPLE)
+    rows.append((s, t, held, j['Q'] / n, j['H'] / n))
+# One unknown, relative error: minimise sum ((held + aH h) / t - 1)^2. (With a weight per
+# query too, the two are nearly collinear, a query being about one a camera sample, and the
+# first fit gave the query a negative weight: -0.31 us, the ball 0.099 us.)
+num = den = 0.0
+for s, t, held, q, h in rows:
+    x, y = h / t, 1.0 - held / t
+    num += x * y
+    den += x * x
+aQ, aH = 0.0, num / den
+print('| weight | us | in lookups |')
+print('|---|---|---|')
+print('| beam query | %.4f | %.3f |' % (aQ, aQ / LOOKUP))
+print('| ball crossed | %.5f | %.4f |' % (aH, aH / LOOKUP))
+print()
+print('| scene | us per sample | held part | queries | balls | model | model / measured |')
+print('|---|---|---|---|---|---|---|')
+for s, t, held, q, h in rows:
+    m = held + aQ * q + aH * h
+    print('| %s | %.3f | %.3f | %.3f | %.1f | %.3f | %.3f |' % (s, t, held, q, h, m, m / t))
+EOF
+exit 0
+fi
 
 python3 - "$log" <<'EOF'
 import json, statistics, sys, collections

@@ -14,7 +14,8 @@
 #                    LS (the sources to measure, each at every size: nee+photons),
 #                    BUDGET (10), RUNS (2), SEED (1), RES (160,120), METHOD (guided),
 #                    REFS (/work/ref: the reference of NAME is the first REFS/NAME-*ref.exr),
-#                    OUT (bench/results/passes)
+#                    SET (more --set overrides for the method's runs, space-separated:
+#                    SET='settings.select="tiles"'), OUT (bench/results/passes)
 # References as bench/bench_ab.sh describes them.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -31,6 +32,8 @@ METHOD=${METHOD:-guided}
 LS=${LS:-nee+photons}
 REFS=${REFS:-/work/ref}
 OUT=${OUT:-bench/results/passes}
+more=()
+for kv in ${SET:-}; do more+=(--set "$kv"); done
 
 field() { # field $3 of method $2 in compare folder $1
   jq -r --arg m "$2" --arg f "$3" '.methods[] | select(.label == $m) | .[$f]' "$1/metrics.json"
@@ -51,7 +54,7 @@ for name in $SCENES; do
     fi
     o="$OUT/$name-$ls-$size"
     bench_compare bench_passes "$o.txt" "$BIN" compare "scenes/$name.json" --methods "$METHOD" "${common[@]}" \
-      --set "march.ls=$ls" "${pass[@]}" -o "$o"
+      --set "march.ls=$ls" "${pass[@]}" "${more[@]}" -o "$o"
     printf '%-16s %-12s %-10s %8.3f %8.1f %10.3g %10.3g\n' "$name" "$ls" "$size" \
       "$(awk -v x="$(field "$o" "$METHOD" efficiency)" -v d="$d" 'BEGIN { print x / d }')" \
       "$(field "$o" "$METHOD" spp)" "$(field "$o" "$METHOD" bias2)" "$(field "$o" "$METHOD" variance)"

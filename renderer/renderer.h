@@ -202,6 +202,9 @@ typedef struct {
      * vertices whose policy read the guide: with lookups and shadow rays, what a sample costs
      * (the selection's counted cost, integrators/select.c). 0 for the other methods. */
     uint64_t flight_segments, guide_vertices;
+    /* march.ls nee+beams: camera-ray segments whose balls were gathered, and the balls they
+     * crossed (what the beam estimate costs; the selection counts both). */
+    uint64_t beam_queries, beam_hits;
     /* Progressive photon passes (photons.progressive; 0 passes with one fixed map): passes
      * traced, photons emitted over them, seconds spent tracing and indexing them (part of
      * `seconds`), and the last pass's gather radius relative to the first pass's. */

@@ -220,9 +220,10 @@ Test(beams, estimate_equals_the_exact_point_gather, .timeout = 300)
         enum { DRAWS = 20000 };
         double sum = 0.0, sum2 = 0.0;
         rd_track_counters c = {0};
+        int crossed;
         for (int j = 0; j < DRAWS; j++) {
             pcg32 rng = pcg32_seed(11, (uint64_t)j, (uint64_t)k);
-            double v = rd_march_beam_estimate(&ctx, &ms, r, s->fill_medium, t0, t1, &rng, &c).x;
+            double v = rd_march_beam_estimate(&ctx, &ms, r, s->fill_medium, t0, t1, &rng, &c, &crossed).x;
             sum += v, sum2 += v * v;
         }
         double mean = sum / DRAWS, se = sqrt(fmax(0.0, sum2 / DRAWS - mean * mean) / DRAWS);

@@ -290,6 +290,73 @@ Test(select, the_choice_does_not_depend_on_the_threads, .timeout = 300)
     rd_scene_free(s);
 }
 
+/* select_scene with "march":{"ls":"nee+beams"} and the given settings (a static buffer); with
+ * `progressive`, photon passes of 4000 photons a sample. */
+static const char *beams_scene(const char *settings, int progressive)
+{
+    static char json[2304];
+    const char *base = select_scene(settings), *key = "\"photons\":{\"count\":40000}";
+    const char *at = strstr(base, key);
+    cr_assert(at, "the selection scene's photons");
+    snprintf(json, sizeof json, "%.*s%s%s", (int)(at - base), base,
+             progressive ? "\"photons\":{\"count\":40000,\"progressive\":true,\"pass_count\":4000,\"pass_spp\":1}" : key,
+             at + strlen(key));
+    size_t n = strlen(json);
+    cr_assert(n > 1 && json[n - 1] == '}');
+    snprintf(json + n - 1, sizeof json - (n - 1), ",\"march\":{\"ls\":\"nee+beams\"}}");
+    return json;
+}
+
+Test(select, beams_mix_only_when_asked_and_the_choice_does_not_depend_on_the_threads, .timeout = 300)
+{
+    /* guided with march.ls nee+beams. By default ("auto") every pixel is marched. With
+     * "tiles" some tiles go to delta's path, some to the beams (the 3x3 pooling lets the lit
+     * tiles' figures reach into the fogless half, so which tiles is not fixed by the fog's
+     * edge), the progressive photon passes follow the beams' samples, not the image's (a pass
+     * per pass_spp x all pixels of them), and the image is the same on one thread and two. */
+    char path[256], err0[RD_ERRLEN];
+    snprintf(path, sizeof path, "%s/selb0.json", rt_tmpdir());
+    const char *j0 = beams_scene("{}", 0);
+    rt_write_file(path, j0, strlen(j0));
+    rd_scene *s0 = NULL;
+    cr_assert(rd_scene_load(&s0, path, NULL, 0, err0, sizeof err0) == RD_OK, "%s", err0);
+    cr_assert(s0->settings.select == RD_SELECT_AUTO, "the default is auto (%d)", s0->settings.select);
+    rd_scene_free(s0);
+    rd_scene *sa = rt_scene("selba.json", beams_scene("{\"select\":\"auto\"}", 0));
+    rd_render_opts oa = {.method = "guided", .spp = 2, .seed = 5, .threads = 2};
+    rd_render_result ra;
+    char erra[RD_ERRLEN];
+    cr_assert(rd_render(sa, &oa, &ra, erra, sizeof erra) == RD_OK, "%s", erra);
+    cr_assert(ra.stats.delta_samples == 0 && ra.stats.beam_queries > 0, "auto mixed nee+beams with delta (%llu samples)",
+              (unsigned long long)ra.stats.delta_samples);
+    rd_render_result_free(&ra);
+    rd_scene_free(sa);
+    rd_scene *s = rt_scene("selb.json", beams_scene("{\"select\":\"tiles\"}", 1));
+    rd_render_result r[2];
+    for (int i = 0; i < 2; i++) {
+        rd_render_opts o = {.method = "guided", .spp = 20, .seed = 5, .threads = i + 1};
+        char err[RD_ERRLEN];
+        cr_assert(rd_render(s, &o, &r[i], err, sizeof err) == RD_OK, "%s", err);
+    }
+    double share = (double)r[0].stats.delta_samples / (double)r[0].stats.paths;
+    cr_log_info("nee+beams: delta renders %.0f%% of the samples", 100.0 * share);
+    cr_assert(share > 0.0 && share < 1.0, "delta's share %g: one kind of tile only", share);
+    cr_assert(r[0].stats.beam_queries > 0, "no beam estimate was made");
+    /* M samples of the beams: passes p with (p - 1) per_pass < M <= p per_pass + a render
+     * pass's overshoot (under one sample of every pixel); passes by the image's samples would
+     * be 20. */
+    double M = (double)(r[0].stats.paths - r[0].stats.delta_samples), per_pass = 32.0 * 24.0;
+    int p = r[0].stats.photon_passes;
+    cr_log_info("nee+beams: %d photon passes for %.0f beam samples (%.2f a pass of %.0f)", p, M, M / per_pass, per_pass);
+    cr_assert((p - 1) * per_pass < M && M <= p * per_pass + per_pass, "%d passes for %.0f samples of the beams", p, M);
+    cr_assert(r[0].stats.delta_samples == r[1].stats.delta_samples && r[0].stats.beam_hits == r[1].stats.beam_hits,
+              "the tiles differ with the threads");
+    cr_assert(memcmp(r[0].image.rgb, r[1].image.rgb, sizeof(float) * 3 * r[0].image.w * r[0].image.h) == 0,
+              "one thread and two give different images");
+    for (int i = 0; i < 2; i++) rd_render_result_free(&r[i]);
+    rd_scene_free(s);
+}
+
 Test(select, pilot_keeps_the_pilot_s_choice_and_tiles_chooses_again, .timeout = 300)
 {
     /* guided-unbiased, whose tiles change at the epochs on this scene with the gcc build (delta's

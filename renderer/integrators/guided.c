@@ -47,10 +47,16 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
         }
     free(buf);
     mst->mean_I = n > 0 ? sum / n : 0.0;
-    /* Only an unbiased source estimates what delta's path does: with the photon sources (and
-     * nee alone) the tiles would disagree, so every pixel is marched. */
-    int unbiased = s->march.ls == RD_LS_NEE_PATHS || s->march.ls == RD_LS_NEE_DELTA;
-    if (s->settings.select != RD_SELECT_OFF && unbiased) {
+    /* The unbiased sources estimate what delta's path does, and the beams the same up to the
+     * kernel's bias (select.c, "A consistent method"), so these mix with delta's path; the
+     * beams only when settings.select asks for tiles or pilot by name (it lost on a narrow spot
+     * in fog: docs/guided-marching.md). The point gather's cost is not counted (its k-NN
+     * searches) and nee alone estimates single scattering only: with those every pixel is
+     * marched. */
+    int sel = s->settings.select;
+    int mixes = s->march.ls == RD_LS_NEE_PATHS || s->march.ls == RD_LS_NEE_DELTA ||
+                (s->march.ls == RD_LS_NEE_BEAMS && (sel == RD_SELECT_TILES || sel == RD_SELECT_PILOT));
+    if (sel != RD_SELECT_OFF && mixes) {
         /* 1.52 lookups: the time of one of the marcher's PDF segments (select.c, the fit) */
         st = rd_select_prepare(ctx, march_guided, 1.52, &mst->sel, err, errlen);
         if (st != RD_OK) rd_march_release(ctx);
@@ -79,6 +85,14 @@ static void epoch_guided(rd_render_ctx *ctx, int sample)
     rd_select_epoch(&mst->sel, ctx->comm);
 }
 
+/* The pixels the marcher renders (the rest are delta's): they pace the photon passes. */
+static uint64_t marched_pixels_guided(const rd_render_ctx *ctx)
+{
+    const march_state *mst = ctx->state;
+    const rd_camera *cam = &ctx->scene->camera;
+    return rd_select_method_pixels(&mst->sel, (uint64_t)cam->width * (uint64_t)cam->height);
+}
+
 /* The guided placement needs the guide (and so a photon map) whatever the source needs. */
 static unsigned needs_guided(const rd_scene *s)
 {
@@ -92,6 +106,7 @@ const rd_method rd_method_guided = {
     .needs_for = needs_guided,
     .pass_maps = rd_march_pass_maps,
     .photons_changed = rd_march_photons_changed,
+    .marched_pixels = marched_pixels_guided,
     .scratch_bytes = rd_march_scratch_bytes,
     .prepare = prepare_guided,
     .epoch_next = epoch_next_guided,

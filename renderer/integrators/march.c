@@ -409,7 +409,12 @@ static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int r
     if (s->march.ls == RD_LS_NEE_DELTA) L = v3_add(L, rd_delta_scattered(s, r, region, event - 1, rng, c));
     /* nee+beams: the samples estimated the direct light; the photons' balls along the whole
      * segment give the rest (rd_march_beam_estimate). */
-    if (s->march.ls == RD_LS_NEE_BEAMS) L = v3_add(L, rd_march_beam_estimate(ctx, &ms, r, region, t0, t1, rng, c));
+    if (s->march.ls == RD_LS_NEE_BEAMS) {
+        int crossed;
+        L = v3_add(L, rd_march_beam_estimate(ctx, &ms, r, region, t0, t1, rng, c, &crossed));
+        th->beam_queries++;
+        th->beam_hits += (uint64_t)crossed;
+    }
     if (T != 0.0 && need_T) T *= rd_transmittance(s, region, r, tp, t1, rng, c);
     *T_out = need_T ? T : 0.0;
     return L;

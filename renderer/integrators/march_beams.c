@@ -249,12 +249,13 @@ rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen)
  * chord's middle; the pick re-weights by the phase at x(u_j). With shapes, ball k counts at
  * u_j only when no surface lies between x(u_j) and the photon (the point gather's rule). */
 vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, ray3 r, int region,
-                             double t0, double t1, pcg32 *rng, rd_track_counters *c)
+                             double t0, double t1, pcg32 *rng, rd_track_counters *c, int *crossed)
 {
     const rd_scene *s = ctx->scene;
     const march_state *st = ctx->state;
     double wgt;
     int n = rd_beams_cross(st->beams, r, t0, t1, ms->hits, st->beam_cap, rng, &wgt);
+    *crossed = n;
     if (n == 0) return v3(0, 0, 0);
     const pm_map *map = rd_beams_map(st->beams);
     const pm_photon *ph = pm_map_photons(map);

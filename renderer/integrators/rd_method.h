@@ -36,6 +36,7 @@ typedef struct rd_thread {
     uint64_t cells;         /* PDF segments (guide cells, extinction steps) built; guided-unbiased:
                              * its flights' distance-pdf segments */
     uint64_t guide_vertices; /* guided-unbiased: path vertices whose policy read the guide */
+    uint64_t beam_queries, beam_hits; /* march.ls nee+beams: segments queried, balls they crossed */
     uint32_t samples_min, samples_max;
     uint64_t delta_samples; /* settings.select: camera samples given to delta's path */
     void *scratch;
@@ -79,6 +80,12 @@ typedef struct rd_method {
     /* Optional: called when a progressive photon pass has put new maps into ctx (between the
      * render's passes, after prepare; not for pass 1, whose maps prepare sees). */
     rd_status (*photons_changed)(rd_render_ctx *ctx, char *err, size_t errlen);
+    /* Optional: how many of the image's pixels the method's own estimate renders now (its tile
+     * selection may give the rest to delta's path), constant between epochs. Progressive photon
+     * passes are paced by these pixels' samples: a pass per photons.pass_spp x (all pixels)
+     * samples of the method, so that no pass is traced for samples that do not use it. NULL =
+     * every pixel. */
+    uint64_t (*marched_pixels)(const rd_render_ctx *ctx);
     /* Optional: per-thread scratch size for this render. */
     size_t (*scratch_bytes)(const rd_render_ctx *ctx);
     /* Optional: once per render, after the bake, before the passes (e.g. a pilot pass). */

@@ -46,6 +46,9 @@ typedef struct {
 /* 1 where the selection gives pixel (x, y) to the method: its tile's choice, or on a tile on
  * trial, the pixel's square of the checkerboard. */
 int rd_select_uses(const rd_select *sel, int x, int y);
+/* How many pixels the selection gives to the method now (all of them without a selection:
+ * `all`). */
+uint64_t rd_select_method_pixels(const rd_select *sel, uint64_t all);
 
 /* A method's own estimate of the radiance along camera ray r (what its radiance() does
  * where the selection gives it the pixel). */

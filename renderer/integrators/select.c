@@ -45,6 +45,19 @@
  * narrow beam that delta's paths rarely find), the trial shows it and the tile moves one epoch
  * later; where it only looked better, the trial shows its tail too.
  *
+ * A consistent method. The marcher with march.ls nee+beams is consistent, not unbiased: its
+ * photon part carries the kernel's bias (shrinking with the progressive passes). It mixes with
+ * delta's path only when settings.select names "tiles" or "pilot" (the default "auto" marches
+ * every pixel with it). The choice compares variance and cost only, so it does not see that
+ * bias; a tile it gives to delta's path sheds the bias with the marcher, and where a beam tile
+ * meets a delta tile a seam of the bias's size can show. Tried and not kept: counting the bias,
+ * estimated in the pilot from the two means' difference beyond three standard errors, against
+ * the method at the next epoch's sample count: delta's pilot mean is low where its paths
+ * rarely find the light (a tail its 128 samples a tile do not show, out of the Cauchy-Schwarz
+ * bound's reach where the tile is lit otherwise too), so the gap read as bias where the beams
+ * were right (beam.json: the beam's tiles went to delta, variance per sample 1.8e-4 against
+ * 8.5e-5 without it, 32 spp, 160x120).
+ *
  * The rule. At equal time the image's MSE is (sum_k V_k)(sum_k C_k) / time for the choices
  * m_k of the tiles k, so the best choices minimise the product. Its stationary point is where
  * every tile takes the m minimising V_k,m + lambda C_k,m with lambda = sum V / sum C of the
@@ -74,7 +87,10 @@
  * (guide.eval_bands), its two weights were fitted again on the same six scenes, the other
  * weights held (the render report's guided_paths gives the counts): flight segment 0.37 ->
  * 0.41, guided vertex 4.65 -> 3.91 lookups. On the two checks: 19.96 / 7.30 measured, 19.3 /
- * 7.8 modelled (the old weights: 21.1 / 8.1). */
+ * 7.8 modelled (the old weights: 21.1 / 8.1). The beam estimate (march.ls nee+beams) adds
+ * c_H per ball its segments' queries crossed, fitted with the other weights held
+ * (bench/bench_cost_fit.sh FIT=beams; guided with nee+beams, one fixed map, on the same six
+ * scenes): 0.098 us, 0.60 lookups; the model within 0.90-1.09 of each scene's time. */
 #include "integrators/rd_select.h"
 #include "transport/rd_path.h"
 
@@ -89,6 +105,7 @@
 #define SEL_COST_SHADOW 1.96   /* a shadow ray (its own lookups are counted as lookups) */
 #define SEL_COST_SAMPLE 2.18   /* a camera sample: its rays, shapes and set-up */
 #define SEL_COST_VERTEX 3.91   /* a guided-unbiased vertex that read the guide */
+#define SEL_COST_BEAM_HIT 0.60 /* a ball a segment's query crossed (march.ls nee+beams) */
 #define SEL_ROUNDS 32       /* fixed-point rounds at most */
 #define SEL_TIE 1e-9        /* relative margin below which the method does not beat delta */
 #define SEL_EPOCH_FIRST 4   /* the first epoch ends at sample 4 of every pixel, */
@@ -127,12 +144,12 @@ static void pixel_fold(rd_select_stats *st, const rd_select_pixel *px)
 
 /* The counted cost of one sample, from th's counters before it (c0) and after (see the head). */
 typedef struct {
-    uint64_t lookups, shadow_rays, cells, vertices;
+    uint64_t lookups, shadow_rays, cells, vertices, beam_hits;
 } work;
 
 static work work_now(const rd_thread *th)
 {
-    return (work){th->counters.lookups, th->counters.shadow_rays, th->cells, th->guide_vertices};
+    return (work){th->counters.lookups, th->counters.shadow_rays, th->cells, th->guide_vertices, th->beam_hits};
 }
 
 static double sample_cost(const rd_select *sel, const rd_thread *th, work c0)
@@ -140,7 +157,7 @@ static double sample_cost(const rd_select *sel, const rd_thread *th, work c0)
     work c1 = work_now(th);
     return (double)(c1.lookups - c0.lookups) + SEL_COST_SHADOW * (double)(c1.shadow_rays - c0.shadow_rays) +
            sel->cell_cost * (double)(c1.cells - c0.cells) + SEL_COST_VERTEX * (double)(c1.vertices - c0.vertices) +
-           SEL_COST_SAMPLE;
+           SEL_COST_BEAM_HIT * (double)(c1.beam_hits - c0.beam_hits) + SEL_COST_SAMPLE;
 }
 
 /* One pixel's pilot with one estimator: SEL_SPP samples, added to the tile's statistics. */
@@ -355,6 +372,15 @@ int rd_select_uses(const rd_select *sel, int x, int y)
 {
     int k = (y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE;
     return sel->trial[k] ? (x + y) & 1 : sel->guided[k];
+}
+
+uint64_t rd_select_method_pixels(const rd_select *sel, uint64_t all)
+{
+    if (!sel->guided) return all;
+    uint64_t n = 0;
+    for (int y = 0; y < sel->height; y++)
+        for (int x = 0; x < sel->width; x++) n += (uint64_t)rd_select_uses(sel, x, y);
+    return n;
 }
 
 void rd_select_observe(rd_select *sel, uint64_t pixel, vec3 L, double cost)

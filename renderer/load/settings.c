@@ -52,7 +52,7 @@ rd_status ld_parse_settings(ld_ctx *c, const cJSON *j, rd_settings *s)
     s->track_step = 0.0;
     s->equiangular = RD_EQ_OFF;
     s->thin_bias = 0.0;
-    s->select = RD_SELECT_TILES; /* integrators/select.c */
+    s->select = RD_SELECT_AUTO; /* integrators/select.c */
     if (!j) return RD_OK;
     const char *path = "settings";
     LD_TRY(ld_need_object(c, j, path));
@@ -96,8 +96,8 @@ rd_status ld_parse_settings(ld_ctx *c, const cJSON *j, rd_settings *s)
         s->transmittance != RD_TR_RAYMARCH)
         return ld_fail(c, "settings.step", "only with \"tracker\" or \"transmittance\": \"raymarch\"");
     LD_TRY(parse_strategies(c, j, s));
-    static const char *const select[] = {"off", "tiles", "pilot", NULL}; /* RD_SELECT_* order */
-    LD_TRY(ld_get_enum(c, j, path, "select", 0, select, RD_SELECT_TILES, &s->select));
+    static const char *const select[] = {"off", "tiles", "pilot", "auto", NULL}; /* RD_SELECT_* order */
+    LD_TRY(ld_get_enum(c, j, path, "select", 0, select, RD_SELECT_AUTO, &s->select));
     return RD_OK;
 }
 

@@ -80,6 +80,10 @@ static char *report_json(const rd_scene *s, const rd_render_opts *o, const rd_re
             cJSON_AddNumberToObject(mr, "samples_max", st->samples_max);
             cJSON_AddNumberToObject(mr, "pdf_segments_per_ray", st->cells_per_ray);
             cJSON_AddNumberToObject(mr, "lookups_per_ray", st->rays_marched ? (double)st->lookups / (double)st->rays_marched : 0.0);
+            if (st->beam_queries) { /* march.ls nee+beams */
+                cJSON_AddNumberToObject(mr, "beam_queries", (double)st->beam_queries);
+                cJSON_AddNumberToObject(mr, "balls_per_query", (double)st->beam_hits / (double)st->beam_queries);
+            }
         }
     }
     /* Mean per-pixel standard error (luminance), a one-number noise level of the image. */

@@ -364,6 +364,11 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
      * promptly. */
     uint64_t invalid = 0;
     int done = 0, pass = 1, curve_cap = 0;
+    /* The photon passes' clock: samples of the method's own estimate, in pixel-samples (the
+     * samples before s0 counted as if every pixel's were the method's). Pass i serves the
+     * method's samples [(i - 1), i) x photons.pass_spp x npix: with every pixel marched, pass i
+     * is samples [(i - 1) pass_spp, i pass_spp) of every pixel, as before. */
+    uint64_t marched = (uint64_t)s0 * npix, per_pass = (uint64_t)s->photons.pass_spp * npix;
     while (done < o->spp) {
         int stop[3] = {o->cancel && *o->cancel, deadline < INFINITY && now_seconds(clk) >= deadline, -pass};
         if (comm) { /* stop when any rank stops; the smallest pass */
@@ -373,9 +378,11 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         if (stop[0]) { res->stats.cancelled = 1; break; }
         if (stop[1]) { res->stats.timed_out = 1; break; }
         int n = pass < o->spp - done ? pass : o->spp - done;
+        uint64_t mp = npix; /* the pixels the method renders in this pass */
         if (pass_maps) {
+            mp = m->marched_pixels ? m->marched_pixels(&ctx) : npix;
             /* Samples [done, done + n) stay within one photon pass. */
-            int ip = (s0 + done) / s->photons.pass_spp + 1;
+            int ip = (int)(marched / per_pass) + 1;
             if (ip != ctx.photon_pass &&
                 (st = photon_pass(&ctx, pass_maps, ip, &pass_bake, first_bake, o->cancel, &res->stats, err, errlen)) != RD_OK) {
                 /* A cancel while tracing a later pass ends the render with what it has. */
@@ -384,7 +391,10 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
                 res->stats.cancelled = 1;
                 break;
             }
-            if (n > ip * s->photons.pass_spp - (s0 + done)) n = ip * s->photons.pass_spp - (s0 + done);
+            if (mp > 0) { /* the samples until the pass's end, rounded up */
+                uint64_t left = ((uint64_t)ip * per_pass - marched + mp - 1) / mp;
+                if ((uint64_t)n > left) n = (int)left;
+            }
             /* (Several ranks: the pass below finds the deadline at its first pixel, and they agree.) */
             if (!comm && deadline < INFINITY && now_seconds(clk) >= deadline) { res->stats.timed_out = 1; break; }
         }
@@ -399,7 +409,7 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
             comm->reduce(comm->user, v, 2, RD_COMM_INT, RD_COMM_MAX, -1);
             cut = v[0], any_cancel = v[1];
         }
-        if (!cut) done += n;
+        if (!cut) done += n, marched += (uint64_t)n * mp;
         if (!cut && s0 + done == epoch_end) m->epoch(&ctx, epoch_end);
         double t1 = now_seconds(clk), elapsed = t1 - t_start;
         if (o->progress) o->progress(o->progress_user, done, o->spp, elapsed);
@@ -452,6 +462,8 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         rs->shadow_rays += th[i].counters.shadow_rays;
         rs->delta_samples += th[i].delta_samples;
         rs->guide_vertices += th[i].guide_vertices;
+        rs->beam_queries += th[i].beam_queries;
+        rs->beam_hits += th[i].beam_hits;
         if (th[i].rays == 0) { /* th->cells: a marcher's pdf segments, else guided flights' */
             rs->flight_segments += th[i].cells;
             continue;
@@ -463,14 +475,16 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         cells += th[i].cells;
     }
     if (comm) { /* the counters of every rank (rank 0's report), as for the film */
-        uint64_t c[10] = {invalid, rs->collisions, rs->lookups, rs->shadow_rays, rs->delta_samples,
-                          rs->rays_marched, samples, cells, rs->flight_segments, rs->guide_vertices};
+        uint64_t c[12] = {invalid, rs->collisions, rs->lookups, rs->shadow_rays, rs->delta_samples,
+                          rs->rays_marched, samples, cells, rs->flight_segments, rs->guide_vertices,
+                          rs->beam_queries, rs->beam_hits};
         int mm[2] = {rs->rays_marched ? -rs->samples_min : INT_MIN, rs->samples_max};
-        comm->reduce(comm->user, c, 10, RD_COMM_UINT64, RD_COMM_SUM, 0);
+        comm->reduce(comm->user, c, 12, RD_COMM_UINT64, RD_COMM_SUM, 0);
         comm->reduce(comm->user, mm, 2, RD_COMM_INT, RD_COMM_MAX, 0);
         invalid = c[0], rs->collisions = c[1], rs->lookups = c[2], rs->shadow_rays = c[3];
         rs->delta_samples = c[4], rs->rays_marched = c[5], samples = c[6], cells = c[7];
         rs->flight_segments = c[8], rs->guide_vertices = c[9];
+        rs->beam_queries = c[10], rs->beam_hits = c[11];
         rs->samples_min = rs->rays_marched ? -mm[0] : 0, rs->samples_max = mm[1];
         rs->paths = total + invalid;
         rs->invalid = invalid;

@@ -33,13 +33,16 @@ typedef struct {
                           * has a tentative collision (flights whose pass-through is worth
                           * exactly 0 are forced: 1) */
     int select;          /* the guided methods (guided with an unbiased march.ls, and
-                          * guided-unbiased): RD_SELECT_TILES (default) lets a pilot give each
-                          * 8x8 tile to the method or to delta's path, whichever pays, and
-                          * the image's samples choose again at every epoch
-                          * (integrators/select.c); RD_SELECT_PILOT: the pilot's choice only;
-                          * RD_SELECT_OFF: the method everywhere */
+                          * guided-unbiased): RD_SELECT_TILES lets a pilot give each 8x8 tile
+                          * to the method or to delta's path, whichever pays, and the image's
+                          * samples choose again at every epoch (integrators/select.c);
+                          * RD_SELECT_PILOT: the pilot's choice only; RD_SELECT_OFF: the method
+                          * everywhere; RD_SELECT_AUTO (default): RD_SELECT_TILES, except that
+                          * guided with march.ls nee+beams marches every pixel (only an explicit
+                          * "tiles" or "pilot" mixes the beams, which are consistent, not
+                          * unbiased, with delta) */
 } rd_settings;
-enum { RD_SELECT_OFF, RD_SELECT_TILES, RD_SELECT_PILOT };
+enum { RD_SELECT_OFF, RD_SELECT_TILES, RD_SELECT_PILOT, RD_SELECT_AUTO };
 typedef enum { RD_EQ_OFF, RD_EQ_ALL, RD_EQ_CAMERA } rd_equiangular_mode;
 
 /* Photon tracing settings (scene key "photons", docs/scene-format.md). */
