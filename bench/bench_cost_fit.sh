@@ -23,7 +23,7 @@
 #
 #   bench/bench_cost_fit.sh [BIN]
 #       environment: SCENES (the six below), SPP (16), RES ([160,120]), ROUNDS (3),
-#                    FIT (all, or beams), OUT (bench/results/cost_fit)
+#                    FIT (all, or beams), OUT (bench/results/cost_fit, cost_fit_beams)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . bench/machine.sh
@@ -33,8 +33,8 @@ SCENES=${SCENES:-cloud smoke-vdb glass-fog sphere-in-fog hetero-forward noise-bl
 SPP=${SPP:-16}
 RES=${RES:-[160,120]}
 ROUNDS=${ROUNDS:-3}
-OUT=${OUT:-bench/results/cost_fit}
 FIT=${FIT:-all}
+if [ "$FIT" = beams ]; then OUT=${OUT:-bench/results/cost_fit_beams}; else OUT=${OUT:-bench/results/cost_fit}; fi
 mkdir -p "$OUT"
 log=$OUT/runs.txt
 : > "$log"

@@ -33,7 +33,9 @@ LS=${LS:-nee+photons}
 REFS=${REFS:-/work/ref}
 OUT=${OUT:-bench/results/passes}
 more=()
+set -f # the overrides are words, not patterns (camera.resolution=[160,120])
 for kv in ${SET:-}; do more+=(--set "$kv"); done
+set +f
 
 field() { # field $3 of method $2 in compare folder $1
   jq -r --arg m "$2" --arg f "$3" '.methods[] | select(.label == $m) | .[$f]' "$1/metrics.json"

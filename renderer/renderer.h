@@ -162,8 +162,9 @@ typedef struct {
      * [first_sample, first_sample + spp), so a render of N samples followed by one of M more
      * with first_sample = N and the same seed are together the render of N + M samples (the
      * random numbers are keyed by the sample index). compare extends its reference this way.
-     * Not so for the guided methods with settings.select "tiles": each render runs its own
-     * pilot and epochs, so the continuation is another unbiased render, not the same one. */
+     * Not so for the guided methods with a tile selection (settings.select "auto", "tiles",
+     * "pilot"): each render runs its own pilot and epochs, so the continuation is another
+     * render (unbiased, or consistent with nee+beams), not the same one. */
     int first_sample;
     /* Several ranks render one image (NULL: this process alone; borrowed): rank r renders the
      * 16x16 tiles whose index is r modulo size, the ranks agree after every pass whether to stop
@@ -195,15 +196,15 @@ typedef struct {
     double samples_per_ray;
     int samples_min, samples_max;
     double cells_per_ray;
-    /* the guided methods with settings.select = "tiles": camera samples the tile selection gave to delta's
-     * path instead of the marcher (integrators/select.c). */
+    /* the guided methods with a tile selection (settings.select): camera samples it gave to
+     * delta's path instead of the method (integrators/select.c). */
     uint64_t delta_samples;
     /* guided-unbiased: distance-pdf segments its flights built (guide cells crossed) and path
      * vertices whose policy read the guide: with lookups and shadow rays, what a sample costs
      * (the selection's counted cost, integrators/select.c). 0 for the other methods. */
     uint64_t flight_segments, guide_vertices;
     /* march.ls nee+beams: camera-ray segments whose balls were gathered, and the balls they
-     * crossed (what the beam estimate costs; the selection counts both). */
+     * crossed (what the beam estimate costs; the selection counts the balls). */
     uint64_t beam_queries, beam_hits;
     /* Progressive photon passes (photons.progressive; 0 passes with one fixed map): passes
      * traced, photons emitted over them, seconds spent tracing and indexing them (part of

@@ -78,13 +78,11 @@ Test(march, guided_and_transmittance_share_the_multiple_scattering_estimate, .ti
     /* nee+photons: direct light by NEE, multiple scattering from the indirect photon map;
      * nee+guide: the same from the guide baked from the indirect photons; nee+beams: the same
      * photons as balls along the whole segment. For each source both
-     * renders use one bake: their expectations are equal (guided's tile selection off: it
-     * would give some tiles to delta's path, whose expectation is not the photons'). */
+     * renders use one bake: their expectations are equal. */
     const char *sources[] = {"nee+photons", "nee+guide", "nee+beams"};
     for (int k = 0; k < 3; k++) {
         char extra[128];
-        snprintf(extra, sizeof extra, "\"march\":{\"samples\":8,\"ls\":\"%s\"},\"settings\":{\"select\":\"off\"}",
-                 sources[k]);
+        snprintf(extra, sizeof extra, "\"march\":{\"samples\":8,\"ls\":\"%s\"}", sources[k]);
         rd_scene *s = rt_scene("ms_march.json", scene_json(extra, -2.5));
         char err[RD_ERRLEN];
         rd_baked *b = NULL;

@@ -294,6 +294,42 @@ Test(ranks, a_cancel_on_one_rank_fails_the_bake_on_all, .timeout = 300)
     rd_scene_free(s);
 }
 
+Test(ranks, beams_mixed_with_delta_pace_their_photon_passes_alike_on_two_ranks, .timeout = 600)
+{
+    /* guided with nee+beams mixed with delta's path per tile (select "tiles") and a photon pass
+     * per 768 samples of the beams (pass_spp 1, 32x24 pixels): every rank must compute the same
+     * tiles and so the same pass schedule (the passes are collective), and the image is one
+     * process's. */
+    char json[2600];
+    snprintf(json, sizeof json, "%s", rt_spot_fog_json(32, 24, "{\"select\":\"tiles\"}"));
+    char *ph = strstr(json, "\"photons\":{\"count\":40000}");
+    cr_assert(ph != NULL);
+    const char *rest = ph + strlen("\"photons\":{\"count\":40000}");
+    char tail[1024];
+    snprintf(tail, sizeof tail, "\"photons\":{\"count\":40000,\"progressive\":true,\"pass_count\":4000,\"pass_spp\":1},"
+                                "\"march\":{\"ls\":\"nee+beams\"}%s", rest);
+    snprintf(ph, sizeof json - (size_t)(ph - json), "%s", tail);
+    rd_scene *s = rt_scene("ranksb.json", json);
+    rd_render_opts o = {.method = "guided", .spp = 20, .seed = 5, .threads = 1};
+    rd_render_result one;
+    char err[RD_ERRLEN];
+    cr_assert(rd_render(s, &o, &one, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(one.stats.delta_samples > 0 && one.stats.photon_passes < 20, "%llu delta samples, %d photon passes",
+              (unsigned long long)one.stats.delta_samples, one.stats.photon_passes);
+    fake_rank ranks[2];
+    render_on_ranks(s, &o, 2, ranks);
+    const rd_render_result *r0 = &ranks[0].res;
+    size_t n = (size_t)one.image.w * one.image.h * 3;
+    cr_assert(memcmp(one.image.rgb, r0->image.rgb, n * sizeof(float)) == 0, "rank 0's image is not one process's");
+    cr_assert(r0->stats.photon_passes == one.stats.photon_passes && r0->stats.delta_samples == one.stats.delta_samples,
+              "rank 0: %d passes, %llu delta samples; one process %d, %llu", r0->stats.photon_passes,
+              (unsigned long long)r0->stats.delta_samples, one.stats.photon_passes,
+              (unsigned long long)one.stats.delta_samples);
+    for (int k = 0; k < 2; k++) rd_render_result_free(&ranks[k].res);
+    rd_render_result_free(&one);
+    rd_scene_free(s);
+}
+
 Test(ranks, progressive_photon_passes_on_two_ranks_give_one_process_s_image, .timeout = 600)
 {
     /* uniform marching with the photons as its source, a photon pass every 2 samples: 6

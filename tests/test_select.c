@@ -309,11 +309,13 @@ static const char *beams_scene(const char *settings, int progressive)
 
 Test(select, beams_mix_only_when_asked_and_the_choice_does_not_depend_on_the_threads, .timeout = 300)
 {
-    /* guided with march.ls nee+beams. By default ("auto") every pixel is marched. With
-     * "tiles" some tiles go to delta's path, some to the beams (the 3x3 pooling lets the lit
-     * tiles' figures reach into the fogless half, so which tiles is not fixed by the fog's
-     * edge), the progressive photon passes follow the beams' samples, not the image's (a pass
-     * per pass_spp x all pixels of them), and the image is the same on one thread and two. */
+    /* guided with march.ls nee+beams. By default ("auto") every pixel is marched, and the
+     * photon passes are one per pass_spp samples of the image, as without a selection. With
+     * "tiles" (and "pilot") some tiles go to delta's path, some to the beams (the 3x3 pooling
+     * lets the lit tiles' figures reach into the fogless half, so which tiles is not fixed by
+     * the fog's edge), the progressive photon passes follow the beams' samples, not the
+     * image's (a pass per pass_spp x all pixels of them), and the image is the same on one
+     * thread and two. */
     char path[256], err0[RD_ERRLEN];
     snprintf(path, sizeof path, "%s/selb0.json", rt_tmpdir());
     const char *j0 = beams_scene("{}", 0);
@@ -322,15 +324,23 @@ Test(select, beams_mix_only_when_asked_and_the_choice_does_not_depend_on_the_thr
     cr_assert(rd_scene_load(&s0, path, NULL, 0, err0, sizeof err0) == RD_OK, "%s", err0);
     cr_assert(s0->settings.select == RD_SELECT_AUTO, "the default is auto (%d)", s0->settings.select);
     rd_scene_free(s0);
-    rd_scene *sa = rt_scene("selba.json", beams_scene("{\"select\":\"auto\"}", 0));
-    rd_render_opts oa = {.method = "guided", .spp = 2, .seed = 5, .threads = 2};
+    rd_scene *sa = rt_scene("selba.json", beams_scene("{\"select\":\"auto\"}", 1));
+    rd_render_opts oa = {.method = "guided", .spp = 3, .seed = 5, .threads = 2};
     rd_render_result ra;
     char erra[RD_ERRLEN];
     cr_assert(rd_render(sa, &oa, &ra, erra, sizeof erra) == RD_OK, "%s", erra);
     cr_assert(ra.stats.delta_samples == 0 && ra.stats.beam_queries > 0, "auto mixed nee+beams with delta (%llu samples)",
               (unsigned long long)ra.stats.delta_samples);
+    cr_assert(ra.stats.photon_passes == 3, "every pixel marched: a pass a sample, not %d passes", ra.stats.photon_passes);
     rd_render_result_free(&ra);
     rd_scene_free(sa);
+    rd_scene *sp = rt_scene("selbp.json", beams_scene("{\"select\":\"pilot\"}", 0));
+    cr_assert(rd_render(sp, &oa, &ra, erra, sizeof erra) == RD_OK, "%s", erra);
+    cr_assert(ra.stats.delta_samples > 0 && ra.stats.delta_samples < ra.stats.paths,
+              "pilot: nee+beams not mixed with delta (%llu of %llu samples)",
+              (unsigned long long)ra.stats.delta_samples, (unsigned long long)ra.stats.paths);
+    rd_render_result_free(&ra);
+    rd_scene_free(sp);
     rd_scene *s = rt_scene("selb.json", beams_scene("{\"select\":\"tiles\"}", 1));
     rd_render_result r[2];
     for (int i = 0; i < 2; i++) {

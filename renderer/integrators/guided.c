@@ -51,8 +51,9 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
      * kernel's bias (select.c, "A consistent method"), so these mix with delta's path; the
      * beams only when settings.select asks for tiles or pilot by name (it lost on a narrow spot
      * in fog: docs/guided-marching.md). The point gather's cost is not counted (its k-NN
-     * searches) and nee alone estimates single scattering only: with those every pixel is
-     * marched. */
+     * searches; nee+photons and photons), nee+guide's estimate is a guide cell's, a bias the
+     * passes do not shrink, and nee alone estimates single scattering only: with those every
+     * pixel is marched. */
     int sel = s->settings.select;
     int mixes = s->march.ls == RD_LS_NEE_PATHS || s->march.ls == RD_LS_NEE_DELTA ||
                 (s->march.ls == RD_LS_NEE_BEAMS && (sel == RD_SELECT_TILES || sel == RD_SELECT_PILOT));

@@ -255,7 +255,7 @@ vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, r
     const march_state *st = ctx->state;
     double wgt;
     int n = rd_beams_cross(st->beams, r, t0, t1, ms->hits, st->beam_cap, rng, &wgt);
-    *crossed = n;
+    *crossed = n < st->beam_cap ? n : (int)lround(wgt * n); /* every ball crossed, kept or not */
     if (n == 0) return v3(0, 0, 0);
     const pm_map *map = rd_beams_map(st->beams);
     const pm_photon *ph = pm_map_photons(map);

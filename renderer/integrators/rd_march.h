@@ -69,6 +69,7 @@ vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, v
  * integral of T(t0, t) sigma_s L_s over the segment. */
 vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, ray3 r, int region,
                             double t0, double t1, pcg32 *rng, rd_track_counters *c, int *crossed);
+/* (*crossed: the balls the segment crossed, those beyond the reservoir's cap included.) */
 /* Radiance along camera ray r with the samples of `place` (the estimator of THEORY.md §6). */
 vec3 rd_march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp,
                        placement place);

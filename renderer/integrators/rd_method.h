@@ -81,7 +81,8 @@ typedef struct rd_method {
      * render's passes, after prepare; not for pass 1, whose maps prepare sees). */
     rd_status (*photons_changed)(rd_render_ctx *ctx, char *err, size_t errlen);
     /* Optional: how many of the image's pixels the method's own estimate renders now (its tile
-     * selection may give the rest to delta's path), constant between epochs. Progressive photon
+     * selection may give the rest to delta's path), at most all of them, constant between
+     * epochs and the same on every rank (the photon passes are collective). Progressive photon
      * passes are paced by these pixels' samples: a pass per photons.pass_spp x (all pixels)
      * samples of the method, so that no pass is traced for samples that do not use it. NULL =
      * every pixel. */

@@ -36,7 +36,8 @@ typedef struct {
                                 the tile's pixels with x + y odd use the method, the others
                                 delta's path (rd_select_uses) */
     int tiles_x, tiles_y, width, height;
-    int epochs;              /* choose again at the epochs (settings.select "tiles"; "pilot": 0) */
+    int epochs;              /* choose again at the epochs (settings.select "tiles" or "auto";
+                                "pilot": 0) */
     double cell_cost;        /* the method's cost per PDF segment it counts in rd_thread.cells,
                                 in density lookups (select.c) */
     rd_select_stats *stats;  /* per tile, [2k] delta's and [2k + 1] the method's */

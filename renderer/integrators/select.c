@@ -1,6 +1,7 @@
 /* select.c: the guided methods' choice, per tile of the image, between the method (the
  * marcher of `guided`, the guided paths of `guided-unbiased`) and delta's path
- * (settings.select = "tiles"; docs/guided-marching.md "Where marching pays").
+ * (settings.select "tiles", or "auto", the default; docs/guided-marching.md "Where marching
+ * pays").
  *
  * Both are unbiased estimators of the radiance along a camera ray, so any choice made for a
  * pixel's sample before the sample is drawn keeps the image unbiased. The guided method wins
@@ -50,7 +51,11 @@
  * delta's path only when settings.select names "tiles" or "pilot" (the default "auto" marches
  * every pixel with it). The choice compares variance and cost only, so it does not see that
  * bias; a tile it gives to delta's path sheds the bias with the marcher, and where a beam tile
- * meets a delta tile a seam of the bias's size can show. Tried and not kept: counting the bias,
+ * meets a delta tile a seam of the bias's size can show. Nor does it see the photon passes'
+ * own noise: the samples of one pass share its photons, so what the photons add to the error
+ * is common to them and absent from their variance about the pixel's mean (more so as a
+ * marched pixel takes more samples per pass when tiles go to delta, render.c); the choice
+ * leans toward the beams by that much. Tried and not kept: counting the bias,
  * estimated in the pilot from the two means' difference beyond three standard errors, against
  * the method at the next epoch's sample count: delta's pilot mean is low where its paths
  * rarely find the light (a tail its 128 samples a tile do not show, out of the Cauchy-Schwarz

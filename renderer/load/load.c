@@ -237,7 +237,7 @@ static uint64_t bake_key(const cJSON *root, const rd_scene *s)
         cJSON_DeleteItemFromObjectCaseSensitive(gd, guide_render_only[i]);
     cJSON *set = cJSON_GetObjectItemCaseSensitive(copy, "settings");
     static const char *const render_only[] = {"spp", "time", "seed", "method", "max_depth", "rr_depth",
-                                              "equiangular", "thin_bias", NULL};
+                                              "equiangular", "thin_bias", "select", NULL};
     for (int i = 0; set && render_only[i]; i++) cJSON_DeleteItemFromObjectCaseSensitive(set, render_only[i]);
     char *text = cJSON_PrintUnformatted(copy);
     cJSON_Delete(copy);

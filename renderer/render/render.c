@@ -315,9 +315,10 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
     rd_status st = attach_bake(&ctx, o->baked, o->threads, o->cancel, &own, err, errlen);
     if (st != RD_OK) return st;
     /* Progressive photon passes: pass 1's maps are traced here (the bake's own maps serve its
-     * guide); the passes go on between render passes, pass i for samples
-     * [(i - 1) photons.pass_spp, i photons.pass_spp) of every pixel, so an image does not
-     * depend on how the render's passes fall in time. */
+     * guide); the passes go on between render passes, pass i for the method's samples
+     * [(i - 1), i) x photons.pass_spp x (all pixels) (below: with every pixel the method's,
+     * samples [(i - 1) pass_spp, i pass_spp) of every pixel), so an image does not depend on
+     * how the render's passes fall in time. */
     unsigned pass_maps = s->photons.progressive && m->pass_maps ? m->pass_maps(s) : 0u;
     rd_baked *pass_bake = NULL, *first_bake = NULL;
     ctx.radius_scale = 1.0;
@@ -367,7 +368,8 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
     /* The photon passes' clock: samples of the method's own estimate, in pixel-samples (the
      * samples before s0 counted as if every pixel's were the method's). Pass i serves the
      * method's samples [(i - 1), i) x photons.pass_spp x npix: with every pixel marched, pass i
-     * is samples [(i - 1) pass_spp, i pass_spp) of every pixel, as before. */
+     * is samples [(i - 1) pass_spp, i pass_spp) of every pixel, as before; with mp < npix a
+     * pass ends at the first whole sample of every marched pixel past its share. */
     uint64_t marched = (uint64_t)s0 * npix, per_pass = (uint64_t)s->photons.pass_spp * npix;
     while (done < o->spp) {
         int stop[3] = {o->cancel && *o->cancel, deadline < INFINITY && now_seconds(clk) >= deadline, -pass};
@@ -381,6 +383,7 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         uint64_t mp = npix; /* the pixels the method renders in this pass */
         if (pass_maps) {
             mp = m->marched_pixels ? m->marched_pixels(&ctx) : npix;
+            if (mp > npix) mp = npix; /* (a pass per per_pass >= npix samples: none skipped) */
             /* Samples [done, done + n) stay within one photon pass. */
             int ip = (int)(marched / per_pass) + 1;
             if (ip != ctx.photon_pass &&
