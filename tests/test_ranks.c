@@ -300,16 +300,9 @@ Test(ranks, beams_mixed_with_delta_pace_their_photon_passes_alike_on_two_ranks, 
      * per 768 samples of the beams (pass_spp 1, 32x24 pixels): every rank must compute the same
      * tiles and so the same pass schedule (the passes are collective), and the image is one
      * process's. */
-    char json[2600];
-    snprintf(json, sizeof json, "%s", rt_spot_fog_json(32, 24, "{\"select\":\"tiles\"}"));
-    char *ph = strstr(json, "\"photons\":{\"count\":40000}");
-    cr_assert(ph != NULL);
-    const char *rest = ph + strlen("\"photons\":{\"count\":40000}");
-    char tail[1024];
-    snprintf(tail, sizeof tail, "\"photons\":{\"count\":40000,\"progressive\":true,\"pass_count\":4000,\"pass_spp\":1},"
-                                "\"march\":{\"ls\":\"nee+beams\"}%s", rest);
-    snprintf(ph, sizeof json - (size_t)(ph - json), "%s", tail);
-    rd_scene *s = rt_scene("ranksb.json", json);
+    rd_scene *s = rt_scene("ranksb.json", rt_spot_fog_json_with(32, 24, "{\"select\":\"tiles\"}",
+        "\"photons\":{\"count\":40000,\"progressive\":true,\"pass_count\":4000,\"pass_spp\":1},"
+        "\"march\":{\"ls\":\"nee+beams\"}"));
     rd_render_opts o = {.method = "guided", .spp = 20, .seed = 5, .threads = 1};
     rd_render_result one;
     char err[RD_ERRLEN];
@@ -334,16 +327,8 @@ Test(ranks, progressive_photon_passes_on_two_ranks_give_one_process_s_image, .ti
 {
     /* uniform marching with the photons as its source, a photon pass every 2 samples: 6
      * samples trace 3 passes of 8192 photons, each by the two ranks together */
-    char json[2600];
-    snprintf(json, sizeof json, "%s", rt_spot_fog_json(32, 16, "{\"method\":\"uniform\"}"));
-    char *ph = strstr(json, "\"photons\":{\"count\":40000}");
-    cr_assert(ph != NULL);
-    const char *rest = ph + strlen("\"photons\":{\"count\":40000}");
-    char tail[1024];
-    snprintf(tail, sizeof tail, "\"photons\":{\"count\":8192,\"progressive\":true,\"pass_spp\":2},"
-                                "\"march\":{\"ls\":\"photons\"}%s", rest);
-    snprintf(ph, sizeof json - (size_t)(ph - json), "%s", tail);
-    rd_scene *s = rt_scene("ranksp.json", json);
+    rd_scene *s = rt_scene("ranksp.json", rt_spot_fog_json_with(32, 16, "{\"method\":\"uniform\"}",
+        "\"photons\":{\"count\":8192,\"progressive\":true,\"pass_spp\":2},\"march\":{\"ls\":\"photons\"}"));
     rd_render_opts o = {.method = "uniform", .spp = 6, .seed = 3, .threads = 1};
     rd_render_result one;
     char err[RD_ERRLEN];

@@ -296,17 +296,10 @@ Test(select, the_choice_does_not_depend_on_the_threads, .timeout = 300)
  * photon passes of 4000 photons a sample. */
 static const char *beams_scene(const char *settings, int progressive, int wide)
 {
-    static char json[2304];
-    const char *base = wide ? rt_spot_fog_json(64, 24, settings) : select_scene(settings), *key = "\"photons\":{\"count\":40000}";
-    const char *at = strstr(base, key);
-    cr_assert(at, "the selection scene's photons");
-    snprintf(json, sizeof json, "%.*s%s%s", (int)(at - base), base,
-             progressive ? "\"photons\":{\"count\":40000,\"progressive\":true,\"pass_count\":4000,\"pass_spp\":1}" : key,
-             at + strlen(key));
-    size_t n = strlen(json);
-    cr_assert(n > 1 && json[n - 1] == '}');
-    snprintf(json + n - 1, sizeof json - (n - 1), ",\"march\":{\"ls\":\"nee+beams\"}}");
-    return json;
+    return rt_spot_fog_json_with(wide ? 64 : 32, 24, settings,
+                                 progressive ? "\"photons\":{\"count\":40000,\"progressive\":true,\"pass_count\":4000,"
+                                               "\"pass_spp\":1},\"march\":{\"ls\":\"nee+beams\"}"
+                                             : "\"photons\":{\"count\":40000},\"march\":{\"ls\":\"nee+beams\"}");
 }
 
 Test(select, beams_mix_only_when_asked_and_the_choice_does_not_depend_on_the_threads, .timeout = 300)

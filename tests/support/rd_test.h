@@ -85,9 +85,10 @@ static inline int rt_same_guide_bytes(const char *a, size_t na, const char *b, s
 /* The guided methods' selection scene (tests/test_select.c, test_mpi.c, test_ranks.c): a
  * narrow spot (3 degrees) across a thin fog seen side-on (scenes/hard-narrow-spot.json made
  * small), the fog cut at x = 0 so that the right half of the image sees none; width x height
- * pixels, `settings` the scene's "settings" object. Returns the JSON (a static buffer, valid
- * until the next call). */
-static inline const char *rt_spot_fog_json(int width, int height, const char *settings)
+ * pixels, `settings` the scene's "settings" object; `photons` the scene's "photons" member and
+ * any further top-level members (rt_spot_fog_json: "photons":{"count":40000}). Returns the JSON
+ * (a static buffer, valid until the next call). */
+static inline const char *rt_spot_fog_json_with(int width, int height, const char *settings, const char *photons)
 {
     static char buf[2048];
     snprintf(buf, sizeof buf,
@@ -97,9 +98,14 @@ static inline const char *rt_spot_fog_json(int width, int height, const char *se
              "\"shape\":\"none\"},\"sigma_t\":0.15,\"albedo\":0.9,\"g\":0.3}],"
              "\"lights\":[{\"type\":\"spot\",\"position\":[-3.2,0.9,-0.4],\"look_at\":[2.2,-0.5,0.3],\"angle\":3,"
              "\"falloff\":0.3,\"intensity\":[1600,1500,1300]}],"
-             "\"photons\":{\"count\":40000},\"settings\":%s}",
-             width, height, settings);
+             "%s,\"settings\":%s}",
+             width, height, photons, settings);
     return buf;
+}
+
+static inline const char *rt_spot_fog_json(int width, int height, const char *settings)
+{
+    return rt_spot_fog_json_with(width, height, settings, "\"photons\":{\"count\":40000}");
 }
 
 /* Run `argv` (argv[0] is the program path) with stdout/stderr captured into the given buffers;
