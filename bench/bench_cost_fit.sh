@@ -86,16 +86,15 @@ for s, t, held, q, h in rows:
     x, y = h / t, 1.0 - held / t
     num += x * y
     den += x * x
-aQ, aH = 0.0, num / den
+aH = num / den
 print('| weight | us | in lookups |')
 print('|---|---|---|')
-print('| beam query | %.4f | %.3f |' % (aQ, aQ / LOOKUP))
 print('| ball crossed | %.5f | %.4f |' % (aH, aH / LOOKUP))
 print()
 print('| scene | us per sample | held part | queries | balls | model | model / measured |')
 print('|---|---|---|---|---|---|---|')
 for s, t, held, q, h in rows:
-    m = held + aQ * q + aH * h
+    m = held + aH * h
     print('| %s | %.3f | %.3f | %.3f | %.1f | %.3f | %.3f |' % (s, t, held, q, h, m, m / t))
 EOF
 exit 0
