@@ -40,6 +40,7 @@ for c in "${cases[@]}"; do
     --variant delta \
     --variant equiangular --set settings.equiangular=true \
     --variant equiangular-camera --set settings.equiangular=camera \
+    --variant equiangular-auto --set settings.equiangular=auto \
     --variant thin_bias-0.5 --set settings.thin_bias=0.5 \
     --variant both --set settings.equiangular=true --set settings.thin_bias=0.5
 done

@@ -85,7 +85,7 @@ static const bad_case catalogue[] = {
     {"tracker_b_without_weighted.json", "settings.b: only with \"tracker\": \"weighted\" or \"decomposition\""},
     {"tracker_b_negative.json", "settings.b: must be in (0, 100], found -1"},
     {"transmittance_unknown.json", "settings.transmittance: unknown value \"guess\""},
-    {"equiangular_unknown.json", "settings.equiangular: expected true, false or \"camera\", found \"always\""},
+    {"equiangular_unknown.json", "settings.equiangular: expected true, false, \"camera\" or \"auto\", found \"always\""},
     {"thin_bias_above_one.json", "settings.thin_bias: expected false or a number in (0, 1), found 1.5"},
     {"thin_bias_weighted.json", "settings.thin_bias: only with \"tracker\": \"auto\", \"supervoxel\" or \"woodcock\""},
     {"too_thick.json", "media[0].sigma_t: majorant optical depth across the bounds is 3.46e+12"},

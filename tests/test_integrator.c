@@ -181,6 +181,7 @@ typedef struct { const char *name; int eq; double thin; } strategy;
 static const strategy strategies[] = {
     {"delta", RD_EQ_OFF, 0.0},       {"equiangular", RD_EQ_ALL, 0.0}, {"equiangular camera", RD_EQ_CAMERA, 0.0},
     {"thin_bias 0.5", RD_EQ_OFF, 0.5}, {"equiangular + thin_bias 0.3", RD_EQ_ALL, 0.3},
+    {"equiangular auto", RD_EQ_AUTO, 0.0}, {"equiangular auto + thin_bias 0.3", RD_EQ_AUTO, 0.3},
 };
 enum { N_STRATEGIES = sizeof strategies / sizeof strategies[0] };
 
@@ -190,19 +191,24 @@ typedef struct {
     double t0;
 } ss_ctx;
 
-/* The single-scattering integrand at t: T(t0,t) sigma_s p(d . w_l) I f / r^2 T(x, light), for
- * the homogeneous box of ss_scene (sigma_t 1.2, albedo 0.7) and its one point or spot light. */
+/* The single-scattering integrand at t: the sum over the lights of
+ * T(t0,t) sigma_s p(d . w_l) I f / r^2 T(x, light), for the homogeneous box of the tests below
+ * (sigma_t 1.2, albedo 0.7) and its point and spot lights. */
 static double ss_integrand(double t, const void *ctx)
 {
     const ss_ctx *k = ctx;
     const rd_medium *m = &k->s->media[0];
-    const rd_light *l = &k->s->lights[0];
-    vec3 x = ray_at(k->r, t), tol = v3_sub(l->pos, x);
-    double r2 = v3_dot(tol, tol);
-    vec3 wl = v3_scale(tol, 1.0 / sqrt(r2));
-    double f = l->kind == RD_LIGHT_SPOT ? rd_spot_falloff(l, -v3_dot(wl, l->dir)) : 1.0;
-    return exp(-1.2 * (t - k->t0)) * 1.2 * 0.7 * rd_hg_eval(m->g, v3_dot(k->r.d, wl)) * l->value.y * f / r2 *
-           exp(-1.2 * rt_inside_length(m->bmin, m->bmax, x, l->pos));
+    double sum = 0.0;
+    for (int i = 0; i < k->s->n_lights; i++) {
+        const rd_light *l = &k->s->lights[i];
+        vec3 x = ray_at(k->r, t), tol = v3_sub(l->pos, x);
+        double r2 = v3_dot(tol, tol);
+        vec3 wl = v3_scale(tol, 1.0 / sqrt(r2));
+        double f = l->kind == RD_LIGHT_SPOT ? rd_spot_falloff(l, -v3_dot(wl, l->dir)) : 1.0;
+        sum += exp(-1.2 * (t - k->t0)) * 1.2 * 0.7 * rd_hg_eval(m->g, v3_dot(k->r.d, wl)) * l->value.y * f / r2 *
+               exp(-1.2 * rt_inside_length(m->bmin, m->bmax, x, l->pos));
+    }
+    return sum;
 }
 
 Test(integrator, single_scattering_strategies_match_quadrature, .timeout = 240)
@@ -247,6 +253,47 @@ Test(integrator, single_scattering_strategies_match_quadrature, .timeout = 240)
         }
         rd_scene_free(s);
     }
+}
+
+Test(integrator, equiangular_auto_samples_the_thin_lit_span_and_keeps_the_mean, .timeout = 120)
+{
+    /* The box of the test above with two lights: the point light, whose lit span is the whole
+     * flight (2 m at sigma_t 1.2: delta tracking collides there with probability 0.91), and a
+     * 3-degree spot whose cone crosses the ray 0.15 m inside the box (a chord of about 0.17 m:
+     * delta tracking that reaches it collides there with probability about 0.2). "auto"
+     * (transport/equiangular.c) must leave the point light to delta tracking and sample the
+     * spot, keep the mean within 5 standard errors of the quadrature (|z| > 5: 5.7e-7 under the
+     * hypothesis), and lower the standard error, which the spot's thin span dominates. */
+    ray3 r = {v3(-0.3, 0.1, 3.0), v3_norm(v3(0.1, 0.05, -1.0))};
+    double t0 = (3.0 - 1.0) / -r.d.z; /* the ray enters the box at z = 1 */
+    vec3 aim = ray_at(r, t0 + 0.15), pos = v3_add(aim, v3(1.2, 0.6, 0.0));
+    char json[1024];
+    snprintf(json, sizeof json,
+             "{\"camera\":{\"position\":[0,0,5],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
+             "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
+             "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1.2,\"albedo\":0.7,\"g\":0.5}],"
+             "\"lights\":[{\"type\":\"point\",\"position\":[0.2,0.45,-0.1],\"intensity\":5},"
+             "{\"type\":\"spot\",\"position\":[%.9f,%.9f,%.9f],\"look_at\":[%.9f,%.9f,%.9f],\"angle\":3,"
+             "\"falloff\":0.5,\"intensity\":400}],"
+             "\"settings\":{\"max_depth\":1,\"rr_depth\":1000}}",
+             pos.x, pos.y, pos.z, aim.x, aim.y, aim.z);
+    rd_scene *s = rt_scene("ss_auto.json", json);
+    rd_eq_flight ef;
+    cr_assert(rd_eq_flight_init(s, r, rd_scene_region_at(s, r.o), INFINITY, 0.0, 1, &ef), "auto samples nothing on the flight");
+    cr_expect((ef.left & 1u) && !(ef.left & 2u), "auto: left mask %#llx, expected the point light (bit 0) only",
+              (unsigned long long)ef.left);
+    ss_ctx k = {s, r, t0};
+    double q = rt_simpson(ss_integrand, &k, t0, t0 + 2.0 / -r.d.z, 200000);
+    s->settings.equiangular = RD_EQ_OFF;
+    rt_mc plain = rt_delta_mc(s, r, 200000, 61);
+    s->settings.equiangular = RD_EQ_AUTO;
+    rt_mc autom = rt_delta_mc(s, r, 200000, 62);
+    cr_expect(fabs(plain.mean.y - q) < 5 * plain.se.y, "delta: %.6f vs quadrature %.6f (se %.6f)", plain.mean.y, q,
+              plain.se.y);
+    cr_expect(fabs(autom.mean.y - q) < 5 * autom.se.y, "auto: %.6f vs quadrature %.6f (se %.6f)", autom.mean.y, q,
+              autom.se.y);
+    cr_expect(autom.se.y < 0.5 * plain.se.y, "auto's se %.6f, delta's %.6f", autom.se.y, plain.se.y);
+    rd_scene_free(s);
 }
 
 Test(integrator, strategies_keep_the_mean_on_the_default_scene, .timeout = 300)

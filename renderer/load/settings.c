@@ -21,9 +21,10 @@ static rd_status parse_strategies(ld_ctx *c, const cJSON *j, rd_settings *s)
     if (e) {
         if (cJSON_IsBool(e)) s->equiangular = cJSON_IsTrue(e) ? RD_EQ_ALL : RD_EQ_OFF;
         else if (cJSON_IsString(e) && strcmp(e->valuestring, "camera") == 0) s->equiangular = RD_EQ_CAMERA;
+        else if (cJSON_IsString(e) && strcmp(e->valuestring, "auto") == 0) s->equiangular = RD_EQ_AUTO;
         else if (cJSON_IsString(e))
-            return ld_fail(c, "settings.equiangular", "expected true, false or \"camera\", found \"%s\"", e->valuestring);
-        else return ld_fail(c, "settings.equiangular", "expected true, false or \"camera\", found %s", ld_type_name(e));
+            return ld_fail(c, "settings.equiangular", "expected true, false, \"camera\" or \"auto\", found \"%s\"", e->valuestring);
+        else return ld_fail(c, "settings.equiangular", "expected true, false, \"camera\" or \"auto\", found %s", ld_type_name(e));
     }
     const cJSON *b = cJSON_GetObjectItemCaseSensitive(j, "thin_bias");
     if (b) {

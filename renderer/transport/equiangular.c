@@ -40,7 +40,27 @@
  * (the power heuristic, beta = 2). Both are > 0 only where their strategy can sample: e_j > 0
  * only on the cut span, and where e_j = 0, w_d = 1; m > 0 wherever sigma_t can be > 0. A
  * stand-in that is wrong costs variance, never bias. Lights that equiangular sampling never
- * chooses keep w_d = 1. */
+ * chooses keep w_d = 1.
+ *
+ * "auto": which lights a flight samples. The weights above may be any deterministic functions
+ * of the flight, so the set of lights strategy e samples may be too: a light outside the set
+ * has Q_j = 0 and w_d = 1 on this flight, the set's Q_j are P_j over the set's sum. "auto" puts
+ * light j in the set when delta tracking reaches j's lit span [a, b] (cut as above) but mostly
+ * passes through it:
+ *     T(0,a) >= 1/2   and   1 - T(a,b) < EQ_AUTO_REACH = 1/3,
+ * with each medium's global majorant for sigma_t in T (a constant per interval: the choice
+ * costs no walk of the majorant grid). Why: strategy d finds j's light only from collisions in
+ * [a, b]; one that reaches a collides there with probability R = 1 - T(a,b), so its estimate of
+ * what j gives the span is about I / R with probability R: a variance of I^2 (1/R - 1).
+ * Strategy e's estimate has a variance of order I^2 (the transmittance and sigma_s noise about
+ * a sample that always lies where j lights) and costs about as much as delta's flight again
+ * (one transmittance estimate along the ray, one shadow ray), so it pays when 1/R - 1 > 2:
+ * R < 1/3. A span hidden behind the medium (T(0,a) < 1/2) carries little of the flight's light
+ * and its transmittance estimate costs most there: left to delta tracking. Dense smoke lit by a
+ * spot (thick lit spans) keeps delta tracking, which finds the light there; a thin fog crossed
+ * by a narrow cone gets strategy e. The global majorant overstates sigma_t, so a light stays
+ * with delta tracking a little more often than it should: variance, never bias. Lights
+ * with an index of 64 or more are always in the set (the set is a 64-bit mask). */
 #include "transport/rd_transport.h"
 
 /* ---- The sampler ------------------------------------------------------------------------ */
@@ -86,9 +106,41 @@ static int point_or_spot(const rd_light *l)
     return l->kind == RD_LIGHT_POINT || l->kind == RD_LIGHT_SPOT;
 }
 
-int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, double q,
-                      rd_eq_flight *ef)
+/* "auto" samples a light when delta tracking that reaches its lit span collides there with a
+ * probability below this (the head: strategy e pays when 1/R - 1 > 2). */
+#define EQ_AUTO_REACH (1.0 / 3.0)
+
+/* Does strategy e sample light i on this flight? */
+static int sampled(const rd_scene *s, const rd_eq_flight *ef, int i)
 {
+    return point_or_spot(&s->lights[i]) && !(i < 64 && (ef->left >> i & 1u));
+}
+
+/* The span [*a, *b] of the flight's media that light l lights; 0 when empty. */
+static int lit_span(const rd_eq_flight *ef, const rd_light *l, double *a, double *b)
+{
+    *a = ef->iv[0].t0, *b = ef->iv[ef->n - 1].t1;
+    return rd_light_lit_range(l, ef->r, a, b);
+}
+
+/* Is light j's lit span [a, b] reached but thin (the head's "auto" rule)? T from the global
+ * majorants; thin bias's boost s_d raises the collision probability as it does the proxy's. */
+static int thin_and_reached(const rd_eq_flight *ef, double a, double b)
+{
+    double tau_a = 0.0, tau_b = 0.0;
+    for (int k = 0; k < ef->n; k++) {
+        const rd_interval *v = &ef->iv[k];
+        tau_a += v->m->sigma_maj * fmax(0.0, fmin(a, v->t1) - v->t0);
+        tau_b += v->m->sigma_maj * fmax(0.0, fmin(b, v->t1) - v->t0);
+    }
+    double Ta = exp(-tau_a), pass = exp(-(tau_b - tau_a));
+    return Ta >= 0.5 && ef->dscale * (1.0 - pass) < EQ_AUTO_REACH;
+}
+
+int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, double q,
+                      int automatic, rd_eq_flight *ef)
+{
+    ef->left = 0;
     ef->ps_pmf = 0.0;
     for (int i = 0; i < s->n_lights; i++)
         if (point_or_spot(&s->lights[i])) ef->ps_pmf += s->light_sampler.pmf[i];
@@ -102,14 +154,27 @@ int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, dou
         double P = -expm1(-rd_majorant_depth(ef->iv, ef->n, r, INFINITY, 0, NULL));
         if (P > 0.0) ef->dscale = fmax(P, q) / P;
     }
+    if (automatic) {
+        /* leave to delta tracking the lights it reaches often, and those lighting nothing here */
+        ef->ps_pmf = 0.0;
+        for (int i = 0; i < s->n_lights; i++) {
+            if (!point_or_spot(&s->lights[i]) || !(s->light_sampler.pmf[i] > 0.0)) continue;
+            double a, b;
+            if (i < 64 && (!lit_span(ef, &s->lights[i], &a, &b) || !thin_and_reached(ef, a, b)))
+                ef->left |= (uint64_t)1 << i;
+            else
+                ef->ps_pmf += s->light_sampler.pmf[i];
+        }
+        if (!(ef->ps_pmf > 0.0)) return 0;
+    }
     return 1;
 }
 
 /* Light j's equiangular pdf over the flight's span cut to what it lights; 0 when empty. */
 static int light_span(const rd_eq_flight *ef, const rd_light *l, rd_equiangular *eq)
 {
-    double a = ef->iv[0].t0, b = ef->iv[ef->n - 1].t1;
-    if (!rd_light_lit_range(l, ef->r, &a, &b)) return 0;
+    double a, b;
+    if (!lit_span(ef, l, &a, &b)) return 0;
     return rd_equiangular_init(eq, l->pos, ef->r, a, b);
 }
 
@@ -127,7 +192,7 @@ vec3 rd_eq_nee(const rd_scene *s, const rd_eq_flight *ef, pcg32 *rng, rd_track_c
     double u = pcg32_uniform(rng) * ef->ps_pmf, acc = 0.0;
     int j = -1;
     for (int i = 0; i < s->n_lights; i++) {
-        if (!point_or_spot(&s->lights[i]) || !(s->light_sampler.pmf[i] > 0.0)) continue;
+        if (!sampled(s, ef, i) || !(s->light_sampler.pmf[i] > 0.0)) continue;
         j = i;
         acc += s->light_sampler.pmf[i];
         if (u < acc) break;
@@ -158,7 +223,7 @@ vec3 rd_eq_nee(const rd_scene *s, const rd_eq_flight *ef, pcg32 *rng, rd_track_c
 
 double rd_eq_weight(const rd_scene *s, const rd_eq_flight *ef, double t, int light)
 {
-    if (light < 0 || !point_or_spot(&s->lights[light])) return 1.0;
+    if (light < 0 || !sampled(s, ef, light)) return 1.0;
     rd_equiangular eq;
     if (!light_span(ef, &s->lights[light], &eq)) return 1.0;
     double pdf = rd_equiangular_pdf(&eq, t);

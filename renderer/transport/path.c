@@ -172,8 +172,9 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
         rd_eq_flight ef;
         int first = scattered_only && depth == depth0; /* the caller's flight (see above) */
         if (!first && fs->delta && s->settings.equiangular != RD_EQ_OFF && depth + 1 <= s->settings.max_depth &&
-            (s->settings.equiangular == RD_EQ_ALL || depth == 0)) {
-            eq = rd_eq_flight_init(s, r, region, in.t_light, rd_thin_bias_q(s, &in), &ef);
+            (s->settings.equiangular != RD_EQ_CAMERA || depth == 0)) {
+            eq = rd_eq_flight_init(s, r, region, in.t_light, rd_thin_bias_q(s, &in),
+                                   s->settings.equiangular == RD_EQ_AUTO, &ef);
             if (eq) L = v3_add(L, v3_mul(beta, rd_eq_nee(s, &ef, rng, c)));
         }
         if (f.kind == RD_FLIGHT_END || (first && f.kind == RD_FLIGHT_PASS)) break;

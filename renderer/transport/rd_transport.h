@@ -128,14 +128,17 @@ typedef struct {
     int region;
     rd_interval iv[RD_MAX_INTERVALS];
     int n;
-    double ps_pmf;   /* sum of rd_nee's choice probabilities over the point and spot lights */
+    double ps_pmf;   /* sum of rd_nee's choice probabilities over the lights it samples */
     double dscale;   /* the tracking pdf's proxy is dscale sigma_maj(t) T_maj(0,t) */
+    uint64_t left;   /* lights 0..63 left to delta tracking on this flight ("auto") */
 } rd_eq_flight;
 /* Set up the flight along r in `region` over [0, t_light] whose delta tracking runs with thin
- * bias q (0: none; rd_sample_free_path_thin). Returns 0 when there is nothing to sample (no
- * medium on the way, no point or spot light). */
+ * bias q (0: none; rd_sample_free_path_thin). `automatic` (settings.equiangular "auto"): only
+ * the lights whose lit span delta tracking's first tentative collision rarely reaches
+ * (equiangular.c). Returns 0 when there is nothing to sample (no medium on the way, no point
+ * or spot light, or none left to sample). */
 int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, double q,
-                      rd_eq_flight *ef);
+                      int automatic, rd_eq_flight *ef);
 /* The equiangular strategy's MIS-weighted estimate of the single scattering from point and spot
  * lights along the flight, for unit throughput. */
 vec3 rd_eq_nee(const rd_scene *s, const rd_eq_flight *ef, pcg32 *rng, rd_track_counters *c);
