@@ -218,7 +218,7 @@ Test(integrator, single_scattering_strategies_match_quadrature, .timeout = 240)
      * the point light again with a background of 0.3 behind the box, so that passing through
      * is worth something and thin_bias does not force the collision. Every strategy's mean is
      * within 5 standard errors of the quadrature (+ T 0.3 for the background): under the
-     * hypothesis |z| > 5 has probability 5.7e-7 per check (15 checks). Equiangular sampling
+     * hypothesis |z| > 5 has probability 5.7e-7 per check (21 checks). Equiangular sampling
      * must also lower the standard error where it should: toward the nearby point light. */
     const char *lights[] = {"{\"type\":\"point\",\"position\":[0.2,0.45,-0.1],\"intensity\":5}",
                             "{\"type\":\"spot\",\"position\":[1.6,0.9,0.4],\"look_at\":[0.1,0.2,0.3],\"angle\":16,\"falloff\":2,\"intensity\":40}",
@@ -259,8 +259,9 @@ Test(integrator, equiangular_auto_samples_the_thin_lit_span_and_keeps_the_mean, 
 {
     /* The box of the test above with two lights: the point light, whose lit span is the whole
      * flight (2 m at sigma_t 1.2: delta tracking collides there with probability 0.91), and a
-     * 3-degree spot whose cone crosses the ray 0.15 m inside the box (a chord of about 0.17 m:
-     * delta tracking that reaches it collides there with probability about 0.2). "auto"
+     * 3-degree spot (a 1.5-degree half-angle) whose cone crosses the ray 0.15 m inside the box
+     * (a lit span of 0.115-0.185 m past the entry, a chord of 0.07 m: delta tracking that
+     * reaches it collides there with probability 0.08). "auto"
      * (transport/equiangular.c) must leave the point light to delta tracking and sample the
      * spot, keep the mean within 5 standard errors of the quadrature (|z| > 5: 5.7e-7 under the
      * hypothesis), and lower the standard error, which the spot's thin span dominates. */
@@ -306,7 +307,7 @@ Test(integrator, strategies_keep_the_mean_on_the_default_scene, .timeout = 300)
      * is close to standard normal in the lit regions (each region mean pools 16384 samples;
      * bench_same_mean likewise judges the lit regions); the image must have
      * |t| < 4 (probability 6e-5 of a false alarm) and every lit region |t| < 4.5 (at most 12
-     * regions x 3 strategies, each 6.8e-6: 2.5e-4 in all). The camera-only equiangular mode is
+     * regions x 5 strategies, each 6.8e-6: 4.1e-4 in all). The camera-only equiangular mode is
      * checked against the quadrature in the test above. */
     const rd_override ov[] = {{"camera.resolution", "[32,24]"}};
     rd_scene *s = NULL;

@@ -55,7 +55,8 @@ Test(scenes, every_scene_loads_and_renders, .timeout = 600)
 Test(scenes, description_is_a_string_and_info_prints_it)
 {
     rd_scene *s = rt_scene("d.json", "{\"description\":\"A test fog.\",\"camera\":{\"position\":[0,0,5],"
-                                     "\"look_at\":[0,0,0],\"resolution\":[4,4]},\"media\":[]}");
+                                     "\"look_at\":[0,0,0],\"resolution\":[4,4]},\"media\":[],"
+                                     "\"settings\":{\"equiangular\":\"auto\"}}");
     char path[256];
     snprintf(path, sizeof path, "%s/info.txt", rt_tmpdir());
     FILE *f = fopen(path, "w+");
@@ -67,6 +68,7 @@ Test(scenes, description_is_a_string_and_info_prints_it)
     text[n] = '\0';
     fclose(f);
     cr_expect(strstr(text, "about      A test fog.\n") != NULL, "%s", text);
+    cr_expect(strstr(text, "equiangular auto (lit spans crossed)") != NULL, "%s", text);
     rd_scene_free(s);
 
     snprintf(path, sizeof path, "%s/bad.json", rt_tmpdir());

@@ -11,8 +11,8 @@
 
 /* ---- settings ------------------------------------------------------------------------------ */
 
-/* `delta`'s thin-media strategies (docs/free-path.md): settings.equiangular is true, false or
- * "camera"; settings.thin_bias is false or a number in (0, 1) (1 would never pass: biased wherever a
+/* `delta`'s thin-media strategies (docs/free-path.md): settings.equiangular is true, false,
+ * "camera" or "auto"; settings.thin_bias is false or a number in (0, 1) (1 would never pass: biased wherever a
  * pass-through is worth something), and needs an analog delta tracker
  * (it replaces the tracker's flight: weighted trackers bring weights of their own). */
 static rd_status parse_strategies(ld_ctx *c, const cJSON *j, rd_settings *s)

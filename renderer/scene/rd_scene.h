@@ -44,7 +44,8 @@ typedef struct {
 } rd_settings;
 enum { RD_SELECT_OFF, RD_SELECT_TILES, RD_SELECT_PILOT, RD_SELECT_AUTO };
 /* settings.equiangular: off, every flight, the camera's flight only, or every flight for the
- * lights whose lit span delta tracking rarely reaches (transport/equiangular.c, "auto"). */
+ * lights whose lit span delta tracking reaches but mostly crosses without colliding
+ * (transport/equiangular.c, "auto"). */
 typedef enum { RD_EQ_OFF, RD_EQ_ALL, RD_EQ_CAMERA, RD_EQ_AUTO } rd_equiangular_mode;
 
 /* Photon tracing settings (scene key "photons", docs/scene-format.md). */

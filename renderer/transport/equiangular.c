@@ -47,19 +47,25 @@
  * has Q_j = 0 and w_d = 1 on this flight, the set's Q_j are P_j over the set's sum. "auto" puts
  * light j in the set when delta tracking reaches j's lit span [a, b] (cut as above) but mostly
  * passes through it:
- *     T(0,a) >= 1/2   and   1 - T(a,b) < EQ_AUTO_REACH = 1/3,
+ *     T(0,a) >= 1/2   and   s_d (1 - T(a,b)) < EQ_AUTO_REACH = 1/3,
  * with each medium's global majorant for sigma_t in T (a constant per interval: the choice
- * costs no walk of the majorant grid). Why: strategy d finds j's light only from collisions in
- * [a, b]; one that reaches a collides there with probability R = 1 - T(a,b), so its estimate of
- * what j gives the span is about I / R with probability R: a variance of I^2 (1/R - 1).
- * Strategy e's estimate has a variance of order I^2 (the transmittance and sigma_s noise about
- * a sample that always lies where j lights) and costs about as much as delta's flight again
- * (one transmittance estimate along the ray, one shadow ray), so it pays when 1/R - 1 > 2:
- * R < 1/3. A span hidden behind the medium (T(0,a) < 1/2) carries little of the flight's light
- * and its transmittance estimate costs most there: left to delta tracking. Dense smoke lit by a
- * spot (thick lit spans) keeps delta tracking, which finds the light there; a thin fog crossed
- * by a narrow cone gets strategy e. The global majorant overstates sigma_t, so a light stays
- * with delta tracking a little more often than it should: variance, never bias. Lights
+ * costs no walk of the majorant grid) and s_d the thin bias's boost (T(0,a) is left unboosted:
+ * a choice, like the rest, that changes variance only). Why: strategy d finds j's light only
+ * from collisions in [a, b]; one that reaches a collides there with probability R = 1 - T(a,b),
+ * so its estimate of what j gives the span is about I / R with probability R: a variance of
+ * I^2 (1/R - 1). Strategy e's estimate has a variance of order I^2 (the transmittance and
+ * sigma_s noise about a sample that always lies where j lights) and costs about as much as
+ * delta's flight again (one transmittance estimate along the ray, one shadow ray), so it pays
+ * when 1/R - 1 > 2: R < 1/3. The estimate is rough on purpose: delta's next-event estimate
+ * also picks j with probability P_j only (a variance nearer I^2 (1/(R P_j) - 1) with several
+ * lights), and a point light near the ray peaks inside its span (equiangular sampling's own
+ * gain, which the rule does not count: it leaves a near point light in a thick span to delta
+ * tracking, where `true` wins). A span hidden behind the medium (T(0,a) < 1/2) carries little
+ * of the flight's light and its transmittance estimate costs most there: left to delta
+ * tracking. Dense smoke lit by a spot (thick lit spans) keeps delta tracking, which finds the
+ * light there; a thin fog crossed by a narrow cone gets strategy e. The global majorant
+ * overstates sigma_t, so a light stays with delta tracking a little more often than it
+ * should: variance, never bias. Lights
  * with an index of 64 or more are always in the set (the set is a 64-bit mask). */
 #include "transport/rd_transport.h"
 
