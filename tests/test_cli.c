@@ -232,6 +232,22 @@ static void copy_file(const char *from, const char *to)
     cr_assert(system(cmd) == 0, "%s", cmd);
 }
 
+Test(cli, info_names_the_light_only_photons_find, .timeout = 120)
+{
+    /* scenes/glass-fog.json: a spot above a glass ball of fog; most of the fog's light comes
+     * through the glass (rd_hidden_light, tests/test_photons.c checks the share), and info says
+     * so; scenes/default.json has no glass and no such line. */
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char out[8192], err[4096];
+    char *glass[] = {(char *)bin, "info", "scenes/glass-fog.json", NULL};
+    cr_assert(rt_run(glass, out, sizeof out, err, sizeof err, NULL) == 0, "%s", err);
+    cr_expect(strstr(out, "\nhidden ") != NULL && strstr(out, "through glass first") != NULL, "%s", out);
+    char *plain[] = {(char *)bin, "info", "scenes/default.json", NULL};
+    cr_assert(rt_run(plain, out, sizeof out, err, sizeof err, NULL) == 0, "%s", err);
+    cr_expect(strstr(out, "\nhidden ") == NULL, "%s", out);
+}
+
 Test(cli, failed_run_keeps_the_previous_image, .timeout = 120)
 {
     const char *bin = getenv("PHOTONMARCH_BIN");

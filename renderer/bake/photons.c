@@ -36,6 +36,7 @@ typedef struct {
     pm_photon *ind;
     size_t n_ind, cap_ind;
     double emitted[3], absorbed[3], escaped[3], carried[3], absorbed_surf[3];
+    double scattered[3], hidden[3]; /* rd_photon_stats.power_scattered, power_hidden */
     int oom;
 } block_out;
 
@@ -167,6 +168,12 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
         if (!rd_light_sample_emission(s, &s->lights[lo], &rng, &r, &beta)) continue;
         beta = v3_scale(beta, inv_n / p_light); /* photon power: Phi_l / (N p_l) */
         acc(b->emitted, beta);
+        /* rd_photon_stats.power_hidden: a photon from a point, spot or directional light whose
+         * first event (an interface is none) is a specular surface is on an L S+ path, and so
+         * is every collision it makes later. */
+        const int delta_light = s->lights[lo].kind == RD_LIGHT_POINT || s->lights[lo].kind == RD_LIGHT_SPOT ||
+                                s->lights[lo].kind == RD_LIGHT_DIRECTIONAL;
+        int events = 0, hidden = 0;
         /* The region the photon starts in (rd_scene.h "Surfaces in the transport"). */
         int region = rd_scene_region_at(s, r.o), crossings = 0;
         rd_hit h, prev;
@@ -208,6 +215,7 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
                     acc(b->absorbed_surf, beta); /* nothing leaves: the surface keeps it */
                     break;
                 }
+                if (events++ == 0 && delta_light && ss.specular) hidden = 1;
                 vec3 out = v3_mul(beta, ss.weight);
                 acc(b->absorbed_surf, v3_sub(beta, out)); /* diffuse: (1 - albedo) x incident */
                 /* Russian roulette on the weight (the albedo at a diffuse surface; 1 for glass) */
@@ -227,6 +235,9 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
             const rd_medium *m = col.medium;
             vec3 x = ray_at(r, col.t);
             vec3 scattered = v3_mul(beta, m->albedo);
+            events++;
+            acc(b->scattered, scattered);
+            if (hidden) acc(b->hidden, scattered);
             /* Store the scattered power; skip first collisions when NEE supplies direct light. */
             if (depth > 1 || o->store_direct) push_to(b, &b->ph, &b->n_ph, &b->cap_ph, x, r.d, scattered);
             if (depth > 1 && b->split) push_to(b, &b->ind, &b->n_ind, &b->cap_ind, x, r.d, scattered);
@@ -244,16 +255,16 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
 }
 
 /* The power sums a block keeps, in the order gather_blocks sends them. */
-enum { BLOCK_SUMS = 15 };
+enum { BLOCK_SUMS = 21 };
 static void block_sums_get(const block_out *b, double *v)
 {
-    const double *src[5] = {b->emitted, b->absorbed, b->escaped, b->carried, b->absorbed_surf};
-    for (int k = 0; k < 5; k++) memcpy(v + 3 * k, src[k], 3 * sizeof(double));
+    const double *src[7] = {b->emitted, b->absorbed, b->escaped, b->carried, b->absorbed_surf, b->scattered, b->hidden};
+    for (int k = 0; k < 7; k++) memcpy(v + 3 * k, src[k], 3 * sizeof(double));
 }
 static void block_sums_set(block_out *b, const double *v)
 {
-    double *dst[5] = {b->emitted, b->absorbed, b->escaped, b->carried, b->absorbed_surf};
-    for (int k = 0; k < 5; k++) memcpy(dst[k], v + 3 * k, 3 * sizeof(double));
+    double *dst[7] = {b->emitted, b->absorbed, b->escaped, b->carried, b->absorbed_surf, b->scattered, b->hidden};
+    for (int k = 0; k < 7; k++) memcpy(dst[k], v + 3 * k, 3 * sizeof(double));
 }
 
 /* Copy the records of blocks [b0, b1) into one array (NULL when there are none), freeing each
@@ -479,6 +490,8 @@ rd_status rd_trace_photons_split(const rd_scene *s, const rd_photon_opts *o, pm_
             st->power_escaped[c] += b->escaped[c];
             st->power_carried[c] += b->carried[c];
             st->power_absorbed_surfaces[c] += b->absorbed_surf[c];
+            st->power_scattered[c] += b->scattered[c];
+            st->power_hidden[c] += b->hidden[c];
         }
         st->stored += b->n_ph;
         st->segments += b->n_seg;
@@ -494,4 +507,33 @@ rd_status rd_trace_photons_split(const rd_scene *s, const rd_photon_opts *o, pm_
 double rd_phase_hg_cb(double cos_theta, void *user)
 {
     return rd_hg_eval(*(const double *)user, cos_theta);
+}
+
+/* ---- Light that only L S+ paths carry ------------------------------------------------------ */
+
+rd_status rd_hidden_light(const rd_scene *s, size_t count, int threads, double *share, char *err, size_t errlen)
+{
+    *share = 0.0;
+    int glass = 0, delta = 0;
+    for (int i = 0; i < s->n_shapes; i++) glass |= s->shapes[i].material.kind == RD_MAT_DIELECTRIC;
+    for (int i = 0; i < s->n_lights; i++)
+        delta |= s->lights[i].kind == RD_LIGHT_POINT || s->lights[i].kind == RD_LIGHT_SPOT ||
+                 s->lights[i].kind == RD_LIGHT_DIRECTIONAL;
+    if (!glass || !delta || s->n_media == 0) return RD_OK; /* no L S+ path into a medium */
+    pm_map *map = pm_map_new();
+    if (!map) {
+        snprintf(err, errlen, "%s: out of memory for the photon map of the hidden-light check", s->path);
+        return RD_ERR_NOMEM;
+    }
+    /* its own seed: the check must not depend on the bake's photons.seed */
+    rd_photon_opts o = {.count = count, .store_direct = 1, .segments = 0, .max_depth = s->photons.max_depth,
+                        .seed = 0x68696464656eULL, .threads = threads};
+    rd_photon_stats st;
+    rd_status rs = rd_trace_photons(s, &o, map, &st, err, errlen);
+    pm_map_free(map);
+    if (rs) return rs;
+    double all = v3_lum(v3(st.power_scattered[0], st.power_scattered[1], st.power_scattered[2]));
+    double hid = v3_lum(v3(st.power_hidden[0], st.power_hidden[1], st.power_hidden[2]));
+    *share = all > 0.0 ? hid / all : 0.0;
+    return RD_OK;
 }

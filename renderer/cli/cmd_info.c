@@ -8,7 +8,9 @@ static const char *const usage_info =
     "usage: photonmarch info SCENE [--set KEY=VALUE ...]\n"
     "\n"
     "Loads and validates SCENE and describes it: camera, media (kind, bounds, density range,\n"
-    "sigma_t scale, albedo, g, majorant), lights (kind, parameters, power), settings, memory.\n";
+    "sigma_t scale, albedo, g, majorant), lights (kind, parameters, power), settings, memory,\n"
+    "and the share of the media's light that leaves a point, spot or directional light through\n"
+    "glass first (which delta cannot render), when there is any.\n";
 
 int cli_cmd_info(int argc, char **argv)
 {
@@ -26,6 +28,18 @@ int cli_cmd_info(int argc, char **argv)
     rd_status st = rd_scene_load(&scene, a.scene, a.ov, a.nov, err, sizeof err);
     if (st) return cli_report_error(st, err);
     rd_scene_info(scene, stdout);
+    /* Light delta cannot render (rd_hidden_light; compare's reference, docs/compare.md). */
+    double share = 0.0;
+    st = rd_hidden_light(scene, RD_CMP_HIDDEN_PHOTONS, 0, &share, err, sizeof err);
+    if (st) {
+        rd_scene_free(scene);
+        return cli_report_error(st, err);
+    }
+    if (share > RD_CMP_HIDDEN_SHARE)
+        printf("hidden     %.3g%% of the light scattered in the media leaves a point, spot or directional light "
+               "through glass first: delta, guided-unbiased and guided with an unbiased march.ls cannot render "
+               "it (compare renders its reference with photons)\n",
+               100.0 * share);
     rd_scene_free(scene);
     return 0;
 }

@@ -6,8 +6,15 @@
  * its standard error), else the cached one, else a long render with delta, the unbiased method
  * (THEORY.md §2), saved in the cache under a key hashed (FNV-1a) from everything the image
  * depends on. Its standard error gives the variance it adds to every measured MSE
- * (THEORY.md §7). */
+ * (THEORY.md §7).
+ *
+ * Light delta cannot render (issue 21 item 6): light that leaves a point, spot or directional
+ * light through glass first (L S+ paths) is reached neither by next-event estimation (a shadow
+ * ray stops at glass) nor by a path (it cannot hit a delta light). Its share of the light
+ * scattered in the media is measured first (rd_hidden_light); above RD_CMP_HIDDEN_SHARE the
+ * rendered reference is a consistent photon render instead (photon_reference). */
 #include "compare/rd_compare.h"
+#include "bake/rd_photons.h"
 
 #include <ctype.h>
 #include <math.h>
@@ -67,10 +74,15 @@ static uint64_t hash_v(uint64_t h, vec3 v) { return hash_d(hash_d(hash_d(h, v.x)
  * seed, sample indices 0, 1, 2, ...), N recorded beside it, so a cached one of N samples is
  * extended by rendering samples N, N + 1, ... (rd_render_opts.first_sample) and saved again
  * under the same key: the same key always names a prefix of the same stream. */
-static uint64_t reference_key(const rd_scene *s, int auto_ref, int spp, double time_cap, uint64_t seed)
+static uint64_t reference_key(const rd_scene *s, int auto_ref, int photons, int spp, double time_cap, uint64_t seed)
 {
     uint64_t h = auto_ref ? fnv1a(0xcbf29ce484222325ULL, "photonmarch reference v2 stream", 31)
                           : fnv1a(0xcbf29ce484222325ULL, "photonmarch reference v2 fixed", 30);
+    if (photons) { /* the photon reference: its method's settings too (photon_reference) */
+        h = fnv1a(h, "photons", 7);
+        h = fnv1a(h, &s->march, sizeof s->march);
+        h = fnv1a(h, &s->photons, sizeof s->photons);
+    }
     h = fnv1a(h, &s->bake_key, sizeof s->bake_key);
     const rd_camera *c = &s->camera;
     int ints[6] = {(int)c->kind, c->width, c->height, s->settings.max_depth, s->settings.rr_depth, spp};
@@ -189,7 +201,9 @@ static rd_status reference_part(rd_comparison *c, const rd_scene *s, int first, 
                                 ref_progress_ctx *pc, rd_render_result *res, char *err, size_t errlen)
 {
     const rd_cmp_opts *o = &c->opts;
-    rd_render_opts ro = {.method = "delta", .spp = spp, .time_limit = time_limit, .seed = REF_SEED(o->seed),
+    if (c->photon_ref) s = &c->ref_scene;
+    rd_render_opts ro = {.method = c->photon_ref ? "guided" : "delta", .spp = spp, .time_limit = time_limit,
+                         .seed = REF_SEED(o->seed),
                          .threads = o->threads, .cancel = o->cancel, .progress = reference_progress,
                          .progress_user = pc, .first_sample = first, .clock = o->clock,
                          .clock_user = o->clock_user, .comm = cmp_ranks(c)};
@@ -293,15 +307,15 @@ static rd_status reference_grow(rd_comparison *c, const rd_scene *s, int more, d
     return RD_OK;
 }
 
-/* A fixed reference: delta with --ref-spp samples per pixel (none given: no cap) and
- * --ref-time seconds at most (none given: no limit); one render, never extended. */
-static rd_status reference_fixed(rd_comparison *c, const rd_scene *s, char *err, size_t errlen)
+/* A fixed reference: delta (or the photon reference) with `spp` samples per pixel (<= 0: no
+ * cap) and `secs` seconds at most (<= 0: no limit); one render, never extended. */
+static rd_status reference_fixed(rd_comparison *c, const rd_scene *s, int spp, double secs, char *err,
+                                 size_t errlen)
 {
-    const rd_cmp_opts *o = &c->opts;
-    int spp = o->ref_spp > 0 ? o->ref_spp : 1 << 24;
-    ref_progress_ctx pc = {c, 0, spp, 0.0, o->ref_time > 0 ? o->ref_time : 0.0};
+    if (spp <= 0) spp = 1 << 24;
+    ref_progress_ctx pc = {c, 0, spp, 0.0, secs > 0 ? secs : 0.0};
     rd_render_result res;
-    rd_status st = reference_part(c, s, 0, spp, o->ref_time, &pc, &res, err, errlen);
+    rd_status st = reference_part(c, s, 0, spp, secs, &pc, &res, err, errlen);
     if (st) return st;
     if (res.stats.cancelled || res.stats.spp < 1) {
         rd_render_result_free(&res);
@@ -339,15 +353,43 @@ int rd_cmp_reference_is_auto(const rd_cmp_opts *o)
     return !o->reference && o->ref_spp <= 0 && o->ref_time <= 0;
 }
 
+/* Light delta cannot render (the head): its share, and the photon reference's scene when a
+ * rendered reference must hold it: `guided` with the photon map as its whole source, fresh
+ * photons every pass with a shrinking radius (consistent), and no tile selection (its `delta`
+ * tiles would lack that light again). Every rank traces the same photons (a fixed seed). */
+static rd_status photon_reference(rd_comparison *c, const rd_scene *s, char *err, size_t errlen)
+{
+    double share = 0.0;
+    rd_status st = rd_hidden_light(s, RD_CMP_HIDDEN_PHOTONS, c->opts.threads, &share, err, errlen);
+    if ((st = rd_comm_agree(cmp_ranks(c), st, "compare: the hidden-light check", err, errlen)) != RD_OK) return st;
+    c->sum.hidden_share = share;
+    c->photon_ref = share > RD_CMP_HIDDEN_SHARE && !c->opts.reference;
+    snprintf(c->sum.ref_method, sizeof c->sum.ref_method, "%s",
+             c->opts.reference ? "given" : c->photon_ref ? "guided, march.ls photons, progressive passes" : "delta");
+    if (c->photon_ref) {
+        c->ref_scene = *s;
+        c->ref_scene.march.ls = RD_LS_PHOTONS;
+        c->ref_scene.photons.progressive = 1;
+        c->ref_scene.settings.select = RD_SELECT_OFF;
+    }
+    return RD_OK;
+}
+
 /* The reference: given, else cached, else rendered (rd_compare.h). */
 rd_status rd_cmp_reference_get(rd_comparison *c, const rd_scene *s, char *err, size_t errlen)
 {
     const rd_cmp_opts *o = &c->opts;
     const rd_comm *comm = cmp_ranks(c);
+    rd_status hs = photon_reference(c, s, err, errlen);
+    if (hs) return hs;
     if (o->reference) /* several ranks: each reads the file, as it loads the scene */
         return rd_comm_agree(comm, reference_given(c, err, errlen), "compare: the reference", err, errlen);
-    int auto_ref = rd_cmp_reference_is_auto(o);
-    c->ref_key = reference_key(s, auto_ref, auto_ref ? 0 : o->ref_spp, auto_ref ? 0.0 : o->ref_time, REF_SEED(o->seed));
+    /* The photon reference is one render (its passes restart in every render, so parts would
+     * not pool into a longer one): RD_CMP_REF_FIRST x a run's budget unless --ref-spp or
+     * --ref-time say otherwise, never extended. */
+    int auto_ref = rd_cmp_reference_is_auto(o) && !c->photon_ref;
+    c->ref_key = reference_key(c->photon_ref ? &c->ref_scene : s, auto_ref, c->photon_ref,
+                               auto_ref ? 0 : o->ref_spp, auto_ref ? 0.0 : o->ref_time, REF_SEED(o->seed));
     c->ref_base[0] = 0;
     if (o->cache_dir) {
         snprintf(c->ref_base, sizeof c->ref_base, "%.900s/reference-%016llx", o->cache_dir, (unsigned long long)c->ref_key);
@@ -376,8 +418,11 @@ rd_status rd_cmp_reference_get(rd_comparison *c, const rd_scene *s, char *err, s
          * methods; the rest, if the rule asks for it, after the runs (rd_cmp_reference_extend). */
         if (o->equal_spp) st = reference_grow(c, s, (int)fmin(RD_CMP_REF_FIRST * o->budget, 1 << 24), 0.0, err, errlen);
         else st = reference_grow(c, s, 0, RD_CMP_REF_FIRST * o->budget, err, errlen);
+    } else if (c->photon_ref && rd_cmp_reference_is_auto(o)) {
+        if (o->equal_spp) st = reference_fixed(c, s, (int)fmin(RD_CMP_REF_FIRST * o->budget, 1 << 24), 0.0, err, errlen);
+        else st = reference_fixed(c, s, 0, RD_CMP_REF_FIRST * o->budget, err, errlen);
     } else {
-        st = reference_fixed(c, s, err, errlen);
+        st = reference_fixed(c, s, o->ref_spp, o->ref_time, err, errlen);
     }
     if (st) return st;
     if (c->sum.cancelled || !c->ref.rgb) {

@@ -360,6 +360,9 @@ static rd_status write_json(const rd_comparison *c, const rd_scene *s, const cha
     cJSON *ref = cJSON_AddObjectToObject(j, "reference");
     cJSON_AddStringToObject(ref, "source", S->ref_source);
     cJSON_AddStringToObject(ref, "origin", S->ref_rendered == 1 ? "rendered" : S->ref_rendered == 2 ? "cache" : "given");
+    cJSON_AddStringToObject(ref, "method", S->ref_method);
+    /* the share of the media's light on L S+ paths (docs/compare.md, "Light only photons find") */
+    cJSON_AddNumberToObject(ref, "hidden_light_share", S->hidden_share);
     json_num(ref, "spp", S->ref_rendered ? S->ref_spp : NAN);
     json_num(ref, "seconds", S->ref_rendered ? S->ref_seconds : NAN);
     json_num(ref, "variance", S->ref_var);
@@ -368,6 +371,7 @@ static rd_status write_json(const rd_comparison *c, const rd_scene *s, const cha
      * is at most variance_limit of the best MSE, within cap_seconds), "spp", "time",
      * "spp+time" (--ref-spp / --ref-time) or "given". */
     cJSON_AddStringToObject(ref, "decided_by", !S->ref_rendered ? "given" : S->ref_auto ? "rule"
+                                               : o->ref_spp <= 0 && o->ref_time <= 0 ? "budget"
                                                : o->ref_spp > 0 && o->ref_time > 0 ? "spp+time"
                                                : o->ref_spp > 0 ? "spp" : "time");
     json_num(ref, "variance_share", S->ref_share);
@@ -449,7 +453,7 @@ void rd_compare_print_table(const rd_comparison *c, FILE *out)
     }
     const rd_cmp_summary *S = &c->sum;
     fprintf(out, "reference: %s", S->ref_source);
-    if (S->ref_rendered) fprintf(out, " (delta, %.6g spp, %.1f s%s)", S->ref_spp, S->ref_seconds,
+    if (S->ref_rendered) fprintf(out, " (%s, %.6g spp, %.1f s%s)", S->ref_method, S->ref_spp, S->ref_seconds,
                                  S->ref_extended ? ", extended after the runs" : "");
     if (isfinite(S->ref_var)) fprintf(out, "; variance %.3g", S->ref_var);
     if (isfinite(S->ref_share)) fprintf(out, " = %.0f%% of the best MSE", 100.0 * S->ref_share);
@@ -458,6 +462,8 @@ void rd_compare_print_table(const rd_comparison *c, FILE *out)
     /* The summary in words (summary.c). */
     char line[512];
     rd_cmp_verdict(S, line, sizeof line);
+    if (line[0]) fprintf(out, "%s\n", line);
+    rd_cmp_hidden_note(S, line, sizeof line);
     if (line[0]) fprintf(out, "%s\n", line);
     for (int i = 0; i < S->n_rows; i++) {
         rd_cmp_sentence(S, i, line, sizeof line);

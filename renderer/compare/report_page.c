@@ -99,6 +99,12 @@ static void page_summary(rd_text *b, const rd_comparison *c)
         sb_escape(b, line);
         rd_text_printf(b, "</b></p>\n");
     }
+    rd_cmp_hidden_note(S, line, sizeof line);
+    if (line[0]) {
+        rd_text_printf(b, "<p id=hidden-light>");
+        sb_escape(b, line);
+        rd_text_printf(b, "</p>\n");
+    }
     rd_text_printf(b, "<ul>\n");
     for (int i = 0; i < S->n_rows; i++) {
         rd_cmp_sentence(S, i, line, sizeof line);
@@ -130,7 +136,7 @@ static void page_head(rd_text *b, const rd_comparison *c, const rd_scene *s)
     }
     rd_text_printf(b, "<p>Reference: ");
     sb_escape(b, S->ref_source);
-    if (S->ref_rendered) rd_text_printf(b, " (delta, %.6g spp, %.1f s%s%s)", S->ref_spp, S->ref_seconds,
+    if (S->ref_rendered) rd_text_printf(b, " (%s, %.6g spp, %.1f s%s%s)", S->ref_method, S->ref_spp, S->ref_seconds,
                                         S->ref_rendered == 2 ? ", from the cache" : "",
                                         S->ref_extended ? ", extended after the runs" : "");
     if (S->ref_auto)

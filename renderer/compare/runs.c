@@ -496,7 +496,7 @@ rd_status rd_compare_run(const rd_scene *scene, const rd_cmp_opts *opts, rd_comp
         free(local);
         if (st != RD_OK) goto bad;
         make_rows(c);
-        c->sum.ref_auto = rd_cmp_reference_is_auto(opts);
+        c->sum.ref_auto = rd_cmp_reference_is_auto(opts) && !c->photon_ref; /* (reference.c) */
         c->planned_seconds = 0.0;
         if (c->sum.ref_auto && c->sum.n_rows && (st = reference_settle(c, scene, err, errlen)) != RD_OK) goto bad;
     }

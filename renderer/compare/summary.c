@@ -144,3 +144,20 @@ void rd_cmp_verdict(const rd_cmp_summary *S, char *buf, size_t n)
     ratio_text(win->efficiency / S->rows[next].efficiency, ratio, sizeof ratio);
     snprintf(buf, n, "winner: %s, %s the efficiency of the next best (%s)", win->label, ratio, S->rows[next].label);
 }
+
+void rd_cmp_hidden_note(const rd_cmp_summary *S, char *buf, size_t n)
+{
+    buf[0] = 0;
+    if (!(S->hidden_share > RD_CMP_HIDDEN_SHARE)) return;
+    const char *ref = !strcmp(S->ref_method, "given")
+                          ? "check that the given reference holds it (a delta render does not)"
+                      : !strcmp(S->ref_method, "delta")
+                          ? "the reference, rendered by delta, lacks it"
+                          : "so the reference is a consistent photon render (guided, march.ls photons, "
+                            "progressive passes), whose own error is variance and a kernel bias that falls as it runs";
+    snprintf(buf, n,
+             "note: %.3g%% of the light scattered in the media leaves a point, spot or directional light "
+             "through glass first (L S+ paths): delta, guided-unbiased and guided with an unbiased "
+             "march.ls cannot render it, so their error includes its absence as bias; %s",
+             100.0 * S->hidden_share, ref);
+}
