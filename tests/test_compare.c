@@ -395,31 +395,15 @@ Test(compare, ctrl_c_writes_the_report_of_the_runs_that_finished, .timeout = 120
 
 /* ---- Light delta cannot render (issue 21 item 6; docs/compare.md, "Light only photons find") */
 
-/* A 16x16 view of a fog box (the scene-wide medium) with a glass ball of vacuum at its centre
- * (the icosphere, radius 0.3) and `light` at the ball's centre. */
-static rd_scene *lit_through_glass(const char *name, const char *light)
-{
-    char json[2048], cwd[1024];
-    cr_assert(getcwd(cwd, sizeof cwd) != NULL);
-    snprintf(json, sizeof json,
-             "{\"camera\":{\"position\":[0,0,4],\"look_at\":[0,0,0],\"resolution\":[16,16]},\"medium\":\"fog\","
-             "\"media\":[{\"name\":\"fog\",\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
-             "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1,\"albedo\":0.9}],"
-             "\"shapes\":[{\"name\":\"ball\",\"file\":\"%s/scenes/data/icosphere-3.obj\",\"transform\":{\"scale\":0.3},"
-             "\"material\":{\"type\":\"dielectric\",\"ior\":1.5},\"inside\":null,\"outside\":\"fog\"}],"
-             "\"lights\":[%s],\"photons\":{\"count\":20000}}",
-             cwd, light);
-    return rt_scene(name, json);
-}
-
 Test(compare, light_only_photons_find_gets_a_photon_reference_and_a_note, .timeout = 180)
 {
-    /* A point light inside the glass ball: all of the fog's light leaves it through glass
+    /* rt_glass_ball_in_fog at 16x16 with a point light inside the glass ball: all of the fog's
+     * light leaves it through glass
      * first, so delta renders black and a delta reference would be black too; the comparison
      * must measure the share (1), render the reference with photons (it is lit), find delta's
      * error all bias (its runs are identical: zero variance) and say so. */
     static const char *const only_delta[] = {"delta"};
-    rd_scene *s = lit_through_glass("hidden_cmp.json", "{\"type\":\"point\",\"position\":[0,0,0],\"intensity\":2}");
+    rd_scene *s = rt_glass_ball_in_fog("hidden_cmp.json", "{\"type\":\"point\",\"position\":[0,0,0],\"intensity\":2}", 16);
     rd_cmp_opts o = {.methods = only_delta, .n_methods = 1, .equal_spp = 1, .budget = 2, .runs = 2,
                      .seed = 5, .threads = 2, .ref_spp = 8};
     rd_comparison *c = NULL;
@@ -439,7 +423,7 @@ Test(compare, light_only_photons_find_gets_a_photon_reference_and_a_note, .timeo
 
     /* A sphere light there instead: paths reach it, nothing is hidden, delta renders the
      * reference and the note is empty. */
-    s = lit_through_glass("seen_cmp.json", "{\"type\":\"sphere\",\"center\":[0,0,0],\"radius\":0.05,\"radiance\":20}");
+    s = rt_glass_ball_in_fog("seen_cmp.json", "{\"type\":\"sphere\",\"center\":[0,0,0],\"radius\":0.05,\"radiance\":20}", 16);
     cr_assert(rd_compare_run(s, &o, &c, err, sizeof err) == RD_OK, "%s", err);
     S = rd_comparison_summary(c);
     cr_expect(S->hidden_share == 0.0 && strcmp(S->ref_method, "delta") == 0, "share %g, reference by %s",

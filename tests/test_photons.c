@@ -584,35 +584,18 @@ Test(photons, emission_spot_light_follows_its_falloff)
 
 /* ---- Light that only L S+ paths carry (rd_hidden_light; compare, issue 21 item 6) ---------- */
 
-/* A fog box [-1, 1]^3 (the scene-wide medium) with a glass ball (the icosphere, radius 0.3,
- * vacuum inside) at the origin and one light given by `light`. */
-static rd_scene *ball_in_fog(const char *name, const char *light)
-{
-    char json[2048], cwd[1024];
-    cr_assert(getcwd(cwd, sizeof cwd) != NULL);
-    snprintf(json, sizeof json,
-             "{\"camera\":{\"position\":[0,0,5],\"look_at\":[0,0,0],\"resolution\":[4,4]},\"medium\":\"fog\","
-             "\"media\":[{\"name\":\"fog\",\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
-             "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1,\"albedo\":0.9}],"
-             "\"shapes\":[{\"name\":\"ball\",\"file\":\"%s/scenes/data/icosphere-3.obj\",\"transform\":{\"scale\":0.3},"
-             "\"material\":{\"type\":\"dielectric\",\"ior\":1.5},\"inside\":null,\"outside\":\"fog\"}],"
-             "\"lights\":[%s]}",
-             cwd, light);
-    return rt_scene(name, json);
-}
-
 Test(photons, hidden_light_is_what_leaves_a_delta_light_through_glass_first, .timeout = 60)
 {
     char err[RD_ERRLEN];
     double share;
     /* A point light inside the ball: every photon meets the glass before any fog, so all of the
      * light scattered in the fog is on L S+ paths: the share is 1 (to rounding). */
-    rd_scene *s = ball_in_fog("hidden_inside.json", "{\"type\":\"point\",\"position\":[0,0,0],\"intensity\":1}");
+    rd_scene *s = rt_glass_ball_in_fog("hidden_inside.json", "{\"type\":\"point\",\"position\":[0,0,0],\"intensity\":1}", 4);
     cr_assert(rd_hidden_light(s, 20000, 1, &share, err, sizeof err) == RD_OK, "%s", err);
     cr_expect(fabs(share - 1.0) < 1e-9, "point light inside the glass ball: share %.12f, expected 1", share);
     rd_scene_free(s);
     /* A sphere light there instead: paths can hit it, so nothing is hidden (no trace). */
-    s = ball_in_fog("hidden_sphere.json", "{\"type\":\"sphere\",\"center\":[0,0,0],\"radius\":0.05,\"radiance\":1}");
+    s = rt_glass_ball_in_fog("hidden_sphere.json", "{\"type\":\"sphere\",\"center\":[0,0,0],\"radius\":0.05,\"radiance\":1}", 4);
     cr_assert(rd_hidden_light(s, 20000, 1, &share, err, sizeof err) == RD_OK, "%s", err);
     cr_expect(share == 0.0, "sphere light inside the ball: share %g, expected 0", share);
     rd_scene_free(s);
@@ -622,7 +605,7 @@ Test(photons, hidden_light_is_what_leaves_a_delta_light_through_glass_first, .ti
      * hidden, and if a hidden photon scatters about as much power in the fog as any other, so
      * is the share. It is asserted within a factor of two of that (measured: 0.0296; a flag
      * set at any specular event, or never, gives 0.064 or 0). */
-    s = ball_in_fog("hidden_beside.json", "{\"type\":\"point\",\"position\":[0.7,0,0],\"intensity\":1}");
+    s = rt_glass_ball_in_fog("hidden_beside.json", "{\"type\":\"point\",\"position\":[0.7,0,0],\"intensity\":1}", 4);
     cr_assert(rd_hidden_light(s, 20000, 1, &share, err, sizeof err) == RD_OK, "%s", err);
     cr_expect(share > 0.0145 && share < 0.058, "point light beside the ball: share %g, expected about 0.029", share);
     rd_scene_free(s);

@@ -72,6 +72,25 @@ static inline rd_scene *rt_scene(const char *name, const char *json)
     return s;
 }
 
+/* A fog box [-1, 1]^3 (the scene-wide medium, sigma_t 1, albedo 0.9) with a glass ball of
+ * vacuum at its centre (scenes/data/icosphere-3.obj, radius 0.3, ior 1.5) and `light` (one JSON
+ * light), seen at width x width from 4 m: the light-through-glass scenes of
+ * tests/test_photons.c and tests/test_compare.c (rd_hidden_light). Run from the repository root. */
+static inline rd_scene *rt_glass_ball_in_fog(const char *name, const char *light, int width)
+{
+    char json[2048], cwd[1024];
+    cr_assert(getcwd(cwd, sizeof cwd) != NULL);
+    snprintf(json, sizeof json,
+             "{\"camera\":{\"position\":[0,0,4],\"look_at\":[0,0,0],\"resolution\":[%d,%d]},\"medium\":\"fog\","
+             "\"media\":[{\"name\":\"fog\",\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
+             "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1,\"albedo\":0.9}],"
+             "\"shapes\":[{\"name\":\"ball\",\"file\":\"%s/scenes/data/icosphere-3.obj\",\"transform\":{\"scale\":0.3},"
+             "\"material\":{\"type\":\"dielectric\",\"ior\":1.5},\"inside\":null,\"outside\":\"fog\"}],"
+             "\"lights\":[%s],\"photons\":{\"count\":20000}}",
+             width, width, cwd, light);
+    return rt_scene(name, json);
+}
+
 /* 1 when two .guide files' bytes (a, na; b, nb) are the same but for what a bake's clock puts
  * there: the bake seconds in the header (offset 112, docs/guide-grid.md) and so the checksum
  * of every byte before the end (the last 8). Two bakes of one map are equal so, never byte for
