@@ -18,7 +18,8 @@
 #
 # Usage: scripts/make-gallery.sh [options] [NAME...]     (default: every scene in scenes/)
 #   --budget B     seconds per run, the guided bakes included (default 10)
-#   --ref-time R   seconds of the delta reference (default 60)
+#   --ref-time R   seconds of the reference (default 60; delta's, or a photon render where delta
+#                  cannot render the light: docs/compare.md, "Light only photons find")
 #   --bin PATH     the photonmarch binary (default build/photonmarch; built with make if stale)
 #   --force        render again even when out/gallery/NAME holds this very comparison
 #   --table-only   render nothing: rebuild the pictures and tables from out/gallery/
@@ -195,7 +196,7 @@ section() {
     done
     w=$(jq .width "$m"); h=$(jq .height "$m")
     dw=$((w * 2))
-    echo "| delta | guided | guided-unbiased | reference (delta, $(num .reference.seconds "$m") s, $(spp .reference.spp "$m") spp) |"
+    echo "| delta | guided | guided-unbiased | reference ($(jq -r '.reference.method // "delta"' "$m"), $(num .reference.seconds "$m") s, $(spp .reference.spp "$m") spp) |"
     echo "|---|---|---|---|"
     echo "|$(for who in "${WHO[@]}" reference; do
         printf ' <img src="images/gallery/%s-%s.png" width="%d" alt="%s: %s"> |' "$name" "$who" "$dw" "$name" "$who"

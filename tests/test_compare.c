@@ -419,6 +419,23 @@ Test(compare, light_only_photons_find_gets_a_photon_reference_and_a_note, .timeo
     rd_cmp_hidden_note(S, note, sizeof note);
     cr_expect(strstr(note, "100% of the light") != NULL && strstr(note, "L S+") != NULL, "%s", note);
     rd_comparison_free(c);
+
+    /* The default photon reference: 10x the budget (equal spp: 10 and 20 spp), cached under a
+     * key of its limits, so a comparison with another budget renders its own and one with the
+     * same budget reads it back. */
+    char cache[256];
+    snprintf(cache, sizeof cache, "%s/hidden-cache", rt_tmpdir());
+    const int budgets[3] = {1, 2, 2}, rendered[3] = {1, 1, 2};
+    for (int k = 0; k < 3; k++) {
+        rd_cmp_opts d = {.methods = only_delta, .n_methods = 1, .equal_spp = 1, .budget = budgets[k], .runs = 1,
+                         .seed = 5, .threads = 2, .cache_dir = cache};
+        cr_assert(rd_compare_run(s, &d, &c, err, sizeof err) == RD_OK, "%s", err);
+        S = rd_comparison_summary(c);
+        cr_expect(S->ref_rendered == rendered[k] && S->ref_spp == 10 * budgets[k],
+                  "budget %d: reference %s (1 rendered, 2 cache), %g spp", budgets[k],
+                  S->ref_rendered == 1 ? "rendered" : "from the cache", S->ref_spp);
+        rd_comparison_free(c);
+    }
     rd_scene_free(s);
 
     /* A sphere light there instead: paths reach it, nothing is hidden, delta renders the

@@ -514,12 +514,15 @@ double rd_phase_hg_cb(double cos_theta, void *user)
 rd_status rd_hidden_light(const rd_scene *s, size_t count, int threads, double *share, char *err, size_t errlen)
 {
     *share = 0.0;
-    int glass = 0, delta = 0;
+    int glass = 0;
+    double delta_power = 0.0, R = rd_scene_radius(s);
     for (int i = 0; i < s->n_shapes; i++) glass |= s->shapes[i].material.kind == RD_MAT_DIELECTRIC;
     for (int i = 0; i < s->n_lights; i++)
-        delta |= s->lights[i].kind == RD_LIGHT_POINT || s->lights[i].kind == RD_LIGHT_SPOT ||
-                 s->lights[i].kind == RD_LIGHT_DIRECTIONAL;
-    if (!glass || !delta || s->n_media == 0) return RD_OK; /* no L S+ path into a medium */
+        if (s->lights[i].kind == RD_LIGHT_POINT || s->lights[i].kind == RD_LIGHT_SPOT ||
+            s->lights[i].kind == RD_LIGHT_DIRECTIONAL)
+            delta_power += rd_light_power(&s->lights[i], R);
+    /* no L S+ path into a medium (and no trace: one of lights that emit nothing would fail) */
+    if (!glass || !(delta_power > 0.0) || s->n_media == 0) return RD_OK;
     pm_map *map = pm_map_new();
     if (!map) {
         snprintf(err, errlen, "%s: out of memory for the photon map of the hidden-light check", s->path);

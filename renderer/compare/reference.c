@@ -79,9 +79,14 @@ static uint64_t reference_key(const rd_scene *s, int auto_ref, int photons, int 
     uint64_t h = auto_ref ? fnv1a(0xcbf29ce484222325ULL, "photonmarch reference v2 stream", 31)
                           : fnv1a(0xcbf29ce484222325ULL, "photonmarch reference v2 fixed", 30);
     if (photons) { /* the photon reference: its method's settings too (photon_reference) */
+        const rd_march_settings *m = &s->march;
+        const rd_photon_settings *p = &s->photons;
         h = fnv1a(h, "photons", 7);
-        h = fnv1a(h, &s->march, sizeof s->march);
-        h = fnv1a(h, &s->photons, sizeof s->photons);
+        int mi[6] = {(int)m->ls, m->samples, m->min_samples, m->max_samples, m->detail, p->pass_spp};
+        h = fnv1a(h, mi, sizeof mi);
+        h = hash_d(hash_d(hash_d(h, m->alpha), m->paths), p->alpha);
+        uint64_t pu[4] = {p->count, p->pass_count, (uint64_t)p->max_depth, p->seed};
+        h = fnv1a(h, pu, sizeof pu);
     }
     h = fnv1a(h, &s->bake_key, sizeof s->bake_key);
     const rd_camera *c = &s->camera;
@@ -142,8 +147,8 @@ static void reference_save(rd_comparison *c)
     const char *base = c->ref_base;
     char path[1200], msg[RD_ERRLEN], meta[256];
     snprintf(path, sizeof path, "%.1000s.exr", base);
-    int n = snprintf(meta, sizeof meta, "{\"key\": \"%016llx\", \"method\": \"delta\", \"spp\": %.10g, \"seconds\": %.6g}\n",
-                     (unsigned long long)c->ref_key, c->sum.ref_spp, c->sum.ref_seconds);
+    int n = snprintf(meta, sizeof meta, "{\"key\": \"%016llx\", \"method\": \"%s\", \"spp\": %.10g, \"seconds\": %.6g}\n",
+                     (unsigned long long)c->ref_key, c->sum.ref_method, c->sum.ref_spp, c->sum.ref_seconds);
     if (rd_make_parent_dirs(path, msg, sizeof msg) == RD_OK && rd_image_write_exr(path, &c->ref, msg, sizeof msg) == RD_OK) {
         snprintf(path, sizeof path, "%.1000s-stderr.exr", base);
         if (rd_image_write_exr(path, &c->ref_se, msg, sizeof msg) == RD_OK) {
@@ -316,6 +321,10 @@ static rd_status reference_fixed(rd_comparison *c, const rd_scene *s, int spp, d
     ref_progress_ctx pc = {c, 0, spp, 0.0, secs > 0 ? secs : 0.0};
     rd_render_result res;
     rd_status st = reference_part(c, s, 0, spp, secs, &pc, &res, err, errlen);
+    if (st == RD_ERR_CANCELLED) { /* Ctrl-C in the photon reference's bake or photon pass */
+        c->sum.cancelled = 1;
+        return RD_OK;
+    }
     if (st) return st;
     if (res.stats.cancelled || res.stats.spp < 1) {
         rd_render_result_free(&res);
@@ -369,7 +378,9 @@ static rd_status photon_reference(rd_comparison *c, const rd_scene *s, char *err
     if (c->photon_ref) {
         c->ref_scene = *s;
         c->ref_scene.march.ls = RD_LS_PHOTONS;
+        c->ref_scene.photons.store_direct = 1; /* no NEE: every collision's photon, first ones too */
         c->ref_scene.photons.progressive = 1;
+        c->ref_scene.photons.pass_spp = 1; /* a pixel's samples on independent passes: its stderr holds */
         c->ref_scene.settings.select = RD_SELECT_OFF;
     }
     return RD_OK;
@@ -388,8 +399,14 @@ rd_status rd_cmp_reference_get(rd_comparison *c, const rd_scene *s, char *err, s
      * not pool into a longer one): RD_CMP_REF_FIRST x a run's budget unless --ref-spp or
      * --ref-time say otherwise, never extended. */
     int auto_ref = rd_cmp_reference_is_auto(o) && !c->photon_ref;
-    c->ref_key = reference_key(c->photon_ref ? &c->ref_scene : s, auto_ref, c->photon_ref,
-                               auto_ref ? 0 : o->ref_spp, auto_ref ? 0.0 : o->ref_time, REF_SEED(o->seed));
+    int ref_spp = o->ref_spp;
+    double ref_time = o->ref_time;
+    if (c->photon_ref && rd_cmp_reference_is_auto(o)) { /* its limits come from the budget */
+        ref_spp = o->equal_spp ? (int)fmin(RD_CMP_REF_FIRST * o->budget, 1 << 24) : 0;
+        ref_time = o->equal_spp ? 0.0 : RD_CMP_REF_FIRST * o->budget;
+    }
+    c->ref_key = reference_key(c->photon_ref ? &c->ref_scene : s, auto_ref, c->photon_ref, auto_ref ? 0 : ref_spp,
+                               auto_ref ? 0.0 : ref_time, REF_SEED(o->seed));
     c->ref_base[0] = 0;
     if (o->cache_dir) {
         snprintf(c->ref_base, sizeof c->ref_base, "%.900s/reference-%016llx", o->cache_dir, (unsigned long long)c->ref_key);
@@ -418,11 +435,8 @@ rd_status rd_cmp_reference_get(rd_comparison *c, const rd_scene *s, char *err, s
          * methods; the rest, if the rule asks for it, after the runs (rd_cmp_reference_extend). */
         if (o->equal_spp) st = reference_grow(c, s, (int)fmin(RD_CMP_REF_FIRST * o->budget, 1 << 24), 0.0, err, errlen);
         else st = reference_grow(c, s, 0, RD_CMP_REF_FIRST * o->budget, err, errlen);
-    } else if (c->photon_ref && rd_cmp_reference_is_auto(o)) {
-        if (o->equal_spp) st = reference_fixed(c, s, (int)fmin(RD_CMP_REF_FIRST * o->budget, 1 << 24), 0.0, err, errlen);
-        else st = reference_fixed(c, s, 0, RD_CMP_REF_FIRST * o->budget, err, errlen);
     } else {
-        st = reference_fixed(c, s, o->ref_spp, o->ref_time, err, errlen);
+        st = reference_fixed(c, s, ref_spp, ref_time, err, errlen);
     }
     if (st) return st;
     if (c->sum.cancelled || !c->ref.rgb) {

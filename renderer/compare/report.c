@@ -368,8 +368,9 @@ static rd_status write_json(const rd_comparison *c, const rd_scene *s, const cha
     json_num(ref, "variance", S->ref_var);
     cJSON_AddBoolToObject(ref, "too_noisy", S->ref_too_noisy);
     /* How the reference was decided (docs/compare.md): "rule" (the default: until its variance
-     * is at most variance_limit of the best MSE, within cap_seconds), "spp", "time",
-     * "spp+time" (--ref-spp / --ref-time) or "given". */
+     * is at most variance_limit of the best MSE, within cap_seconds), "budget" (the photon
+     * reference: 10x a run's budget), "spp", "time", "spp+time" (--ref-spp / --ref-time) or
+     * "given". */
     cJSON_AddStringToObject(ref, "decided_by", !S->ref_rendered ? "given" : S->ref_auto ? "rule"
                                                : o->ref_spp <= 0 && o->ref_time <= 0 ? "budget"
                                                : o->ref_spp > 0 && o->ref_time > 0 ? "spp+time"
