@@ -395,9 +395,11 @@ static rd_status write_json(const rd_comparison *c, const rd_scene *s, const cha
     else cJSON_AddNullToObject(sm, "baseline");
     if (w >= 0) cJSON_AddStringToObject(sm, "winner", c->rows[w].label);
     else cJSON_AddNullToObject(sm, "winner");
-    char line[512];
+    char line[1024];
     rd_cmp_verdict(S, line, sizeof line);
     cJSON_AddStringToObject(sm, "verdict", line);
+    rd_cmp_hidden_note(S, line, sizeof line); /* "" unless light only photons find */
+    cJSON_AddStringToObject(sm, "note", line);
     cJSON *lines = cJSON_AddArrayToObject(sm, "lines");
     for (int i = 0; i < S->n_rows; i++) {
         rd_cmp_sentence(S, i, line, sizeof line);
@@ -461,7 +463,7 @@ void rd_compare_print_table(const rd_comparison *c, FILE *out)
     fprintf(out, "%s\n", S->ref_too_noisy ? "; TOO NOISY to rank the methods (see the report)" : "");
     if (S->ranks > 1) fprintf(out, "ranks: %d (%s): each run on one, the reference on all\n", S->ranks, S->hosts);
     /* The summary in words (summary.c). */
-    char line[512];
+    char line[1024];
     rd_cmp_verdict(S, line, sizeof line);
     if (line[0]) fprintf(out, "%s\n", line);
     rd_cmp_hidden_note(S, line, sizeof line);

@@ -91,7 +91,7 @@ static const char *page_js =
 static void page_summary(rd_text *b, const rd_comparison *c)
 {
     const rd_cmp_summary *S = &c->sum;
-    char line[512];
+    char line[1024];
     rd_cmp_verdict(S, line, sizeof line);
     rd_text_printf(b, "<section id=summary>\n");
     if (line[0]) {

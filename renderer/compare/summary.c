@@ -153,9 +153,8 @@ void rd_cmp_hidden_note(const rd_cmp_summary *S, char *buf, size_t n)
                           ? "check that the given reference holds it (a delta render does not)"
                       : !strcmp(S->ref_method, "delta")
                           ? "the reference, rendered by delta, lacks it"
-                          : "so the reference is a consistent photon render (guided, march.ls photons, "
-                            "progressive passes), whose own error is variance and a kernel bias that falls as it runs "
-                            "(it too lacks what only a diffuse surface shows, where the marcher continues as delta)";
+                          : "the reference is a photon render (guided, march.ls photons, progressive passes): "
+                            "its error is variance and a kernel bias that falls as it runs";
     snprintf(buf, n,
              "note: %.3g%% of the light scattered in the media leaves a point, spot or directional light "
              "by way of glass first (refracted or reflected: L S+ paths): delta, guided-unbiased and guided with an unbiased "
