@@ -73,6 +73,9 @@ uint64_t rd_scene_seed(const rd_scene *scene);
 const char *rd_scene_method(const rd_scene *scene);
 double rd_scene_exposure(const rd_scene *scene); /* camera.exposure, for the PNG preview */
 int rd_scene_spp_given(const rd_scene *scene);    /* 1 when settings.spp is in the file */
+/* 1 when march.ls takes in-scattered light from photons (photons, nee+photons, nee+guide,
+ * nee+beams), so that the marchers find light that only photons find (rd_hidden_light). */
+int rd_scene_march_uses_photons(const rd_scene *scene);
 
 /* ---- Methods ----------------------------------------------------------------------------- *
  * The render methods form one table (renderer/integrators/methods.c); --help, settings.method,

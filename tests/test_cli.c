@@ -236,7 +236,8 @@ Test(cli, info_names_the_light_only_photons_find, .timeout = 120)
 {
     /* scenes/glass-fog.json: a spot above a glass ball of fog; most of the fog's light comes
      * through the glass (rd_hidden_light, tests/test_photons.c checks the share), and info says
-     * so; scenes/default.json has no glass and no such line. */
+     * so; scenes/default.json has no glass and no such line. render notes it for delta, which
+     * cannot render that light, not for guided with photons, which can. */
     const char *bin = getenv("PHOTONMARCH_BIN");
     cr_assert(bin != NULL);
     char out[8192], err[4096];
@@ -246,6 +247,16 @@ Test(cli, info_names_the_light_only_photons_find, .timeout = 120)
     char *plain[] = {(char *)bin, "info", "scenes/default.json", NULL};
     cr_assert(rt_run(plain, out, sizeof out, err, sizeof err, NULL) == 0, "%s", err);
     cr_expect(strstr(out, "\nhidden ") == NULL, "%s", out);
+    char exr[256];
+    snprintf(exr, sizeof exr, "%s/hidden/a.exr", rt_tmpdir());
+    char *blind[] = {(char *)bin, "render", "scenes/glass-fog.json", "--method", "delta", "--spp", "1",
+                     "--set", "camera.resolution=[16,12]", "-o", exr, NULL};
+    cr_assert(rt_run(blind, out, sizeof out, err, sizeof err, NULL) == 0, "%s", err);
+    cr_expect(strstr(err, "note: ") != NULL && strstr(err, "delta cannot render it") != NULL, "%s", err);
+    char *sees[] = {(char *)bin, "render", "scenes/glass-fog.json", "--method", "guided", "--spp", "1",
+                    "--set", "camera.resolution=[16,12]", "--set", "march.ls=nee+photons", "--no-cache", "-o", exr, NULL};
+    cr_assert(rt_run(sees, out, sizeof out, err, sizeof err, NULL) == 0, "%s", err);
+    cr_expect(strstr(err, "note: ") == NULL, "%s", err);
 }
 
 Test(cli, failed_run_keeps_the_previous_image, .timeout = 120)

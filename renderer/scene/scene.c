@@ -36,6 +36,11 @@ double rd_scene_time_limit(const rd_scene *s) { return s->settings.time_limit; }
 uint64_t rd_scene_seed(const rd_scene *s) { return s->settings.seed; }
 const char *rd_scene_method(const rd_scene *s) { return s->settings.method; }
 int rd_scene_spp_given(const rd_scene *s) { return s->settings.spp_given; }
+int rd_scene_march_uses_photons(const rd_scene *s)
+{
+    rd_ls_kind k = s->march.ls;
+    return k == RD_LS_PHOTONS || k == RD_LS_NEE_PHOTONS || k == RD_LS_NEE_GUIDE || k == RD_LS_NEE_BEAMS;
+}
 double rd_scene_exposure(const rd_scene *s) { return s->camera.exposure; }
 
 double rd_scene_radius(const rd_scene *s)
