@@ -76,6 +76,8 @@ int rd_scene_spp_given(const rd_scene *scene);    /* 1 when settings.spp is in t
 /* 1 when march.ls takes in-scattered light from photons (photons, nee+photons, nee+guide,
  * nee+beams), so that the marchers find light that only photons find (rd_hidden_light). */
 int rd_scene_march_uses_photons(const rd_scene *scene);
+/* rd_hidden_light's share, measured when the scene was loaded (after its overrides). */
+double rd_scene_hidden_light(const rd_scene *scene);
 
 /* ---- Methods ----------------------------------------------------------------------------- *
  * The render methods form one table (renderer/integrators/methods.c); --help, settings.method,

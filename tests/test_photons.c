@@ -621,6 +621,22 @@ Test(photons, hidden_light_is_what_leaves_a_delta_light_through_glass_first, .ti
     cr_assert(rd_hidden_light(s, 20000, 1, &share, err, sizeof err) == RD_OK, "%s", err);
     cr_expect(share > 0.0 && share < 0.0296, "sphere light inside, point light beside: share %g", share);
     rd_scene_free(s);
+    /* The marchers' default source on such a scene (load/load.c): nee+beams with progressive
+     * passes where more than 0.1% of the light is hidden, each unless the scene names it; the
+     * unbiased nee+paths elsewhere. */
+    s = rt_glass_ball_in_fog("hidden_default.json", "{\"type\":\"point\",\"position\":[0,0,0],\"intensity\":1}", 4);
+    cr_expect(s->march.ls == RD_LS_NEE_BEAMS && s->photons.progressive == 1 && rd_scene_hidden_light(s) == s->hidden_share,
+              "hidden light: march.ls %d, progressive %d", (int)s->march.ls, s->photons.progressive);
+    char path[512];
+    snprintf(path, sizeof path, "%s/hidden_default.json", rt_tmpdir());
+    rd_scene_free(s);
+    const rd_override named[] = {{"march.ls", "nee+paths"}};
+    cr_assert(rd_scene_load(&s, path, named, 1, err, sizeof err) == RD_OK, "%s", err);
+    cr_expect(s->march.ls == RD_LS_NEE_PATHS && s->photons.progressive == 0, "march.ls named: kept");
+    rd_scene_free(s);
+    s = rt_glass_ball_in_fog("seen_default.json", "{\"type\":\"sphere\",\"center\":[0,0,0],\"radius\":0.05,\"radiance\":1}", 4);
+    cr_expect(s->march.ls == RD_LS_NEE_PATHS && s->photons.progressive == 0, "nothing hidden: the default nee+paths");
+    rd_scene_free(s);
     /* A point light that emits nothing: no light to hide, and no trace (which would refuse a
      * scene whose lights emit nothing). */
     s = rt_glass_ball_in_fog("hidden_dark.json", "{\"type\":\"point\",\"position\":[0,0,0],\"intensity\":0}", 4);

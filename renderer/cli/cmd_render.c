@@ -57,20 +57,17 @@ static const char *const usage_render =
     "  -q, --quiet       no progress and no summary\n"
     "  -h, --help        this text\n";
 
-/* Light the method cannot render (rd_hidden_light; docs/compare.md, "Light only photons
- * find"): `delta`, `guided-unbiased`, and the marchers with an unbiased march.ls lack the light
- * that leaves a point, spot or directional light by way of glass first. A note on stderr after
- * the render, only for a scene that has some (the check traces photons only when the scene has
- * glass and such a light); a failed check says nothing (it is a note, not the render). */
-static void note_hidden_light(const rd_scene *scene, const char *method, int threads)
+/* Light the method cannot render (rd_hidden_light, measured when the scene was loaded;
+ * docs/compare.md, "Light only photons find"): `delta`, `guided-unbiased`, and the marchers
+ * with an unbiased march.ls lack the light that leaves a point, spot or directional light by way
+ * of glass first. A note on stderr after the render, only for a scene that has some. */
+static void note_hidden_light(const rd_scene *scene, const char *method)
 {
     int blind = !strcmp(method, "delta") || !strcmp(method, "guided-unbiased") || !rd_scene_march_uses_photons(scene);
-    double share = 0.0;
-    char err[RD_ERRLEN];
-    if (!blind || rd_hidden_light(scene, RD_CMP_HIDDEN_PHOTONS, threads, &share, err, sizeof err) != RD_OK) return;
-    if (share > RD_CMP_HIDDEN_SHARE)
+    double share = rd_scene_hidden_light(scene); /* measured at load */
+    if (blind && share > RD_CMP_HIDDEN_SHARE)
         fprintf(stderr, "note: %.3g%% of the light scattered in the media leaves a point, spot or directional light by "
-                        "way of glass first; %s cannot render it (guided with --set march.ls=nee+photons can: "
+                        "way of glass first; %s cannot render it (guided with its default march.ls here, nee+beams, can: "
                         "docs/compare.md, \"Light only photons find\")\n",
                 100.0 * share, method);
 }
@@ -306,7 +303,7 @@ int cli_cmd_render_on(int argc, char **argv, rd_dist *d)
                     rs->collisions / paths, rs->lookups / paths, rs->cancelled ? " [interrupted]" : "",
                     rs->timed_out ? " [time limit]" : "");
             if (rs->invalid) fprintf(stderr, "warning: %llu non-finite samples were dropped\n", (unsigned long long)rs->invalid);
-            note_hidden_light(scene, ro.method, ro.threads);
+            note_hidden_light(scene, ro.method);
             char base[1100];
             snprintf(base, sizeof base, "%.*s", (int)(strlen(outpath) - 4), outpath);
             printf("image  %s\nstderr %s-stderr.exr\npng    %s.png\nreport %s.json\n", outpath, base, base, base);

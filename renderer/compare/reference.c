@@ -11,10 +11,10 @@
  * Light delta cannot render (issue 21 item 6): light that leaves a point, spot or directional
  * light through glass first (L S+ paths) is reached neither by next-event estimation (a shadow
  * ray stops at glass) nor by a path (it cannot hit a delta light). Its share of the light
- * scattered in the media is measured first (rd_hidden_light); above RD_CMP_HIDDEN_SHARE the
- * rendered reference is a consistent photon render instead (photon_reference). */
+ * scattered in the media is measured when the scene is loaded (rd_hidden_light); above
+ * RD_CMP_HIDDEN_SHARE the rendered reference is a consistent photon render instead
+ * (photon_reference). */
 #include "compare/rd_compare.h"
-#include "bake/rd_photons.h"
 
 #include <ctype.h>
 #include <math.h>
@@ -362,15 +362,13 @@ int rd_cmp_reference_is_auto(const rd_cmp_opts *o)
     return !o->reference && o->ref_spp <= 0 && o->ref_time <= 0;
 }
 
-/* Light delta cannot render (the head): its share, and the photon reference's scene when a
- * rendered reference must hold it: `guided` with the photon map as its whole source, fresh
+/* Light delta cannot render (the head): its share (measured when the scene was loaded, the same
+ * on every rank), and the photon reference's scene when a rendered reference must hold it: `guided` with the photon map as its whole source, fresh
  * photons every pass with a shrinking radius (consistent), and no tile selection (its `delta`
  * tiles would lack that light again). Every rank traces the same photons (a fixed seed). */
-static rd_status photon_reference(rd_comparison *c, const rd_scene *s, char *err, size_t errlen)
+static void photon_reference(rd_comparison *c, const rd_scene *s)
 {
-    double share = 0.0;
-    rd_status st = rd_hidden_light(s, RD_CMP_HIDDEN_PHOTONS, c->opts.threads, &share, err, errlen);
-    if ((st = rd_comm_agree(cmp_ranks(c), st, "compare: the hidden-light check", err, errlen)) != RD_OK) return st;
+    double share = rd_scene_hidden_light(s); /* measured at load (load/load.c) */
     c->sum.hidden_share = share;
     c->photon_ref = share > RD_CMP_HIDDEN_SHARE && !c->opts.reference;
     snprintf(c->sum.ref_method, sizeof c->sum.ref_method, "%s",
@@ -383,7 +381,6 @@ static rd_status photon_reference(rd_comparison *c, const rd_scene *s, char *err
         c->ref_scene.photons.pass_spp = 1; /* a pixel's samples on independent passes: its stderr holds */
         c->ref_scene.settings.select = RD_SELECT_OFF;
     }
-    return RD_OK;
 }
 
 /* The reference: given, else cached, else rendered (rd_compare.h). */
@@ -391,8 +388,7 @@ rd_status rd_cmp_reference_get(rd_comparison *c, const rd_scene *s, char *err, s
 {
     const rd_cmp_opts *o = &c->opts;
     const rd_comm *comm = cmp_ranks(c);
-    rd_status hs = photon_reference(c, s, err, errlen);
-    if (hs) return hs;
+    photon_reference(c, s);
     if (o->reference) /* several ranks: each reads the file, as it loads the scene */
         return rd_comm_agree(comm, reference_given(c, err, errlen), "compare: the reference", err, errlen);
     /* The photon reference is one render (its passes restart in every render, so parts would

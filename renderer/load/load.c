@@ -219,6 +219,25 @@ static uint64_t fnv1a(uint64_t h, const void *data, size_t n)
  * cannot change photons or the guide (camera, march, and the render-only settings), printed
  * canonically by cJSON, and the voxel data of every grid medium (so a volume file replaced on
  * disk changes the key). */
+/* Light only photons find (renderer.h rd_hidden_light; docs/compare.md): measured once, when
+ * the scene is loaded. Where it is more than RD_CMP_HIDDEN_SHARE of the media's light, the
+ * marchers' default source is nee+beams with progressive photon passes (consistent), each
+ * unless the scene names it: the default nee+paths is unbiased only for the light it can
+ * sample, and cannot render that light at all. nee+beams, not nee+photons: on glass-fog (a
+ * calibration scene) 131x against 74x `delta`'s efficiency at 10 s (docs/benchmarks.md,
+ * "Session 21"; docs/scene-format.md, march.ls). */
+static rd_status hidden_light_default(const cJSON *root, rd_scene *s, char *err, size_t errlen)
+{
+    rd_status st = rd_hidden_light(s, RD_CMP_HIDDEN_PHOTONS, 0, &s->hidden_share, err, errlen);
+    if (st || !(s->hidden_share > RD_CMP_HIDDEN_SHARE)) return st;
+    const cJSON *march = cJSON_GetObjectItemCaseSensitive(root, "march");
+    const cJSON *photons = cJSON_GetObjectItemCaseSensitive(root, "photons");
+    if (cJSON_GetObjectItemCaseSensitive(march, "ls")) return RD_OK;
+    s->march.ls = RD_LS_NEE_BEAMS;
+    if (!cJSON_GetObjectItemCaseSensitive(photons, "progressive")) s->photons.progressive = 1;
+    return RD_OK;
+}
+
 static uint64_t bake_key(const cJSON *root, const rd_scene *s)
 {
     /* Bump when a bake's result changes for the same scene text (2: Hann-windowed guide). */
@@ -316,6 +335,7 @@ rd_status rd_scene_load(rd_scene **out, const char *path, const rd_override *ov,
         }
     }
     if (st == RD_OK) s->camera_region = rd_scene_region_at(s, s->camera.pos);
+    if (st == RD_OK) st = hidden_light_default(root, s, err, errlen);
     cJSON_Delete(root);
     if (st) {
         if (st == RD_ERR_NOMEM) snprintf(err, errlen, "%s: out of memory", path);

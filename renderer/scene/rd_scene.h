@@ -136,6 +136,8 @@ struct rd_scene {
     rd_march_settings march;
     rd_light_sampler light_sampler; /* lights by power, built by the loader */
     uint64_t bake_key;    /* hash of what a bake depends on (load/ bake key), for the cache */
+    double hidden_share;  /* the media's light on L S+ paths, measured at load (rd_hidden_light:
+                             renderer.h; 0 for a scene without glass and a delta light) */
     int *sphere_lights;   /* indices of the sphere lights (the lights a path can hit) */
     int n_sphere_lights;
     /* Surfaces (issue 14; rd_geom.h, docs/scene-format.md "Shapes"): triangle meshes with a

@@ -36,6 +36,7 @@ double rd_scene_time_limit(const rd_scene *s) { return s->settings.time_limit; }
 uint64_t rd_scene_seed(const rd_scene *s) { return s->settings.seed; }
 const char *rd_scene_method(const rd_scene *s) { return s->settings.method; }
 int rd_scene_spp_given(const rd_scene *s) { return s->settings.spp_given; }
+double rd_scene_hidden_light(const rd_scene *s) { return s->hidden_share; }
 int rd_scene_march_uses_photons(const rd_scene *s)
 {
     rd_ls_kind k = s->march.ls;
