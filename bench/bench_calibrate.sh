@@ -24,6 +24,10 @@ bench_machine_note
 METHOD=${1:?usage: bench/bench_calibrate.sh METHOD 'KEY=VALUE ...' [BUILD]}
 VARIANT=${2:?usage: bench/bench_calibrate.sh METHOD 'KEY=VALUE ...' [BUILD]}
 BUILD=${3:-build}
+# glass-fog (session 21): its spot lights the fog by way of glass, so the marchers' march.ls
+# defaults to nee+beams with progressive passes there (docs/scene-format.md) and `compare`
+# renders a photon reference unless one is given; to measure nee+paths there as before, name
+# it in the variant (march.ls=nee+paths) or leave glass-fog out of SCENES.
 SCENES=${SCENES:-cloud smoke-vdb glass-fog sphere-in-fog hetero-forward noise-block beam-vdb}
 SEEDS=${SEEDS:-1}
 BUDGET=${BUDGET:-10}

@@ -29,6 +29,10 @@ cd "$(dirname "$0")/.."
 . bench/machine.sh
 bench_machine_note
 BIN=${1:-build/photonmarch}
+# glass-fog (session 21): its spot lights the fog by way of glass, so the marchers' march.ls
+# defaults to nee+beams with progressive passes there (docs/scene-format.md) and `compare`
+# renders a photon reference unless one is given; to measure nee+paths there as before, name
+# it in the variant (march.ls=nee+paths) or leave glass-fog out of SCENES.
 SCENES=${SCENES:-cloud smoke-vdb glass-fog sphere-in-fog hetero-forward noise-block}
 SPP=${SPP:-16}
 RES=${RES:-[160,120]}

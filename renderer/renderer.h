@@ -45,7 +45,10 @@ typedef struct rd_baked rd_baked; /* a photon map and its guide grid (rd_bake); 
 typedef struct { const char *key, *value; } rd_override;
 
 /* Load, apply overrides, validate every field, load volume files (paths relative to the scene
- * file's folder), precompute majorants. */
+ * file's folder), precompute majorants. A scene with glass, media and a point, spot or
+ * directional light also gets a short photon trace on all cores (rd_hidden_light, 50000
+ * photons, nothing stored): where it finds light only photons render, march.ls and
+ * photons.progressive default to nee+beams and true (docs/scene-format.md). */
 rd_status rd_scene_load(rd_scene **out, const char *path, const rd_override *ov, int nov,
                         char *err, size_t errlen);
 void rd_scene_free(rd_scene *scene);

@@ -187,7 +187,7 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
             rd_collision col = rd_sample_free_path(s, region, r, t_light, &rng, tc);
             /* The first flight carries direct light: store it only with store_direct, as for
              * the photons, so k-NN and track-length bakes see the same light. */
-            if (o->segments && (depth > 1 || o->store_direct))
+            if (o->segments && !o->count_only && (depth > 1 || o->store_direct))
                 push_segment(b, s, r, col.hit ? col.t : t_light, beta);
             /* Weighted trackers (seed 002 Alg. 2-3) return a path weight for the flight; the
              * analog trackers return 1. (Segments keep the flowing power before it: the
@@ -239,8 +239,8 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
             acc(b->scattered, scattered);
             if (hidden) acc(b->hidden, scattered);
             /* Store the scattered power; skip first collisions when NEE supplies direct light. */
-            if (depth > 1 || o->store_direct) push_to(b, &b->ph, &b->n_ph, &b->cap_ph, x, r.d, scattered);
-            if (depth > 1 && b->split) push_to(b, &b->ind, &b->n_ind, &b->cap_ind, x, r.d, scattered);
+            if (!o->count_only && (depth > 1 || o->store_direct)) push_to(b, &b->ph, &b->n_ph, &b->cap_ph, x, r.d, scattered);
+            if (!o->count_only && depth > 1 && b->split) push_to(b, &b->ind, &b->n_ind, &b->cap_ind, x, r.d, scattered);
             acc(b->absorbed, v3_sub(beta, scattered)); /* expected absorption at this event */
             if (depth >= o->max_depth) { acc(b->carried, scattered); break; }
             /* Russian roulette on the albedo: survive with p = max channel, power x albedo / p. */
@@ -528,13 +528,20 @@ rd_status rd_hidden_light(const rd_scene *s, size_t count, int threads, double *
         snprintf(err, errlen, "%s: out of memory for the photon map of the hidden-light check", s->path);
         return RD_ERR_NOMEM;
     }
-    /* its own seed: the check must not depend on the bake's photons.seed */
-    rd_photon_opts o = {.count = count, .store_direct = 1, .segments = 0, .max_depth = s->photons.max_depth,
+    /* Its own seed (the check must not depend on the bake's photons.seed); nothing stored (the
+     * power sums only), and at most 64 events a photon: the power a longer path carries is a
+     * scene's last few per cent, counted as carried, and the check must stay short at load. */
+    rd_photon_opts o = {.count = count, .store_direct = 1, .segments = 0, .count_only = 1,
+                        .max_depth = s->photons.max_depth < 64 ? s->photons.max_depth : 64,
                         .seed = 0x68696464656eULL, .threads = threads};
     rd_photon_stats st;
-    rd_status rs = rd_trace_photons(s, &o, map, &st, err, errlen);
+    char msg[RD_ERRLEN];
+    rd_status rs = rd_trace_photons(s, &o, map, &st, msg, sizeof msg);
     pm_map_free(map);
-    if (rs) return rs;
+    if (rs) {
+        snprintf(err, errlen, "%s: the check for light by way of glass: %s", s->path, msg);
+        return rs;
+    }
     double all = v3_lum(v3(st.power_scattered[0], st.power_scattered[1], st.power_scattered[2]));
     double hid = v3_lum(v3(st.power_hidden[0], st.power_hidden[1], st.power_hidden[2]));
     *share = all > 0.0 ? hid / all : 0.0;

@@ -16,6 +16,7 @@ typedef struct {
                           light (direct light then comes from next-event estimation) */
     int segments;      /* 1: also store path segments (clipped to the media bounds) */
     int max_depth;     /* collisions per photon path */
+    int count_only;    /* 1: store nothing, only the statistics' power sums (rd_hidden_light) */
     uint64_t seed;
     int threads;       /* 0 = all */
     const volatile int *cancel; /* non-NULL: read before each block of 4096 photons; once it is

@@ -33,9 +33,9 @@ int cli_cmd_info(int argc, char **argv)
     if (share > RD_CMP_HIDDEN_SHARE)
         printf("hidden     %.3g%% of the light scattered in the media leaves a point, spot or directional light "
                "by way of glass first: delta and guided-unbiased cannot render it, nor a marcher without photons "
-               "(march.ls defaults to nee+beams with progressive passes here; compare renders its reference "
-               "with photons)\n",
-               100.0 * share);
+               "(march.ls %s here, its default on such a scene nee+beams with progressive passes; compare "
+               "renders its reference with photons)\n",
+               100.0 * share, rd_scene_march_uses_photons(scene) ? "takes photons" : "takes no photons");
     rd_scene_free(scene);
     return 0;
 }

@@ -157,7 +157,7 @@ void rd_cmp_hidden_note(const rd_cmp_summary *S, char *buf, size_t n)
                             "its error is variance and a kernel bias that falls as it runs";
     snprintf(buf, n,
              "note: %.3g%% of the light scattered in the media leaves a point, spot or directional light "
-             "by way of glass first (refracted or reflected: L S+ paths): delta, guided-unbiased and guided with an unbiased "
-             "march.ls cannot render it, so their error includes its absence as bias; %s",
+             "by way of glass first (refracted or reflected: L S+ paths): delta, guided-unbiased and the marchers with an "
+             "unbiased march.ls cannot render it, so their error includes its absence as bias; %s",
              100.0 * S->hidden_share, ref);
 }

@@ -1,7 +1,8 @@
 /* load.c: rd_scene_load: read scene.json (cJSON), apply the --set overrides, validate every
  * section (the parsers in this folder) and the scene as a whole (media do not overlap, the
- * scene's bounds), hash what a bake depends on (the bake key), and build the shapes' Embree
- * scene.
+ * scene's bounds), hash what a bake depends on (the bake key), build the shapes' Embree
+ * scene, and measure the light that only photons find (a short photon trace when the scene
+ * has glass and a point, spot or directional light: hidden_light_default).
  *
  * Every error names the file and the JSON path and says what is wrong, e.g.
  *   fog.json: media[0].albedo: expected a number or 3 numbers in [0, 1]
@@ -215,14 +216,10 @@ static uint64_t fnv1a(uint64_t h, const void *data, size_t n)
     return h;
 }
 
-/* The key of what a bake depends on: the scene's JSON after overrides without the parts that
- * cannot change photons or the guide (camera, march, and the render-only settings), printed
- * canonically by cJSON, and the voxel data of every grid medium (so a volume file replaced on
- * disk changes the key). */
 /* Light only photons find (renderer.h rd_hidden_light; docs/compare.md): measured once, when
  * the scene is loaded. Where it is more than RD_CMP_HIDDEN_SHARE of the media's light, the
- * marchers' default source is nee+beams with progressive photon passes (consistent), each
- * unless the scene names it: the default nee+paths is unbiased only for the light it can
+ * marchers' default source is nee+beams (unless the scene names march.ls), with progressive
+ * photon passes (consistent; unless the scene names photons.progressive): the default nee+paths is unbiased only for the light it can
  * sample, and cannot render that light at all. nee+beams, not nee+photons: on glass-fog (a
  * calibration scene) 131x against 74x `delta`'s efficiency at 10 s (docs/benchmarks.md,
  * "Session 21"; docs/scene-format.md, march.ls). */
@@ -238,6 +235,10 @@ static rd_status hidden_light_default(const cJSON *root, rd_scene *s, char *err,
     return RD_OK;
 }
 
+/* The key of what a bake depends on: the scene's JSON after overrides without the parts that
+ * cannot change photons or the guide (camera, march, and the render-only settings), printed
+ * canonically by cJSON, and the voxel data of every grid medium (so a volume file replaced on
+ * disk changes the key). */
 static uint64_t bake_key(const cJSON *root, const rd_scene *s)
 {
     /* Bump when a bake's result changes for the same scene text (2: Hann-windowed guide). */
