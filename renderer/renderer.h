@@ -61,10 +61,15 @@ void rd_scene_info(const rd_scene *scene, FILE *out);
  * so that `delta`, `guided-unbiased` and `guided` with an unbiased march.ls render none of it
  * (bake/photons.c: a trace of `count` photons with a seed of its own, the power the photons
  * scatter in the media after such a first event over all they scatter there). 0 without a
- * trace when the scene has no glass shape, no point, spot or directional light, or no medium.
- * `compare` then renders its reference with photons; `info` prints it. */
+ * trace when the scene has no glass shape, no point, spot or directional light, or no medium. */
 rd_status rd_hidden_light(const rd_scene *s, size_t count, int threads, double *share, char *err,
                           size_t errlen);
+/* Light only photons find, as the loader measures it (RD_HIDDEN_PHOTONS photons) and acts on it
+ * above RD_HIDDEN_SHARE of the media's light: march.ls defaults to nee+beams (load/load.c),
+ * `compare` renders its reference with progressive photons, `info` and `render` say so
+ * (docs/compare.md, "Light only photons find"). */
+#define RD_HIDDEN_SHARE 0.001
+#define RD_HIDDEN_PHOTONS 50000
 
 
 /* Render settings as loaded (after overrides). */
@@ -556,7 +561,7 @@ typedef struct {
     /* Light that delta cannot render (docs/compare.md, "Light only photons find"): the share
      * of the light scattered in the media that leaves a point, spot or directional light
      * through glass first (L S+ paths; 0 when the scene cannot have any). Above
-     * RD_CMP_HIDDEN_SHARE the summary says so and a rendered reference is made by ref_method. */
+     * RD_HIDDEN_SHARE the summary says so and a rendered reference is made by ref_method. */
     double hidden_share;
     char ref_method[96];    /* what rendered the reference ("delta", or the photon method) */
 } rd_cmp_summary;
@@ -571,13 +576,6 @@ typedef struct rd_comparison rd_comparison; /* the runs' images, curves and rows
  * after the runs up to RD_CMP_REF_CAP times the longest run. The same share decides
  * ref_too_noisy for every reference, given or rendered. */
 #define RD_CMP_REF_SHARE 0.1
-/* Light only photons find (rd_cmp_summary.hidden_share): above this share a rendered reference
- * is `guided` with the photon map as its whole source (march.ls photons), progressive photon
- * passes and no tile selection, one render of RD_CMP_REF_FIRST x a run's budget (consistent:
- * its kernel bias falls as it runs; docs/compare.md). The share comes from a trace of
- * RD_CMP_HIDDEN_PHOTONS photons. */
-#define RD_CMP_HIDDEN_SHARE 0.001
-#define RD_CMP_HIDDEN_PHOTONS 50000
 #define RD_CMP_REF_FIRST 10.0
 #define RD_CMP_REF_CAP 50.0
 /* Samples per pixel a reference of `spp` samples and variance ref_var needs for the rule
@@ -610,7 +608,7 @@ void rd_cmp_sentence(const rd_cmp_summary *S, int i, char *buf, size_t n);
 /* Who won and by how much, e.g. "winner: guided, 1.4x delta's efficiency", or why none: "not
  * ranked: the reference is too noisy ...". Empty with fewer than two rows. */
 void rd_cmp_verdict(const rd_cmp_summary *S, char *buf, size_t n);
-/* When the scene has light delta cannot render (hidden_share > RD_CMP_HIDDEN_SHARE), what it
+/* When the scene has light delta cannot render (hidden_share > RD_HIDDEN_SHARE), what it
  * means, e.g. "note: 31% of the light scattered in the media leaves a point, spot or
  * directional light through glass first ..."; empty otherwise. */
 void rd_cmp_hidden_note(const rd_cmp_summary *S, char *buf, size_t n);

@@ -626,7 +626,7 @@ Test(photons, hidden_light_is_what_leaves_a_delta_light_through_glass_first, .ti
      * unbiased nee+paths elsewhere. */
     s = rt_glass_ball_in_fog("hidden_default.json", "{\"type\":\"point\",\"position\":[0,0,0],\"intensity\":1}", 4);
     double direct;
-    cr_assert(rd_hidden_light(s, RD_CMP_HIDDEN_PHOTONS, 1, &direct, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_hidden_light(s, RD_HIDDEN_PHOTONS, 1, &direct, err, sizeof err) == RD_OK, "%s", err);
     cr_expect(s->march.ls == RD_LS_NEE_BEAMS && s->photons.progressive == 1 && rd_scene_hidden_light(s) == direct,
               "hidden light: march.ls %d, progressive %d, share at load %g, measured again %g", (int)s->march.ls,
               s->photons.progressive, rd_scene_hidden_light(s), direct);

@@ -171,8 +171,7 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
         /* rd_photon_stats.power_hidden: a photon from a point, spot or directional light whose
          * first event (an interface is none) is a specular surface is on an L S+ path, and so
          * is every collision it makes later. */
-        const int delta_light = s->lights[lo].kind == RD_LIGHT_POINT || s->lights[lo].kind == RD_LIGHT_SPOT ||
-                                s->lights[lo].kind == RD_LIGHT_DIRECTIONAL;
+        const int delta_light = rd_light_is_delta(&s->lights[lo]);
         int events = 0, hidden = 0;
         /* The region the photon starts in (rd_scene.h "Surfaces in the transport"). */
         int region = rd_scene_region_at(s, r.o), crossings = 0;
@@ -518,10 +517,8 @@ rd_status rd_hidden_light(const rd_scene *s, size_t count, int threads, double *
     double delta_power = 0.0, R = rd_scene_radius(s);
     for (int i = 0; i < s->n_shapes; i++) glass |= s->shapes[i].material.kind == RD_MAT_DIELECTRIC;
     for (int i = 0; i < s->n_lights; i++)
-        if (s->lights[i].kind == RD_LIGHT_POINT || s->lights[i].kind == RD_LIGHT_SPOT ||
-            s->lights[i].kind == RD_LIGHT_DIRECTIONAL)
-            delta_power += rd_light_power(&s->lights[i], R);
-    /* no L S+ path into a medium (and no trace: one of lights that emit nothing would fail) */
+        if (rd_light_is_delta(&s->lights[i])) delta_power += rd_light_power(&s->lights[i], R);
+    /* no L S+ path into a medium (and no trace: one whose lights emit nothing would fail) */
     if (!glass || !(delta_power > 0.0) || s->n_media == 0) return RD_OK;
     pm_map *map = pm_map_new();
     if (!map) {

@@ -30,7 +30,7 @@ int cli_cmd_info(int argc, char **argv)
     rd_scene_info(scene, stdout);
     /* Light delta cannot render (rd_hidden_light, measured at load; docs/compare.md). */
     double share = rd_scene_hidden_light(scene);
-    if (share > RD_CMP_HIDDEN_SHARE)
+    if (share > RD_HIDDEN_SHARE)
         printf("hidden     %.3g%% of the light scattered in the media leaves a point, spot or directional light "
                "by way of glass first: delta and guided-unbiased cannot render it, nor a marcher without photons "
                "(march.ls %s here, its default on such a scene nee+beams with progressive passes; compare "

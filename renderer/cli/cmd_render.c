@@ -65,7 +65,7 @@ static void note_hidden_light(const rd_scene *scene, const char *method)
 {
     int blind = !strcmp(method, "delta") || !strcmp(method, "guided-unbiased") || !rd_scene_march_uses_photons(scene);
     double share = rd_scene_hidden_light(scene); /* measured at load */
-    if (blind && share > RD_CMP_HIDDEN_SHARE)
+    if (blind && share > RD_HIDDEN_SHARE)
         fprintf(stderr, "note: %.3g%% of the light scattered in the media leaves a point, spot or directional light by "
                         "way of glass first; %s cannot render it (guided with its default march.ls here, nee+beams, can: "
                         "docs/compare.md, \"Light only photons find\")\n",

@@ -12,7 +12,7 @@
  * light through glass first (L S+ paths) is reached neither by next-event estimation (a shadow
  * ray stops at glass) nor by a path (it cannot hit a delta light). Its share of the light
  * scattered in the media is measured when the scene is loaded (rd_hidden_light); above
- * RD_CMP_HIDDEN_SHARE the rendered reference is a consistent photon render instead
+ * RD_HIDDEN_SHARE the rendered reference is a consistent photon render instead
  * (photon_reference). */
 #include "compare/rd_compare.h"
 
@@ -362,15 +362,16 @@ int rd_cmp_reference_is_auto(const rd_cmp_opts *o)
     return !o->reference && o->ref_spp <= 0 && o->ref_time <= 0;
 }
 
-/* Light delta cannot render (the head): its share (measured when the scene was loaded, the same
- * on every rank), and the photon reference's scene when a rendered reference must hold it: `guided` with the photon map as its whole source, fresh
- * photons every pass with a shrinking radius (consistent), and no tile selection (its `delta`
- * tiles would lack that light again). Every rank traces the same photons (a fixed seed). */
+/* Light delta cannot render (the head): its share (measured when the scene was loaded, with a
+ * fixed seed: the same on every rank), and the photon reference's scene when a rendered
+ * reference must hold it: `guided` with the photon map as its whole source, fresh photons
+ * every pass with a shrinking radius (consistent), and no tile selection (its `delta` tiles
+ * would lack that light again). */
 static void photon_reference(rd_comparison *c, const rd_scene *s)
 {
     double share = rd_scene_hidden_light(s); /* measured at load (load/load.c) */
     c->sum.hidden_share = share;
-    c->photon_ref = share > RD_CMP_HIDDEN_SHARE && !c->opts.reference;
+    c->photon_ref = share > RD_HIDDEN_SHARE && !c->opts.reference;
     snprintf(c->sum.ref_method, sizeof c->sum.ref_method, "%s",
              c->opts.reference ? "given" : c->photon_ref ? "guided, march.ls photons, progressive passes" : "delta");
     if (c->photon_ref) {

@@ -148,7 +148,7 @@ void rd_cmp_verdict(const rd_cmp_summary *S, char *buf, size_t n)
 void rd_cmp_hidden_note(const rd_cmp_summary *S, char *buf, size_t n)
 {
     buf[0] = 0;
-    if (!(S->hidden_share > RD_CMP_HIDDEN_SHARE)) return;
+    if (!(S->hidden_share > RD_HIDDEN_SHARE)) return;
     const char *ref = !strcmp(S->ref_method, "given")
                           ? "check that the given reference holds it (a delta render does not)"
                       : !strcmp(S->ref_method, "delta")

@@ -59,7 +59,7 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
      * delta's tiles would lack: rd_scene.hidden_share, docs/compare.md) */
     int mixes = s->march.ls == RD_LS_NEE_PATHS || s->march.ls == RD_LS_NEE_DELTA ||
                 (s->march.ls == RD_LS_NEE_BEAMS && (sel == RD_SELECT_TILES || sel == RD_SELECT_PILOT) &&
-                 !(s->hidden_share > RD_CMP_HIDDEN_SHARE));
+                 !(s->hidden_share > RD_HIDDEN_SHARE));
     if (sel != RD_SELECT_OFF && mixes) {
         /* 1.52 lookups: the time of one of the marcher's PDF segments (select.c, the fit) */
         st = rd_select_prepare(ctx, march_guided, 1.52, &mst->sel, err, errlen);

@@ -217,16 +217,16 @@ static uint64_t fnv1a(uint64_t h, const void *data, size_t n)
 }
 
 /* Light only photons find (renderer.h rd_hidden_light; docs/compare.md): measured once, when
- * the scene is loaded. Where it is more than RD_CMP_HIDDEN_SHARE of the media's light, the
+ * the scene is loaded. Where it is more than RD_HIDDEN_SHARE of the media's light, the
  * marchers' default source is nee+beams (unless the scene names march.ls), with progressive
- * photon passes (consistent; unless the scene names photons.progressive): the default nee+paths is unbiased only for the light it can
- * sample, and cannot render that light at all. nee+beams, not nee+photons: on glass-fog (a
+ * photon passes (consistent; unless the scene names photons.progressive): the default nee+paths
+ * is unbiased only for the light it can sample, and cannot render that light at all. nee+beams, not nee+photons: on glass-fog (a
  * calibration scene) 131x against 74x `delta`'s efficiency at 10 s (docs/benchmarks.md,
  * "Session 21"; docs/scene-format.md, march.ls). */
 static rd_status hidden_light_default(const cJSON *root, rd_scene *s, char *err, size_t errlen)
 {
-    rd_status st = rd_hidden_light(s, RD_CMP_HIDDEN_PHOTONS, 0, &s->hidden_share, err, errlen);
-    if (st || !(s->hidden_share > RD_CMP_HIDDEN_SHARE)) return st;
+    rd_status st = rd_hidden_light(s, RD_HIDDEN_PHOTONS, 0, &s->hidden_share, err, errlen);
+    if (st || !(s->hidden_share > RD_HIDDEN_SHARE)) return st;
     const cJSON *march = cJSON_GetObjectItemCaseSensitive(root, "march");
     const cJSON *photons = cJSON_GetObjectItemCaseSensitive(root, "photons");
     if (cJSON_GetObjectItemCaseSensitive(march, "ls")) return RD_OK;

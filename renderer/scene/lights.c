@@ -173,6 +173,11 @@ int rd_light_lit_range(const rd_light *l, ray3 r, double *t0, double *t1)
     return 1;
 }
 
+int rd_light_is_delta(const rd_light *l)
+{
+    return l->kind == RD_LIGHT_POINT || l->kind == RD_LIGHT_SPOT || l->kind == RD_LIGHT_DIRECTIONAL;
+}
+
 /* Distance to the sphere light along a ray, for paths that hit it. */
 double rd_light_hit(const rd_light *l, ray3 r)
 {

@@ -62,6 +62,9 @@ double rd_spot_falloff(const rd_light *l, double cos_theta);
  * sampling (transport/equiangular.c); a range a little too wide or narrow through round-off
  * costs efficiency there, never correctness (its MIS weights follow the range used). */
 int rd_light_lit_range(const rd_light *l, ray3 r, double *t0, double *t1);
+/* 1 for a point, spot or directional light: a delta in position or direction, which no sampled
+ * direction can hit and a shadow ray reaches only in a straight line (rd_hidden_light). */
+int rd_light_is_delta(const rd_light *l);
 /* Distance along r to a sphere light's surface (INFINITY if missed or not a sphere light). */
 double rd_light_hit(const rd_light *l, ray3 r);
 /* Total emitted power [W] (luminance of the RGB), used to choose lights in proportion to power;

@@ -65,8 +65,8 @@
  * tracking. Dense smoke lit by a spot (thick lit spans) keeps delta tracking, which finds the
  * light there; a thin fog crossed by a narrow cone gets strategy e. The global majorant
  * overstates sigma_t, so a light stays with delta tracking a little more often than it
- * should: variance, never bias. Lights
- * with an index of 64 or more are always in the set (the set is a 64-bit mask). */
+ * should: variance, never bias. Lights with an index of 64 or more are always in the set (the
+ * set is a 64-bit mask). */
 #include "transport/rd_transport.h"
 
 /* ---- The sampler ------------------------------------------------------------------------ */

@@ -135,8 +135,8 @@ typedef struct {
 /* Set up the flight along r in `region` over [0, t_light] whose delta tracking runs with thin
  * bias q (0: none; rd_sample_free_path_thin). `automatic` (settings.equiangular "auto"): only
  * the lights whose lit span delta tracking reaches (global-majorant T(0,a) >= 1/2) but
- * rarely collides in (equiangular.c). Returns 0 when there is nothing to sample (no medium on the way, no point
- * or spot light, or none left to sample). */
+ * rarely collides in (equiangular.c). Returns 0 when there is nothing to sample (no medium on
+ * the way, no point or spot light, or none left to sample). */
 int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, double q,
                       int automatic, rd_eq_flight *ef);
 /* The equiangular strategy's MIS-weighted estimate of the single scattering from point and spot
