@@ -82,7 +82,7 @@ static uint64_t reference_key(const rd_scene *s, int auto_ref, int photons, int 
         const rd_march_settings *m = &s->march;
         const rd_photon_settings *p = &s->photons;
         h = fnv1a(h, "photons", 7);
-        int mi[6] = {(int)m->ls, m->samples, m->min_samples, m->max_samples, m->detail, p->pass_spp};
+        int mi[7] = {(int)m->ls, m->samples, m->min_samples, m->max_samples, m->detail, p->pass_spp, m->equiangular};
         h = fnv1a(h, mi, sizeof mi);
         h = hash_d(hash_d(hash_d(h, m->alpha), m->paths), p->alpha);
         uint64_t pu[4] = {p->count, p->pass_count, (uint64_t)p->max_depth, p->seed};

@@ -92,6 +92,7 @@ size_t rd_march_scratch_layout(const march_state *st, march_scratch *ms, void *b
     TAKE(sig, double, st->piece_cap);
     TAKE(hits, rd_beam_hit, st->beam_cap);
     TAKE(cdf, double, st->beam_cap);
+    TAKE(lw, double, st->n_lights);
 #undef TAKE
     return off;
 }
@@ -294,7 +295,8 @@ static double pass_radius(const rd_render_ctx *ctx, const pm_map *first, vec3 x)
 }
 
 vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, vec3 x, vec3 d,
-                   double sigma_t, int event, double q_path, pcg32 *rng, rd_track_counters *c)
+                     double sigma_t, int event, double q_path, const double *light_w, pcg32 *rng,
+                     rd_track_counters *c)
 {
     const rd_scene *s = ctx->scene;
     vec3 S = v3(0, 0, 0);
@@ -313,7 +315,7 @@ vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, v
         if (ctx->guide_indirect) sh_guide_eval(ctx->guide_indirect, xd, wd, out);
         S = v3(fmax(0.0, out[0]), fmax(0.0, out[1]), fmax(0.0, out[2]));
         vec3 sigma_s = v3_scale(m->albedo, sigma_t);
-        return v3_add(S, v3_mul(sigma_s, rd_nee_all(s, region, x, d, m->g, rng, c)));
+        return v3_add(S, v3_mul(sigma_s, rd_nee_all(s, region, x, d, m->g, light_w, rng, c)));
     }
     case RD_LS_NEE_PATHS: {
         /* delta's own vertex at x: next-event estimation (rd_nee_split: every delta light,
@@ -322,12 +324,13 @@ vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, v
          * marcher converges to delta's image. The path is taken with probability q_path and
          * weighted 1/q_path (still unbiased); the HG weight p/pdf is 1. */
         vec3 sigma_s = v3_scale(m->albedo, sigma_t);
-        vec3 Ls = rd_nee_split(s, region, x, d, m->g, rng, c);
+        vec3 Ls = rd_nee_split(s, region, x, d, m->g, light_w, rng, c);
         if (event + 1 <= s->settings.max_depth && q_path > 0.0 &&
             (q_path >= 1.0 || pcg32_uniform(rng) < q_path)) {
             vec3 wo = rd_hg_sample(m->g, d, pcg32_uniform(rng), pcg32_uniform(rng));
             ray3 next = {x, wo};
-            vec3 Li = rd_delta_continue(s, next, region, rd_hg_eval(m->g, v3_dot(d, wo)), event, 0, rng, c);
+            vec3 Li = rd_delta_continue(s, next, region, rd_hg_eval(m->g, v3_dot(d, wo)), event, 0,
+                                        s->march.equiangular, rng, c);
             Ls = v3_madd(Ls, Li, q_path >= 1.0 ? 1.0 : 1.0 / q_path);
         }
         return v3_mul(sigma_s, Ls);
@@ -335,7 +338,7 @@ vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, v
     case RD_LS_NEE_DELTA:
         /* The direct part of delta's vertex at x only: the rest of the in-scattering on this
          * segment is one path of delta's from the segment's start (march_segment). */
-        return v3_mul(v3_scale(m->albedo, sigma_t), rd_nee_split(s, region, x, d, m->g, rng, c));
+        return v3_mul(v3_scale(m->albedo, sigma_t), rd_nee_split(s, region, x, d, m->g, light_w, rng, c));
     case RD_LS_NEE_PHOTONS: {
         double r = pass_radius(ctx, ctx->photons_indirect_first, x);
         if (r >= 0.0) S = photon_estimate(s, ctx->photons_indirect, x, w, m->g, s->guide.k, r);
@@ -345,7 +348,7 @@ vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, v
     case RD_LS_NEE:
     default: {
         vec3 sigma_s = v3_scale(m->albedo, sigma_t);
-        return v3_add(S, v3_mul(sigma_s, rd_nee_all(s, region, x, d, m->g, rng, c)));
+        return v3_add(S, v3_mul(sigma_s, rd_nee_all(s, region, x, d, m->g, light_w, rng, c)));
     }
     }
 }
@@ -385,6 +388,16 @@ static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int r
     rd_guide_pdf_sample_stratified(&pdf, N, u, ms.t, ms.p);
     const march_state *st = ctx->state;
     double q_path = st->q_path[place]; /* nee+paths: the chance of a path from each sample */
+    /* march.equiangular: the lights the segment's equiangular sample may choose, whose
+     * next-event estimates at the placement's samples take the MIS weight w_p
+     * (march_equiangular.c); ms.lw holds 1 for every other light. */
+    rd_march_eq eq;
+    int eq_n = rd_march_eq_begin(s, r, region, t_end, &pdf, N, &eq);
+    const double *light_w = NULL;
+    if (eq_n > 0) {
+        for (int i = 0; i < st->n_lights; i++) ms.lw[i] = 1.0;
+        light_w = ms.lw;
+    }
     vec3 L = v3(0, 0, 0);
     double T = 1.0, tp = t0;
     for (int n = 0; n < N && T != 0.0; n++) {
@@ -400,9 +413,11 @@ static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int r
         double sigma_t = rd_medium_sigma_t(m, x);
         c->lookups++;
         if (sigma_t <= 0.0) continue;
-        vec3 S = rd_march_source(ctx, m, region, x, r.d, sigma_t, event, q_path, rng, c);
+        if (eq_n > 0) rd_march_eq_weights(&eq, ms.t[n], ms.lw);
+        vec3 S = rd_march_source(ctx, m, region, x, r.d, sigma_t, event, q_path, light_w, rng, c);
         L = v3_madd(L, S, T / (N * ms.p[n]));
     }
+    if (eq_n > 0) L = v3_add(L, rd_march_eq_sample(s, &eq, t0, rng, c));
     /* nee+delta: the samples estimated the single scattering's next-event part; one path of
      * delta's along the segment adds everything else that scatters on it (rd_delta_scattered:
      * 0 when its flight passes, so it costs a delta path only where one would scatter). */
@@ -478,7 +493,8 @@ vec3 rd_march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampl
         if (!go) break;
         if (!st.camera_chain) {
             /* diffuse: the rest of the path is delta's */
-            L = v3_add(L, v3_mul(st.beta, rd_delta_continue(s, st.r, st.region, st.pdf, depth, 0, &rng, c)));
+            vec3 Lc = rd_delta_continue(s, st.r, st.region, st.pdf, depth, 0, s->march.equiangular, &rng, c);
+            L = v3_add(L, v3_mul(st.beta, Lc));
             break;
         }
         r = st.r, beta = st.beta, region = st.region, eta_scale = st.eta_scale;
@@ -531,6 +547,7 @@ rd_status rd_march_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
         ms->seg_cap = ms->piece_cap + 2;
     }
     ms->beam_cap = ctx->scene->march.ls == RD_LS_NEE_BEAMS ? RD_BEAM_CAP : 0;
+    ms->n_lights = ctx->scene->march.equiangular != RD_EQ_OFF ? ctx->scene->n_lights : 0;
     ctx->state = ms;
     rd_status bs = rd_march_photons_changed(ctx, err, errlen);
     if (bs != RD_OK) rd_march_release(ctx);

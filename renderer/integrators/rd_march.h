@@ -32,6 +32,7 @@ typedef struct {
     float *beam_radius;
     size_t beam_radius_cap;
     int beam_cap;
+    int n_lights;    /* entries of the scratch's lw */
     double beam_weight; /* 1 / the share of the photons kept as balls */
     size_t beam_r1_queries; /* balls of the last build whose r_1 took a query of its own */
 } march_state;
@@ -41,6 +42,7 @@ typedef struct {
     rd_gpdf_seg *seg;
     double *t, *p;
     double *tb, *f, *sig;
+    double *lw;        /* march.equiangular: a weight per light (rd_march_source's light_w) */
     rd_beam_hit *hits; /* nee+beams: the balls one segment crosses, */
     double *cdf;       /* and the running sum of their picks' weights */
 } march_scratch;
@@ -61,15 +63,41 @@ int rd_march_build_pdf(const rd_render_ctx *ctx, placement place, const march_sc
                        rd_track_counters *c);
 /* The in-scattered radiance source S = sigma_s L_s at x toward -d, from march.ls; `event` is
  * the scattering event x would be (1 on the camera's first segment): nee+paths's path from x
- * counts its events on from there, as delta's does, and is taken with probability q_path. */
+ * counts its events on from there, as delta's does, and is taken with probability q_path.
+ * light_w: each light's weight in the next-event part (NULL: 1; march_equiangular.c). */
 vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, vec3 x, vec3 d,
-                     double sigma_t, int event, double q_path, pcg32 *rng, rd_track_counters *c);
+                     double sigma_t, int event, double q_path, const double *light_w, pcg32 *rng,
+                     rd_track_counters *c);
 /* march.ls = nee+beams: the beam radiance estimate of the indirect in-scattering along [t0, t1]
  * of r in `region` (the balls of the indirect photons, state's beams; march_beams.c says how), the
  * integral of T(t0, t) sigma_s L_s over the segment. */
 vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, ray3 r, int region,
                             double t0, double t1, pcg32 *rng, rd_track_counters *c, int *crossed);
 /* (*crossed: the balls the segment crossed, those beyond the reservoir's cap included.) */
+/* march.equiangular: one equiangular sample per segment toward a point or spot light, MIS with
+ * the placement's samples (march_equiangular.c says how). The lights a segment samples: */
+#define RD_MARCH_EQ_LIGHTS 8
+typedef struct {
+    int n;                              /* lights sampled on this segment (0: none) */
+    int light[RD_MARCH_EQ_LIGHTS];      /* their indices */
+    double Q[RD_MARCH_EQ_LIGHTS];       /* the probability of choosing each */
+    rd_equiangular e[RD_MARCH_EQ_LIGHTS]; /* each one's pdf over its lit span */
+    ray3 r;
+    int region;
+    const rd_guide_pdf *pdf;            /* the placement's pdf p of the segment, */
+    int N;                              /* and its samples on it */
+} rd_march_eq;
+/* Set up the segment r in `region` up to t_end whose placement draws N samples of pdf; returns
+ * the number of lights it samples (0: none, or march.equiangular off). */
+int rd_march_eq_begin(const rd_scene *s, ray3 r, int region, double t_end, const rd_guide_pdf *pdf,
+                      int N, rd_march_eq *eq);
+/* The placement sample at t: light_w[j] = w_p(t, j) for the segment's lights (the others are
+ * left as they are); rd_march_eq_reset sets them back to 1. */
+void rd_march_eq_weights(const rd_march_eq *eq, double t, double *light_w);
+void rd_march_eq_reset(const rd_march_eq *eq, double *light_w);
+/* The equiangular sample's MIS-weighted estimate of the direct light (unit throughput at t0,
+ * the segment's start in the scene bounds). */
+vec3 rd_march_eq_sample(const rd_scene *s, const rd_march_eq *eq, double t0, pcg32 *rng, rd_track_counters *c);
 /* Radiance along camera ray r with the samples of `place` (the estimator of THEORY.md §6). */
 vec3 rd_march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp,
                        placement place);

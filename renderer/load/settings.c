@@ -226,10 +226,13 @@ rd_status ld_parse_march(ld_ctx *c, const cJSON *j, rd_march_settings *m)
     m->ls = RD_LS_NEE_PATHS; /* unbiased; the photon sources measured against it: docs/guided-marching.md */
     m->detail = 0; /* "cells": lookups mislead where the photon estimate dominates (cloud) */
     m->paths = 0.0; /* per placement (integrators/march.c, march_default_paths) */
+    /* "auto": the lit spans the camera rays and the samples' paths cross but rarely collide in
+     * (integrators/march_equiangular.c); measured in docs/guided-marching.md */
+    m->equiangular = RD_EQ_AUTO;
     if (!j) return RD_OK;
     const char *path = "march";
     LD_TRY(ld_need_object(c, j, path));
-    static const char *const keys[] = {"samples", "min_samples", "max_samples", "alpha", "ls", "detail", "paths", NULL};
+    static const char *const keys[] = {"samples", "min_samples", "max_samples", "alpha", "ls", "detail", "paths", "equiangular", NULL};
     LD_TRY(ld_check_keys(c, j, path, keys));
     long long v;
     LD_TRY(ld_get_int(c, j, path, "samples", 0, 0, 1, 4096, &v));
@@ -248,5 +251,13 @@ rd_status ld_parse_march(ld_ctx *c, const cJSON *j, rd_march_settings *m)
     LD_TRY(ld_get_num(c, j, path, "paths", 0, 0.0, 0, 1, 1, 0, &m->paths));
     static const char *const detail[] = {"cells", "lookups", NULL};
     LD_TRY(ld_get_enum(c, j, path, "detail", 0, detail, 0, &m->detail));
+    const cJSON *e = cJSON_GetObjectItemCaseSensitive(j, "equiangular");
+    if (e) {
+        if (cJSON_IsBool(e)) m->equiangular = cJSON_IsTrue(e) ? RD_EQ_ALL : RD_EQ_OFF;
+        else if (cJSON_IsString(e) && strcmp(e->valuestring, "auto") == 0) m->equiangular = RD_EQ_AUTO;
+        else if (cJSON_IsString(e))
+            return ld_fail(c, "march.equiangular", "expected true, false or \"auto\", found \"%s\"", e->valuestring);
+        else return ld_fail(c, "march.equiangular", "expected true, false or \"auto\", found %s", ld_type_name(e));
+    }
     return RD_OK;
 }

@@ -118,6 +118,9 @@ typedef struct {
                           * own default (integrators/march.c, march_default_paths) */
     int detail;          /* guided: 1 scales each cell's f_j by sigma_t(t) / sigma_j from lookups
                           * along the ray; 0 (default) uses the cells alone (seed 001 eq. 16) */
+    int equiangular;     /* rd_equiangular_mode OFF, ALL or AUTO: one equiangular sample per
+                          * segment toward a point or spot light, MIS with the placement's
+                          * samples for the direct part (integrators/march_equiangular.c) */
 } rd_march_settings;
 
 struct rd_scene {

@@ -129,13 +129,23 @@ vec3 rd_nee_surface(const rd_scene *s, const rd_hit *h, vec3 d, pcg32 *rng,
     return nee_one(s, &v, rng, c, NULL);
 }
 
-vec3 rd_nee_split(const rd_scene *s, int region, vec3 x, vec3 d, double g, pcg32 *rng,
-                  rd_track_counters *c)
+/* Light i's sample at v, times its weight light_w[i] (NULL: 1); a weight of 0 costs nothing. */
+static vec3 nee_weighted(const rd_scene *s, int i, const double *light_w, const nee_site *v, pcg32 *rng,
+                         rd_track_counters *c)
+{
+    double w = light_w ? light_w[i] : 1.0;
+    if (!(w > 0.0)) return v3(0, 0, 0);
+    vec3 L = nee_light(s, i, 0.0, v, rng, c);
+    return w == 1.0 ? L : v3_scale(L, w);
+}
+
+vec3 rd_nee_split(const rd_scene *s, int region, vec3 x, vec3 d, double g, const double *light_w,
+                  pcg32 *rng, rd_track_counters *c)
 {
     nee_site v = {.x = x, .d = d, .region = region, .g = g, .mx = NULL, .surf = NULL};
     vec3 L = v3(0, 0, 0);
     for (int i = 0; i < s->n_lights; i++)
-        if (!rd_light_hittable(&s->lights[i])) L = v3_add(L, nee_light(s, i, 0.0, &v, rng, c));
+        if (!rd_light_hittable(&s->lights[i])) L = v3_add(L, nee_weighted(s, i, light_w, &v, rng, c));
     /* The lights a path can hit: delta's own pick (pmf_i), so that its power-heuristic weight
      * pairs with the one rd_flight_behind gives the path that hits light i. A pick of a delta
      * light adds nothing here (that light was summed above). */
@@ -146,11 +156,11 @@ vec3 rd_nee_split(const rd_scene *s, int region, vec3 x, vec3 d, double g, pcg32
     return L;
 }
 
-vec3 rd_nee_all(const rd_scene *s, int region, vec3 x, vec3 d, double g, pcg32 *rng,
-                rd_track_counters *c)
+vec3 rd_nee_all(const rd_scene *s, int region, vec3 x, vec3 d, double g, const double *light_w,
+                pcg32 *rng, rd_track_counters *c)
 {
     nee_site v = {.x = x, .d = d, .region = region, .g = g, .mx = NULL, .surf = NULL};
     vec3 L = v3(0, 0, 0);
-    for (int i = 0; i < s->n_lights; i++) L = v3_add(L, nee_light(s, i, 0.0, &v, rng, c));
+    for (int i = 0; i < s->n_lights; i++) L = v3_add(L, nee_weighted(s, i, light_w, &v, rng, c));
     return L;
 }

@@ -171,10 +171,10 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
         int eq = 0;
         rd_eq_flight ef;
         int first = scattered_only && depth == depth0; /* the caller's flight (see above) */
-        if (!first && fs->delta && s->settings.equiangular != RD_EQ_OFF && depth + 1 <= s->settings.max_depth &&
-            (s->settings.equiangular != RD_EQ_CAMERA || depth == 0)) {
+        if (!first && fs->equiangular != RD_EQ_OFF && depth + 1 <= s->settings.max_depth &&
+            (fs->equiangular != RD_EQ_CAMERA || depth == 0)) {
             eq = rd_eq_flight_init(s, r, region, in.t_light, rd_thin_bias_q(s, &in),
-                                   s->settings.equiangular == RD_EQ_AUTO, &ef);
+                                   fs->equiangular == RD_EQ_AUTO, &ef);
             if (eq) L = v3_add(L, v3_mul(beta, rd_eq_nee(s, &ef, rng, c)));
         }
         if (f.kind == RD_FLIGHT_END || (first && f.kind == RD_FLIGHT_PASS)) break;
@@ -274,9 +274,9 @@ vec3 rd_path_radiance(const rd_scene *s, ray3 r, const rd_flight_sampler *fs, pc
 }
 
 vec3 rd_delta_continue(const rd_scene *s, ray3 r, int region, double pdf, int depth,
-                       int camera_chain, pcg32 *rng, rd_track_counters *c)
+                       int camera_chain, int equiangular, pcg32 *rng, rd_track_counters *c)
 {
-    const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL, .delta = 1};
+    const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL, .equiangular = equiangular};
     int budget = 0;
     return trace(s, r, region, pdf, depth, camera_chain, 0, &fs, rng, c, &budget);
 }
@@ -284,14 +284,16 @@ vec3 rd_delta_continue(const rd_scene *s, ray3 r, int region, double pdf, int de
 vec3 rd_delta_scattered(const rd_scene *s, ray3 r, int region, int depth, pcg32 *rng,
                         rd_track_counters *c)
 {
-    const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL, .delta = 1};
+    const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL,
+                                  .equiangular = s->settings.equiangular};
     int budget = 0;
     return trace(s, r, region, 0.0, depth, 1, 1, &fs, rng, c, &budget);
 }
 
 vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c)
 {
-    const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL, .delta = 1};
+    const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL,
+                                  .equiangular = s->settings.equiangular};
     return rd_path_radiance(s, r, &fs, rng, c);
 }
 

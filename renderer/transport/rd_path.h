@@ -75,9 +75,10 @@ typedef struct rd_flight_sampler {
     void (*vertex)(const struct rd_flight_sampler *fs, const rd_scene *s, const rd_vertex_in *v,
                    pcg32 *rng, rd_vertex_out *out);
     void *user;               /* the sampler's own (per call of the path loop) */
-    int delta;                /* 1: the flights are `delta`'s (delta tracking, with
-                               * settings.thin_bias), so the loop may add settings.equiangular's
-                               * strategy, whose MIS weights assume delta tracking's density */
+    int equiangular;          /* rd_equiangular_mode of the loop's flights: the equiangular
+                               * strategy's MIS weights assume delta tracking's density, so only
+                               * `delta`'s flights (delta tracking, with settings.thin_bias) may
+                               * have it; 0 (RD_EQ_OFF) for every other sampler */
 } rd_flight_sampler;
 /* Extra copies splitting may add to one camera sample's path tree (a bound on its cost). */
 #define RD_SPLIT_BUDGET 32
@@ -106,9 +107,11 @@ typedef struct {
 int rd_surface_event(const rd_scene *s, const rd_hit *h, int depth, rd_surface_step *st,
                      pcg32 *rng, rd_track_counters *c);
 /* `delta`'s path from a flight along r on (in `region`; r.d drawn with pdf `pdf`, 0 for none;
- * `depth` scattering events before it): the radiance estimate of L(r.o, -r.d). */
+ * `depth` scattering events before it): the radiance estimate of L(r.o, -r.d). Its flights
+ * take the equiangular strategy of mode `equiangular` (rd_equiangular_mode: `delta` itself
+ * follows settings.equiangular, the marchers' paths march.equiangular). */
 vec3 rd_delta_continue(const rd_scene *s, ray3 r, int region, double pdf, int depth,
-                       int camera_chain, pcg32 *rng, rd_track_counters *c);
+                       int camera_chain, int equiangular, pcg32 *rng, rd_track_counters *c);
 /* `delta`'s path along r (in `region`, `depth` scattering events before it) less two parts
  * that the caller estimates otherwise: what passes r's first flight (T L_behind, and all that
  * lies beyond the surface ending it: the estimate is 0 when the flight does not scatter) and

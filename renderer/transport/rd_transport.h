@@ -151,16 +151,19 @@ double rd_eq_weight(const rd_scene *s, const rd_eq_flight *ef, double t, int lig
  * own pick among all lights (pmf_i) kept when it is a light a path can hit (sphere,
  * environment), with the power heuristic against phase sampling. The path from x then
  * counts the light it hits with the matching weight (rd_flight_behind), so the two sum to
- * the direct light exactly once (Veach 1997 §9.2). */
-vec3 rd_nee_split(const rd_scene *s, int region, vec3 x, vec3 d, double g, pcg32 *rng,
-                  rd_track_counters *c);
+ * the direct light exactly once (Veach 1997 §9.2). light_w (NULL: every weight 1) scales each
+ * light that is not hittable by a weight of the caller's (the marchers' MIS weight against
+ * their equiangular sample, march_equiangular.c); a weight of 0 casts no shadow ray. */
+vec3 rd_nee_split(const rd_scene *s, int region, vec3 x, vec3 d, double g, const double *light_w,
+                  pcg32 *rng, rd_track_counters *c);
 
 /* Direct light at x with no path to share it with (the ray marchers): one sample of every
  * light, summed, no MIS weight (nothing else estimates the direct part, so a weight < 1 would
  * lose light from sphere and environment lights). A light that gives nothing at x (outside a
- * spot's cone, behind a finite beam) costs no shadow ray. */
-vec3 rd_nee_all(const rd_scene *s, int region, vec3 x, vec3 d, double g, pcg32 *rng,
-                rd_track_counters *c);
+ * spot's cone, behind a finite beam) costs no shadow ray. light_w as for rd_nee_split, for
+ * every light. */
+vec3 rd_nee_all(const rd_scene *s, int region, vec3 x, vec3 d, double g, const double *light_w,
+                pcg32 *rng, rd_track_counters *c);
 
 #ifdef __cplusplus
 }
