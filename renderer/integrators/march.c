@@ -16,14 +16,16 @@
  *   L ~= T(0,t_end) L_behind + (1/N) sum_n T(0,t_n) S(x_n, -d) / p(t_n),
  *
  * with T from the free-path engine's unbiased estimator, swept once along the sorted samples
- * (T(0,t_n) = T(0,t_{n-1}) T(t_{n-1},t_n), independent pieces), and S = sigma_s L_s from the
- * source chosen by march.ls:
+ * (T(0,t_n) = T(0,t_{n-1}) T(t_{n-1},t_n), independent pieces), plus, with march.equiangular,
+ * one equiangular sample toward a point or spot light whose light the samples' next-event
+ * estimates share with it by MIS (march_equiangular.c), and S = sigma_s L_s from the source
+ * chosen by march.ls:
  *   nee+paths    (the default) delta's own vertex at x: sigma_s x (next-event estimation,
  *                rd_nee_split, + one phase-sampled path from x tracked by delta), so S is
  *                unbiased and every placement converges to delta's image;
  *   photons      the photon-map radiance estimate alone (the seed's original),
  *   nee+photons  sigma_s x next-event estimation of every light (direct light; rd_nee_all,
- *                no MIS: no other estimator here reaches the lights) + the photon map of photons
+ *                no MIS with a path: none follows) + the photon map of photons
  *                stored without their first flight (multiple scattering),
  *   nee+guide    the same direct light + multiple scattering read from the guide baked from
  *                the indirect photons (a cell lookup instead of a k-NN query),
@@ -421,7 +423,8 @@ static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int r
     /* nee+delta: the samples estimated the single scattering's next-event part; one path of
      * delta's along the segment adds everything else that scatters on it (rd_delta_scattered:
      * 0 when its flight passes, so it costs a delta path only where one would scatter). */
-    if (s->march.ls == RD_LS_NEE_DELTA) L = v3_add(L, rd_delta_scattered(s, r, region, event - 1, rng, c));
+    if (s->march.ls == RD_LS_NEE_DELTA)
+        L = v3_add(L, rd_delta_scattered(s, r, region, event - 1, s->march.equiangular, rng, c));
     /* nee+beams: the samples estimated the direct light; the photons' balls along the whole
      * segment give the rest (rd_march_beam_estimate). */
     if (s->march.ls == RD_LS_NEE_BEAMS) {

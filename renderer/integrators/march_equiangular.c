@@ -8,11 +8,11 @@
  *     I_j = integral T(t0,t) sigma_s(t) L_j(t) dt,   L_j(t) = p(d . w_j) I_j f_j / r_j^2 T(x(t), j),
  * and the marcher estimates it from its N samples t_n of the placement's pdf p (march.c: every
  * sample's next-event estimate sums every light, rd_nee_all or rd_nee_split). Its samples fall
- * at the density N p(t) (stratified samples: each has the marginal p, so the sum of any g(t_n)
- * has expectation N integral p g).
+ * at the density N p(t): the n-th stratified sample has density N p on its own stratum (p's
+ * mass 1/N), so the sum of any g(t_n) over the N has expectation N integral p g.
  *
  * The equiangular strategy draws one light j with probability Q_j (rd_nee's power pick P_j over
- * the sum of the point and spot lights it samples: rd_eq_flight_init) and one t from j's
+ * the sum of P over the lights this segment samples: rd_march_eq_begin) and one t from j's
  * equiangular pdf e_j over the segment's media cut to j's cone (rd_light_lit_range): the
  * density of its samples for light j is Q_j e_j(t). With the power heuristic (Veach 1997, §9.2,
  * beta = 2) over the two densities, both known exactly here (p is the placement's histogram,
@@ -27,9 +27,10 @@
  * sample is drawn (eq. 17), so the weights are deterministic functions of (ray, t, j).
  *
  * Which lights: every point and spot light (true), or "auto": the lights whose lit span delta
- * tracking reaches but rarely collides in (rd_eq_flight_init's rule, the same for every
- * method: a span the marcher's pdf resolves is left to it). At most RD_MARCH_EQ_LIGHTS lights
- * per segment; the rest keep w_p = 1 (a deterministic choice: variance, never bias). */
+ * tracking reaches but rarely collides in (rd_eq_flight_init's rule, `delta`'s, which looks
+ * at the majorants and the cone only, not at the placement's pdf). At most RD_MARCH_EQ_LIGHTS
+ * lights per segment, the first by index; the rest keep w_p = 1 (a deterministic choice:
+ * variance, never bias). */
 #include "integrators/rd_march.h"
 
 int rd_march_eq_begin(const rd_scene *s, ray3 r, int region, double t_end, const rd_guide_pdf *pdf,
@@ -38,14 +39,16 @@ int rd_march_eq_begin(const rd_scene *s, ray3 r, int region, double t_end, const
     eq->n = 0;
     if (s->march.equiangular == RD_EQ_OFF || s->march.ls == RD_LS_PHOTONS) return 0;
     rd_eq_flight ef;
-    if (!rd_eq_flight_init(s, r, region, t_end, 0.0, s->march.equiangular == RD_EQ_AUTO, &ef)) return 0;
+    int automatic = s->march.equiangular == RD_EQ_AUTO;
+    if (!rd_eq_flight_init(s, r, region, t_end, 0.0, automatic, &ef)) return 0;
     double a_all = ef.iv[0].t0, b_all = ef.iv[ef.n - 1].t1, sum = 0.0;
     for (int i = 0; i < s->n_lights && eq->n < RD_MARCH_EQ_LIGHTS; i++) {
         const rd_light *l = &s->lights[i];
         double P = s->light_sampler.pmf[i], a = a_all, b = b_all;
         if (l->kind != RD_LIGHT_POINT && l->kind != RD_LIGHT_SPOT) continue;
         if (!(P > 0.0) || (i < 64 && (ef.left >> i & 1u))) continue;
-        if (!rd_light_lit_range(l, r, &a, &b) || !rd_equiangular_init(&eq->e[eq->n], l->pos, r, a, b)) continue;
+        if (!rd_light_lit_range(l, r, &a, &b)) continue;
+        if (!rd_equiangular_init(&eq->e[eq->n], l->pos, r, a, b)) continue;
         eq->light[eq->n] = i;
         eq->Q[eq->n] = P;
         sum += P;
@@ -73,12 +76,8 @@ void rd_march_eq_weights(const rd_march_eq *eq, double t, double *light_w)
     for (int k = 0; k < eq->n; k++) light_w[eq->light[k]] = 1.0 - weight_e(eq, k, t);
 }
 
-void rd_march_eq_reset(const rd_march_eq *eq, double *light_w)
-{
-    for (int k = 0; k < eq->n; k++) light_w[eq->light[k]] = 1.0;
-}
-
-vec3 rd_march_eq_sample(const rd_scene *s, const rd_march_eq *eq, double t0, pcg32 *rng, rd_track_counters *c)
+vec3 rd_march_eq_sample(const rd_scene *s, const rd_march_eq *eq, double t0, pcg32 *rng,
+                        rd_track_counters *c)
 {
     double u = pcg32_uniform(rng), acc = 0.0, ut = pcg32_uniform(rng);
     int k = eq->n - 1;

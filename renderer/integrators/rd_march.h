@@ -32,7 +32,7 @@ typedef struct {
     float *beam_radius;
     size_t beam_radius_cap;
     int beam_cap;
-    int n_lights;    /* entries of the scratch's lw */
+    int n_lights;    /* entries of the scratch's lw (march.equiangular) */
     double beam_weight; /* 1 / the share of the photons kept as balls */
     size_t beam_r1_queries; /* balls of the last build whose r_1 took a query of its own */
 } march_state;
@@ -92,12 +92,12 @@ typedef struct {
 int rd_march_eq_begin(const rd_scene *s, ray3 r, int region, double t_end, const rd_guide_pdf *pdf,
                       int N, rd_march_eq *eq);
 /* The placement sample at t: light_w[j] = w_p(t, j) for the segment's lights (the others are
- * left as they are); rd_march_eq_reset sets them back to 1. */
+ * left as they are). */
 void rd_march_eq_weights(const rd_march_eq *eq, double t, double *light_w);
-void rd_march_eq_reset(const rd_march_eq *eq, double *light_w);
 /* The equiangular sample's MIS-weighted estimate of the direct light (unit throughput at t0,
  * the segment's start in the scene bounds). */
-vec3 rd_march_eq_sample(const rd_scene *s, const rd_march_eq *eq, double t0, pcg32 *rng, rd_track_counters *c);
+vec3 rd_march_eq_sample(const rd_scene *s, const rd_march_eq *eq, double t0, pcg32 *rng,
+                        rd_track_counters *c);
 /* Radiance along camera ray r with the samples of `place` (the estimator of THEORY.md §6). */
 vec3 rd_march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp,
                        placement place);

@@ -165,7 +165,8 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
             in.hit_shape = hit.shape;
         }
         rd_flight f = fs->sample(fs, s, &in, rng, c);
-        /* settings.equiangular: `delta`'s second strategy for the single scattering from point
+        /* The flights' equiangular mode (settings.equiangular for `delta`, march.equiangular for
+         * the marchers' paths): `delta`'s second strategy for the single scattering from point
          * and spot lights along this flight (transport/equiangular.c), with the throughput up
          * to the flight; the collision's next-event estimate below takes the other weight. */
         int eq = 0;
@@ -276,16 +277,17 @@ vec3 rd_path_radiance(const rd_scene *s, ray3 r, const rd_flight_sampler *fs, pc
 vec3 rd_delta_continue(const rd_scene *s, ray3 r, int region, double pdf, int depth,
                        int camera_chain, int equiangular, pcg32 *rng, rd_track_counters *c)
 {
-    const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL, .equiangular = equiangular};
+    const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL,
+                                  .equiangular = equiangular};
     int budget = 0;
     return trace(s, r, region, pdf, depth, camera_chain, 0, &fs, rng, c, &budget);
 }
 
-vec3 rd_delta_scattered(const rd_scene *s, ray3 r, int region, int depth, pcg32 *rng,
-                        rd_track_counters *c)
+vec3 rd_delta_scattered(const rd_scene *s, ray3 r, int region, int depth, int equiangular,
+                        pcg32 *rng, rd_track_counters *c)
 {
     const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL,
-                                  .equiangular = s->settings.equiangular};
+                                  .equiangular = equiangular};
     int budget = 0;
     return trace(s, r, region, 0.0, depth, 1, 1, &fs, rng, c, &budget);
 }

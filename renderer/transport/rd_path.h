@@ -119,9 +119,10 @@ vec3 rd_delta_continue(const rd_scene *s, ray3 r, int region, double pdf, int de
  * is left is every path that scatters on r and goes on: the phase-sampled continuation from
  * the first vertex, with its MIS weight where it hits a light (rd_flight_behind), and all
  * later vertices as `delta` has them. The marchers' nee+delta source adds it to their own
- * estimate of the single scattering on r (integrators/march.c). */
-vec3 rd_delta_scattered(const rd_scene *s, ray3 r, int region, int depth, pcg32 *rng,
-                        rd_track_counters *c);
+ * estimate of the single scattering on r (integrators/march.c). Its flights after the first
+ * take the equiangular strategy of mode `equiangular` (the marchers': march.equiangular). */
+vec3 rd_delta_scattered(const rd_scene *s, ray3 r, int region, int depth, int equiangular,
+                        pcg32 *rng, rd_track_counters *c);
 /* Delta tracking's flight (rd_sample_free_path with the scene's tracker). */
 rd_flight rd_flight_delta(const rd_scene *s, const rd_flight_in *in, pcg32 *rng,
                           rd_track_counters *c);

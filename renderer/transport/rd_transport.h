@@ -157,11 +157,11 @@ double rd_eq_weight(const rd_scene *s, const rd_eq_flight *ef, double t, int lig
 vec3 rd_nee_split(const rd_scene *s, int region, vec3 x, vec3 d, double g, const double *light_w,
                   pcg32 *rng, rd_track_counters *c);
 
-/* Direct light at x with no path to share it with (the ray marchers): one sample of every
- * light, summed, no MIS weight (nothing else estimates the direct part, so a weight < 1 would
- * lose light from sphere and environment lights). A light that gives nothing at x (outside a
- * spot's cone, behind a finite beam) costs no shadow ray. light_w as for rd_nee_split, for
- * every light. */
+/* Direct light at x with no path to share it with (the ray marchers' photon sources): one
+ * sample of every light, summed, with no MIS weight against a path (none follows, so a weight
+ * < 1 would lose light from sphere and environment lights). A light that gives nothing at x
+ * (outside a spot's cone, behind a finite beam) costs no shadow ray. light_w as for
+ * rd_nee_split, for every light: the marchers' weights against their equiangular sample. */
 vec3 rd_nee_all(const rd_scene *s, int region, vec3 x, vec3 d, double g, const double *light_w,
                 pcg32 *rng, rd_track_counters *c);
 
