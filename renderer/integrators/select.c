@@ -26,8 +26,16 @@
  * Cauchy-Schwarz: a non-negative X with mean mu that is non-zero with probability p has
  * E[X^2] >= mu^2 / p, so Var X >= mu^2 (1/p - 1). The bound is what sees a narrow beam that
  * delta's path never finds: its samples are all zero, sample variance 0, but mu, the mean of
- * the two estimators' means (both unbiased for the tile's mean), is not, and p, by Laplace's
- * rule (non-zero + 1) / (n + 2), falls as the zeros pile up.
+ * the two estimators' means (both unbiased for the tile's mean), is not, and p falls as the
+ * zeros pile up. p is the tile's non-zero count under a Beta prior of two pseudo-samples
+ * centred on the estimator's non-zero fraction over the image's lit tiles (empirical Bayes),
+ *     p = (non-zero + 2 pbar) / (n + 2),   pbar = (sum of non-zero + 1) / (sum of n + 2)
+ * over the tiles where either estimator saw a non-zero sample. Until session 22 it was
+ * Laplace's rule (pbar = 1/2), which in a tile of 128 zeros puts p at 1/130 whatever the rest
+ * of the image shows: on hard-narrow-spot `delta`'s samples are non-zero once in a thousand
+ * (39 of the pilot's 38400), so its variance there was read as 14x the marcher's where it is
+ * about 150x, and 85% of the samples went to `delta` (docs/guided-marching.md, "The
+ * equiangular sample"). A tile's own non-zero samples outweigh the prior as they come.
  *
  * Evidence of unequal size. At an epoch the tile's current estimator has the image's thousands of
  * samples and the other only its pilot's hundred or so. A heavy tail is seen in proportion to
@@ -194,12 +202,13 @@ static void pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, const rd_select
 
 /* The per-sample variance of estimator e (0 delta, 1 the method) in a tile whose two
  * statistics are pair[0], pair[1] (mean over RGB): the pooled sample variance, bounded below by
- * Cauchy-Schwarz with mu the mean of the two estimators' means (see the head). */
-static double tile_variance(const rd_select_stats *pair, int e)
+ * Cauchy-Schwarz with mu the mean of the two estimators' means and the non-zero probability p
+ * from the tile's count and e's fraction pbar over the image (see the head). */
+static double tile_variance(const rd_select_stats *pair, int e, double pbar)
 {
     const rd_select_stats *st = &pair[e];
     if (!(st->n > 0.0)) return 0.0;
-    double p = (st->nonzero + 1.0) / (st->n + 2.0), v = 0.0;
+    double p = (st->nonzero + 2.0 * pbar) / (st->n + 2.0), v = 0.0;
     for (int c = 0; c < 3; c++) {
         double mu = 0.0;
         int k = 0;
@@ -302,13 +311,21 @@ static void choose_tiles(rd_select *sel)
     if (!var) return; /* the choices stay as they are */
     double *cost = var + 2 * (size_t)n, *tmp = cost + 2 * (size_t)n;
     uint8_t *want = (uint8_t *)(tmp + 2 * (size_t)n);
+    /* Each estimator's non-zero fraction over the lit tiles: the prior of every tile's p. */
+    double nz[2] = {0, 0}, nn[2] = {0, 0}, pbar[2];
+    for (int k = 0; k < n; k++) {
+        const rd_select_stats *st = &sel->stats[2 * k];
+        if (!(st[0].nonzero + st[1].nonzero > 0.0)) continue;
+        for (int e = 0; e < 2; e++) nz[e] += st[e].nonzero, nn[e] += st[e].n;
+    }
+    for (int e = 0; e < 2; e++) pbar[e] = (nz[e] + 1.0) / (nn[e] + 2.0);
     for (int k = 0; k < n; k++) {
         int tx = k % nx, ty = k / nx;
         int w = sel->width - tx * RD_SELECT_TILE, h = sel->height - ty * RD_SELECT_TILE;
         double pixels = (double)(w < RD_SELECT_TILE ? w : RD_SELECT_TILE) * (h < RD_SELECT_TILE ? h : RD_SELECT_TILE);
         for (int e = 0; e < 2; e++) {
             const rd_select_stats *st = &sel->stats[2 * k + e];
-            var[2 * k + e] = pixels * tile_variance(&sel->stats[2 * k], e);
+            var[2 * k + e] = pixels * tile_variance(&sel->stats[2 * k], e, pbar[e]);
             cost[2 * k + e] = st->n > 0.0 ? pixels * st->cost / st->n : 0.0;
         }
     }
