@@ -228,13 +228,13 @@ Test(select, a_beam_across_the_tiles_still_goes_to_the_method)
 
 /* ---- The non-zero probability's prior (session 22) ------------------------------------------ */
 
-/* A 5x5-tile selection whose method (every tile: mean 1, variance 0.5, never zero, cost 70: V C
- * 35) meets a delta (cost 1) that is zero in all 128 pilot samples of every tile but those where
+/* A 5x5-tile selection whose method (every tile: mean 1, variance 0.5, never zero, cost c_m)
+ * meets a delta (cost 1) that is zero in all 128 pilot samples of every tile but those where
  * lit[k]: there its samples are mu / q with probability q = hits / 128 (mean 1, variance
  * 1/q - 1). In an all-zero tile delta's variance is the Cauchy-Schwarz bound mu^2 (1/p - 1),
  * mu = 1/2 (the two means' mean), with p from the tile's count and delta's non-zero fraction
- * over the lit tiles (select.c's head). */
-static void prior_scene(rd_select *sel, const int *lit, int hits)
+ * over the lit tiles (select.c's head); the choice pools each figure over 3x3 windows. */
+static void prior_scene(rd_select *sel, const int *lit, int hits, double c_m)
 {
     char err[RD_ERRLEN];
     cr_assert(rd_select_init(sel, 40, 40, 1.0, err, sizeof err) == RD_OK, "%s", err);
@@ -242,7 +242,7 @@ static void prior_scene(rd_select *sel, const int *lit, int hits)
         double q = hits / 128.0;
         if (lit[k]) fake_pilot(sel, 2 * k, 1.0, 1.0 / q - 1.0, q, 1.0);
         else fake_pilot(sel, 2 * k, 0.0, 0.0, 0.0, 1.0);
-        fake_pilot(sel, 2 * k + 1, 1.0, 0.5, 1.0, 70.0);
+        fake_pilot(sel, 2 * k + 1, 1.0, 0.5, 1.0, c_m);
     }
     rd_select_epoch(sel, NULL); /* no samples: the choice from these statistics */
 }
@@ -250,23 +250,31 @@ static void prior_scene(rd_select *sel, const int *lit, int hits)
 Test(select, a_tile_of_zeros_goes_by_how_often_delta_sees_light_elsewhere)
 {
     /* Rare: delta found the light once, in the centre tile (1 of the 3200 samples: hard-narrow-
-     * spot's pilot had 39 of 38400). Its non-zero fraction pbar = 2/3202, so a tile of 128
-     * zeros has p = 2 pbar / 130 = 9.6e-6 and a variance bound of 2.6e4: every tile goes to the
-     * method. With Laplace's rule (p = 1/130, bound 32) the four corners, whose windows hold
-     * no lit tile (pooled 32 < 35), stayed with delta. */
+     * spot's pilot had 39 of 38400), the method at 70x delta's cost (V C 35). delta's non-zero
+     * fraction pbar = 2/3202, so a tile of 128 zeros has p = 2 pbar / 130 = 9.6e-6 and a
+     * variance bound of 2.6e4: every tile goes to the method. With Laplace's rule (p = 1/130,
+     * bound 32) all 25 stayed with delta. */
     int lit[25] = {0};
     lit[12] = 1;
     rd_select sel;
-    prior_scene(&sel, lit, 1);
+    prior_scene(&sel, lit, 1, 70.0);
     for (int k = 0; k < 25; k++) cr_assert(sel.guided[k] == 1, "rare light: tile %d stayed with delta", k);
     rd_select_free(&sel);
     /* Common: delta's samples are non-zero in half the samples of each of the other 24 tiles
-     * (variance 1), pbar = 0.5, so the one tile of zeros in the centre has p = 1/130 as under
-     * Laplace's rule, a bound of 32, a pooled variance of 4.4 < 35: delta keeps it (the rare
-     * case's p would give it away: a pooled 2900). */
+     * (variance 1), pbar = 0.48, so the one tile of zeros in the centre has p = 1/135, about
+     * Laplace's, a bound of 34, a pooled variance of 4.6 < 35: delta keeps it (the rare case's
+     * p would give it away: a pooled 2900). */
     for (int k = 0; k < 25; k++) lit[k] = k != 12;
-    prior_scene(&sel, lit, 64);
-    cr_assert(sel.guided[12] == 0, "common light: the tile of zeros went to the method");
+    prior_scene(&sel, lit, 64, 70.0);
+    cr_assert(sel.guided[12] == 0, "common light, half: the tile of zeros went to the method");
+    rd_select_free(&sel);
+    /* Most: delta's samples non-zero in 115 of 128 (variance 0.11) around the tile of zeros, the
+     * method at 6x the cost (V C 3): pbar = 0.86, p = 0.013, a bound of 19, pooled 2.2 < 3:
+     * delta keeps it. Laplace's p (bound 32, pooled 3.7) gives it away; so does any prior that
+     * does not follow the image: a fixed centre p0 must be above 0.6 here and below 0.46 in the
+     * rare case. */
+    prior_scene(&sel, lit, 115, 6.0);
+    cr_assert(sel.guided[12] == 0, "common light, most: the tile of zeros went to the method");
     rd_select_free(&sel);
 }
 

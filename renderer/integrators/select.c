@@ -27,15 +27,19 @@
  * E[X^2] >= mu^2 / p, so Var X >= mu^2 (1/p - 1). The bound is what sees a narrow beam that
  * delta's path never finds: its samples are all zero, sample variance 0, but mu, the mean of
  * the two estimators' means (both unbiased for the tile's mean), is not, and p falls as the
- * zeros pile up. p is the tile's non-zero count under a Beta prior of two pseudo-samples
- * centred on the estimator's non-zero fraction over the image's lit tiles (empirical Bayes),
+ * zeros pile up. p is the posterior mean of the tile's non-zero probability under a Beta prior
+ * of two pseudo-samples, Beta(2 pbar, 2 (1 - pbar)), centred on the estimator's non-zero
+ * fraction over the image's lit tiles (empirical Bayes),
  *     p = (non-zero + 2 pbar) / (n + 2),   pbar = (sum of non-zero + 1) / (sum of n + 2)
  * over the tiles where either estimator saw a non-zero sample. Until session 22 it was
  * Laplace's rule (pbar = 1/2), which in a tile of 128 zeros puts p at 1/130 whatever the rest
  * of the image shows: on hard-narrow-spot `delta`'s samples are non-zero once in a thousand
- * (39 of the pilot's 38400), so its variance there was read as 14x the marcher's where it is
+ * (39 of the pilot's 38400 over the whole image), so its variance there was read as 14x the
+ * marcher's where it is
  * about 150x, and 85% of the samples went to `delta` (docs/guided-marching.md, "The
- * equiangular sample"). A tile's own non-zero samples outweigh the prior as they come.
+ * equiangular sample"). A tile's own non-zero samples outweigh the prior as they come. The
+ * sums include the epochs' samples, so the tiles already given to an estimator weigh most in
+ * its pbar (not measured: a pbar from the pilot's counts alone would avoid it).
  *
  * Evidence of unequal size. At an epoch the tile's current estimator has the image's thousands of
  * samples and the other only its pilot's hundred or so. A heavy tail is seen in proportion to
@@ -203,7 +207,7 @@ static void pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, const rd_select
 /* The per-sample variance of estimator e (0 delta, 1 the method) in a tile whose two
  * statistics are pair[0], pair[1] (mean over RGB): the pooled sample variance, bounded below by
  * Cauchy-Schwarz with mu the mean of the two estimators' means and the non-zero probability p
- * from the tile's count and e's fraction pbar over the image (see the head). */
+ * from the tile's count and e's fraction pbar over the lit tiles (see the head). */
 static double tile_variance(const rd_select_stats *pair, int e, double pbar)
 {
     const rd_select_stats *st = &pair[e];
