@@ -35,9 +35,8 @@
  * Laplace's rule (pbar = 1/2), which in a tile of 128 zeros puts p at 1/130 whatever the rest
  * of the image shows: on hard-narrow-spot `delta`'s samples are non-zero once in a thousand
  * (39 of the pilot's 38400 over the whole image), so its variance there was read as 14x the
- * marcher's where it is
- * about 150x, and 85% of the samples went to `delta` (docs/guided-marching.md, "The
- * equiangular sample"). A tile's own non-zero samples outweigh the prior as they come. The
+ * marcher's where it is about 150x, and 85% of the samples went to `delta`
+ * (docs/guided-marching.md, "The equiangular sample"). A tile's own non-zero samples outweigh the prior as they come. The
  * sums include the epochs' samples, so the tiles already given to an estimator weigh most in
  * its pbar (not measured: a pbar from the pilot's counts alone would avoid it).
  *
