@@ -237,6 +237,9 @@ typedef struct {
                      * estimate of the roulette's weight window */
     uint64_t segments; /* distance-pdf segments built (the selection's counted cost, select.c) */
     uint64_t vertices; /* vertices whose policy read the guide (likewise) */
+    int guided;        /* the last flight was guided: D below is its mixture (its pdfs' segments
+                        * in the scratch, until the next flight) */
+    gu_dist D;
 } gu_user;
 
 /* Whether this flight's distance is the guide's (else delta tracking's). */
@@ -253,6 +256,7 @@ static rd_flight guided_flight(const rd_flight_sampler *fs, const rd_scene *s,
     ray3 r = in->r;
     double t0, t1;
     u->P_pass = -1.0;
+    u->guided = 0;
     /* No guide, distances off, a secondary flight with guide.secondary off, or no medium on
      * the way: delta tracking's flight (it passes with weight 1 when the ray misses every
      * medium). Which sampler a flight uses depends on the flight alone: each stays unbiased.
@@ -283,7 +287,9 @@ static rd_flight guided_flight(const rd_flight_sampler *fs, const rd_scene *s,
     if (!guided || !(D.g.I > 0.0)) return rd_flight_delta(s, in, rng, c);
     double P_pass = dist_pass(&D);
     u->P_pass = P_pass;
-    rd_flight f = {.kind = RD_FLIGHT_END, .t = t1, .medium = NULL, .weight = v3(0, 0, 0)};
+    u->guided = 1;
+    u->D = D;
+    rd_flight f = {.kind = RD_FLIGHT_END, .t = t1, .medium = NULL, .weight = v3(0, 0, 0), .pdf = 0.0};
     /* One-sample mixture: pick a strategy, then scatter or pass with its probability. */
     int maj = pcg32_uniform(rng) < D.w;
     if (pcg32_uniform(rng) >= (maj ? D.P_m : D.P_g)) {
@@ -305,7 +311,18 @@ static rd_flight guided_flight(const rd_flight_sampler *fs, const rd_scene *s,
     f.kind = RD_FLIGHT_SCATTER;
     f.medium = m;
     f.weight = v3_scale(m->albedo, sigma_t * T / q); /* eq. 4, scatter: sigma_s = albedo sigma_t */
+    f.pdf = q; /* the equiangular strategy's MIS weight at this vertex (transport/path.c) */
     return f;
+}
+
+/* The last flight's scattering density at t (eq. 3), for the equiangular strategy's MIS weight
+ * (rd_flight_sampler.density); -1 when that flight was delta tracking's (the path loop then
+ * takes the majorant stand-in, which is delta tracking's density where the majorant is
+ * tight). */
+static double guided_density(const rd_flight_sampler *fs, double t)
+{
+    const gu_user *u = fs->user;
+    return u->guided ? dist_scatter_pdf(&u->D, t) : -1.0;
 }
 
 /* ---- The vertex policy: guided directions, roulette and splitting --------------------------- */
@@ -435,11 +452,16 @@ static vec3 gu_path(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler 
 {
     gu_user u = {.ctx = ctx, .scratch = th->scratch};
     /* With directions and roulette off the vertex is `delta`'s (the loop's own roulette and
-     * phase sampling); with every part off the method is `delta`, bit for bit. */
+     * phase sampling); with every part off (guide.equiangular too, or the same as `delta`'s
+     * settings.equiangular) the method is `delta`, bit for bit. */
     const rd_guide_settings *gs = &ctx->scene->guide;
+    /* The flights take `delta`'s equiangular strategy in guide.equiangular's mode, weighted by
+     * their own density where they are guided (guided_density). */
     const rd_flight_sampler fs = {.sample = guided_flight,
                                   .vertex = ctx->guide && (gs->directions || gs->roulette) ? gu_vertex : NULL,
-                                  .user = &u};
+                                  .density = guided_density,
+                                  .user = &u,
+                                  .equiangular = gs->equiangular};
     pcg32 rng = rd_sampler_stream(smp);
     vec3 L = rd_path_radiance(ctx->scene, r, &fs, &rng, &th->counters);
     th->cells += u.segments;

@@ -12,7 +12,8 @@
 /* ---- settings ------------------------------------------------------------------------------ */
 
 /* An equiangular mode at `key` of j (path.key in errors): true, false, "auto", and "camera"
- * where `camera` allows it (settings.equiangular; march.equiangular has no camera-only mode). */
+ * where `camera` allows it (settings.equiangular and guide.equiangular; march.equiangular has
+ * no camera-only mode). */
 static rd_status parse_equiangular(ld_ctx *c, const cJSON *j, const char *path, int camera, int *out)
 {
     const cJSON *e = cJSON_GetObjectItemCaseSensitive(j, "equiangular");
@@ -167,13 +168,14 @@ rd_status ld_parse_guide(ld_ctx *c, const cJSON *j, rd_guide_settings *g)
     g->split_max = 2;
     g->eval_bands = 2; /* calibrated on the six calibration scenes and beam-vdb (docs/guided-unbiased.md) */
     g->photon_share = 0.25; /* the same seven scenes (docs/guided-unbiased.md) */
+    g->equiangular = RD_EQ_AUTO; /* docs/guided-unbiased.md, "The equiangular strategy" */
     if (!j) return RD_OK;
     const char *path = "guide";
     LD_TRY(ld_need_object(c, j, path));
     static const char *const keys[] = {"grid", "bake", "bands", "k", "lambda", "resolution", "min_cell", "max_depth", "window",
                                        "distances", "distance_alpha", "pass_floor", "majorant_weight", "secondary",
                                        "directions", "direction_weight", "roulette", "split_max", "distance_tau_max",
-                                       "eval_bands", "photon_share", NULL};
+                                       "eval_bands", "photon_share", "equiangular", NULL};
     LD_TRY(ld_check_keys(c, j, path, keys));
     static const char *const grids[] = {"uniform", "adaptive", NULL};
     static const char *const bakes[] = {"knn", "track", NULL};
@@ -209,6 +211,7 @@ rd_status ld_parse_guide(ld_ctx *c, const cJSON *j, rd_guide_settings *g)
     LD_TRY(ld_get_int(c, j, path, "eval_bands", 0, 2, 1, 8, &v));
     g->eval_bands = (int)v;
     LD_TRY(ld_get_num(c, j, path, "photon_share", 0, 0.25, 0, 1, 1, 0, &g->photon_share));
+    LD_TRY(parse_equiangular(c, j, path, 1, &g->equiangular));
     const cJSON *res = cJSON_GetObjectItemCaseSensitive(j, "resolution");
     if (res) {
         if (!cJSON_IsArray(res) || cJSON_GetArraySize(res) != 3)

@@ -100,6 +100,9 @@ typedef struct {
     int eval_bands;      /* guided-unbiased reads the guide's first min(eval_bands, bands)
                           * bands, in [1, 8] (sampling decisions only: unbiased for any) */
     double photon_share; /* guided-unbiased bakes this share of photons.count, in (0, 1] */
+    int equiangular;     /* rd_equiangular_mode of guided-unbiased's flights (`delta`'s strategy,
+                          * its MIS weights taken with a guided flight's own density;
+                          * transport/equiangular.c) */
 } rd_guide_settings;
 
 /* Ray-marching settings of the guided methods (scene key "march", docs/scene-format.md). */

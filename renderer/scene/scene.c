@@ -193,6 +193,7 @@ void rd_scene_info(const rd_scene *s, FILE *out)
     fprintf(out, "delta      equiangular %s, thin_bias %s\n", eq_names[s->settings.equiangular], thin);
     static const char *const march_eq[] = {"off", "every segment and path flight", "", "auto (lit spans crossed)"};
     fprintf(out, "marchers   equiangular %s\n", march_eq[s->march.equiangular]);
+    fprintf(out, "guided-unb equiangular %s\n", eq_names[s->guide.equiangular]);
     fprintf(out, "memory     %.2f MiB (scene and volumes; film %.2f MiB)\n", mem / 1048576.0,
             (double)cam->width * cam->height * 3 * (sizeof(float) + sizeof(double)) / 1048576.0);
 }

@@ -40,7 +40,10 @@
  * (the power heuristic, beta = 2). Both are > 0 only where their strategy can sample: e_j > 0
  * only on the cut span, and where e_j = 0, w_d = 1; m > 0 wherever sigma_t can be > 0. A
  * stand-in that is wrong costs variance, never bias. Lights that equiangular sampling never
- * chooses keep w_d = 1.
+ * chooses keep w_d = 1. A flight sampler that knows its own scattering density exactly (a
+ * guided flight of guided-unbiased: q(t), eq. 3 of integrators/guided_unbiased.c) puts that
+ * in m's place: rd_eq_flight.density for the equiangular sample, rd_flight.pdf for the weight
+ * at its vertex (both the same function of (flight, t, j), so w_d + w_e = 1 still).
  *
  * "auto": which lights a flight samples. The weights above may be any deterministic functions
  * of the flight, so the set of lights strategy e samples may be too: a light outside the set
@@ -148,6 +151,8 @@ int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, dou
 {
     ef->left = 0;
     ef->ps_pmf = 0.0;
+    ef->density = NULL;
+    ef->density_user = NULL;
     for (int i = 0; i < s->n_lights; i++)
         if (point_or_spot(&s->lights[i])) ef->ps_pmf += s->light_sampler.pmf[i];
     if (!(ef->ps_pmf > 0.0)) return 0;
@@ -218,7 +223,11 @@ vec3 rd_eq_nee(const rd_scene *s, const rd_eq_flight *ef, pcg32 *rng, rd_track_c
     c->lookups++;
     double sigma_t = rd_medium_sigma_t(m, x);
     if (!(sigma_t > 0.0)) return v3(0, 0, 0);
-    double pe = Qj * pdf, w = rd_power_heuristic(pe, Pj * tracking_proxy(ef, t));
+    /* The competing density: the flight's own when it knows it (guided-unbiased's q(t), asked
+     * now, while the flight it describes is the last one sampled), else the stand-in. */
+    double pc = ef->density ? ef->density(ef->density_user, t) : -1.0;
+    if (!(pc >= 0.0)) pc = tracking_proxy(ef, t);
+    double pe = Qj * pdf, w = rd_power_heuristic(pe, Pj * pc);
     if (!(w > 0.0)) return v3(0, 0, 0);
     vec3 Lj = rd_nee_light(s, ef->region, x, ef->r.d, m->g, j, rng, c);
     if (!(v3_maxc(Lj) > 0.0)) return v3(0, 0, 0);
@@ -227,7 +236,7 @@ vec3 rd_eq_nee(const rd_scene *s, const rd_eq_flight *ef, pcg32 *rng, rd_track_c
     return v3_scale(v3_mul(m->albedo, Lj), sigma_t * T * w / pe);
 }
 
-double rd_eq_weight(const rd_scene *s, const rd_eq_flight *ef, double t, int light)
+double rd_eq_weight(const rd_scene *s, const rd_eq_flight *ef, double t, int light, double density)
 {
     if (light < 0 || !sampled(s, ef, light)) return 1.0;
     rd_equiangular eq;
@@ -235,5 +244,6 @@ double rd_eq_weight(const rd_scene *s, const rd_eq_flight *ef, double t, int lig
     double pdf = rd_equiangular_pdf(&eq, t);
     if (!(pdf > 0.0)) return 1.0;
     double Pj = s->light_sampler.pmf[light], Qj = Pj / ef->ps_pmf;
-    return rd_power_heuristic(Pj * tracking_proxy(ef, t), Qj * pdf);
+    double pc = density > 0.0 ? density : tracking_proxy(ef, t);
+    return rd_power_heuristic(Pj * pc, Qj * pdf);
 }

@@ -94,13 +94,6 @@ static vec3 nee_one(const rd_scene *s, const nee_site *v, pcg32 *rng, rd_track_c
     return nee_light(s, i, pmf, v, rng, c);
 }
 
-vec3 rd_nee_pick(const rd_scene *s, int region, vec3 x, vec3 d, double g, pcg32 *rng,
-                 rd_track_counters *c, int *light)
-{
-    nee_site v = {.x = x, .d = d, .region = region, .g = g, .mx = NULL, .surf = NULL};
-    return nee_one(s, &v, rng, c, light);
-}
-
 vec3 rd_nee_light(const rd_scene *s, int region, vec3 x, vec3 d, double g, int i, pcg32 *rng,
                   rd_track_counters *c)
 {
@@ -111,14 +104,14 @@ vec3 rd_nee_light(const rd_scene *s, int region, vec3 x, vec3 d, double g, int i
 vec3 rd_nee(const rd_scene *s, int region, vec3 x, vec3 d, double g, pcg32 *rng,
             rd_track_counters *c)
 {
-    return rd_nee_mix(s, region, x, d, g, NULL, rng, c);
+    return rd_nee_mix(s, region, x, d, g, NULL, rng, c, NULL);
 }
 
 vec3 rd_nee_mix(const rd_scene *s, int region, vec3 x, vec3 d, double g, const rd_dir_mix *mx,
-                pcg32 *rng, rd_track_counters *c)
+                pcg32 *rng, rd_track_counters *c, int *light)
 {
     nee_site v = {.x = x, .d = d, .region = region, .g = g, .mx = mx, .surf = NULL};
-    return nee_one(s, &v, rng, c, NULL);
+    return nee_one(s, &v, rng, c, light);
 }
 
 vec3 rd_nee_surface(const rd_scene *s, const rd_hit *h, vec3 d, pcg32 *rng,

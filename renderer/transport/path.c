@@ -50,6 +50,7 @@ static rd_flight flight_of(rd_collision col)
      * weight T / T is 1 (rd_flight); weighted trackers (seed 002 Alg. 2-3) add their own
      * factor, 1 for delta tracking. */
     f.weight = col.hit ? v3_scale(col.medium->albedo, col.weight) : v3(col.weight, col.weight, col.weight);
+    f.pdf = 0.0; /* not known: the equiangular weights take the majorant stand-in */
     return f;
 }
 
@@ -124,14 +125,32 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
                   int camera_chain, int scattered_only, const rd_flight_sampler *fs, pcg32 *rng,
                   rd_track_counters *c, int *budget);
 
+/* The flight whose vertex a next-event estimate serves, when the flight had the equiangular
+ * strategy: its set-up and the vertex's distance t and density pdf (rd_flight.pdf). */
+typedef struct {
+    const rd_eq_flight *ef;
+    double t, pdf;
+} vertex_eq;
+
+/* Next-event estimation at a medium vertex against the direction mixture mx (NULL: phase
+ * sampling), its light's share weighted against the flight's equiangular strategy when it had
+ * one (v->ef; equiangular.c: w_d = 1 - w_e). */
+static vec3 vertex_nee(const rd_scene *s, int region, vec3 x, vec3 d, const rd_medium *m,
+                       const rd_dir_mix *mx, const vertex_eq *v, pcg32 *rng, rd_track_counters *c)
+{
+    int j = -1;
+    vec3 L = rd_nee_mix(s, region, x, d, m->g, mx, rng, c, v->ef ? &j : NULL);
+    return v->ef ? v3_scale(L, rd_eq_weight(s, v->ef, v->t, j, v->pdf)) : L;
+}
+
 /* One copy of a continuation from vertex x (arrived along d) with the vertex policy's
  * direction mixture: next-event estimation plus the continued path, with unit throughput
  * (an estimate of L_s(x, -d)). */
 static vec3 continue_from(const rd_scene *s, vec3 x, vec3 d, int region, const rd_medium *m,
-                          const rd_dir_mix *mx, int depth, const rd_flight_sampler *fs,
-                          pcg32 *rng, rd_track_counters *c, int *budget)
+                          const rd_dir_mix *mx, const vertex_eq *v, int depth,
+                          const rd_flight_sampler *fs, pcg32 *rng, rd_track_counters *c, int *budget)
 {
-    vec3 L = rd_nee_mix(s, region, x, d, m->g, mx, rng, c);
+    vec3 L = vertex_nee(s, region, x, d, m, mx, v, rng, c);
     double pdf;
     vec3 wo = rd_dir_mix_sample(mx, m->g, d, rng, &pdf);
     if (!(pdf > 0.0)) return L;
@@ -139,6 +158,13 @@ static vec3 continue_from(const rd_scene *s, vec3 x, vec3 d, int region, const r
     double w = rd_hg_eval(m->g, v3_dot(d, wo)) / pdf;
     ray3 next = {x, wo};
     return v3_add(L, v3_scale(trace(s, next, region, pdf, depth, 0, 0, fs, rng, c, budget), w));
+}
+
+/* The sampler's density (rd_flight_sampler.density) in the form rd_eq_flight holds it. */
+static double flight_density(const void *user, double t)
+{
+    const rd_flight_sampler *fs = user;
+    return fs->density(fs, t);
 }
 
 /* Surface crossings of one path that do not count as scattering events (index-matched
@@ -174,8 +200,10 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
         int first = scattered_only && depth == depth0; /* the caller's flight (see above) */
         if (!first && fs->equiangular != RD_EQ_OFF && depth + 1 <= s->settings.max_depth &&
             (fs->equiangular != RD_EQ_CAMERA || depth == 0)) {
-            eq = rd_eq_flight_init(s, r, region, in.t_light, rd_thin_bias_q(s, &in),
+            /* thin bias is `delta`'s own flights' (a sampler with a density has none) */
+            eq = rd_eq_flight_init(s, r, region, in.t_light, fs->density ? 0.0 : rd_thin_bias_q(s, &in),
                                    fs->equiangular == RD_EQ_AUTO, &ef);
+            if (eq && fs->density) ef.density = flight_density, ef.density_user = fs;
             if (eq) L = v3_add(L, v3_mul(beta, rd_eq_nee(s, &ef, rng, c)));
         }
         if (f.kind == RD_FLIGHT_END || (first && f.kind == RD_FLIGHT_PASS)) break;
@@ -210,6 +238,7 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
         if (depth + 1 > s->settings.max_depth) break; /* this would be scattering event depth+1 */
         const rd_medium *m = f.medium;
         vec3 x = ray_at(r, f.t);
+        const vertex_eq ve = {.ef = eq ? &ef : NULL, .t = f.t, .pdf = f.pdf};
         from = NULL;
         camera_chain = 0;
         /* Scattering vertex: beta now carries T sigma_s / pdf (rd_flight), so what follows
@@ -227,9 +256,9 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
             *budget -= n - 1;
             beta = v3_scale(beta, vo.rr_scale / n);
             for (int k = 1; k < n; k++)
-                L = v3_add(L, v3_mul(beta, continue_from(s, x, r.d, region, m, &vo.mix, depth + 1, fs,
-                                                         rng, c, budget)));
-            L = v3_add(L, v3_mul(beta, rd_nee_mix(s, region, x, r.d, m->g, &vo.mix, rng, c)));
+                L = v3_add(L, v3_mul(beta, continue_from(s, x, r.d, region, m, &vo.mix, &ve, depth + 1,
+                                                         fs, rng, c, budget)));
+            L = v3_add(L, v3_mul(beta, vertex_nee(s, region, x, r.d, m, &vo.mix, &ve, rng, c)));
             double pdf;
             vec3 wo = rd_dir_mix_sample(&vo.mix, m->g, r.d, rng, &pdf);
             if (!(pdf > 0.0)) break;
@@ -239,15 +268,8 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
             r.d = wo;
             continue;
         }
-        if (first) {
-            /* the caller estimated this vertex's direct light */
-        } else if (eq) {
-            int j;
-            vec3 Ln = rd_nee_pick(s, region, x, r.d, m->g, rng, c, &j);
-            L = v3_add(L, v3_mul(beta, v3_scale(Ln, rd_eq_weight(s, &ef, f.t, j))));
-        } else {
-            L = v3_add(L, v3_mul(beta, rd_nee(s, region, x, r.d, m->g, rng, c)));
-        }
+        if (!first) /* (else the caller estimated this vertex's direct light) */
+            L = v3_add(L, v3_mul(beta, vertex_nee(s, region, x, r.d, m, NULL, &ve, rng, c)));
 
         /* Russian roulette on the throughput. Weighted trackers with non-bounding majorants
          * can make weights negative: survive with the largest magnitude, not the largest value. */

@@ -33,6 +33,10 @@ typedef struct {
     double t;                 /* SCATTER (and END): distance of the vertex along the ray */
     const rd_medium *medium;  /* SCATTER: the medium there */
     vec3 weight;              /* multiplies the path throughput (see above) */
+    double pdf;               /* SCATTER: the sampler's density of scattering at t when it is
+                               * known exactly (guided-unbiased's q(t)), for the MIS weights
+                               * against the equiangular strategy; 0 for delta tracking, whose
+                               * weights take the majorant stand-in (transport/equiangular.c) */
 } rd_flight;
 typedef struct {
     ray3 r;                   /* the flight's ray (r.d unit) */
@@ -74,11 +78,16 @@ typedef struct rd_flight_sampler {
      * and plain phase sampling. */
     void (*vertex)(const struct rd_flight_sampler *fs, const rd_scene *s, const rd_vertex_in *v,
                    pcg32 *rng, rd_vertex_out *out);
+    /* Optional (NULL for delta tracking): the density with which the flight just sampled would
+     * have scattered at t, or a negative number when that flight was delta tracking's. The
+     * loop calls it right after `sample`, for the equiangular strategy's MIS weight. */
+    double (*density)(const struct rd_flight_sampler *fs, double t);
     void *user;               /* the sampler's own (per call of the path loop) */
-    int equiangular;          /* rd_equiangular_mode of the loop's flights: the equiangular
-                               * strategy's MIS weights assume delta tracking's density, so only
-                               * `delta`'s flights (delta tracking, with settings.thin_bias) may
-                               * have it; 0 (RD_EQ_OFF) for every other sampler */
+    int equiangular;          /* rd_equiangular_mode of the loop's flights (RD_EQ_OFF: none).
+                               * The MIS weights need only be deterministic (docs/free-path.md):
+                               * a flight with `density` is weighted by its own density, delta
+                               * tracking's by the majorant stand-in (with settings.thin_bias's
+                               * boost for `delta`'s own flights, `density` NULL) */
 } rd_flight_sampler;
 /* Extra copies splitting may add to one camera sample's path tree (a bound on its cost). */
 #define RD_SPLIT_BUDGET 32

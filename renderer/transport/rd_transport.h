@@ -84,9 +84,10 @@ double rd_dir_mix_pdf(const rd_dir_mix *mx, double g, vec3 d, vec3 wo);
  * draws exactly what `delta` draws); *pdf gets rd_dir_mix_pdf. */
 vec3 rd_dir_mix_sample(const rd_dir_mix *mx, double g, vec3 d, pcg32 *rng, double *pdf);
 /* rd_nee with the MIS weight taken against the direction mixture mx (NULL: phase sampling,
- * which is rd_nee). */
+ * which is rd_nee); *light (when not NULL) gets the light chosen (-1 for none), for a MIS
+ * weight the caller applies. */
 vec3 rd_nee_mix(const rd_scene *s, int region, vec3 x, vec3 d, double g, const rd_dir_mix *mx,
-                pcg32 *rng, rd_track_counters *c);
+                pcg32 *rng, rd_track_counters *c, int *light);
 /* Next-event estimation at a diffuse surface hit h reached along d: one light by power, the
  * BSDF (rd_material_eval) times the cosine at the light's direction, the shadow ray from the
  * surface (rd_shadow_transmittance, in the region on d's side), MIS (power heuristic) against
@@ -94,10 +95,6 @@ vec3 rd_nee_mix(const rd_scene *s, int region, vec3 x, vec3 d, double g, const r
 vec3 rd_nee_surface(const rd_scene *s, const rd_hit *h, vec3 d, pcg32 *rng,
                     rd_track_counters *c);
 
-/* rd_nee that also reports the light it chose (*light; -1 for none), for a MIS weight the
- * caller applies (same random numbers as rd_nee). */
-vec3 rd_nee_pick(const rd_scene *s, int region, vec3 x, vec3 d, double g, pcg32 *rng,
-                 rd_track_counters *c, int *light);
 /* One sample of light i from medium point x (phase g toward it, unbiased shadow
  * transmittance), neither divided by a choice probability nor MIS-weighted: for a point or spot
  * light, the direct radiance p I f / r^2 T scattered toward -d. */
@@ -131,6 +128,11 @@ typedef struct {
     double ps_pmf;   /* sum of rd_nee's choice probabilities over the lights it samples */
     double dscale;   /* the tracking pdf's proxy is dscale sigma_maj(t) T_maj(0,t) */
     uint64_t left;   /* lights 0..63 left to delta tracking on this flight ("auto") */
+    /* The flight sampler's own scattering density at t when it knows it exactly (a guided
+     * flight), else NULL or a negative return: the stand-in above. Set by the caller after
+     * rd_eq_flight_init (which sets it NULL). */
+    double (*density)(const void *user, double t);
+    const void *density_user;
 } rd_eq_flight;
 /* Set up the flight along r in `region` over [0, t_light] whose delta tracking runs with thin
  * bias q (0: none; rd_sample_free_path_thin). `automatic` (settings.equiangular "auto"): only
@@ -142,9 +144,11 @@ int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, dou
 /* The equiangular strategy's MIS-weighted estimate of the single scattering from point and spot
  * lights along the flight, for unit throughput. */
 vec3 rd_eq_nee(const rd_scene *s, const rd_eq_flight *ef, pcg32 *rng, rd_track_counters *c);
-/* The MIS weight of next-event estimation toward light `light` at delta tracking's collision
- * at distance t of the flight (1 for a light that equiangular sampling never chooses). */
-double rd_eq_weight(const rd_scene *s, const rd_eq_flight *ef, double t, int light);
+/* The MIS weight of next-event estimation toward light `light` at the flight's scattering
+ * vertex at distance t (1 for a light that equiangular sampling never chooses). `density` is
+ * the flight's scattering density at t when known exactly (rd_flight.pdf > 0), else 0: delta
+ * tracking's, the stand-in. */
+double rd_eq_weight(const rd_scene *s, const rd_eq_flight *ef, double t, int light, double density);
 
 /* Direct light at x where a phase-sampled path from x goes on (the marchers' nee+paths source):
  * every light a path cannot hit (point, spot, directional) once with weight 1, and delta's
