@@ -146,6 +146,50 @@ static int thin_and_reached(const rd_eq_flight *ef, double a, double b)
     return Ta >= 0.5 && ef->dscale * (1.0 - pass) < EQ_AUTO_REACH;
 }
 
+/* Cheap necessary conditions of thin_and_reached for a spot, tried before the cone cut (which
+ * cost most of "auto"'s choice: session 23). With t_half and t_third the distances at which the
+ * flight's global-majorant depth reaches ln 2 and ln 3 (INFINITY if it never does):
+ *  - T(0,a) >= 1/2 needs a <= t_half, and every point x(t), t <= t_half, lies within t_half of
+ *    the flight's origin; so a spot whose cone is farther than t_half from the origin is out.
+ *    The distance of a point p from the cone (half-angle theta about axis w) is at least
+ *    r cos(theta) - h sin(theta), h = w.(p - apex) and r = |w x (p - apex)| (the distance to
+ *    the nearest generator's whole line, a lower bound where the foot lies behind the apex);
+ *  - T(0,a) >= 1/2 and R < 1/3 need T(0,b) = T(0,a) T(a,b) > 1/3 (R >= 1 - T(a,b), the thin
+ *    bias's scale being >= 1), so b < t_third; a spot whose cone holds x(t_third), inside the
+ *    media's span, has b >= t_third and is out (a flight deep in a lit dense medium).
+ * Each rejects only what the rule rejects: the choice, and so the image, is the same. */
+static int spot_out_of_reach(const rd_light *l, ray3 r, double t_half, double t_third, double t_end)
+{
+    double c = fmax(0.0, l->cos_outer), sn = sqrt(fmax(0.0, 1.0 - c * c));
+    vec3 v = v3_sub(r.o, l->pos);
+    double h = v3_dot(l->dir, v), rad = v3_len(v3_cross(l->dir, v));
+    if (rad * c - h * sn > t_half) return 1;
+    if (t_third < t_end) {
+        vec3 x = v3_sub(ray_at(r, t_third), l->pos);
+        double ax = v3_dot(l->dir, x);
+        if (ax > 0.0 && ax * ax > c * c * v3_dot(x, x)) return 1; /* (rd_light_lit_range's test) */
+    }
+    return 0;
+}
+
+/* The distances t_half and t_third of spot_out_of_reach over the flight's intervals. */
+static void reach_marks(const rd_eq_flight *ef, double *t_half, double *t_third)
+{
+    const double lh = log(2.0), lt = log(3.0);
+    double tau = 0.0;
+    *t_half = *t_third = INFINITY;
+    for (int k = 0; k < ef->n; k++) {
+        const rd_interval *v = &ef->iv[k];
+        double sig = v->m->sigma_maj, next = tau + sig * (v->t1 - v->t0);
+        if (sig > 0.0 && *t_half == INFINITY && next >= lh) *t_half = v->t0 + (lh - tau) / sig;
+        if (sig > 0.0 && next >= lt) {
+            *t_third = v->t0 + (lt - tau) / sig;
+            return;
+        }
+        tau = next;
+    }
+}
+
 int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, double q,
                       int automatic, rd_eq_flight *ef)
 {
@@ -168,10 +212,14 @@ int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, dou
     if (automatic) {
         /* leave to delta tracking the lights it reaches often, and those lighting nothing here */
         ef->ps_pmf = 0.0;
+        double t_half, t_third;
+        reach_marks(ef, &t_half, &t_third);
         for (int i = 0; i < s->n_lights; i++) {
-            if (!point_or_spot(&s->lights[i]) || !(s->light_sampler.pmf[i] > 0.0)) continue;
+            const rd_light *l = &s->lights[i];
+            if (!point_or_spot(l) || !(s->light_sampler.pmf[i] > 0.0)) continue;
             double a, b;
-            if (i < 64 && (!lit_span(ef, &s->lights[i], &a, &b) || !thin_and_reached(ef, a, b)))
+            if (i < 64 && ((l->kind == RD_LIGHT_SPOT && spot_out_of_reach(l, r, t_half, t_third, ef->iv[ef->n - 1].t1)) ||
+                           !lit_span(ef, l, &a, &b) || !thin_and_reached(ef, a, b)))
                 ef->left |= (uint64_t)1 << i;
             else
                 ef->ps_pmf += s->light_sampler.pmf[i];
