@@ -232,6 +232,15 @@ Test(guided_unbiased, every_part_off_is_delta_bit_for_bit, .timeout = 120)
     cr_expect(memcmp(d.image.rgb, g.image.rgb, n * sizeof(float)) == 0, "images differ");
     rd_render_result_free(&g);
     rd_render_result_free(&d);
+    /* The same with `delta`'s equiangular strategy in both (the spot's lit span is sampled
+     * on some flights: the strategy's random numbers and weights must be the same too). */
+    s->settings.equiangular = RD_EQ_ALL;
+    s->guide.equiangular = RD_EQ_ALL;
+    d = rt_render(s, "delta", 4, 41, NULL);
+    g = rt_render(s, "guided-unbiased", 4, 41, NULL);
+    cr_expect(memcmp(d.image.rgb, g.image.rgb, n * sizeof(float)) == 0, "images differ with equiangular sampling");
+    rd_render_result_free(&g);
+    rd_render_result_free(&d);
     rd_scene_free(s);
 }
 
@@ -571,19 +580,6 @@ Test(guided_unbiased, thick_flights_are_delta_tracking, .timeout = 300)
     }
 }
 
-/* Mean over the pixels of the luminance's squared standard error: the image's variance. */
-static double mean_pixel_var(const rd_render_result *r)
-{
-    double v = 0.0;
-    size_t n = (size_t)r->image.w * r->image.h;
-    for (size_t i = 0; i < n; i++) {
-        const float *e = &r->stderr_img.rgb[3 * i];
-        double se = v3_lum(v3(e[0], e[1], e[2]));
-        v += se * se;
-    }
-    return v / (double)n;
-}
-
 Test(guided_unbiased, equiangular_strategy_keeps_the_expectation_and_finds_the_narrow_spot, .timeout = 600)
 {
     /* guide.equiangular: `delta`'s equiangular strategy on guided-unbiased's flights, its MIS
@@ -593,18 +589,18 @@ Test(guided_unbiased, equiangular_strategy_keeps_the_expectation_and_finds_the_n
      * scene (a 3-degree spot across thin fog, rt_spot_fog_json) every mode must keep the image
      * of `delta` with its own equiangular strategy (tested against quadrature in
      * test_integrator.c), with the camera flights guided and with every flight guided
-     * (guide.secondary), roulette, splitting and guided directions on (the vertex policy's
+     * (guide.secondary, and thick flights too: THICK_FLIGHTS), roulette, splitting and guided directions on (the vertex policy's
      * branch of the path loop). z bounds as in the head: a false alarm chance below 1e-3 for
-     * the test's seven comparisons. The strategy must also find the spot: the guide's cells are
+     * the test's six comparisons. The strategy must also find the spot: the guide's cells are
      * wider than the cone, so its distances land beside it, and the image's variance (the
      * mean over the pixels of their variances, each from 128 samples: fixed seeds, so the
      * figure is the same every run) must fall below a tenth of that without the strategy
      * (measured: 0.0068 of it with true, 0.0067 with auto). The narrow spot's light is almost all
      * the equiangular samples', so a wrong weight at the vertices hardly shows there: the last
      * comparison (a point light's glow, single scattering) is where the two strategies share
-     * the light. Planted there: the vertex's weight taken with 0.7 q(t) (weights that no longer
-     * sum to one) fails at z = 8.9; the vertex's weight with the stand-in while the equiangular
-     * sample's takes q(t) (the two not paired) at z = 23. Seven comparisons in all. */
+     * the light, every flight guided however thick. Planted there: the vertex's weight taken with
+     * 0.7 q(t) (weights that no longer sum to one) fails at z = 101; the vertex's weight with the
+     * stand-in while the equiangular sample's takes q(t) (the two not paired) at z = 72. */
     rd_scene *sd = rt_scene("gueq_delta.json", rt_spot_fog_json(32, 24, "{\"max_depth\":8,\"equiangular\":true}"));
     rd_render_result d = rt_render(sd, "delta", 2048, 111, NULL);
     const char *modes[] = {"false", "true", "\"auto\"", "\"camera\""};
@@ -614,13 +610,13 @@ Test(guided_unbiased, equiangular_strategy_keeps_the_expectation_and_finds_the_n
             if (sec && mo != 1) continue; /* every flight guided: with `true` */
             char extra[256], what[128];
             snprintf(extra, sizeof extra, "\"photons\":{\"count\":40000},\"guide\":{\"equiangular\":%s,\"secondary\":%s}",
-                     modes[mo], sec ? "true" : "false");
+                     modes[mo], sec ? "true" THICK_FLIGHTS : "false");
             rd_scene *s = rt_scene("gueq.json", rt_spot_fog_json_with(32, 24, "{\"max_depth\":8,\"select\":\"off\"}", extra));
             rd_render_result g = rt_render(s, "guided-unbiased", 128, 113 + 2 * mo + sec, NULL);
             snprintf(what, sizeof what, "guided-unbiased, guide.equiangular %s%s", modes[mo],
                      sec ? ", every flight guided" : "");
             rt_expect_same(&d, &g, what);
-            if (!sec) var[mo] = mean_pixel_var(&g);
+            if (!sec) var[mo] = rt_mean_pixel_var(&g);
             rd_render_result_free(&g);
             rd_scene_free(s);
         }
@@ -630,7 +626,7 @@ Test(guided_unbiased, equiangular_strategy_keeps_the_expectation_and_finds_the_n
                 var[2], var[3]);
     rd_render_result_free(&d);
     rd_scene_free(sd);
-    /* Where the two strategies overlap: the glow of a point light inside a thin fog, single
+    /* Where the two strategies overlap: the glow of a point light above a thin fog, single
      * scattering only, so that the guided vertices' next-event estimates and the equiangular
      * samples share most of the image and a weight that does not pair with the other shows. */
     static const char glow[] =
@@ -639,15 +635,15 @@ Test(guided_unbiased, equiangular_strategy_keeps_the_expectation_and_finds_the_n
         "\"density\":{\"type\":\"noise\",\"octaves\":2,\"frequency\":1.5,\"amplitude\":0.5,\"seed\":4,"
         "\"shape\":\"none\"},\"sigma_t\":0.6,\"albedo\":0.9,\"g\":0.4}],"
         "\"lights\":[{\"type\":\"point\",\"position\":[0.3,2.6,0.2],\"intensity\":[12,10,9]}],"
-        "\"photons\":{\"count\":40000},\"guide\":{\"equiangular\":%s,\"secondary\":true},"
+        "\"photons\":{\"count\":40000},\"guide\":{\"equiangular\":%s" ALL_FLIGHTS "},"
         "\"settings\":{\"max_depth\":1,\"select\":\"off\",\"equiangular\":%s}}";
     char js[2048];
     snprintf(js, sizeof js, glow, "false", "true");
     rd_scene *sg = rt_scene("gueq_glow_d.json", js);
-    rd_render_result dg = rt_render(sg, "delta", 4096, 121, NULL);
+    rd_render_result dg = rt_render(sg, "delta", 1024, 121, NULL);
     snprintf(js, sizeof js, glow, "true", "false");
     rd_scene *gg = rt_scene("gueq_glow.json", js);
-    rd_render_result g = rt_render(gg, "guided-unbiased", 1024, 122, NULL);
+    rd_render_result g = rt_render(gg, "guided-unbiased", 256, 122, NULL);
     rt_expect_same(&dg, &g, "guided-unbiased, guide.equiangular true, a point light's glow");
     rd_render_result_free(&g);
     rd_render_result_free(&dg);

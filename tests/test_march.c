@@ -351,19 +351,6 @@ Test(march, nee_paths_counts_sphere_and_environment_light_once, .timeout = 300)
     rd_scene_free(s);
 }
 
-/* Mean over the pixels of the luminance's squared standard error: the image's variance. */
-static double mean_pixel_var(const rd_render_result *r)
-{
-    double v = 0.0;
-    size_t n = (size_t)r->image.w * r->image.h;
-    for (size_t i = 0; i < n; i++) {
-        const float *e = &r->stderr_img.rgb[3 * i];
-        double se = v3_lum(v3(e[0], e[1], e[2]));
-        v += se * se;
-    }
-    return v / (double)n;
-}
-
 Test(march, equiangular_sample_keeps_the_expectation_and_finds_the_narrow_spot, .timeout = 300)
 {
     /* march.equiangular (integrators/march_equiangular.c): one equiangular sample per segment
@@ -395,7 +382,7 @@ Test(march, equiangular_sample_keeps_the_expectation_and_finds_the_narrow_spot, 
             rd_render_result m = rt_render(s, methods[i], 64, 93 + i, NULL);
             snprintf(what, sizeof what, "%s, march.equiangular %s", methods[i], modes[mo]);
             rt_expect_same(&d, &m, what);
-            if (i == 0) var_guided[mo] = mean_pixel_var(&m);
+            if (i == 0) var_guided[mo] = rt_mean_pixel_var(&m);
             rd_render_result_free(&m);
             rd_scene_free(s);
         }

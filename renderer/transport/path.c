@@ -192,7 +192,7 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
         }
         rd_flight f = fs->sample(fs, s, &in, rng, c);
         /* The flights' equiangular mode (settings.equiangular for `delta`, march.equiangular for
-         * the marchers' paths): `delta`'s second strategy for the single scattering from point
+         * the marchers' paths, guide.equiangular for guided-unbiased's): `delta`'s second strategy for the single scattering from point
          * and spot lights along this flight (transport/equiangular.c), with the throughput up
          * to the flight; the collision's next-event estimate below takes the other weight. */
         int eq = 0;
@@ -203,7 +203,10 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
             /* thin bias is `delta`'s own flights' (a sampler with a density has none) */
             eq = rd_eq_flight_init(s, r, region, in.t_light, fs->density ? 0.0 : rd_thin_bias_q(s, &in),
                                    fs->equiangular == RD_EQ_AUTO, &ef);
-            if (eq && fs->density) ef.density = flight_density, ef.density_user = fs;
+            if (eq && fs->density) {
+                ef.density = flight_density;
+                ef.density_user = fs;
+            }
             if (eq) L = v3_add(L, v3_mul(beta, rd_eq_nee(s, &ef, rng, c)));
         }
         if (f.kind == RD_FLIGHT_END || (first && f.kind == RD_FLIGHT_PASS)) break;

@@ -116,7 +116,8 @@ int rd_equiangular_init(rd_equiangular *eq, vec3 c, ray3 r, double a, double b);
 double rd_equiangular_sample(const rd_equiangular *eq, double u, double *pdf);
 double rd_equiangular_pdf(const rd_equiangular *eq, double t); /* 0 outside [a, b] */
 
-/* `delta`'s equiangular strategy for one flight (settings.equiangular): the flight's media
+/* `delta`'s equiangular strategy for one flight (settings.equiangular; march.equiangular and
+ * guide.equiangular on the other methods' flights): the flight's media
  * intervals, the choice probabilities of the point and spot lights, and the scale of the
  * majorant density standing for delta tracking's collision density in the MIS weights (the
  * derivation is in transport/equiangular.c and docs/free-path.md). */
@@ -135,7 +136,7 @@ typedef struct {
     const void *density_user;
 } rd_eq_flight;
 /* Set up the flight along r in `region` over [0, t_light] whose delta tracking runs with thin
- * bias q (0: none; rd_sample_free_path_thin). `automatic` (settings.equiangular "auto"): only
+ * bias q (0: none; rd_sample_free_path_thin). `automatic` (the mode "auto"): only
  * the lights whose lit span delta tracking reaches (global-majorant T(0,a) >= 1/2) but
  * rarely collides in (equiangular.c). Returns 0 when there is nothing to sample (no medium on
  * the way, no point or spot light, or none left to sample). */
@@ -147,7 +148,9 @@ vec3 rd_eq_nee(const rd_scene *s, const rd_eq_flight *ef, pcg32 *rng, rd_track_c
 /* The MIS weight of next-event estimation toward light `light` at the flight's scattering
  * vertex at distance t (1 for a light that equiangular sampling never chooses). `density` is
  * the flight's scattering density at t when known exactly (rd_flight.pdf > 0), else 0: delta
- * tracking's, the stand-in. */
+ * tracking's, the stand-in. (rd_eq_nee takes a density of 0 from ef->density as it is, while
+ * here 0 means the stand-in: a flight with q(t) = 0 never puts its vertex at t, so only the
+ * sample's side needs it; keep the two tests as they are.) */
 double rd_eq_weight(const rd_scene *s, const rd_eq_flight *ef, double t, int light, double density);
 
 /* Direct light at x where a phase-sampled path from x goes on (the marchers' nee+paths source):

@@ -390,6 +390,19 @@ static inline rt_cmp rt_compare_images(const rd_render_result *a, const rd_rende
     return c;
 }
 
+/* Mean over the pixels of the luminance's squared standard error: the image's variance. */
+static inline double rt_mean_pixel_var(const rd_render_result *r)
+{
+    double v = 0.0;
+    size_t n = (size_t)r->image.w * r->image.h;
+    for (size_t i = 0; i < n; i++) {
+        const float *e = &r->stderr_img.rgb[3 * i];
+        double se = v3_lum(v3(e[0], e[1], e[2]));
+        v += se * se;
+    }
+    return v / (double)n;
+}
+
 static inline rd_render_result rt_render(const rd_scene *s, const char *method, int spp, uint64_t seed,
                                const rd_baked *baked)
 {
