@@ -137,6 +137,22 @@ Test(guided_unbiased, equals_delta_backward_scattering_every_light_type, .timeou
  * guide.roulette with splitting), against delta: forward scattering with a spot and the
  * environment, and backward scattering with every light type (sphere and environment lights
  * are where next-event estimation's MIS weight must use the direction mixture's pdf). */
+/* `delta` on the scene of JSON jd against guided-unbiased on that of jg, each rendered with its
+ * own spp and seed: equal in expectation (rt_expect_same). */
+static void expect_delta_equals(const char *jd, int spp_d, uint64_t seed_d, const char *jg, int spp_g,
+                                uint64_t seed_g, const char *what)
+{
+    rd_scene *sd = rt_scene("gu_eq_d.json", jd);
+    rd_render_result d = rt_render(sd, "delta", spp_d, seed_d, NULL);
+    rd_scene *sg = rt_scene("gu_eq_g.json", jg);
+    rd_render_result g = rt_render(sg, "guided-unbiased", spp_g, seed_g, NULL);
+    rt_expect_same(&d, &g, what);
+    rd_render_result_free(&g);
+    rd_render_result_free(&d);
+    rd_scene_free(sg);
+    rd_scene_free(sd);
+}
+
 Test(guided_unbiased, each_part_alone_equals_delta, .timeout = 900)
 {
     static const char *const parts[4][2] = {
@@ -176,18 +192,10 @@ Test(guided_unbiased, each_part_alone_equals_delta, .timeout = 900)
         "\"lights\":[{\"type\":\"sphere\",\"center\":[-2.8,0.4,0],\"radius\":1.4,\"radiance\":[1,1,1]}],"
         "\"photons\":{\"count\":40000},\"guide\":{\"bands\":4" ALL_FLIGHTS "%s},"
         "\"settings\":{\"max_depth\":64,\"rr_depth\":3}}";
-    char js[2048];
-    snprintf(js, sizeof js, sph, "");
-    rd_scene *s = rt_scene("gu_part_sd.json", js);
-    rd_render_result d = rt_render(s, "delta", 256, 81, NULL);
-    snprintf(js, sizeof js, sph, parts[1][0]);
-    rd_scene *sp = rt_scene("gu_part_s.json", js);
-    rd_render_result g = rt_render(sp, "guided-unbiased", 128, 82, NULL);
-    rt_expect_same(&d, &g, "g = 0.8, sphere light alone, directions alone");
-    rd_render_result_free(&g);
-    rd_render_result_free(&d);
-    rd_scene_free(sp);
-    rd_scene_free(s);
+    char jd[2048], jg[2048];
+    snprintf(jd, sizeof jd, sph, "");
+    snprintf(jg, sizeof jg, sph, parts[1][0]);
+    expect_delta_equals(jd, 256, 81, jg, 128, 82, "g = 0.8, sphere light alone, directions alone");
 }
 
 Test(guided_unbiased, wrong_and_empty_guides_keep_the_expectation, .timeout = 600)
@@ -637,16 +645,8 @@ Test(guided_unbiased, equiangular_strategy_keeps_the_expectation_and_finds_the_n
         "\"lights\":[{\"type\":\"point\",\"position\":[0.3,2.6,0.2],\"intensity\":[12,10,9]}],"
         "\"photons\":{\"count\":40000},\"guide\":{\"equiangular\":%s" ALL_FLIGHTS "},"
         "\"settings\":{\"max_depth\":1,\"select\":\"off\",\"equiangular\":%s}}";
-    char js[2048];
-    snprintf(js, sizeof js, glow, "false", "true");
-    rd_scene *sg = rt_scene("gueq_glow_d.json", js);
-    rd_render_result dg = rt_render(sg, "delta", 1024, 121, NULL);
-    snprintf(js, sizeof js, glow, "true", "false");
-    rd_scene *gg = rt_scene("gueq_glow.json", js);
-    rd_render_result g = rt_render(gg, "guided-unbiased", 256, 122, NULL);
-    rt_expect_same(&dg, &g, "guided-unbiased, guide.equiangular true, a point light's glow");
-    rd_render_result_free(&g);
-    rd_render_result_free(&dg);
-    rd_scene_free(gg);
-    rd_scene_free(sg);
+    char jd[2048], jg[2048];
+    snprintf(jd, sizeof jd, glow, "false", "true");
+    snprintf(jg, sizeof jg, glow, "true", "false");
+    expect_delta_equals(jd, 1024, 121, jg, 256, 122, "guided-unbiased, guide.equiangular true, a point light's glow");
 }
