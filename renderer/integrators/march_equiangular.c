@@ -95,13 +95,6 @@ vec3 rd_march_eq_sample(const rd_scene *s, const rd_march_eq *eq, double t0, pcg
     vec3 x = ray_at(eq->r, t);
     const rd_medium *m = rd_scene_medium_at(s, eq->region, x);
     if (!m) return v3(0, 0, 0);
-    c->lookups++;
-    double sigma_t = rd_medium_sigma_t(m, x);
-    double w = weight_e(eq, k, t);
-    if (!(sigma_t > 0.0) || !(w > 0.0)) return v3(0, 0, 0);
-    vec3 Lj = rd_nee_light(s, eq->region, x, eq->r.d, m->g, eq->light[k], rng, c);
-    if (!(v3_maxc(Lj) > 0.0)) return v3(0, 0, 0);
-    double T = rd_transmittance(s, eq->region, eq->r, t0, t, rng, c);
-    if (T == 0.0) return v3(0, 0, 0);
-    return v3_scale(v3_mul(m->albedo, Lj), sigma_t * T * w / (eq->Q[k] * pdf));
+    return rd_eq_estimate(s, eq->region, eq->r, t0, t, m, eq->light[k], weight_e(eq, k, t), eq->Q[k] * pdf,
+                          rng, c);
 }

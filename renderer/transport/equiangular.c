@@ -270,19 +270,24 @@ vec3 rd_eq_nee(const rd_scene *s, const rd_eq_flight *ef, pcg32 *rng, rd_track_c
     for (int k = 0; k < ef->n && !m; k++)
         if (t >= ef->iv[k].t0 && t <= ef->iv[k].t1) m = ef->iv[k].m;
     if (!m) return v3(0, 0, 0);
-    vec3 x = ray_at(ef->r, t);
-    c->lookups++;
-    double sigma_t = rd_medium_sigma_t(m, x);
-    if (!(sigma_t > 0.0)) return v3(0, 0, 0);
     /* The competing density: the flight's own when it knows it (guided-unbiased's q(t), asked
      * now, while the flight it describes is the last one sampled), else the stand-in. */
     double pc = ef->density ? ef->density(ef->density_user, t) : -1.0;
     if (!(pc >= 0.0)) pc = tracking_proxy(ef, t);
-    double pe = Qj * pdf, w = rd_power_heuristic(pe, Pj * pc);
-    if (!(w > 0.0)) return v3(0, 0, 0);
-    vec3 Lj = rd_nee_light(s, ef->region, x, ef->r.d, m->g, j, rng, c);
+    double pe = Qj * pdf;
+    return rd_eq_estimate(s, ef->region, ef->r, 0.0, t, m, j, rd_power_heuristic(pe, Pj * pc), pe, rng, c);
+}
+
+vec3 rd_eq_estimate(const rd_scene *s, int region, ray3 r, double t_from, double t, const rd_medium *m,
+                    int light, double w, double pe, pcg32 *rng, rd_track_counters *c)
+{
+    vec3 x = ray_at(r, t);
+    c->lookups++;
+    double sigma_t = rd_medium_sigma_t(m, x);
+    if (!(sigma_t > 0.0) || !(w > 0.0)) return v3(0, 0, 0);
+    vec3 Lj = rd_nee_light(s, region, x, r.d, m->g, light, rng, c);
     if (!(v3_maxc(Lj) > 0.0)) return v3(0, 0, 0);
-    double T = rd_transmittance(s, ef->region, ef->r, 0.0, t, rng, c);
+    double T = rd_transmittance(s, region, r, t_from, t, rng, c);
     if (T == 0.0) return v3(0, 0, 0);
     return v3_scale(v3_mul(m->albedo, Lj), sigma_t * T * w / pe);
 }

@@ -192,9 +192,10 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
         }
         rd_flight f = fs->sample(fs, s, &in, rng, c);
         /* The flights' equiangular mode (settings.equiangular for `delta`, march.equiangular for
-         * the marchers' paths, guide.equiangular for guided-unbiased's): `delta`'s second strategy for the single scattering from point
-         * and spot lights along this flight (transport/equiangular.c), with the throughput up
-         * to the flight; the collision's next-event estimate below takes the other weight. */
+         * the marchers' paths, guide.equiangular for guided-unbiased's): `delta`'s second
+         * strategy for the single scattering from point and spot lights along this flight
+         * (transport/equiangular.c), with the throughput up to the flight; the collision's
+         * next-event estimate below takes the other weight. */
         int eq = 0;
         rd_eq_flight ef;
         int first = scattered_only && depth == depth0; /* the caller's flight (see above) */

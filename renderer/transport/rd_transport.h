@@ -145,6 +145,13 @@ int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, dou
 /* The equiangular strategy's MIS-weighted estimate of the single scattering from point and spot
  * lights along the flight, for unit throughput. */
 vec3 rd_eq_nee(const rd_scene *s, const rd_eq_flight *ef, pcg32 *rng, rd_track_counters *c);
+/* One equiangular sample's estimate at t along r (r.d unit) in medium m, for light `light`
+ * drawn with density pe (its choice probability times the equiangular pdf) and MIS weight w:
+ *     sigma_s(t) T^(t_from, t) L^_light(t) w / pe
+ * (T^ and L^ unbiased, rd_transmittance and rd_nee_light), 0 where sigma_t or w is. Shared by
+ * rd_eq_nee and the marchers' sample (integrators/march_equiangular.c). */
+vec3 rd_eq_estimate(const rd_scene *s, int region, ray3 r, double t_from, double t, const rd_medium *m,
+                    int light, double w, double pe, pcg32 *rng, rd_track_counters *c);
 /* The MIS weight of next-event estimation toward light `light` at the flight's scattering
  * vertex at distance t (1 for a light that equiangular sampling never chooses). `density` is
  * the flight's scattering density at t when known exactly (rd_flight.pdf > 0), else 0: delta
