@@ -237,6 +237,13 @@ typedef struct sh_guide sh_guide; /* opaque */
 sh_status sh_guide_bake(sh_guide **out, const pm_map *map, const sh_bake_params *params,
                         char *err, size_t errlen);
 void sh_guide_free(sh_guide *g);
+/* A copy of g that keeps only the first `bands` SH bands of every cell (1 <= bands <=
+ * sh_guide_bands(g)): the same cells, extinctions and provenance, 3 bands^2 floats a cell.
+ * Reading bands l < `bands` from it gives the same floats as reading them from g (the
+ * coefficients are copied, not recomputed); a reader that uses only those bands touches
+ * bands^2 / L^2 of the memory (guided-unbiased's flights and vertices read 2 of 8 bands: the
+ * cell records were its cache misses). Free with sh_guide_free. */
+sh_status sh_guide_truncate(const sh_guide *g, int bands, sh_guide **out, char *err, size_t errlen);
 
 /* Read access. Cell ids are 0..cell_count-1: uniform cells x-fastest (i + nx (j + ny k)),
  * adaptive leaves in depth-first order. Coefficient pointers stay valid until _free. */

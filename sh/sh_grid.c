@@ -1,6 +1,7 @@
 /* sh_grid.c: the guide object once it exists (THEORY.md §5; docs/guide-grid.md): the cell
  * boxes of both grid kinds, read access by cell id, point location and evaluation (the guide's
- * SH expansion at a point and direction, seed 001 §3.2), statistics and free. Making a guide is
+ * SH expansion at a point and direction, seed 001 §3.2), statistics, free, and a copy that
+ * keeps fewer bands (sh_guide_truncate). Making a guide is
  * sh_layout.c (sh_guide_bake: the cell layout) and sh_bake.c (the cells' values); loading one
  * is sh_io.c. The guide's layout is in sh_internal.h. */
 #include <math.h>
@@ -34,6 +35,61 @@ void sh_guide_free(sh_guide *g)
     free(g->coeffs);
     free(g->sigma_t);
     free(g);
+}
+
+/* Copy n bytes of src into a fresh block at *dst (NULL for n = 0); 0 when out of memory. */
+static int dup_bytes(void **dst, const void *src, size_t n)
+{
+    *dst = NULL;
+    if (n == 0 || !src)
+        return 1;
+    if (!(*dst = malloc(n)))
+        return 0;
+    memcpy(*dst, src, n);
+    return 1;
+}
+
+sh_status sh_guide_truncate(const sh_guide *g, int bands, sh_guide **out, char *err, size_t errlen)
+{
+    if (!out) {
+        shi_set_err(err, errlen, "sh_guide_truncate: out must be non-NULL");
+        return SH_ERR_ARG;
+    }
+    *out = NULL;
+    if (!g || bands < 1 || bands > g->bands) {
+        shi_set_err(err, errlen, "sh_guide_truncate: %d bands asked of a %d-band guide", bands,
+                    g ? g->bands : 0);
+        return SH_ERR_ARG;
+    }
+    sh_guide *t = malloc(sizeof *t);
+    if (!t) {
+        shi_set_err(err, errlen, "sh_guide_truncate: out of memory");
+        return SH_ERR_NOMEM;
+    }
+    *t = *g;
+    t->nodes = NULL, t->leaf_lo = t->leaf_hi = NULL, t->leaf_depth = NULL;
+    t->coeffs = t->sigma_t = NULL;
+    t->bands = bands;
+    t->ncoef = SH_CHANNELS * bands * bands;
+    int ok = dup_bytes((void **)&t->nodes, g->nodes, g->nnodes * sizeof *g->nodes) &&
+             dup_bytes((void **)&t->leaf_lo, g->leaf_lo, g->leaf_lo ? 3 * g->ncells * sizeof(double) : 0) &&
+             dup_bytes((void **)&t->leaf_hi, g->leaf_hi, g->leaf_hi ? 3 * g->ncells * sizeof(double) : 0) &&
+             dup_bytes((void **)&t->leaf_depth, g->leaf_depth, g->leaf_depth ? g->ncells : 0) &&
+             dup_bytes((void **)&t->sigma_t, g->sigma_t, g->ncells * sizeof(float)) &&
+             (t->coeffs = malloc(g->ncells * (size_t)t->ncoef * sizeof(float) + 1)) != NULL;
+    if (!ok || sh_basis_init(&t->basis, bands) != SH_OK) {
+        sh_guide_free(t);
+        shi_set_err(err, errlen, "sh_guide_truncate: out of memory");
+        return SH_ERR_NOMEM;
+    }
+    /* Channel-major per cell (sh.h): channel c's band-l block is coefficients c L^2 + l^2 ... */
+    const int n = bands * bands, L2 = g->bands * g->bands;
+    for (size_t i = 0; i < g->ncells; i++)
+        for (int c = 0; c < SH_CHANNELS; c++)
+            memcpy(t->coeffs + i * (size_t)t->ncoef + (size_t)c * n,
+                   g->coeffs + i * (size_t)g->ncoef + (size_t)c * L2, (size_t)n * sizeof(float));
+    *out = t;
+    return SH_OK;
 }
 
 /* ---- Cell geometry -------------------------------------------------------------------------- */

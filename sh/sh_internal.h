@@ -6,7 +6,7 @@
  *   sh_math.c   SH basis, Legendre polynomials, quadrature, phase coefficients, and the
  *               projection / evaluation of one cell's coefficients.
  *   sh_grid.c   the guide object: cell boxes, read access, point location and evaluation,
- *               statistics, free.
+ *               statistics, free, truncated copies.
  *   sh_layout.c sh_guide_bake: parameter checks, the box, the cell layout by the uniform
  *               resolution rule or the adaptive octree build; then sh_bake.c fills the cells.
  *   sh_bake.c   filling the cells once the layout exists: the k-NN bake, the track-length

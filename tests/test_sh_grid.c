@@ -850,3 +850,98 @@ Test(sh, a_raised_cancel_flag_stops_both_bakes)
     pm_map_free(m);
     free(sg);
 }
+
+/* ---- Truncated copies ----------------------------------------------------------------------- */
+
+/* sh_guide_truncate keeps the first bands of every cell and nothing else changes: every cell's
+ * kept coefficients and extinction equal the original's (the floats themselves), reading those
+ * bands evaluates to the same float in either guide, a ray crosses the same cells at the same
+ * t, and point location agrees; on both grid kinds. Exact equality, no tolerance: the copy
+ * copies floats, so any arithmetic in it (a rescaled band, a misplaced channel block) fails. */
+static void check_truncated(const sh_guide *g, int keep)
+{
+    char err[256] = "";
+    sh_guide *t = NULL;
+    cr_assert_eq(sh_guide_truncate(g, keep, &t, err, sizeof err), SH_OK, "%s", err);
+    int L = sh_guide_bands(g);
+    cr_assert_eq(sh_guide_bands(t), keep);
+    cr_assert_eq(sh_guide_kind(t), sh_guide_kind(g));
+    cr_assert_eq(sh_guide_cell_count(t), sh_guide_cell_count(g));
+    for (size_t c = 0; c < sh_guide_cell_count(g); c++) {
+        const float *a = sh_guide_cell_coeffs(g, c), *b = sh_guide_cell_coeffs(t, c);
+        for (int ch = 0; ch < 3; ch++)
+            for (int i = 0; i < keep * keep; i++)
+                cr_assert(a[ch * L * L + i] == b[ch * keep * keep + i], "cell %zu channel %d coefficient %d", c, ch, i);
+        cr_assert(sh_guide_cell_sigma_t(g, c) == sh_guide_cell_sigma_t(t, c));
+        double lo[3], hi[3], lo2[3], hi2[3];
+        sh_guide_cell_bounds(g, c, lo, hi);
+        sh_guide_cell_bounds(t, c, lo2, hi2);
+        for (int a2 = 0; a2 < 3; a2++) cr_assert(lo[a2] == lo2[a2] && hi[a2] == hi2[a2]);
+        cr_assert_eq(sh_guide_cell_depth(g, c), sh_guide_cell_depth(t, c));
+    }
+    rng r = rng_new(91);
+    sh_basis B;
+    cr_assert_eq(sh_basis_init(&B, keep), SH_OK);
+    for (int k = 0; k < 200; k++) {
+        double o[3], d[3], x[3];
+        for (int a2 = 0; a2 < 3; a2++) o[a2] = -0.2 + 1.4 * rng_u01(&r), x[a2] = rng_u01(&r);
+        rng_dir(&r, d);
+        cr_assert_eq(sh_guide_locate(g, x), sh_guide_locate(t, x));
+        float y[SH_MAX_COEFFS];
+        const double w[3] = {-d[0], -d[1], -d[2]};
+        sh_basis_evalf(&B, w, y);
+        sh_guide_ray ia, ib;
+        sh_guide_seg sa, sb;
+        sh_guide_ray_begin(g, o, d, 0.0, 3.0, &ia);
+        sh_guide_ray_begin(t, o, d, 0.0, 3.0, &ib);
+        int na;
+        while ((na = sh_guide_ray_next(&ia, &sa))) {
+            cr_assert(sh_guide_ray_next(&ib, &sb), "ray %d: the copy's walk ended early", k);
+            cr_assert(sa.t0 == sb.t0 && sa.t1 == sb.t1 && sa.cell == sb.cell && sa.sigma_t == sb.sigma_t);
+            cr_assert(sh_eval_guide_bands(L, keep, sa.coeffs, y) == sh_eval_guide(keep, sb.coeffs, y),
+                      "ray %d cell %ld", k, sa.cell);
+        }
+        cr_assert_not(sh_guide_ray_next(&ib, &sb), "ray %d: the copy's walk went on", k);
+    }
+    sh_guide_free(t);
+}
+
+static double ramp_sigma(const double x[3], void *user)
+{
+    (void)user;
+    return 1.0 + 3.0 * x[0] + x[1] * x[2];
+}
+
+Test(sh, a_truncated_copy_reads_the_kept_bands_bit_for_bit)
+{
+    rng r = rng_new(90);
+    const size_t n = 6000;
+    double c0[3] = {0.4, 0.6, 0.5};
+    pm_photon *ph = clustered(&r, n, c0, 0.08, 0.2);
+    pm_map *m = build_map(ph, n, NULL, 0);
+    char err[256] = "";
+    for (int kind = 0; kind < 2; kind++) {
+        sh_bake_params P;
+        sh_bake_params_default(&P);
+        unit_box(&P);
+        P.kind = kind ? SH_GRID_ADAPTIVE : SH_GRID_UNIFORM;
+        P.bands = 6;
+        P.k = 16;
+        sh_phase_coeffs_hg(0.7, 6, P.phase_b); /* every band non-zero */
+        P.sigma_t = ramp_sigma;                /* and the extinctions too */
+        sh_guide *g = NULL;
+        cr_assert_eq(sh_guide_bake(&g, m, &P, err, sizeof err), SH_OK, "%s", err);
+        check_truncated(g, 1);
+        check_truncated(g, 2);
+        check_truncated(g, 6);
+        sh_guide *t = NULL;
+        cr_assert_eq(sh_guide_truncate(g, 7, &t, err, sizeof err), SH_ERR_ARG);
+        cr_assert_null(t);
+        cr_assert(strstr(err, "7 bands asked of a 6-band guide"), "%s", err);
+        cr_assert_eq(sh_guide_truncate(g, 0, &t, err, sizeof err), SH_ERR_ARG);
+        cr_assert_eq(sh_guide_truncate(NULL, 2, &t, err, sizeof err), SH_ERR_ARG);
+        sh_guide_free(g);
+    }
+    pm_map_free(m);
+    free(ph);
+}

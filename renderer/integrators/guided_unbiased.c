@@ -55,7 +55,26 @@ typedef struct {
     rd_select sel; /* settings.select: the tiles the guided paths render (integrators/select.c) */
     sh_basis eval; /* the guide's first guide.eval_bands bands: what its flights and roulette
                       read (sh_eval_guide_bands) */
+    /* Copies of ctx->guide and ctx->guide_indirect keeping only the bands read (eval_bands,
+     * and band 1 for the direction lobe: sh_guide_truncate), NULL where nothing is cut. The
+     * same floats in 48 bytes a cell: an 8-band guide's record puts them in three blocks 256
+     * bytes apart, and those cache misses were a fifth of the method's time on hard-dense-block (perf;
+     * docs/guided-unbiased.md "A copy of the guide with only the bands it reads"). */
+    sh_guide *fast, *fast_indirect;
 } gu_state;
+
+/* The guide the method reads (its truncated copy when there is one), and the indirect one. */
+static const sh_guide *gu_guide(const rd_render_ctx *ctx)
+{
+    const gu_state *st = ctx->state;
+    return st && st->fast ? st->fast : ctx->guide;
+}
+
+static const sh_guide *gu_guide_indirect(const rd_render_ctx *ctx)
+{
+    const gu_state *st = ctx->state;
+    return st && st->fast_indirect ? st->fast_indirect : ctx->guide_indirect;
+}
 
 /* One thread's storage (scratch), laid out by scratch_layout. */
 typedef struct {
@@ -148,7 +167,7 @@ static void build_guide_pdf(const rd_render_ctx *ctx, const gu_scratch *sc, ray3
     const gu_state *st = ctx->state;
     const double o[3] = {r.o.x, r.o.y, r.o.z}, d[3] = {r.d.x, r.d.y, r.d.z};
     rd_guide_pdf_init(pdf, sc->seg_g, st->cap_g);
-    if (rd_guide_pdf_build_guide_bands(pdf, ctx->guide, &st->eval, o, d, t0, t1,
+    if (rd_guide_pdf_build_guide_bands(pdf, gu_guide(ctx), &st->eval, o, d, t0, t1,
                                        ctx->scene->guide.distance_alpha, NULL, 0) != RD_OK)
         rd_guide_pdf_build(pdf, 0, NULL, NULL, NULL, t0, t1, 1.0, NULL, 0);
 }
@@ -339,8 +358,9 @@ static double guided_density(const rd_flight_sampler *fs, double t)
  * cache holds no usable direction and the continuation is phase sampling alone. */
 #define GU_B1_MIN 0.1
 
-/* The guide's incident-light lobe at a vertex in cell `coeffs` (3 channel-major L^2 blocks) of
- * a medium with HG g, as a von Mises-Fisher lobe for the continuation direction.
+/* The guide's incident-light lobe at a vertex in cell `coeffs` (3 channel-major bands^2 blocks;
+ * baked_bands the L the guide was baked with, which the window factor is a function of) of a
+ * medium with HG g, as a von Mises-Fisher lobe for the continuation direction.
  *   The bake stores c_lm = (1/V) sum_k dPhi_k b_l Y_lm(w'_k) (sh.h; w'_k the photons' travel
  *   directions, b_l = g^l times the Hann window w_l when guide.window is on), so with
  *   (Y_1-1, Y_10, Y_11) = sqrt(3/(4 pi)) (y, z, x) and Y_00 = 1/(2 sqrt(pi)):
@@ -348,11 +368,11 @@ static double guided_density(const rd_flight_sampler *fs, double t)
  *   the mean travel direction of the light arriving in the cell, |m| <= 1 its mean cosine.
  *   A path continuing along wo gathers light that travels along -wo: the lobe's mean is -m/|m|,
  *   its concentration the vMF's whose mean cosine is |m| (rd_vmf_kappa). */
-static int guide_lobe(const rd_scene *s, const float *coeffs, int bands, double g, vec3 d,
-                      rd_dir_mix *mx)
+static int guide_lobe(const rd_scene *s, const float *coeffs, int bands, int baked_bands, double g,
+                      vec3 d, rd_dir_mix *mx)
 {
     if (bands < 2) return 0;
-    double b1 = g * (s->guide.window ? 0.5 * (1.0 + cos(M_PI / bands)) : 1.0);
+    double b1 = g * (s->guide.window ? 0.5 * (1.0 + cos(M_PI / baked_bands)) : 1.0);
     if (!(fabs(b1) >= GU_B1_MIN)) return 0;
     int L2 = bands * bands;
     double c00 = 0.0, c[3] = {0, 0, 0}; /* channel means of c_00 and of (c_11, c_1-1, c_10) */
@@ -387,7 +407,7 @@ static void gu_vertex(const rd_flight_sampler *fs, const rd_scene *s, const rd_v
                       pcg32 *rng, rd_vertex_out *out)
 {
     gu_user *u = fs->user;
-    const sh_guide *guide = u->ctx->guide;
+    const sh_guide *guide = gu_guide(u->ctx);
     const rd_guide_settings *gs = &s->guide;
     u->vertices++;
     out->n = 1;
@@ -401,11 +421,13 @@ static void gu_vertex(const rd_flight_sampler *fs, const rd_scene *s, const rd_v
     /* The lobe comes from the guide of the indirect photons when there is one: the direct
      * light is next-event estimation's, and a continuation aimed at a light source would
      * estimate again what NEE already has (THEORY.md §1: L_s = direct + indirect). */
-    const sh_guide *lg = u->ctx->guide_indirect ? u->ctx->guide_indirect : guide;
+    const sh_guide *lg = u->ctx->guide_indirect ? gu_guide_indirect(u->ctx) : guide;
     long lcell = lg == guide ? cell : sh_guide_locate(lg, xv);
-    if (lcell >= 0 && gs->directions && gs->direction_weight > 0.0)
-        guide_lobe(s, sh_guide_cell_coeffs(lg, (size_t)lcell), sh_guide_bands(lg), v->medium->g, v->d,
-                   &out->mix);
+    if (lcell >= 0 && gs->directions && gs->direction_weight > 0.0) {
+        const sh_guide *baked = u->ctx->guide_indirect ? u->ctx->guide_indirect : u->ctx->guide;
+        guide_lobe(s, sh_guide_cell_coeffs(lg, (size_t)lcell), sh_guide_bands(lg), sh_guide_bands(baked),
+                   v->medium->g, v->d, &out->mix);
+    }
 
     /* Roulette and splitting by the path's expected contribution against the pixel's
      * (adjoint-driven, Vorba and Krivanek 2016 eq. 7-8, with the guide as the adjoint):
@@ -573,6 +595,17 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
                         : 3 * (1 << (gs.depth_max < 12 ? gs.depth_max : 12)) + 2;
         int bands = sh_guide_bands(ctx->guide);
         sh_basis_init(&st->eval, g->eval_bands < bands ? g->eval_bands : bands);
+        /* The copies that keep only what is read: eval_bands, and at least band 1 (the lobe) */
+        int keep = g->eval_bands > 2 ? g->eval_bands : 2;
+        sh_status ss = SH_OK;
+        if (keep < bands) ss = sh_guide_truncate(ctx->guide, keep, &st->fast, err, errlen);
+        if (ss == SH_OK && ctx->guide_indirect && keep < sh_guide_bands(ctx->guide_indirect))
+            ss = sh_guide_truncate(ctx->guide_indirect, keep, &st->fast_indirect, err, errlen);
+        if (ss != SH_OK) {
+            ctx->state = st;
+            gu_release(ctx);
+            return RD_ERR_NOMEM;
+        }
     }
     /* The scene-wide medium may come in pieces between box media: one more walk start and
      * gap each (rd_media_intervals). */
@@ -594,7 +627,11 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
 static void gu_release(rd_render_ctx *ctx)
 {
     gu_state *st = ctx->state;
-    if (st) rd_select_free(&st->sel);
+    if (st) {
+        rd_select_free(&st->sel);
+        sh_guide_free(st->fast);
+        sh_guide_free(st->fast_indirect);
+    }
     free(ctx->state);
     ctx->state = NULL;
 }
