@@ -20,10 +20,18 @@
 # select.c's: guided with nee+beams (one fixed photon map, select off) on the same scenes,
 #     t / samples - (held terms) = a_H balls crossed    (per camera sample),
 # the held terms in us by select.c's weights times the lookup's 0.164 us.
+# FIT=gu fits guided-unbiased's two weights (flight segment, guided vertex) the same way, the
+# lookup, shadow ray and camera sample held: guided-unbiased alone, select off,
+#     t / samples - (held terms) = a_F flight segments + a_V guided vertices.
+# FIT=eq fits the weight of a flight's equiangular set-up (the choice of lights of "auto",
+# rd_track_counters.eq_flights): delta with settings.equiangular "auto" and "false" on the same
+# scenes, paired (the scenes with no point or spot light set nothing up and drop out),
+#     (t_auto - t_off) / samples - (held terms of the difference) = a_E set-ups.
 #
 #   bench/bench_cost_fit.sh [BIN]
 #       environment: SCENES (the six below), SPP (16), RES ([160,120]), ROUNDS (3),
-#                    FIT (all, or beams), OUT (bench/results/cost_fit, cost_fit_beams)
+#                    FIT (all, beams, gu or eq), OUT (bench/results/cost_fit, cost_fit_beams,
+#                    cost_fit_gu, cost_fit_eq)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . bench/machine.sh
@@ -38,13 +46,24 @@ SPP=${SPP:-16}
 RES=${RES:-[160,120]}
 ROUNDS=${ROUNDS:-3}
 FIT=${FIT:-all}
-if [ "$FIT" = beams ]; then OUT=${OUT:-bench/results/cost_fit_beams}; else OUT=${OUT:-bench/results/cost_fit}; fi
+case $FIT in
+  beams) OUT=${OUT:-bench/results/cost_fit_beams} ;;
+  gu) OUT=${OUT:-bench/results/cost_fit_gu} ;;
+  eq) OUT=${OUT:-bench/results/cost_fit_eq} ;;
+  *) OUT=${OUT:-bench/results/cost_fit} ;;
+esac
 mkdir -p "$OUT"
 log=$OUT/runs.txt
 : > "$log"
 if [ "$FIT" = beams ]; then
   methods=guided
   extra=(--set march.ls='"nee+beams"' --set photons.progressive=false)
+elif [ "$FIT" = gu ]; then
+  methods=guided-unbiased
+  extra=()
+elif [ "$FIT" = eq ]; then
+  methods="delta-auto delta-off"
+  extra=()
 else
   methods="delta guided guided-unbiased"
   extra=()
@@ -53,10 +72,16 @@ for r in $(seq "$ROUNDS"); do
   for name in $SCENES; do
     for m in $methods; do
       o=$OUT/$name-$m.exr
-      "$BIN" render "scenes/$name.json" --method "$m" --spp "$SPP" --threads 1 \
-        --set settings.select='"off"' --set camera.resolution="$RES" "${extra[@]}" -o "$o" > /dev/null 2>&1
+      # FIT=eq's two variants are delta with settings.equiangular auto and off
+      meth=$m variant=()
+      case $m in
+        delta-auto) meth=delta variant=(--set settings.equiangular='"auto"') ;;
+        delta-off) meth=delta variant=(--set settings.equiangular=false) ;;
+      esac
+      "$BIN" render "scenes/$name.json" --method "$meth" --spp "$SPP" --threads 1 \
+        --set settings.select='"off"' --set camera.resolution="$RES" "${extra[@]}" "${variant[@]}" -o "$o" > /dev/null 2>&1
       jq -c --arg s "$name" --arg m "$m" '{scene: $s, method: $m, t: .render_seconds, n: .paths,
-          L: .density_lookups, S: .shadow_rays,
+          L: .density_lookups, S: .shadow_rays, E: (.equiangular_flights // 0),
           M: ((.march.rays // 0) * (.march.pdf_segments_per_ray // 0)),
           F: ((.guided_paths.flight_segments_per_path // 0) * .paths),
           V: ((.guided_paths.guide_vertices_per_path // 0) * .paths),
@@ -100,6 +125,83 @@ print('|---|---|---|---|---|---|---|')
 for s, t, held, q, h in rows:
     m = held + aH * h
     print('| %s | %.3f | %.3f | %.3f | %.1f | %.3f | %.3f |' % (s, t, held, q, h, m, m / t))
+EOF
+exit 0
+fi
+
+if [ "$FIT" = eq ]; then
+python3 - "$log" <<'EOF'
+import json, statistics, sys, collections
+# select.c's held weights, in lookups, and the lookup's time (us)
+LOOKUP, SHADOW = 0.164, 1.96
+runs = collections.defaultdict(list)
+for line in open(sys.argv[1]):
+    j = json.loads(line)
+    runs[(j['scene'], j['method'])].append(j)
+rows = []
+for s in sorted({k[0] for k in runs}):
+    a, o = runs.get((s, 'delta-auto')), runs.get((s, 'delta-off'))
+    if not a or not o or not a[0]['E']:
+        continue
+    n = a[0]['n']
+    ta = statistics.median(x['t'] for x in a) / n * 1e6
+    to = statistics.median(x['t'] for x in o) / n * 1e6
+    held = LOOKUP * ((a[0]['L'] - o[0]['L']) / n + SHADOW * (a[0]['S'] - o[0]['S']) / n)
+    rows.append((s, ta, to, held, a[0]['E'] / n))
+# One unknown on the paired difference, relative to the auto render's time:
+# minimise sum ((to + held + aE e) / ta - 1)^2.
+num = den = 0.0
+for s, ta, to, held, e in rows:
+    x, y = e / ta, 1.0 - (to + held) / ta
+    num += x * y
+    den += x * x
+aE = num / den
+print('| weight | us | in lookups |')
+print('|---|---|---|')
+print('| equiangular flight set-up | %.5f | %.3f |' % (aE, aE / LOOKUP))
+print()
+print('| scene | us per sample, auto | off | held part of the difference | set-ups | model / measured |')
+print('|---|---|---|---|---|---|')
+for s, ta, to, held, e in rows:
+    print('| %s | %.3f | %.3f | %.3f | %.2f | %.3f |' % (s, ta, to, held, e, (to + held + aE * e) / ta))
+EOF
+exit 0
+fi
+
+if [ "$FIT" = gu ]; then
+python3 - "$log" <<'EOF'
+import json, statistics, sys, collections
+# select.c's held weights, in lookups, and the lookup's time (us)
+LOOKUP, SHADOW, SAMPLE = 0.164, 1.96, 2.18
+rows = []
+runs = collections.defaultdict(list)
+for line in open(sys.argv[1]):
+    j = json.loads(line)
+    runs[j['scene']].append(j)
+for s, js in sorted(runs.items()):
+    j = js[0]
+    n = j['n']
+    t = statistics.median(x['t'] for x in js) / n * 1e6
+    held = LOOKUP * (j['L'] / n + SHADOW * j['S'] / n + SAMPLE)
+    rows.append((s, t, held, j['F'] / n, j['V'] / n))
+# Two unknowns, relative error: minimise sum ((held + aF f + aV v) / t - 1)^2.
+Sff = Sfv = Svv = Sfy = Svy = 0.0
+for s, t, held, f, v in rows:
+    xf, xv, y = f / t, v / t, 1.0 - held / t
+    Sff += xf * xf; Sfv += xf * xv; Svv += xv * xv; Sfy += xf * y; Svy += xv * y
+det = Sff * Svv - Sfv * Sfv
+aF = (Sfy * Svv - Svy * Sfv) / det
+aV = (Svy * Sff - Sfy * Sfv) / det
+print('| weight | us | in lookups |')
+print('|---|---|---|')
+print('| flight segment | %.5f | %.3f |' % (aF, aF / LOOKUP))
+print('| guided vertex | %.5f | %.3f |' % (aV, aV / LOOKUP))
+print()
+print('| scene | us per sample | held part | segments | vertices | model | model / measured |')
+print('|---|---|---|---|---|---|---|')
+for s, t, held, f, v in rows:
+    m = held + aF * f + aV * v
+    print('| %s | %.3f | %.3f | %.2f | %.2f | %.3f | %.3f |' % (s, t, held, f, v, m, m / t))
 EOF
 exit 0
 fi

@@ -208,6 +208,7 @@ typedef struct {
     uint64_t collisions;     /* tentative collisions (real + null) of free-path sampling */
     uint64_t lookups;        /* density evaluations */
     uint64_t shadow_rays;    /* next-event transmittance estimates */
+    uint64_t eq_flights;     /* flights that set up the equiangular strategy */
     uint64_t invalid;        /* non-finite samples dropped (should be 0; reported if not) */
     int cancelled;           /* 1 when the cancel flag stopped the render early */
     int timed_out;           /* 1 when the time limit stopped it */
@@ -220,8 +221,9 @@ typedef struct {
     int samples_min, samples_max;
     double cells_per_ray;
     /* the guided methods with a tile selection (settings.select): camera samples it gave to
-     * delta's path instead of the method (integrators/select.c). */
-    uint64_t delta_samples;
+     * delta's path instead of the method (integrators/select.c), and how many of those were
+     * delta's path with the method's equiangular mode (RD_SEL_DELTA_EQ). */
+    uint64_t delta_samples, delta_eq_samples;
     /* guided-unbiased: distance-pdf segments its flights built (guide cells crossed) and path
      * vertices whose policy read the guide: with lookups and shadow rays, what a sample costs
      * (the selection's counted cost, integrators/select.c). 0 for the other methods. */

@@ -179,8 +179,12 @@ Test(ranks, three_ranks_give_rank_0_one_process_s_image_bit_for_bit, .timeout = 
               "counters: paths %llu / %llu, delta samples %llu / %llu",
               (unsigned long long)one.stats.paths, (unsigned long long)r0->stats.paths,
               (unsigned long long)one.stats.delta_samples, (unsigned long long)r0->stats.delta_samples);
-    double share = (double)one.stats.delta_samples / (double)one.stats.paths;
-    cr_assert(share > 0.0 && share < 1.0, "delta's share %g: the selection must mix both estimators", share);
+    double share = (double)one.stats.delta_samples / (double)one.stats.paths,
+           eq = (double)one.stats.delta_eq_samples / (double)one.stats.paths;
+    /* the marcher and delta's path, or delta's path in both equiangular modes (select.c) */
+    cr_assert((share > 0.0 && share < 1.0) || (eq > 0.0 && eq < share),
+              "delta's share %g (%g with equiangular sampling): the selection must mix estimators", share, eq);
+    cr_assert(one.stats.delta_eq_samples == r0->stats.delta_eq_samples, "the third kind's counts differ");
     /* Each other rank holds only its own tiles: fewer samples than the image. */
     for (int k = 1; k < 3; k++) cr_assert(ranks[k].res.stats.spp_mean < r0->stats.spp_mean, "rank %d", k);
     for (int k = 0; k < 3; k++) rd_render_result_free(&ranks[k].res);

@@ -28,7 +28,7 @@ Test(select, rule_keeps_dominance_and_no_flip_lowers_the_product)
             var[i] = pow(10.0, -6.0 + 4.0 * pcg32_uniform(&rng));
             cost[i] = pow(10.0, 1.5 * pcg32_uniform(&rng));
         }
-        rd_select_choose(var, cost, N, m);
+        rd_select_choose(var, cost, N, 2, m);
         double V = 0.0, C = 0.0;
         for (int k = 0; k < N; k++) V += var[2 * k + m[k]], C += cost[2 * k + m[k]];
         for (int k = 0; k < N; k++) {
@@ -45,6 +45,46 @@ Test(select, rule_keeps_dominance_and_no_flip_lowers_the_product)
     }
 }
 
+Test(select, three_estimators_keep_dominance_and_no_move_lowers_the_product)
+{
+    /* The same rule over three estimators (delta, the method, delta with the method's
+     * equiangular mode: RD_SEL_*): a tile where one estimator has both the least variance and
+     * the least cost gets it, and no single move of one tile to either other estimator lowers
+     * (sum V)(sum C). */
+    pcg32 rng = pcg32_seed(2026, 11, 27);
+    enum { N = 200, M = 3 };
+    double var[M * N], cost[M * N];
+    uint8_t m[N];
+    int seen[M] = {0, 0, 0};
+    for (int inst = 0; inst < 50; inst++) {
+        for (int i = 0; i < M * N; i++) {
+            var[i] = pow(10.0, -6.0 + 4.0 * pcg32_uniform(&rng));
+            cost[i] = pow(10.0, 1.5 * pcg32_uniform(&rng));
+        }
+        rd_select_choose(var, cost, N, M, m);
+        double V = 0.0, C = 0.0;
+        for (int k = 0; k < N; k++) V += var[M * k + m[k]], C += cost[M * k + m[k]];
+        for (int k = 0; k < N; k++) {
+            cr_assert(m[k] < M, "instance %d tile %d: estimator %d", inst, k, m[k]);
+            seen[m[k]]++;
+            const double *v = &var[M * k], *c = &cost[M * k];
+            for (int e = 0; e < M; e++) {
+                int dom = 1;
+                for (int f = 0; f < M; f++)
+                    if (f != e && !(v[e] < v[f] && c[e] < c[f])) dom = 0;
+                if (dom) cr_assert(m[k] == e, "instance %d tile %d: estimator %d dominates, %d chosen", inst, k, e, m[k]);
+            }
+            for (int e = 0; e < M; e++) {
+                if (e == m[k]) continue;
+                double V2 = V - var[M * k + m[k]] + var[M * k + e], C2 = C - cost[M * k + m[k]] + cost[M * k + e];
+                cr_assert(V2 * C2 >= V * C * (1.0 - 1e-12), "instance %d tile %d: moving it to %d lowers the product",
+                          inst, k, e);
+            }
+        }
+    }
+    for (int e = 0; e < M; e++) cr_assert(seen[e] > 0, "estimator %d never chosen: the test shows nothing of it", e);
+}
+
 Test(select, a_tie_goes_to_delta)
 {
     /* Tiles that see no medium: variance 0 for both, and the same cost per sample summed over
@@ -59,7 +99,7 @@ Test(select, a_tie_goes_to_delta)
         for (int i = 0; i < 3 + k; i++) c += 2.18;
         cost[2 * k] = c / (3 + k), cost[2 * k + 1] = nextafter(cost[2 * k], (k & 1) ? 0.0 : 1e9);
     }
-    rd_select_choose(var, cost, N, m);
+    rd_select_choose(var, cost, N, 2, m);
     for (int k = 0; k < N; k++) cr_assert(m[k] == 0, "tile %d: a tie (costs %.17g, %.17g) went to the method", k, cost[2 * k], cost[2 * k + 1]);
 }
 
@@ -109,12 +149,12 @@ Test(select, an_epoch_drops_the_method_when_the_image_shows_its_heavy_tail)
 {
     rd_select sel;
     char err[RD_ERRLEN];
-    cr_assert(rd_select_init(&sel, 8, 8, 1.0, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_select_init(&sel, 8, 8, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
     /* The pilot: delta variance 1 at cost 1, the method variance 0.1 at cost 2 (V C 0.2 < 1). */
     fake_pilot(&sel, 0, 1.0, 1.0, 1.0, 1.0);
     fake_pilot(&sel, 1, 1.0, 0.1, 1.0, 2.0);
     rd_select_epoch(&sel, NULL); /* no samples yet: the pilot's choice */
-    cr_assert(sel.guided[0] == 1, "the pilot's statistics favour the method");
+    cr_assert(sel.choice[0] == 1, "the pilot's statistics favour the method");
     /* The image: the method's samples are mostly zero with a rare firefly, variance
      * 1 / 0.002 - 1 = 499 per sample over 64 x 256 samples. */
     observe_rare(&sel, 256, 1.0, 0.002, 2.0, 11);
@@ -122,12 +162,12 @@ Test(select, an_epoch_drops_the_method_when_the_image_shows_its_heavy_tail)
     cr_assert(sel.stats[1].n == 128 + 64 * 256 && sel.stats[0].n == 128,
               "the samples go to the estimator that drew them: %g and %g", sel.stats[0].n, sel.stats[1].n);
     /* delta's 128 samples against the method's 16512: delta goes on trial, not in at once. */
-    cr_assert(sel.guided[0] == 1 && sel.trial[0] == 1, "delta on trial (method %d, trial %d)", sel.guided[0],
+    cr_assert(sel.choice[0] == RD_SEL_METHOD && sel.trial[0] == 1 + RD_SEL_DELTA, "delta on trial (method %d, trial %d)", sel.choice[0],
               sel.trial[0]);
     /* The trial: delta's half shows variance 1 at cost 1, the method's half its heavy tail. */
     observe_trial(&sel, 256, 1.0, 0.5, 1.0, 0.002, 2.0, 13);
     rd_select_epoch(&sel, NULL);
-    cr_assert(sel.guided[0] == 0 && sel.trial[0] == 0, "after the trial, delta (method's variance %g over %g samples)",
+    cr_assert(sel.choice[0] == 0 && sel.trial[0] == 0, "after the trial, delta (method's variance %g over %g samples)",
               sel.stats[1].dev2[0] / sel.stats[1].dof, sel.stats[1].n);
     cr_assert(sel.stats[0].n == 128 + 32 * 256 && sel.stats[1].n == 128 + 64 * 256 + 32 * 256,
               "the trial's samples go to the estimator of their pixel: %g and %g", sel.stats[0].n, sel.stats[1].n);
@@ -141,15 +181,15 @@ Test(select, an_epoch_drops_the_method_when_the_image_shows_its_heavy_tail)
 static void rare_light_tile_on_trial(rd_select *sel)
 {
     char err[RD_ERRLEN];
-    cr_assert(rd_select_init(sel, 8, 8, 1.0, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_select_init(sel, 8, 8, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
     fake_pilot(sel, 0, 1.0, 1.0, 0.5, 1.0);
     fake_pilot(sel, 1, 1.0, 0.2, 1.0, 8.0);
     rd_select_epoch(sel, NULL);
-    cr_assert(sel->guided[0] == 0, "the pilot's statistics favour delta");
+    cr_assert(sel->choice[0] == 0, "the pilot's statistics favour delta");
     observe_rare(sel, 256, 1.0, 0.005, 1.0, 12);
     rd_select_epoch(sel, NULL);
-    cr_assert(sel->guided[0] == 0 && sel->trial[0] == 1, "the method on trial (method %d, trial %d; delta's variance %g)",
-              sel->guided[0], sel->trial[0], sel->stats[0].dev2[0] / sel->stats[0].dof);
+    cr_assert(sel->choice[0] == RD_SEL_DELTA && sel->trial[0] == 1 + RD_SEL_METHOD, "the method on trial (method %d, trial %d; delta's variance %g)",
+              sel->choice[0], sel->trial[0], sel->stats[0].dev2[0] / sel->stats[0].dof);
 }
 
 Test(select, an_epoch_takes_the_method_when_delta_s_paths_rarely_find_the_light)
@@ -160,7 +200,7 @@ Test(select, an_epoch_takes_the_method_when_delta_s_paths_rarely_find_the_light)
      * delta's half its rare hits. */
     observe_trial(&sel, 256, 1.0, 0.005, 1.0, 1.0 / 1.2, 8.0, 14);
     rd_select_epoch(&sel, NULL);
-    cr_assert(sel.guided[0] == 1 && sel.trial[0] == 0, "after the trial, the method (its variance %g over %g samples)",
+    cr_assert(sel.choice[0] == 1 && sel.trial[0] == 0, "after the trial, the method (its variance %g over %g samples)",
               sel.stats[1].dev2[0] / sel.stats[1].dof, sel.stats[1].n);
     rd_select_free(&sel);
 }
@@ -173,7 +213,7 @@ Test(select, a_trial_lasts_one_epoch)
     rd_select sel;
     rare_light_tile_on_trial(&sel);
     rd_select_epoch(&sel, NULL);
-    cr_assert(sel.trial[0] == 0 && sel.guided[0] == 1, "the trial ended (method %d, trial %d)", sel.guided[0],
+    cr_assert(sel.trial[0] == 0 && sel.choice[0] == 1, "the trial ended (method %d, trial %d)", sel.choice[0],
               sel.trial[0]);
     rd_select_free(&sel);
 }
@@ -188,8 +228,45 @@ Test(select, a_trial_keeps_delta_where_the_method_s_tail_is_delta_s)
     rare_light_tile_on_trial(&sel);
     observe_trial(&sel, 256, 1.0, 0.005, 1.0, 0.005, 8.0, 15);
     rd_select_epoch(&sel, NULL);
-    cr_assert(sel.guided[0] == 0 && sel.trial[0] == 0, "after the trial, delta (the method's variance %g)",
+    cr_assert(sel.choice[0] == 0 && sel.trial[0] == 0, "after the trial, delta (the method's variance %g)",
               sel.stats[1].dev2[0] / sel.stats[1].dof);
+    rd_select_free(&sel);
+}
+
+Test(select, a_trial_between_delta_and_delta_with_equiangular_sampling_is_a_checkerboard)
+{
+    /* Three estimators, one tile: delta (variance 1, cost 1, the pilot's 128 samples and 4096
+     * of the image's), the method (variance 1, cost 10) and delta with the method's
+     * equiangular mode (variance 0.1, cost 1.2, the pilot's 128 only). The third wins the rule
+     * on evidence 33x thinner than delta's, so the tile goes on trial: odd squares the
+     * higher-numbered estimator (RD_SEL_DELTA_EQ), even ones delta; the method none. The next
+     * epoch, with the trial's samples showing the same figures, moves the tile to it. */
+    rd_select sel;
+    char err[RD_ERRLEN];
+    cr_assert(rd_select_init(&sel, 8, 8, 1.0, 3, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(sel.n == 3);
+    fake_pilot(&sel, RD_SEL_DELTA, 1.0, 1.0, 1.0, 1.0);
+    sel.stats[RD_SEL_DELTA].n += 4096, sel.stats[RD_SEL_DELTA].dof += 4096 - 64, sel.stats[RD_SEL_DELTA].cost += 4096;
+    for (int c = 0; c < 3; c++)
+        sel.stats[RD_SEL_DELTA].sum[c] += 4096, sel.stats[RD_SEL_DELTA].dev2[c] += 4096 - 64;
+    fake_pilot(&sel, RD_SEL_METHOD, 1.0, 1.0, 1.0, 10.0);
+    fake_pilot(&sel, RD_SEL_DELTA_EQ, 1.0, 0.1, 1.0, 1.2);
+    rd_select_epoch(&sel, NULL);
+    cr_assert(sel.choice[0] == RD_SEL_DELTA && sel.trial[0] == 1 + RD_SEL_DELTA_EQ,
+              "choice %d, trial %d: lopsided evidence must go on trial first", sel.choice[0], sel.trial[0]);
+    for (int p = 0; p < 64; p++) {
+        int x = p % 8, y = p / 8, u = rd_select_uses(&sel, x, y);
+        cr_assert(u == ((x + y) & 1 ? RD_SEL_DELTA_EQ : RD_SEL_DELTA), "pixel %d on trial uses %d", p, u);
+        /* each pixel's 64 samples from its estimator: mean 1, variance 1 (delta) or 0.1 */
+        double sd = u == RD_SEL_DELTA_EQ ? sqrt(0.1) : 1.0, c = u == RD_SEL_DELTA_EQ ? 1.2 : 1.0;
+        for (int i = 0; i < 64; i++) {
+            double xv = 1.0 + sd * (i & 1 ? 1.0 : -1.0);
+            rd_select_observe(&sel, (uint64_t)p, v3(xv, xv, xv), c);
+        }
+    }
+    rd_select_epoch(&sel, NULL);
+    cr_assert(sel.choice[0] == RD_SEL_DELTA_EQ && sel.trial[0] == 0, "after the trial: choice %d, trial %d",
+              sel.choice[0], sel.trial[0]);
     rd_select_free(&sel);
 }
 
@@ -202,7 +279,7 @@ Test(select, a_trial_keeps_delta_where_the_method_s_tail_is_delta_s)
 static void pool_scene(rd_select *sel, const double *delta_v)
 {
     char err[RD_ERRLEN];
-    cr_assert(rd_select_init(sel, 40, 40, 1.0, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_select_init(sel, 40, 40, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
     cr_assert(sel->tiles_x == 5 && sel->tiles_y == 5);
     for (int k = 0; k < 25; k++) {
         fake_pilot(sel, 2 * k, 1.0, delta_v[k], 1.0, 1.0);
@@ -222,7 +299,7 @@ Test(select, a_beam_across_the_tiles_still_goes_to_the_method)
     rd_select sel;
     pool_scene(&sel, v);
     for (int x = 0; x < 5; x++)
-        cr_assert(sel.guided[2 * 5 + x] == 1, "beam tile %d stayed with delta", x);
+        cr_assert(sel.choice[2 * 5 + x] == 1, "beam tile %d stayed with delta", x);
     rd_select_free(&sel);
 }
 
@@ -237,7 +314,7 @@ Test(select, a_beam_across_the_tiles_still_goes_to_the_method)
 static void prior_scene(rd_select *sel, const int *lit, int hits, double c_m)
 {
     char err[RD_ERRLEN];
-    cr_assert(rd_select_init(sel, 40, 40, 1.0, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_select_init(sel, 40, 40, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
     for (int k = 0; k < 25; k++) {
         double q = hits / 128.0;
         if (lit[k]) fake_pilot(sel, 2 * k, 1.0, 1.0 / q - 1.0, q, 1.0);
@@ -258,7 +335,7 @@ Test(select, a_tile_of_zeros_goes_by_how_often_delta_sees_light_elsewhere)
     lit[12] = 1;
     rd_select sel;
     prior_scene(&sel, lit, 1, 70.0);
-    for (int k = 0; k < 25; k++) cr_assert(sel.guided[k] == 1, "rare light: tile %d stayed with delta", k);
+    for (int k = 0; k < 25; k++) cr_assert(sel.choice[k] == 1, "rare light: tile %d stayed with delta", k);
     rd_select_free(&sel);
     /* Common: delta's samples are non-zero in half the samples of each of the other 24 tiles
      * (variance 1), pbar = 0.48, so the one tile of zeros in the centre has p = 1/135, about
@@ -266,7 +343,7 @@ Test(select, a_tile_of_zeros_goes_by_how_often_delta_sees_light_elsewhere)
      * p would give it away: a pooled 2900). */
     for (int k = 0; k < 25; k++) lit[k] = k != 12;
     prior_scene(&sel, lit, 64, 70.0);
-    cr_assert(sel.guided[12] == 0, "common light, half: the tile of zeros went to the method");
+    cr_assert(sel.choice[12] == 0, "common light, half: the tile of zeros went to the method");
     rd_select_free(&sel);
     /* Most: delta's samples non-zero in 115 of 128 (variance 0.11) around the tile of zeros, the
      * method at 6x the cost (V C 3): pbar = 0.86, p = 0.013, a bound of 19, pooled 2.2 < 3:
@@ -274,7 +351,7 @@ Test(select, a_tile_of_zeros_goes_by_how_often_delta_sees_light_elsewhere)
      * does not follow the image: a fixed centre p0 must be above 0.6 here and below 0.46 in the
      * rare case. */
     prior_scene(&sel, lit, 115, 6.0);
-    cr_assert(sel.guided[12] == 0, "common light, most: the tile of zeros went to the method");
+    cr_assert(sel.choice[12] == 0, "common light, most: the tile of zeros went to the method");
     rd_select_free(&sel);
 }
 
@@ -282,7 +359,7 @@ Test(select, epochs_end_at_4_16_64_and_only_with_epochs_on)
 {
     rd_select sel;
     char err[RD_ERRLEN];
-    cr_assert(rd_select_init(&sel, 8, 8, 1.0, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_select_init(&sel, 8, 8, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
     cr_assert(rd_select_epoch_next(&sel, 0) == 4 && rd_select_epoch_next(&sel, 3) == 4);
     cr_assert(rd_select_epoch_next(&sel, 4) == 16 && rd_select_epoch_next(&sel, 63) == 64);
     cr_assert(rd_select_epoch_next(&sel, INT_MAX - 1) == INT_MAX);
@@ -307,8 +384,11 @@ Test(select, tiles_of_both_kinds_give_delta_s_image, .timeout = 300)
     /* guided's marcher against delta's path. guided-unbiased mixes through the same
      * rd_select_radiance; on this scene it wins no tile robustly (its guided flights cost 9x
      * delta's there, for 8x less variance), and a precondition that holds for one compiler's
-     * rounding and not another's tests nothing, so it is not asserted for it. */
-    rd_scene *s = rt_scene("sel.json", select_scene("{\"select\":\"tiles\"}"));
+     * rounding and not another's tests nothing, so it is not asserted for it. The marcher's
+     * equiangular sample is off, as delta's is: two estimators (with it on, the third,
+     * delta's path with equiangular sampling, takes every lit tile here; the next test). */
+    rd_scene *s = rt_scene("sel.json", rt_spot_fog_json_with(32, 24, "{\"select\":\"tiles\"}",
+                                                             "\"photons\":{\"count\":40000},\"march\":{\"equiangular\":false}"));
     rd_render_result d = rt_render(s, "delta", 512, 31, NULL);
     rd_render_result g = rt_render(s, "guided", 128, 32, NULL);
     /* The test means something only if both estimators render some tiles. */
@@ -322,6 +402,57 @@ Test(select, tiles_of_both_kinds_give_delta_s_image, .timeout = 300)
     rd_render_result_free(&d);
     rd_scene_free(s);
     cr_assert(mixed, "delta's share of the samples is %g: one kind of tile only", share);
+}
+
+/* The selection scene with the fog filling the whole view (hard-narrow-spot made small), the
+ * settings object `settings`. */
+static const char *full_fog_scene(const char *settings)
+{
+    static char buf[2048];
+    snprintf(buf, sizeof buf,
+             "{\"camera\":{\"position\":[0,0.3,4.5],\"look_at\":[0,0,0],\"fov\":40,\"resolution\":[32,24]},"
+             "\"media\":[{\"bounds\":{\"min\":[-2.2,-1,-1.2],\"max\":[2.2,1,1.2]},"
+             "\"density\":{\"type\":\"noise\",\"octaves\":3,\"frequency\":1.2,\"amplitude\":0.4,\"seed\":5,"
+             "\"shape\":\"none\"},\"sigma_t\":0.15,\"albedo\":0.9,\"g\":0.3}],"
+             "\"lights\":[{\"type\":\"spot\",\"position\":[-3.2,0.9,-0.4],\"look_at\":[2.2,-0.5,0.3],\"angle\":3,"
+             "\"falloff\":0.3,\"intensity\":[1600,1500,1300]}],\"photons\":{\"count\":40000},\"settings\":%s}",
+             settings);
+    return buf;
+}
+
+Test(select, delta_with_the_method_s_equiangular_mode_is_a_third_kind_of_tile, .timeout = 300)
+{
+    /* guided-unbiased (guide.equiangular "auto", its default) where delta's own equiangular
+     * strategy is `true`: three estimators, the method, delta's path (`true`), and delta's path
+     * with the method's "auto" (RD_SEL_DELTA_EQ). All are unbiased, so any mix of them gives
+     * delta's image (z bounds of rt_expect_same; the reference is delta with `true`). The test
+     * needs both kinds of delta tile (with this seed and gcc's rounding about 35% and 65%).
+     * (With delta's "camera" its own tiles would not do: on this scene `camera`'s 256 and even
+     * 2048 samples differ from `true`'s in one region at z = 8.1 and 5.6, the heavy tail of
+     * the spot's light that only the secondary flights find, which the pixels' sample
+     * variances under-read.) Planted: the third kind's samples scaled by 1.15 (the choice
+     * left as it was) fail at z = -10.1 over the image and -8.9 in the worst region (unplanted
+     * -1.7 and -3.0); and no third kind when the method's mode is delta's own. */
+    rd_scene *s = rt_scene("sel3.json", full_fog_scene("{\"select\":\"tiles\",\"equiangular\":true}"));
+    rd_render_result d = rt_render(s, "delta", 4096, 31, NULL);
+    rd_render_result g = rt_render(s, "guided-unbiased", 1024, 32, NULL);
+    double paths = (double)g.stats.paths, eq = (double)g.stats.delta_eq_samples / paths,
+           plain = (double)(g.stats.delta_samples - g.stats.delta_eq_samples) / paths;
+    int mixed = eq > 0.0 && plain > 0.0;
+    cr_log_info("guided-unbiased: delta %.0f%%, delta with auto %.0f%%, the method %.0f%% of the samples",
+                100.0 * plain, 100.0 * eq, 100.0 * (1.0 - eq - plain));
+    if (mixed) rt_expect_same(&d, &g, "guided-unbiased with delta's tiles of both modes");
+    rd_render_result_free(&g);
+    rd_render_result_free(&d);
+    rd_scene_free(s);
+    cr_assert(mixed, "shares: delta %g, delta with auto %g: not both kinds of delta tile", plain, eq);
+    rd_scene *s2 = rt_scene("sel2.json", full_fog_scene("{\"select\":\"tiles\",\"equiangular\":\"auto\"}"));
+    rd_render_result g2 = rt_render(s2, "guided-unbiased", 16, 32, NULL);
+    cr_assert(g2.stats.delta_eq_samples == 0 && g2.stats.delta_samples > 0,
+              "the method's mode is delta's: no third estimator (%llu of its samples)",
+              (unsigned long long)g2.stats.delta_eq_samples);
+    rd_render_result_free(&g2);
+    rd_scene_free(s2);
 }
 
 Test(select, the_choice_does_not_depend_on_the_threads, .timeout = 300)

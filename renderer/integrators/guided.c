@@ -62,7 +62,7 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
                  !(s->hidden_share > RD_HIDDEN_SHARE));
     if (sel != RD_SELECT_OFF && mixes) {
         /* 1.52 lookups: the time of one of the marcher's PDF segments (select.c, the fit) */
-        st = rd_select_prepare(ctx, march_guided, 1.52, &mst->sel, err, errlen);
+        st = rd_select_prepare(ctx, march_guided, 1.52, s->march.equiangular, &mst->sel, err, errlen);
         if (st != RD_OK) rd_march_release(ctx);
     }
     return st;

@@ -615,7 +615,7 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
     /* With a guide (else the method is delta's path already), the tiles where it pays. */
     if (s->settings.select != RD_SELECT_OFF && ctx->guide) {
         /* 0.41 lookups: the time of one of its flights' pdf segments (select.c, the fit) */
-        rd_status rs = rd_select_prepare(ctx, gu_path, 0.41, &st->sel, err, errlen);
+        rd_status rs = rd_select_prepare(ctx, gu_path, 0.41, s->guide.equiangular, &st->sel, err, errlen);
         if (rs != RD_OK) {
             gu_release(ctx);
             return rs;

@@ -1,6 +1,7 @@
 /* rd_select.h: the guided methods' choice, per tile of the image, between the method and
- * delta's path (settings.select = "tiles"; integrators/select.c). Internal to integrators/
- * (tests include it). */
+ * delta's path, and delta's path with the method's equiangular mode where that differs
+ * (settings.select = "tiles"; integrators/select.c). Internal to integrators/ (tests include
+ * it). */
 #ifndef RD_SELECT_H
 #define RD_SELECT_H
 
@@ -8,6 +9,11 @@
 
 /* The tile edge in pixels. */
 #define RD_SELECT_TILE 8
+
+/* The estimators a tile can be given (rd_select.choice): delta's path with settings.equiangular,
+ * the method, and delta's path with the method's own equiangular mode (only where that mode
+ * differs from settings.equiangular and a point or spot light can be sampled: rd_select.n). */
+enum { RD_SEL_DELTA = 0, RD_SEL_METHOD = 1, RD_SEL_DELTA_EQ = 2, RD_SEL_MAX = 3 };
 
 /* One estimator's samples in one tile, from the pilot and the image's epochs so far: the
  * count, the count with any channel non-zero, per channel the sum and the squared deviations
@@ -30,21 +36,24 @@ typedef struct {
 #define RD_SELECT_PIXEL_DOUBLES 9
 
 typedef struct {
-    uint8_t *guided;         /* per tile, 1 where the method renders, 0 where delta's path does;
+    uint8_t *choice;         /* per tile, the estimator that renders it (RD_SEL_*);
                                 NULL: the method everywhere (selection off, or not run) */
-    uint8_t *trial;          /* per tile, 1 while the other estimator is on trial: for one epoch
-                                the tile's pixels with x + y odd use the method, the others
-                                delta's path (rd_select_uses) */
+    uint8_t *trial;          /* per tile, 0, or 1 + the estimator on trial against the choice:
+                                for one epoch the tile's pixels with x + y odd use the one of the
+                                two with the higher index, the others the lower (rd_select_uses) */
+    int n;                   /* estimators compared: 2 (delta, the method) or 3 (RD_SEL_DELTA_EQ
+                                too) */
+    int equiangular;         /* RD_SEL_DELTA_EQ's equiangular mode (rd_scene.h RD_EQ_*) */
     int tiles_x, tiles_y, width, height;
     int epochs;              /* choose again at the epochs (settings.select "tiles" or "auto";
                                 "pilot": 0) */
     double cell_cost;        /* the method's cost per PDF segment it counts in rd_thread.cells,
                                 in density lookups (select.c) */
-    rd_select_stats *stats;  /* per tile, [2k] delta's and [2k + 1] the method's */
+    rd_select_stats *stats;  /* per tile k and estimator e, [n k + e] */
     rd_select_pixel *pixels; /* per pixel, the current epoch's samples */
 } rd_select;
 
-/* 1 where the selection gives pixel (x, y) to the method: its tile's choice, or on a tile on
+/* The estimator (RD_SEL_*) the selection gives pixel (x, y): its tile's choice, or on a tile on
  * trial, the pixel's square of the checkerboard. */
 int rd_select_uses(const rd_select *sel, int x, int y);
 /* How many pixels the selection gives to the method now (all of them without a selection:
@@ -55,20 +64,24 @@ uint64_t rd_select_method_pixels(const rd_select *sel, uint64_t all);
  * where the selection gives it the pixel). */
 typedef vec3 (*rd_select_fn)(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp);
 
-/* An empty selection for a width x height image (no tile's statistics yet, every tile to
- * delta). */
-rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost, char *err, size_t errlen);
+/* An empty selection among `estimators` (2 or 3) for a width x height image (no tile's
+ * statistics yet, every tile to delta). */
+rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost, int estimators,
+                         char *err, size_t errlen);
 /* Run the pilot and make the first choice: on random numbers of its own, the variance and cost
- * per sample of `method` and of delta's path in every tile; keeps the choices that give the
- * image the least error at equal time. The cost is counted work (select.c): `cell_cost` is
- * what one of the method's PDF segments (rd_thread.cells) costs, in density lookups, fitted on
- * the calibration scenes. Call at the end of the method's prepare (ctx->state set: the pilot
- * renders with the method's scratch, ctx->method->scratch_bytes). */
+ * per sample of `method` and of delta's path in every tile (and of delta's path with the
+ * method's equiangular mode `equiangular`, RD_EQ_*, where it differs from
+ * settings.equiangular and the scene has a point or spot light to sample); keeps the choices
+ * that give the image the least error at equal time. The cost is counted work (select.c):
+ * `cell_cost` is what one of the method's PDF segments (rd_thread.cells) costs, in density
+ * lookups, fitted on the calibration scenes. Call at the end of the method's prepare
+ * (ctx->state set: the pilot renders with the method's scratch, ctx->method->scratch_bytes). */
 rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, double cell_cost,
-                            rd_select *sel, char *err, size_t errlen);
+                            int equiangular, rd_select *sel, char *err, size_t errlen);
 void rd_select_free(rd_select *sel);
 /* The camera sample of `th->pixel`: `method` where the selection gives it the pixel's tile,
- * else delta's path (counted in th->delta_samples). The sample is recorded for the next epoch:
+ * else delta's path in the estimator's equiangular mode (counted in th->delta_samples, and
+ * th->delta_eq_samples for RD_SEL_DELTA_EQ). The sample is recorded for the next epoch:
  * sel is written at th->pixel only, which one thread renders at a time, in sample order. */
 vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn method,
                         rd_thread *th, ray3 r, rd_sampler *smp);
@@ -84,15 +97,15 @@ int rd_select_epoch_next(const rd_select *sel, int sample);
  * pixel's), so every rank folds the same statistics and makes the same choice as one process.
  * Collective then: every rank calls it at the same epoch. comm NULL: this process alone. */
 void rd_select_epoch(rd_select *sel, const rd_comm *comm);
-/* The trial (see select.c, "Evidence of unequal size"): a tile's choice moves to the other
+/* The trial (see select.c, "Evidence of unequal size"): a tile's choice moves to another
  * estimator at once only when that estimator's samples in the tile are at least
  * 1 / RD_SELECT_TRIAL_RATIO of the current one's; else the tile goes on trial for one epoch
  * first. */
 #define RD_SELECT_TRIAL_RATIO 4
 
-/* The rule: for n tiles with the per-sample variance and cost of delta (var[2k], cost[2k]) and
- * of the method (var[2k+1], cost[2k+1]), the choices that minimise (sum V)(sum C);
- * use_method[k] = 1 for the method. */
-void rd_select_choose(const double *var, const double *cost, int n, uint8_t *use_method);
+/* The rule: for n tiles with the per-sample variance and cost of each of the m estimators
+ * (var[m k + e], cost[m k + e], e = RD_SEL_*), the choices that minimise (sum V)(sum C);
+ * choice[k] the estimator of tile k. */
+void rd_select_choose(const double *var, const double *cost, int n, int m, uint8_t *choice);
 
 #endif /* RD_SELECT_H */

@@ -1,7 +1,7 @@
 /* select.c: the guided methods' choice, per tile of the image, between the method (the
  * marcher of `guided`, the guided paths of `guided-unbiased`) and delta's path
  * (settings.select "tiles", or "auto", the default; docs/guided-marching.md "Where marching
- * pays").
+ * pays"), and a third estimator where there is one (below).
  *
  * Both are unbiased estimators of the radiance along a camera ray, so any choice made for a
  * pixel's sample before the sample is drawn keeps the image unbiased. The guided method wins
@@ -20,6 +20,23 @@
  * that carries a firefly); the image's thousands do not, and the estimator a tile uses is the one whose statistics grow. Each
  * epoch's choice depends only on samples drawn before it, so every sample is still an unbiased
  * estimate given the past, and so is each pixel's mean of a fixed number of them.
+ *
+ * The third estimator (session 24). The methods' own paths and samples take `delta`'s
+ * equiangular strategy in their own mode (march.equiangular, guide.equiangular: "auto" by
+ * default), while delta's path takes settings.equiangular (off by default: "auto" costs 4-38%
+ * where it samples nothing, docs/free-path.md). On a narrow spot across thin fog `delta` with
+ * "auto" is 34x plain `delta` and beat both methods (docs/benchmarks.md, session 23): what the
+ * methods gained there came from the strategy, and their own estimators cost 3.5-11x a delta
+ * path for the same variance. So where the method's mode differs from settings.equiangular
+ * and the scene has a point or spot light, delta's path in the method's mode is a third
+ * estimator (RD_SEL_DELTA_EQ) with statistics of its own, and every rule below runs over the
+ * three: each tile gets delta's path with or without the strategy, or the method, whichever
+ * pays there. The pilot samples it too (a third more pilot work on such scenes, about 0.3% of a
+ * 10-s render on default), and a trial between any two of them puts the higher-numbered one on
+ * the odd squares (with two estimators: the method, as before). All three are unbiased for the
+ * same image, so the mix is too (tests/test_select.c). Its cost counts one more kind of work:
+ * the flights' equiangular set-up, the choice of lights that "auto" makes per flight
+ * (rd_track_counters.eq_flights, weight 0.59 lookups, below).
  *
  * The variance. Per channel, the squared deviations from each pixel's own mean, pooled over the
  * tile's pixels (the image's squared error sums the pixels' variances). It is bounded below by
@@ -106,7 +123,13 @@
  * 7.8 modelled (the old weights: 21.1 / 8.1). The beam estimate (march.ls nee+beams) adds
  * c_H per ball its segments' queries crossed, fitted with the other weights held
  * (bench/bench_cost_fit.sh FIT=beams; guided with nee+beams, one fixed map, on the same six
- * scenes): 0.098 us, 0.60 lookups; the model within 0.90-1.09 of each scene's time. */
+ * scenes): 0.098 us, 0.60 lookups; the model within 0.90-1.09 of each scene's time. The
+ * equiangular set-up (the third estimator's extra work where it samples nothing) is fitted on
+ * the paired difference of `delta` with settings.equiangular "auto" and "false", the other
+ * weights held (bench/bench_cost_fit.sh FIT=eq; 32 spp, three rounds, on the calibration scenes
+ * with a point or spot light, cloud, glass-fog and hetero-forward): 0.097 us, 0.59 lookups a
+ * set-up, the model within 0.99-1.02 of the three; checked, not fitted: hard-dense-block 0.93
+ * (its spot's cone cuts cost more than the mean), default 0.99, hard-narrow-spot 1.24. */
 #include "integrators/rd_select.h"
 #include "transport/rd_path.h"
 
@@ -122,6 +145,7 @@
 #define SEL_COST_SAMPLE 2.18   /* a camera sample: its rays, shapes and set-up */
 #define SEL_COST_VERTEX 3.91   /* a guided-unbiased vertex that read the guide */
 #define SEL_COST_BEAM_HIT 0.60 /* a ball a segment's query crossed (march.ls nee+beams) */
+#define SEL_COST_EQ_FLIGHT 0.59 /* a flight's equiangular set-up (its choice of lights) */
 #define SEL_ROUNDS 32       /* fixed-point rounds at most */
 #define SEL_TIE 1e-9        /* relative margin below which the method does not beat delta */
 #define SEL_EPOCH_FIRST 4   /* the first epoch ends at sample 4 of every pixel, */
@@ -160,12 +184,13 @@ static void pixel_fold(rd_select_stats *st, const rd_select_pixel *px)
 
 /* The counted cost of one sample, from th's counters before it (c0) and after (see the head). */
 typedef struct {
-    uint64_t lookups, shadow_rays, cells, vertices, beam_hits;
+    uint64_t lookups, shadow_rays, cells, vertices, beam_hits, eq_flights;
 } work;
 
 static work work_now(const rd_thread *th)
 {
-    return (work){th->counters.lookups, th->counters.shadow_rays, th->cells, th->guide_vertices, th->beam_hits};
+    return (work){th->counters.lookups, th->counters.shadow_rays, th->cells, th->guide_vertices, th->beam_hits,
+                  th->counters.eq_flights};
 }
 
 static double sample_cost(const rd_select *sel, const rd_thread *th, work c0)
@@ -173,12 +198,23 @@ static double sample_cost(const rd_select *sel, const rd_thread *th, work c0)
     work c1 = work_now(th);
     return (double)(c1.lookups - c0.lookups) + SEL_COST_SHADOW * (double)(c1.shadow_rays - c0.shadow_rays) +
            sel->cell_cost * (double)(c1.cells - c0.cells) + SEL_COST_VERTEX * (double)(c1.vertices - c0.vertices) +
-           SEL_COST_BEAM_HIT * (double)(c1.beam_hits - c0.beam_hits) + SEL_COST_SAMPLE;
+           SEL_COST_BEAM_HIT * (double)(c1.beam_hits - c0.beam_hits) +
+           SEL_COST_EQ_FLIGHT * (double)(c1.eq_flights - c0.eq_flights) + SEL_COST_SAMPLE;
 }
 
-/* One pixel's pilot with one estimator: SEL_SPP samples, added to the tile's statistics. */
+/* Camera sample `smp` of ray r with estimator e (RD_SEL_*). */
+static vec3 estimate(const rd_render_ctx *ctx, const rd_select *sel, rd_thread *th, int e, rd_select_fn method,
+                     ray3 r, rd_sampler *smp)
+{
+    if (e == RD_SEL_METHOD) return method(ctx, th, r, smp);
+    pcg32 rng = rd_sampler_stream(smp);
+    return rd_delta_radiance_eq(ctx->scene, r, e == RD_SEL_DELTA_EQ ? sel->equiangular : ctx->scene->settings.equiangular,
+                                &rng, &th->counters);
+}
+
+/* One pixel's pilot with estimator e: SEL_SPP samples, added to the tile's statistics. */
 static void pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, const rd_select *sel, int x, int y,
-                        int use_method, rd_select_fn method, rd_select_stats *st)
+                        int e, rd_select_fn method, rd_select_stats *st)
 {
     const rd_scene *s = ctx->scene;
     const rd_camera *cam = &s->camera;
@@ -190,33 +226,28 @@ static void pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, const rd_select
         if (!cam->jitter) jx = jy = 0.5;
         ray3 r = rd_camera_ray(cam, x + jx, y + jy);
         work c0 = work_now(th);
-        vec3 L;
         th->pixel = pix;
-        if (use_method) {
-            L = method(ctx, th, r, &smp);
-        } else {
-            pcg32 rng = rd_sampler_stream(&smp);
-            L = rd_delta_radiance(s, r, &rng, &th->counters);
-        }
+        vec3 L = estimate(ctx, sel, th, e, method, r, &smp);
         if (v3_finite(L)) pixel_add(&px, L, sample_cost(sel, th, c0));
     }
     pixel_fold(st, &px);
 }
 
-/* The per-sample variance of estimator e (0 delta, 1 the method) in a tile whose two
- * statistics are pair[0], pair[1] (mean over RGB): the pooled sample variance, bounded below by
- * Cauchy-Schwarz with mu the mean of the two estimators' means and the non-zero probability p
- * from the tile's count and e's fraction pbar over the lit tiles (see the head). */
-static double tile_variance(const rd_select_stats *pair, int e, double pbar)
+/* The per-sample variance of estimator e (RD_SEL_*) in a tile whose m statistics are
+ * tile[0 .. m-1] (mean over RGB): the pooled sample variance, bounded below by Cauchy-Schwarz
+ * with mu the mean of the estimators' means (all unbiased for the tile's mean) and the non-zero
+ * probability p from the tile's count and e's fraction pbar over the lit tiles (see the
+ * head). */
+static double tile_variance(const rd_select_stats *tile, int m, int e, double pbar)
 {
-    const rd_select_stats *st = &pair[e];
+    const rd_select_stats *st = &tile[e];
     if (!(st->n > 0.0)) return 0.0;
     double p = (st->nonzero + 2.0 * pbar) / (st->n + 2.0), v = 0.0;
     for (int c = 0; c < 3; c++) {
         double mu = 0.0;
         int k = 0;
-        for (int j = 0; j < 2; j++)
-            if (pair[j].n > 0.0) mu += pair[j].sum[c] / pair[j].n, k++;
+        for (int j = 0; j < m; j++)
+            if (tile[j].n > 0.0) mu += tile[j].sum[c] / tile[j].n, k++;
         mu /= k;
         double sv = st->dof > 0.0 ? st->dev2[c] / st->dof : 0.0;
         v += fmax(sv, mu > 0.0 ? mu * mu * (1.0 / p - 1.0) : 0.0);
@@ -224,81 +255,100 @@ static double tile_variance(const rd_select_stats *pair, int e, double pbar)
     return v / 3.0;
 }
 
-void rd_select_choose(const double *var, const double *cost, int n, uint8_t *use_method)
+/* The estimator of a tile (m of them, figures f[0 .. m-1]) that minimises f: a later estimator
+ * must beat the best so far by more than rounding, so a tie goes to the lower index (delta; a
+ * tile the camera sees no medium in costs every estimator the same, summed over different
+ * numbers of samples). */
+static uint8_t least(const double *f, int m)
 {
-    /* A tie goes to delta: the method must be better by more than rounding (a tile the camera
-     * sees no medium in costs both the same, summed over different numbers of samples). */
-    for (int k = 0; k < n; k++) /* start: each tile's own best V C */
-        use_method[k] = var[2 * k + 1] * cost[2 * k + 1] < var[2 * k] * cost[2 * k] * (1.0 - SEL_TIE);
+    int b = 0;
+    for (int e = 1; e < m; e++)
+        if (f[e] < f[b] * (1.0 - SEL_TIE)) b = e;
+    return (uint8_t)b;
+}
+
+void rd_select_choose(const double *var, const double *cost, int n, int m, uint8_t *choice)
+{
+    double f[RD_SEL_MAX];
+    for (int k = 0; k < n; k++) { /* start: each tile's own best V C */
+        for (int e = 0; e < m; e++) f[e] = var[m * k + e] * cost[m * k + e];
+        choice[k] = least(f, m);
+    }
     for (int round = 0; round < SEL_ROUNDS; round++) {
         double V = 0.0, C = 0.0;
-        for (int k = 0; k < n; k++) V += var[2 * k + use_method[k]], C += cost[2 * k + use_method[k]];
+        for (int k = 0; k < n; k++) V += var[m * k + choice[k]], C += cost[m * k + choice[k]];
         if (!(C > 0.0)) return;
         double lambda = V / C;
         int changed = 0;
         for (int k = 0; k < n; k++) {
-            uint8_t u = var[2 * k + 1] + lambda * cost[2 * k + 1] < (var[2 * k] + lambda * cost[2 * k]) * (1.0 - SEL_TIE);
-            changed += u != use_method[k];
-            use_method[k] = u;
+            for (int e = 0; e < m; e++) f[e] = var[m * k + e] + lambda * cost[m * k + e];
+            uint8_t u = least(f, m);
+            changed += u != choice[k];
+            choice[k] = u;
         }
         if (!changed) break;
     }
-    /* The fixed point is stationary for the linearised objective, but a tile whose flip trades
-     * variance for cost can still lower the product itself (the cross term dV dC < 0): flip such
-     * tiles, one at a time, until no single flip helps. */
+    /* The fixed point is stationary for the linearised objective, but a tile whose move trades
+     * variance for cost can still lower the product itself (the cross term dV dC < 0): move such
+     * tiles, one at a time, to the first other estimator that lowers it, until no single move
+     * helps. */
     double V = 0.0, C = 0.0;
-    for (int k = 0; k < n; k++) V += var[2 * k + use_method[k]], C += cost[2 * k + use_method[k]];
+    for (int k = 0; k < n; k++) V += var[m * k + choice[k]], C += cost[m * k + choice[k]];
     for (int round = 0, changed = 1; changed && round < SEL_ROUNDS; round++) {
         changed = 0;
-        for (int k = 0; k < n; k++) {
-            int o = use_method[k], f = 1 - o;
-            double V2 = V - var[2 * k + o] + var[2 * k + f], C2 = C - cost[2 * k + o] + cost[2 * k + f];
-            if (V2 * C2 < V * C * (1.0 - 1e-12)) {
-                use_method[k] = (uint8_t)f;
-                V = V2, C = C2;
-                changed = 1;
+        for (int k = 0; k < n; k++)
+            for (int e = 0; e < m; e++) {
+                int o = choice[k];
+                if (e == o) continue;
+                double V2 = V - var[m * k + o] + var[m * k + e], C2 = C - cost[m * k + o] + cost[m * k + e];
+                if (V2 * C2 < V * C * (1.0 - 1e-12)) {
+                    choice[k] = (uint8_t)e;
+                    V = V2, C = C2;
+                    changed = 1;
+                }
             }
-        }
     }
 }
 
-/* Each tile's pair of figures a[2k], a[2k + 1] (delta's, the method's) replaced by the mean over
- * its 3x3 neighbourhood (clipped at the image's edge), in tmp's room of 2 nx ny doubles. A
+/* Each tile's figures a[m k + e] (one per estimator) replaced by the mean over its 3x3
+ * neighbourhood (clipped at the image's edge), in tmp's room of m nx ny doubles. A
  * tile's own pilot has 16 pixels x SEL_SPP samples, and delta's variance is heavy-tailed (a rare
  * path that finds the light): alone, one tile's estimate swings the choice from seed to seed;
  * nine tiles' pooled steady it, at the price of a one-tile blur of the map. */
-static void pool(double *a, double *tmp, int nx, int ny)
+static void pool(double *a, double *tmp, int nx, int ny, int m)
 {
     size_t n = (size_t)nx * ny;
-    memcpy(tmp, a, 2 * n * sizeof *tmp);
+    memcpy(tmp, a, (size_t)m * n * sizeof *tmp);
     for (int ty = 0; ty < ny; ty++)
         for (int tx = 0; tx < nx; tx++) {
             size_t k = (size_t)ty * nx + tx;
-            double sv[2] = {0, 0};
+            double sv[RD_SEL_MAX] = {0, 0, 0};
             int cnt = 0;
             for (int y = ty - 1; y <= ty + 1; y++)
                 for (int x = tx - 1; x <= tx + 1; x++) {
                     if (x < 0 || y < 0 || x >= nx || y >= ny) continue;
                     size_t j = (size_t)y * nx + x;
-                    for (int e = 0; e < 2; e++) sv[e] += tmp[2 * j + e];
+                    for (int e = 0; e < m; e++) sv[e] += tmp[m * j + e];
                     cnt++;
                 }
-            for (int e = 0; e < 2; e++) a[2 * k + e] = sv[e] / cnt;
+            for (int e = 0; e < m; e++) a[m * k + e] = sv[e] / cnt;
         }
 }
 
-rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost, char *err, size_t errlen)
+rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost, int estimators,
+                         char *err, size_t errlen)
 {
     memset(sel, 0, sizeof *sel);
     sel->width = width, sel->height = height, sel->cell_cost = cell_cost, sel->epochs = 1;
+    sel->n = estimators == 3 ? 3 : 2;
     sel->tiles_x = (width + RD_SELECT_TILE - 1) / RD_SELECT_TILE;
     sel->tiles_y = (height + RD_SELECT_TILE - 1) / RD_SELECT_TILE;
     size_t n = (size_t)sel->tiles_x * sel->tiles_y;
-    sel->guided = calloc(n, 1);
+    sel->choice = calloc(n, 1);
     sel->trial = calloc(n, 1);
-    sel->stats = calloc(2 * n, sizeof *sel->stats);
+    sel->stats = calloc((size_t)sel->n * n, sizeof *sel->stats);
     sel->pixels = rd_alloc_lines((size_t)width * height * sizeof *sel->pixels);
-    if (sel->guided && sel->trial && sel->stats && sel->pixels) return RD_OK;
+    if (sel->choice && sel->trial && sel->stats && sel->pixels) return RD_OK;
     rd_select_free(sel);
     snprintf(err, errlen, "out of memory for the tile selection (%dx%d pixels)", width, height);
     return RD_ERR_NOMEM;
@@ -309,54 +359,69 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
  * to the estimator with far fewer samples goes on trial first (see the head). */
 static void choose_tiles(rd_select *sel)
 {
-    int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny;
-    double *var = malloc(6 * (size_t)n * sizeof *var + (size_t)n);
+    int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
+    double *var = malloc(3 * (size_t)m * n * sizeof *var + (size_t)n);
     if (!var) return; /* the choices stay as they are */
-    double *cost = var + 2 * (size_t)n, *tmp = cost + 2 * (size_t)n;
-    uint8_t *want = (uint8_t *)(tmp + 2 * (size_t)n);
+    double *cost = var + (size_t)m * n, *tmp = cost + (size_t)m * n;
+    uint8_t *want = (uint8_t *)(tmp + (size_t)m * n);
     /* Each estimator's non-zero fraction over the lit tiles: the prior of every tile's p. */
-    double nz[2] = {0, 0}, nn[2] = {0, 0}, pbar[2];
+    double nz[RD_SEL_MAX] = {0, 0, 0}, nn[RD_SEL_MAX] = {0, 0, 0}, pbar[RD_SEL_MAX];
     for (int k = 0; k < n; k++) {
-        const rd_select_stats *st = &sel->stats[2 * k];
-        if (!(st[0].nonzero + st[1].nonzero > 0.0)) continue;
-        for (int e = 0; e < 2; e++) nz[e] += st[e].nonzero, nn[e] += st[e].n;
+        const rd_select_stats *st = &sel->stats[m * k];
+        double lit = 0.0;
+        for (int e = 0; e < m; e++) lit += st[e].nonzero;
+        if (!(lit > 0.0)) continue;
+        for (int e = 0; e < m; e++) nz[e] += st[e].nonzero, nn[e] += st[e].n;
     }
-    for (int e = 0; e < 2; e++) pbar[e] = (nz[e] + 1.0) / (nn[e] + 2.0);
+    for (int e = 0; e < m; e++) pbar[e] = (nz[e] + 1.0) / (nn[e] + 2.0);
     for (int k = 0; k < n; k++) {
         int tx = k % nx, ty = k / nx;
         int w = sel->width - tx * RD_SELECT_TILE, h = sel->height - ty * RD_SELECT_TILE;
         double pixels = (double)(w < RD_SELECT_TILE ? w : RD_SELECT_TILE) * (h < RD_SELECT_TILE ? h : RD_SELECT_TILE);
-        for (int e = 0; e < 2; e++) {
-            const rd_select_stats *st = &sel->stats[2 * k + e];
-            var[2 * k + e] = pixels * tile_variance(&sel->stats[2 * k], e, pbar[e]);
-            cost[2 * k + e] = st->n > 0.0 ? pixels * st->cost / st->n : 0.0;
+        for (int e = 0; e < m; e++) {
+            const rd_select_stats *st = &sel->stats[m * k + e];
+            var[m * k + e] = pixels * tile_variance(&sel->stats[m * k], m, e, pbar[e]);
+            cost[m * k + e] = st->n > 0.0 ? pixels * st->cost / st->n : 0.0;
         }
     }
-    pool(var, tmp, nx, ny);
-    pool(cost, tmp, nx, ny);
-    rd_select_choose(var, cost, n, want);
+    pool(var, tmp, nx, ny, m);
+    pool(cost, tmp, nx, ny, m);
+    rd_select_choose(var, cost, n, m, want);
     /* The evidence is the tile's own samples (its neighbours, committed to one estimator,
      * would outweigh its trial in a pooled count for ever). A trial lasts one epoch: then the
      * rule decides. */
     for (int k = 0; k < n; k++) {
-        int cur = sel->guided[k], w = want[k];
-        const rd_select_stats *st = &sel->stats[2 * k];
+        int cur = sel->choice[k], w = want[k];
+        const rd_select_stats *st = &sel->stats[m * k];
         if (w == cur || sel->trial[k] || st[w].n * RD_SELECT_TRIAL_RATIO >= st[cur].n) {
-            sel->guided[k] = (uint8_t)w; /* the same, after a trial, or on comparable evidence */
+            sel->choice[k] = (uint8_t)w; /* the same, after a trial, or on comparable evidence */
             sel->trial[k] = 0;
         } else {
-            sel->trial[k] = 1; /* lopsided evidence: half the pixels try w for an epoch */
+            sel->trial[k] = (uint8_t)(1 + w); /* lopsided evidence: half the pixels try w for an epoch */
         }
     }
     free(var);
 }
 
-rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, double cell_cost,
-                            rd_select *sel, char *err, size_t errlen)
+/* Whether a point or spot light can be sampled (the equiangular strategy's lights). */
+static int has_point_or_spot(const rd_scene *s)
 {
-    const rd_camera *cam = &ctx->scene->camera;
-    rd_status st = rd_select_init(sel, cam->width, cam->height, cell_cost, err, errlen);
+    for (int i = 0; i < s->n_lights; i++)
+        if ((s->lights[i].kind == RD_LIGHT_POINT || s->lights[i].kind == RD_LIGHT_SPOT) &&
+            s->light_sampler.pmf[i] > 0.0)
+            return 1;
+    return 0;
+}
+
+rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, double cell_cost,
+                            int equiangular, rd_select *sel, char *err, size_t errlen)
+{
+    const rd_scene *s = ctx->scene;
+    const rd_camera *cam = &s->camera;
+    int third = equiangular != s->settings.equiangular && has_point_or_spot(s);
+    rd_status st = rd_select_init(sel, cam->width, cam->height, cell_cost, third ? 3 : 2, err, errlen);
     if (st != RD_OK) return st;
+    sel->equiangular = equiangular;
     sel->epochs = ctx->scene->settings.select != RD_SELECT_PILOT;
     int n = sel->tiles_x * sel->tiles_y;
     int threads = ctx->threads > 0 ? ctx->threads : 1;
@@ -370,8 +435,8 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, doubl
             int x0 = (k % sel->tiles_x) * RD_SELECT_TILE, y0 = (k / sel->tiles_x) * RD_SELECT_TILE;
             for (int y = y0; y < y0 + RD_SELECT_TILE && y < cam->height; y += 2)
                 for (int x = x0; x < x0 + RD_SELECT_TILE && x < cam->width; x += 2)
-                    for (int e = 0; e < 2; e++) /* 0: delta, 1: the method */
-                        pilot_pixel(ctx, t, sel, x, y, e, method, &sel->stats[2 * k + e]);
+                    for (int e = 0; e < sel->n; e++) /* RD_SEL_* */
+                        pilot_pixel(ctx, t, sel, x, y, e, method, &sel->stats[sel->n * k + e]);
         }
         choose_tiles(sel);
     }
@@ -386,7 +451,7 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, doubl
 
 void rd_select_free(rd_select *sel)
 {
-    free(sel->guided);
+    free(sel->choice);
     free(sel->trial);
     free(sel->stats);
     free(sel->pixels);
@@ -396,15 +461,18 @@ void rd_select_free(rd_select *sel)
 int rd_select_uses(const rd_select *sel, int x, int y)
 {
     int k = (y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE;
-    return sel->trial[k] ? (x + y) & 1 : sel->guided[k];
+    if (!sel->trial[k]) return sel->choice[k];
+    int a = sel->choice[k], b = sel->trial[k] - 1; /* the two on trial: odd squares the higher */
+    int hi = a > b ? a : b, lo = a > b ? b : a;
+    return (x + y) & 1 ? hi : lo;
 }
 
 uint64_t rd_select_method_pixels(const rd_select *sel, uint64_t all)
 {
-    if (!sel->guided) return all;
+    if (!sel->choice) return all;
     uint64_t n = 0;
     for (int y = 0; y < sel->height; y++)
-        for (int x = 0; x < sel->width; x++) n += (uint64_t)rd_select_uses(sel, x, y);
+        for (int x = 0; x < sel->width; x++) n += rd_select_uses(sel, x, y) == RD_SEL_METHOD;
     return n;
 }
 
@@ -415,7 +483,7 @@ void rd_select_observe(rd_select *sel, uint64_t pixel, vec3 L, double cost)
 
 int rd_select_epoch_next(const rd_select *sel, int sample)
 {
-    if (!sel->guided || !sel->epochs) return INT_MAX;
+    if (!sel->choice || !sel->epochs) return INT_MAX;
     int b = SEL_EPOCH_FIRST;
     while (b <= sample) {
         if (b > INT_MAX / SEL_EPOCH_GROWTH) return INT_MAX;
@@ -426,7 +494,7 @@ int rd_select_epoch_next(const rd_select *sel, int sample)
 
 void rd_select_epoch(rd_select *sel, const rd_comm *comm)
 {
-    if (!sel->guided) return;
+    if (!sel->choice) return;
     _Static_assert(sizeof(rd_select_pixel) == RD_SELECT_PIXEL_DOUBLES * sizeof(double),
                    "rd_select_pixel is an array of doubles");
     /* Several ranks: each holds the samples of the pixels it rendered and zeros elsewhere, so
@@ -438,7 +506,7 @@ void rd_select_epoch(rd_select *sel, const rd_comm *comm)
         for (int x = 0; x < sel->width; x++) {
             int k = (y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE;
             rd_select_pixel *px = &sel->pixels[(size_t)y * sel->width + x];
-            pixel_fold(&sel->stats[2 * k + rd_select_uses(sel, x, y)], px);
+            pixel_fold(&sel->stats[sel->n * k + rd_select_uses(sel, x, y)], px);
             memset(px, 0, sizeof *px);
         }
     choose_tiles(sel);
@@ -447,19 +515,14 @@ void rd_select_epoch(rd_select *sel, const rd_comm *comm)
 vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn method,
                         rd_thread *th, ray3 r, rd_sampler *smp)
 {
-    if (!sel->guided) return method(ctx, th, r, smp);
+    if (!sel->choice) return method(ctx, th, r, smp);
     int w = ctx->scene->camera.width;
     int x = (int)(th->pixel % (uint64_t)w), y = (int)(th->pixel / (uint64_t)w);
     int use = rd_select_uses(sel, x, y);
     work c0 = work_now(th);
-    vec3 L;
-    if (use) {
-        L = method(ctx, th, r, smp);
-    } else {
-        th->delta_samples++;
-        pcg32 rng = rd_sampler_stream(smp);
-        L = rd_delta_radiance(ctx->scene, r, &rng, &th->counters);
-    }
+    th->delta_samples += use != RD_SEL_METHOD;
+    th->delta_eq_samples += use == RD_SEL_DELTA_EQ;
+    vec3 L = estimate(ctx, sel, th, use, method, r, smp);
     if (v3_finite(L)) rd_select_observe(sel, th->pixel, L, sample_cost(sel, th, c0));
     return L;
 }

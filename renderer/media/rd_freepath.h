@@ -23,6 +23,9 @@
 typedef struct {
     uint64_t collisions, lookups;
     uint64_t shadow_rays;  /* next-event transmittance estimates */
+    uint64_t eq_flights;   /* flights that set up the equiangular strategy over media with a
+                            * point or spot light to choose (transport/equiangular.c), which
+                            * the tile selection's counted cost charges (integrators/select.c) */
 } rd_track_counters;
 
 typedef struct {

@@ -44,6 +44,7 @@ static char *report_json(const rd_scene *s, const rd_render_opts *o, const rd_re
     cJSON_AddNumberToObject(j, "tentative_collisions", (double)st->collisions);
     cJSON_AddNumberToObject(j, "density_lookups", (double)st->lookups);
     cJSON_AddNumberToObject(j, "shadow_rays", (double)st->shadow_rays);
+    cJSON_AddNumberToObject(j, "equiangular_flights", (double)st->eq_flights);
     cJSON_AddNumberToObject(j, "collisions_per_path", st->collisions / paths);
     cJSON_AddNumberToObject(j, "lookups_per_path", st->lookups / paths);
     cJSON_AddNumberToObject(j, "paths_per_second", st->seconds > 0 ? st->paths / st->seconds : 0.0);
@@ -60,9 +61,13 @@ static char *report_json(const rd_scene *s, const rd_render_opts *o, const rd_re
             cJSON_AddNumberToObject(pp, "spp_per_pass", s->photons.pass_spp);
         }
     }
-    /* settings.select: the share of camera samples the tile selection gave to delta's path */
-    if (st->rays_marched || st->delta_samples)
+    /* settings.select: the share of camera samples the tile selection gave to delta's path, and
+     * of those with the method's equiangular mode (integrators/select.c) */
+    if (st->rays_marched || st->delta_samples) {
         cJSON_AddNumberToObject(j, "delta_share", st->paths ? (double)st->delta_samples / (double)st->paths : 0.0);
+        cJSON_AddNumberToObject(j, "delta_equiangular_share",
+                                st->paths ? (double)st->delta_eq_samples / (double)st->paths : 0.0);
+    }
     if (st->flight_segments || st->guide_vertices) { /* guided-unbiased's guide reads */
         cJSON *gp = cJSON_AddObjectToObject(j, "guided_paths");
         if (gp) {

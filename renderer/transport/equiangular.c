@@ -197,6 +197,7 @@ int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, dou
                       int automatic, rd_eq_flight *ef)
 {
     ef->left = 0;
+    ef->n = 0;
     ef->ps_pmf = 0.0;
     ef->density = NULL;
     ef->density_user = NULL;

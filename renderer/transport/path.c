@@ -204,6 +204,7 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
             /* thin bias is `delta`'s own flights' (a sampler with a density has none) */
             eq = rd_eq_flight_init(s, r, region, in.t_light, fs->density ? 0.0 : rd_thin_bias_q(s, &in),
                                    fs->equiangular == RD_EQ_AUTO, &ef);
+            c->eq_flights += ef.n > 0; /* a set-up that did the work: media, and a light to choose */
             if (eq && fs->density) {
                 ef.density = flight_density;
                 ef.density_user = fs;
@@ -318,10 +319,15 @@ vec3 rd_delta_scattered(const rd_scene *s, ray3 r, int region, int depth, int eq
     return trace(s, r, region, 0.0, depth, 1, 1, &fs, rng, c, &budget);
 }
 
-vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c)
+vec3 rd_delta_radiance_eq(const rd_scene *s, ray3 r, int equiangular, pcg32 *rng, rd_track_counters *c)
 {
     const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL,
-                                  .equiangular = s->settings.equiangular};
+                                  .equiangular = equiangular};
     return rd_path_radiance(s, r, &fs, rng, c);
+}
+
+vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c)
+{
+    return rd_delta_radiance_eq(s, r, s->settings.equiangular, rng, c);
 }
 

@@ -16,6 +16,9 @@ extern "C" {
  * settings.equiangular (an equiangular sample toward a point or spot light per flight, MIS with
  * the collision's next-event estimate) and settings.thin_bias (rd_sample_free_path_thin). */
 vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c);
+/* The same with the equiangular mode `equiangular` (RD_EQ_*) in place of settings.equiangular
+ * (the guided methods' tile selection: its third estimator, integrators/select.c). */
+vec3 rd_delta_radiance_eq(const rd_scene *s, ray3 r, int equiangular, pcg32 *rng, rd_track_counters *c);
 
 /* ---- The unbiased path loop and its free-flight samplers (transport/path.c) ------------- *
  * One path tracer serves `delta` and `guided-unbiased`; they differ only in how a free flight

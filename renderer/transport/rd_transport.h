@@ -125,7 +125,7 @@ typedef struct {
     ray3 r;
     int region;
     rd_interval iv[RD_MAX_INTERVALS];
-    int n;
+    int n;           /* intervals; 0 when the set-up stopped before them (no point or spot light) */
     double ps_pmf;   /* sum of rd_nee's choice probabilities over the lights it samples */
     double dscale;   /* the tracking pdf's proxy is dscale sigma_maj(t) T_maj(0,t) */
     uint64_t left;   /* lights 0..63 left to delta tracking on this flight ("auto") */
