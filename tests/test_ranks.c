@@ -184,7 +184,8 @@ Test(ranks, three_ranks_give_rank_0_one_process_s_image_bit_for_bit, .timeout = 
     /* the marcher and delta's path, or delta's path in both equiangular modes (select.c) */
     cr_assert((share > 0.0 && share < 1.0) || (eq > 0.0 && eq < share),
               "delta's share %g (%g with equiangular sampling): the selection must mix estimators", share, eq);
-    cr_assert(one.stats.delta_eq_samples == r0->stats.delta_eq_samples, "the third kind's counts differ");
+    cr_assert(one.stats.delta_eq_samples == r0->stats.delta_eq_samples && one.stats.eq_flights == r0->stats.eq_flights,
+              "the third kind's samples or the equiangular set-ups differ");
     /* Each other rank holds only its own tiles: fewer samples than the image. */
     for (int k = 1; k < 3; k++) cr_assert(ranks[k].res.stats.spp_mean < r0->stats.spp_mean, "rank %d", k);
     for (int k = 0; k < 3; k++) rd_render_result_free(&ranks[k].res);

@@ -268,6 +268,24 @@ Test(select, a_trial_between_delta_and_delta_with_equiangular_sampling_is_a_chec
     cr_assert(sel.choice[0] == RD_SEL_DELTA_EQ && sel.trial[0] == 0, "after the trial: choice %d, trial %d",
               sel.choice[0], sel.trial[0]);
     rd_select_free(&sel);
+    /* A trial of the method against delta ends with the rule wanting the third estimator, which
+     * was not on trial and has its pilot's samples alone: it goes on trial in turn, it does not
+     * take the tile at once (the build before this check gave it the tile). */
+    cr_assert(rd_select_init(&sel, 8, 8, 1.0, 3, err, sizeof err) == RD_OK, "%s", err);
+    fake_pilot(&sel, RD_SEL_DELTA, 1.0, 1.0, 1.0, 1.0);
+    fake_pilot(&sel, RD_SEL_METHOD, 1.0, 1.0, 1.0, 10.0);
+    fake_pilot(&sel, RD_SEL_DELTA_EQ, 1.0, 0.1, 1.0, 1.2);
+    for (int e = 0; e < 2; e++) { /* delta's and the method's samples after the trial: 4224 and 2176 */
+        rd_select_stats *st = &sel.stats[e];
+        double more = e == RD_SEL_DELTA ? 4096 : 2048;
+        st->n += more, st->dof += more - 64, st->cost += more * (e == RD_SEL_DELTA ? 1.0 : 10.0);
+        for (int c = 0; c < 3; c++) st->sum[c] += more, st->dev2[c] += more - 64;
+    }
+    sel.choice[0] = RD_SEL_DELTA, sel.trial[0] = 1 + RD_SEL_METHOD;
+    rd_select_epoch(&sel, NULL);
+    cr_assert(sel.choice[0] == RD_SEL_DELTA && sel.trial[0] == 1 + RD_SEL_DELTA_EQ,
+              "after the method's trial: choice %d, trial %d (the third must go on trial)", sel.choice[0], sel.trial[0]);
+    rd_select_free(&sel);
 }
 
 /* ---- Pooling: a tile's neighbours steady its estimate ---------------------------------------- */

@@ -57,9 +57,10 @@ typedef struct {
                       read (sh_eval_guide_bands) */
     /* Copies of ctx->guide and ctx->guide_indirect keeping only the bands read (eval_bands,
      * and band 1 for the direction lobe: sh_guide_truncate), NULL where nothing is cut. The
-     * same floats in 48 bytes a cell: an 8-band guide's record puts them in three blocks 256
-     * bytes apart, and those cache misses were a fifth of the method's time on hard-dense-block (perf;
-     * docs/guided-unbiased.md "A copy of the guide with only the bands it reads"). */
+     * same floats in 48 bytes a cell at two bands: an 8-band guide's record puts them in
+     * three blocks 256 bytes apart, and those cache misses were a fifth of the method's time
+     * on hard-dense-block (perf; docs/guided-unbiased.md "A copy of the guide with only the
+     * bands it reads"). */
     sh_guide *fast, *fast_indirect;
 } gu_state;
 

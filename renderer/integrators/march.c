@@ -394,7 +394,7 @@ static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int r
      * next-event estimates at the placement's samples take the MIS weight w_p
      * (march_equiangular.c); ms.lw holds 1 for every other light. */
     rd_march_eq eq;
-    int eq_n = rd_march_eq_begin(s, r, region, t_end, &pdf, N, &eq);
+    int eq_n = rd_march_eq_begin(s, r, region, t_end, &pdf, N, &eq, c);
     const double *light_w = NULL;
     if (eq_n > 0) {
         for (int i = 0; i < st->n_lights; i++) ms.lw[i] = 1.0;

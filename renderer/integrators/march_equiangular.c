@@ -34,13 +34,15 @@
 #include "integrators/rd_march.h"
 
 int rd_march_eq_begin(const rd_scene *s, ray3 r, int region, double t_end, const rd_guide_pdf *pdf,
-                      int N, rd_march_eq *eq)
+                      int N, rd_march_eq *eq, rd_track_counters *c)
 {
     eq->n = 0;
     if (s->march.equiangular == RD_EQ_OFF || s->march.ls == RD_LS_PHOTONS) return 0;
     rd_eq_flight ef;
     int automatic = s->march.equiangular == RD_EQ_AUTO;
-    if (!rd_eq_flight_init(s, r, region, t_end, 0.0, automatic, &ef)) return 0;
+    int ok = rd_eq_flight_init(s, r, region, t_end, 0.0, automatic, &ef);
+    c->eq_flights += ef.n > 0; /* as the path loop counts its flights' set-ups */
+    if (!ok) return 0;
     double a_all = ef.iv[0].t0, b_all = ef.iv[ef.n - 1].t1, sum = 0.0;
     for (int i = 0; i < s->n_lights && eq->n < RD_MARCH_EQ_LIGHTS; i++) {
         const rd_light *l = &s->lights[i];

@@ -88,9 +88,10 @@ typedef struct {
     int N;                              /* and its samples on it */
 } rd_march_eq;
 /* Set up the segment r in `region` up to t_end whose placement draws N samples of pdf; returns
- * the number of lights it samples (0: none, or march.equiangular off). */
+ * the number of lights it samples (0: none, or march.equiangular off). A set-up over media with
+ * a point or spot light to choose counts in c->eq_flights (the selection's cost, select.c). */
 int rd_march_eq_begin(const rd_scene *s, ray3 r, int region, double t_end, const rd_guide_pdf *pdf,
-                      int N, rd_march_eq *eq);
+                      int N, rd_march_eq *eq, rd_track_counters *c);
 /* The placement sample at t: light_w[j] = w_p(t, j) for the segment's lights (the others are
  * left as they are). */
 void rd_march_eq_weights(const rd_march_eq *eq, double t, double *light_w);

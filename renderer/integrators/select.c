@@ -24,7 +24,8 @@
  * The third estimator (session 24). The methods' own paths and samples take `delta`'s
  * equiangular strategy in their own mode (march.equiangular, guide.equiangular: "auto" by
  * default), while delta's path takes settings.equiangular (off by default: "auto" costs 4-38%
- * where it samples nothing, docs/free-path.md). On a narrow spot across thin fog `delta` with
+ * of the time where it samples nothing, docs/free-path.md and docs/benchmarks.md "Session
+ * 24"). On a narrow spot across thin fog `delta` with
  * "auto" is 34x plain `delta` and beat both methods (docs/benchmarks.md, session 23): what the
  * methods gained there came from the strategy, and their own estimators cost 3.5-11x a delta
  * path for the same variance. So where the method's mode differs from settings.equiangular
@@ -208,8 +209,8 @@ static vec3 estimate(const rd_render_ctx *ctx, const rd_select *sel, rd_thread *
 {
     if (e == RD_SEL_METHOD) return method(ctx, th, r, smp);
     pcg32 rng = rd_sampler_stream(smp);
-    return rd_delta_radiance_eq(ctx->scene, r, e == RD_SEL_DELTA_EQ ? sel->equiangular : ctx->scene->settings.equiangular,
-                                &rng, &th->counters);
+    int mode = e == RD_SEL_DELTA_EQ ? sel->equiangular : ctx->scene->settings.equiangular;
+    return rd_delta_radiance_eq(ctx->scene, r, mode, &rng, &th->counters);
 }
 
 /* One pixel's pilot with estimator e: SEL_SPP samples, added to the tile's statistics. */
@@ -393,8 +394,10 @@ static void choose_tiles(rd_select *sel)
     for (int k = 0; k < n; k++) {
         int cur = sel->choice[k], w = want[k];
         const rd_select_stats *st = &sel->stats[m * k];
-        if (w == cur || sel->trial[k] || st[w].n * RD_SELECT_TRIAL_RATIO >= st[cur].n) {
-            sel->choice[k] = (uint8_t)w; /* the same, after a trial, or on comparable evidence */
+        /* after a trial, only the estimator on trial is taken without the ratio's test: with
+         * three, the rule may want the one that was not on trial, on its pilot's samples alone */
+        if (w == cur || (sel->trial[k] && w == sel->trial[k] - 1) || st[w].n * RD_SELECT_TRIAL_RATIO >= st[cur].n) {
+            sel->choice[k] = (uint8_t)w; /* the same, after its trial, or on comparable evidence */
             sel->trial[k] = 0;
         } else {
             sel->trial[k] = (uint8_t)(1 + w); /* lopsided evidence: half the pixels try w for an epoch */
