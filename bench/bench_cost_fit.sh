@@ -21,7 +21,7 @@
 #     t / samples - (held terms) = a_H balls crossed    (per camera sample),
 # the held terms in us by select.c's weights times the lookup's 0.164 us.
 # FIT=gu fits guided-unbiased's two weights (flight segment, guided vertex) the same way, the
-# lookup, shadow ray and camera sample held: guided-unbiased alone, select off,
+# lookup, shadow ray, equiangular set-up and camera sample held: guided-unbiased alone, select off,
 #     t / samples - (held terms) = a_F flight segments + a_V guided vertices.
 # FIT=eq fits the weight of a flight's equiangular set-up (the choice of lights of "auto",
 # rd_track_counters.eq_flights): delta with settings.equiangular "auto" and "false" on the same
@@ -172,7 +172,7 @@ if [ "$FIT" = gu ]; then
 python3 - "$log" <<'EOF'
 import json, statistics, sys, collections
 # select.c's held weights, in lookups, and the lookup's time (us)
-LOOKUP, SHADOW, SAMPLE = 0.164, 1.96, 2.18
+LOOKUP, SHADOW, SAMPLE, EQ = 0.164, 1.96, 2.18, 0.59
 rows = []
 runs = collections.defaultdict(list)
 for line in open(sys.argv[1]):
@@ -182,7 +182,7 @@ for s, js in sorted(runs.items()):
     j = js[0]
     n = j['n']
     t = statistics.median(x['t'] for x in js) / n * 1e6
-    held = LOOKUP * (j['L'] / n + SHADOW * j['S'] / n + SAMPLE)
+    held = LOOKUP * (j['L'] / n + SHADOW * j['S'] / n + EQ * j['E'] / n + SAMPLE)
     rows.append((s, t, held, j['F'] / n, j['V'] / n))
 # Two unknowns, relative error: minimise sum ((held + aF f + aV v) / t - 1)^2.
 Sff = Sfv = Svv = Sfy = Svy = 0.0
