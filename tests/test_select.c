@@ -493,14 +493,16 @@ Test(select, the_choice_does_not_depend_on_the_threads, .timeout = 300)
 
 /* select_scene (or, `wide`, the same 64 pixels wide: 8x3 tiles, the right two columns' 3x3
  * windows all fogless, so they go to delta whatever the rounding) with
- * "march":{"ls":"nee+beams"} and the given settings (a static buffer); with `progressive`,
- * photon passes of 4000 photons a sample. */
+ * "march":{"ls":"nee+beams","equiangular":false} and the given settings (a static buffer);
+ * with `progressive`, photon passes of 4000 photons a sample. The marcher's equiangular sample
+ * is off, as delta's is: two estimators (with it on, delta's path with equiangular sampling
+ * took every lit tile from the beams with clang's rounding). */
 static const char *beams_scene(const char *settings, int progressive, int wide)
 {
     return rt_spot_fog_json_with(wide ? 64 : 32, 24, settings,
                                  progressive ? "\"photons\":{\"count\":40000,\"progressive\":true,\"pass_count\":4000,"
-                                               "\"pass_spp\":1},\"march\":{\"ls\":\"nee+beams\"}"
-                                             : "\"photons\":{\"count\":40000},\"march\":{\"ls\":\"nee+beams\"}");
+                                               "\"pass_spp\":1},\"march\":{\"ls\":\"nee+beams\",\"equiangular\":false}"
+                                             : "\"photons\":{\"count\":40000},\"march\":{\"ls\":\"nee+beams\",\"equiangular\":false}");
 }
 
 Test(select, beams_mix_only_when_asked_and_the_choice_does_not_depend_on_the_threads, .timeout = 300)
