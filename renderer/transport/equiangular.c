@@ -193,18 +193,36 @@ static void reach_marks(const rd_eq_flight *ef, double *t_half, double *t_third)
     }
 }
 
+/* The sum of next-event estimation's choice probabilities over the point and spot lights. */
+static double point_spot_pmf(const rd_scene *s)
+{
+    double sum = 0.0;
+    for (int i = 0; i < s->n_lights; i++)
+        if (point_or_spot(&s->lights[i])) sum += s->light_sampler.pmf[i];
+    return sum;
+}
+
+int rd_eq_has_lights(const rd_scene *s) { return point_spot_pmf(s) > 0.0; }
+
 int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, double q,
                       int automatic, rd_eq_flight *ef)
 {
-    ef->left = 0;
     ef->n = 0;
-    ef->ps_pmf = 0.0;
+    if (rd_eq_has_lights(s)) ef->n = rd_media_intervals(s, region, r, 0.0, t_light, ef->iv);
+    return rd_eq_flight_choose(s, r, region, q, automatic, ef);
+}
+
+int rd_eq_flight_choose(const rd_scene *s, ray3 r, int region, double q, int automatic,
+                        rd_eq_flight *ef)
+{
+    ef->left = 0;
+    ef->ps_pmf = point_spot_pmf(s);
     ef->density = NULL;
     ef->density_user = NULL;
-    for (int i = 0; i < s->n_lights; i++)
-        if (point_or_spot(&s->lights[i])) ef->ps_pmf += s->light_sampler.pmf[i];
-    if (!(ef->ps_pmf > 0.0)) return 0;
-    ef->n = rd_media_intervals(s, region, r, 0.0, t_light, ef->iv);
+    if (!(ef->ps_pmf > 0.0)) {
+        ef->n = 0;
+        return 0;
+    }
     if (ef->n == 0) return 0;
     ef->r = r;
     ef->region = region;

@@ -57,6 +57,7 @@ static rd_flight flight_of(rd_collision col)
 rd_flight rd_flight_delta(const rd_scene *s, const rd_flight_in *in, pcg32 *rng,
                           rd_track_counters *c)
 {
+    if (in->iv) return flight_of(rd_sample_free_path_iv(s, in->iv, in->n_iv, in->r, in->t_light, rng, c));
     return flight_of(rd_sample_free_path(s, in->region, in->r, in->t_light, rng, c));
 }
 
@@ -79,6 +80,7 @@ static rd_flight delta_flight(const rd_flight_sampler *fs, const rd_scene *s,
     (void)fs;
     double q = rd_thin_bias_q(s, in);
     if (!(q > 0.0)) return rd_flight_delta(s, in, rng, c);
+    if (in->iv) return flight_of(rd_sample_free_path_thin_iv(s, in->iv, in->n_iv, in->r, in->t_light, q, rng, c));
     return flight_of(rd_sample_free_path_thin(s, in->region, in->r, in->t_light, q, rng, c));
 }
 
@@ -190,20 +192,29 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
             in.hit_light = hit.light;
             in.hit_shape = hit.shape;
         }
-        rd_flight f = fs->sample(fs, s, &in, rng, c);
         /* The flights' equiangular mode (settings.equiangular for `delta`, march.equiangular for
          * the marchers' paths, guide.equiangular for guided-unbiased's): `delta`'s second
          * strategy for the single scattering from point and spot lights along this flight
          * (transport/equiangular.c), with the throughput up to the flight; the collision's
-         * next-event estimate below takes the other weight. */
+         * next-event estimate below takes the other weight. Its set-up needs the flight's media
+         * intervals, which delta tracking's flight needs too: found once, here, for both (on
+         * hard-dense-block the second search was half of "auto"'s cost). */
         int eq = 0;
         rd_eq_flight ef;
         int first = scattered_only && depth == depth0; /* the caller's flight (see above) */
-        if (!first && fs->equiangular != RD_EQ_OFF && depth + 1 <= s->settings.max_depth &&
-            (fs->equiangular != RD_EQ_CAMERA || depth == 0)) {
+        int eq_here = !first && fs->equiangular != RD_EQ_OFF && depth + 1 <= s->settings.max_depth &&
+                      (fs->equiangular != RD_EQ_CAMERA || depth == 0);
+        ef.n = 0;
+        if (eq_here && rd_eq_has_lights(s)) {
+            ef.n = rd_media_intervals(s, region, r, 0.0, in.t_light, ef.iv);
+            in.iv = ef.iv;
+            in.n_iv = ef.n;
+        }
+        rd_flight f = fs->sample(fs, s, &in, rng, c);
+        if (eq_here) {
             /* thin bias is `delta`'s own flights' (a sampler with a density has none) */
-            eq = rd_eq_flight_init(s, r, region, in.t_light, fs->density ? 0.0 : rd_thin_bias_q(s, &in),
-                                   fs->equiangular == RD_EQ_AUTO, &ef);
+            eq = rd_eq_flight_choose(s, r, region, fs->density ? 0.0 : rd_thin_bias_q(s, &in),
+                                     fs->equiangular == RD_EQ_AUTO, &ef);
             c->eq_flights += ef.n > 0; /* a set-up that did the work: media, and a light to choose */
             if (eq && fs->density) {
                 ef.density = flight_density;

@@ -54,6 +54,10 @@ typedef struct {
     int depth;                /* scattering events before this flight (0: the camera ray) */
     int camera_chain;         /* 1: the camera ray, or it followed by specular surface events
                                * only (an escape then sees the background) */
+    const rd_interval *iv;    /* the media intervals of [0, t_light] (rd_media_intervals), when
+                               * the loop has them for its equiangular set-up; NULL: the
+                               * sampler finds them itself */
+    int n_iv;                 /* their number (with iv) */
 } rd_flight_in;
 /* A scattering vertex, as the path loop offers it to a vertex policy. */
 typedef struct {

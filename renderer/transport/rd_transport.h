@@ -28,6 +28,11 @@ int rd_media_intervals(const rd_scene *s, int region, ray3 r, double tmin, doubl
  * weight (1 except for the weighted trackers). */
 rd_collision rd_sample_free_path(const rd_scene *s, int region, ray3 r, double tmax, pcg32 *rng,
                                  rd_track_counters *c);
+/* The same flight over intervals iv[0..n) that the caller already has: those rd_media_intervals
+ * gives for (region, r, 0, tmax). The path loop computes them once per flight for both the
+ * flight and the equiangular set-up (rd_eq_flight_choose). Same random numbers, same result. */
+rd_collision rd_sample_free_path_iv(const rd_scene *s, const rd_interval *iv, int n, ray3 r,
+                                    double tmax, pcg32 *rng, rd_track_counters *c);
 
 /* Thin-media probability biasing of delta tracking (Villemin, Wrenninge & Fong 2018; derived in
  * transport/tracking.c and docs/free-path.md): the flight of rd_sample_free_path (analog delta
@@ -36,6 +41,9 @@ rd_collision rd_sample_free_path(const rd_scene *s, int region, ray3 r, double t
  * reweighted by true / biased probability in the returned weight. Unbiased for any q. */
 rd_collision rd_sample_free_path_thin(const rd_scene *s, int region, ray3 r, double tmax, double q,
                                       pcg32 *rng, rd_track_counters *c);
+/* The same over the caller's intervals (as rd_sample_free_path_iv). */
+rd_collision rd_sample_free_path_thin_iv(const rd_scene *s, const rd_interval *iv, int n, ray3 r,
+                                         double tmax, double q, pcg32 *rng, rd_track_counters *c);
 /* Majorant optical depth along r from the first interval's start to t (t = INFINITY: all of
  * them) over the intervals iv[0..n) of rd_media_intervals, each medium's majorant structure
  * (`global`: its global majorant). *sigma (may be NULL) gets sigma_maj at t, 0 outside the
@@ -142,6 +150,15 @@ typedef struct {
  * the way, no point or spot light, or none left to sample). */
 int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, double q,
                       int automatic, rd_eq_flight *ef);
+/* rd_eq_flight_init in two steps, for a caller that needs the flight's media intervals itself
+ * (the path loop: its flight and the set-up share one rd_media_intervals). First: does the
+ * scene have a point or spot light that next-event estimation chooses (else the set-up stops
+ * before the intervals, n = 0)? Then, with ef->iv[0..ef->n) filled by the caller from
+ * rd_media_intervals(s, region, r, 0, t_light) (n = 0 allowed): the rest of the set-up, with
+ * the same result as rd_eq_flight_init. */
+int rd_eq_has_lights(const rd_scene *s);
+int rd_eq_flight_choose(const rd_scene *s, ray3 r, int region, double q, int automatic,
+                        rd_eq_flight *ef);
 /* The equiangular strategy's MIS-weighted estimate of the single scattering from point and spot
  * lights along the flight, for unit throughput. */
 vec3 rd_eq_nee(const rd_scene *s, const rd_eq_flight *ef, pcg32 *rng, rd_track_counters *c);

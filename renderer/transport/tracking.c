@@ -77,6 +77,12 @@ rd_collision rd_sample_free_path(const rd_scene *s, int region, ray3 r, double t
 {
     interval iv[MAX_IV];
     int n = rd_media_intervals(s, region, r, 0.0, tmax, iv);
+    return rd_sample_free_path_iv(s, iv, n, r, tmax, rng, c);
+}
+
+rd_collision rd_sample_free_path_iv(const rd_scene *s, const rd_interval *iv, int n, ray3 r,
+                                    double tmax, pcg32 *rng, rd_track_counters *c)
+{
     rd_collision col = {0, tmax, NULL, 1.0};
     rd_fp_params p = params_of(s);
     for (int i = 0; i < n; i++) {
@@ -209,6 +215,12 @@ rd_collision rd_sample_free_path_thin(const rd_scene *s, int region, ray3 r, dou
 {
     interval iv[MAX_IV];
     int n = rd_media_intervals(s, region, r, 0.0, tmax, iv);
+    return rd_sample_free_path_thin_iv(s, iv, n, r, tmax, q, rng, c);
+}
+
+rd_collision rd_sample_free_path_thin_iv(const rd_scene *s, const rd_interval *iv, int n, ray3 r,
+                                         double tmax, double q, pcg32 *rng, rd_track_counters *c)
+{
     rd_collision col = {0, tmax, NULL, 1.0};
     if (n == 0) return col;
     int global = s->settings.tracker == RD_FP_WOODCOCK;
