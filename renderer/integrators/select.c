@@ -131,7 +131,11 @@
  * weights held (bench/bench_cost_fit.sh FIT=eq; 32 spp, three rounds, on the calibration scenes
  * with a point or spot light, cloud, glass-fog and hetero-forward): 0.097 us, 0.59 lookups a
  * set-up, the model within 0.99-1.02 of the three; checked, not fitted: hard-dense-block 0.93
- * (its spot's cone cuts cost more than the mean), default 0.99, hard-narrow-spot 1.24. */
+ * (its spot's cone cuts cost more than the mean), default 0.99, hard-narrow-spot 1.24. Fitted
+ * again when the set-up stopped searching the flight's media a second time (session 25: the
+ * path loop finds them once for the flight and the set-up): 0.065 us, 0.40 lookups, the model
+ * within 0.99-1.02 of the three; checked, not fitted: default 0.74, hard-dense-block 1.79,
+ * hard-narrow-spot 1.31 (differences of 0.07-0.11 us a sample between two noisy times). */
 #include "integrators/rd_select.h"
 #include "transport/rd_path.h"
 
@@ -147,7 +151,7 @@
 #define SEL_COST_SAMPLE 2.18   /* a camera sample: its rays, shapes and set-up */
 #define SEL_COST_VERTEX 3.91   /* a guided-unbiased vertex that read the guide */
 #define SEL_COST_BEAM_HIT 0.60 /* a ball a segment's query crossed (march.ls nee+beams) */
-#define SEL_COST_EQ_FLIGHT 0.59 /* a flight's equiangular set-up (its choice of lights) */
+#define SEL_COST_EQ_FLIGHT 0.40 /* a flight's equiangular set-up (its choice of lights) */
 #define SEL_ROUNDS 32       /* fixed-point rounds at most */
 #define SEL_TIE 1e-9        /* relative margin below which the method does not beat delta */
 #define SEL_EPOCH_FIRST 4   /* the first epoch ends at sample 4 of every pixel, */
