@@ -127,3 +127,56 @@ Test(tracking, grid_lookup_is_trilinear)
     cr_expect(rd_medium_density(m, v3(2.5, 1.0, 1.0)) == 0.0, "outside the bounds the density is 0");
     rd_scene_free(s);
 }
+
+Test(tracking, a_flight_over_the_caller_s_intervals_is_the_same_flight)
+{
+    /* The path loop finds a flight's media intervals once and hands them to both delta
+     * tracking (rd_sample_free_path_iv, rd_sample_free_path_thin_iv) and the equiangular
+     * set-up (rd_eq_flight_choose). On two noise media side by side and a spot light, rays in
+     * every direction from inside and outside: the same random numbers give the same
+     * collision, weight and set-up, to the bit, as the calls that find the intervals
+     * themselves. */
+    rd_scene *s = rt_scene("twobox.json",
+                           "{\"camera\":{\"position\":[0,0,5],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
+                           "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[0,1,1]},\"sigma_t\":3,"
+                           "\"density\":{\"type\":\"noise\",\"amplitude\":2,\"shape\":\"none\"}},"
+                           "{\"bounds\":{\"min\":[0.2,-1,-1],\"max\":[1.2,1,1]},\"sigma_t\":0.4,"
+                           "\"density\":{\"type\":\"constant\",\"value\":1}}],"
+                           "\"lights\":[{\"type\":\"spot\",\"position\":[-2,1.5,0],\"look_at\":[0.3,0,0],"
+                           "\"angle\":30,\"intensity\":[5,5,5]}]}");
+    cr_assert(rd_eq_has_lights(s));
+    int differ = 0, hits = 0, setups = 0;
+    for (int i = 0; i < 4000; i++) {
+        pcg32 g = pcg32_seed(9, (uint64_t)i, 3);
+        vec3 o = v3(4.0 * pcg32_uniform(&g) - 2.0, 3.0 * pcg32_uniform(&g) - 1.5, 3.0 * pcg32_uniform(&g) - 1.5);
+        double z = 2.0 * pcg32_uniform(&g) - 1.0, ph = 2.0 * M_PI * pcg32_uniform(&g), sz = sqrt(1.0 - z * z);
+        ray3 r = {o, v3(sz * cos(ph), sz * sin(ph), z)};
+        double tmax = i % 3 == 0 ? 1.5 : INFINITY; /* some flights end at a surface */
+        rd_interval iv[RD_MAX_INTERVALS];
+        int n = rd_media_intervals(s, -1, r, 0.0, tmax, iv);
+        rd_track_counters c0 = {0}, c1 = {0};
+        pcg32 a = pcg32_seed(11, (uint64_t)i, 5), b = a;
+        rd_collision x = rd_sample_free_path(s, -1, r, tmax, &a, &c0);
+        rd_collision y = rd_sample_free_path_iv(s, iv, n, r, tmax, &b, &c1);
+        differ += x.hit != y.hit || x.t != y.t || x.medium != y.medium || x.weight != y.weight ||
+                  pcg32_uniform(&a) != pcg32_uniform(&b) || c0.lookups != c1.lookups;
+        hits += x.hit;
+        x = rd_sample_free_path_thin(s, -1, r, tmax, 0.4, &a, &c0);
+        y = rd_sample_free_path_thin_iv(s, iv, n, r, tmax, 0.4, &b, &c1);
+        differ += x.hit != y.hit || x.t != y.t || x.medium != y.medium || x.weight != y.weight;
+        for (int automatic = 0; automatic < 2; automatic++) {
+            rd_eq_flight e0, e1;
+            int k0 = rd_eq_flight_init(s, r, -1, tmax, 0.4, automatic, &e0);
+            e1.n = n;
+            memcpy(e1.iv, iv, sizeof(rd_interval) * (size_t)n);
+            int k1 = rd_eq_flight_choose(s, r, -1, 0.4, automatic, &e1);
+            differ += k0 != k1 || e0.n != e1.n || (k0 && (e0.ps_pmf != e1.ps_pmf || e0.left != e1.left ||
+                                                          e0.dscale != e1.dscale));
+            setups += k0;
+        }
+    }
+    cr_log_info("%d collisions, %d set-ups that sample", hits, setups);
+    cr_expect(hits > 400 && setups > 400, "the rays must collide and set up often: %d, %d", hits, setups);
+    cr_expect(differ == 0, "%d flights or set-ups differ", differ);
+    rd_scene_free(s);
+}
