@@ -438,39 +438,49 @@ static const char *full_fog_scene(const char *settings)
     return buf;
 }
 
-Test(select, delta_with_the_method_s_equiangular_mode_is_a_third_kind_of_tile, .timeout = 300)
+Test(select, delta_with_equiangular_sampling_on_every_flight_is_a_third_kind_of_tile, .timeout = 300)
 {
     /* guided-unbiased (guide.equiangular "auto", its default) where delta's own equiangular
-     * strategy is `true`: three estimators, the method, delta's path (`true`), and delta's path
-     * with the method's "auto" (RD_SEL_DELTA_EQ). All are unbiased, so any mix of them gives
-     * delta's image (z bounds of rt_expect_same; the reference is delta with `true`). The test
-     * needs both kinds of delta tile (with this seed and gcc's rounding about 35% and 65%).
-     * (With delta's "camera" its own tiles would not do: on this scene `camera`'s 256 and even
-     * 2048 samples differ from `true`'s in one region at z = 8.1 and 5.6, the heavy tail of
-     * the spot's light that only the secondary flights find, which the pixels' sample
-     * variances under-read.) Planted: the third kind's samples scaled by 1.15 (the choice
-     * left as it was) fail at z = -10.1 over the image and -8.9 in the worst region (unplanted
-     * -1.7 and -3.0); and no third kind when the method's mode is delta's own. */
-    rd_scene *s = rt_scene("sel3.json", full_fog_scene("{\"select\":\"tiles\",\"equiangular\":true}"));
-    rd_render_result d = rt_render(s, "delta", 4096, 31, NULL);
+     * strategy is "auto": three estimators, the method, delta's path ("auto"), and delta's path
+     * with the strategy on every flight ("true", RD_SEL_DELTA_EQ). All are unbiased, so any mix
+     * of them gives delta's image (z bounds of rt_expect_same; the reference is delta with
+     * `true`). The test needs both kinds of delta tile. (With delta's "camera" its own tiles
+     * would not do: on this scene `camera`'s 256 and even 2048 samples differ from `true`'s in
+     * one region at z = 8.1 and 5.6, the heavy tail of the spot's light that only the secondary
+     * flights find, which the pixels' sample variances under-read.) With this seed and gcc's
+     * rounding 71% of the samples are delta's with "auto", 29% with "true": z = -1.45 over the
+     * image and -2.34 in the worst of 12 regions. Planted: the third kind's samples scaled by
+     * 1.15 (in the pilot too) fail at z = -14.1 over the image and -11.8 in the worst region.
+     * And no third kind when delta's own mode is "true", or the method's is off. */
+    rd_scene *s = rt_scene("sel3.json", full_fog_scene("{\"select\":\"tiles\",\"equiangular\":\"auto\"}"));
+    rd_scene *ref = rt_scene("sel3r.json", full_fog_scene("{\"select\":\"tiles\",\"equiangular\":true}"));
+    rd_render_result d = rt_render(ref, "delta", 4096, 31, NULL);
     rd_render_result g = rt_render(s, "guided-unbiased", 1024, 32, NULL);
     double paths = (double)g.stats.paths, eq = (double)g.stats.delta_eq_samples / paths,
            plain = (double)(g.stats.delta_samples - g.stats.delta_eq_samples) / paths;
     int mixed = eq > 0.0 && plain > 0.0;
-    cr_log_info("guided-unbiased: delta %.0f%%, delta with auto %.0f%%, the method %.0f%% of the samples",
+    cr_log_info("guided-unbiased: delta with auto %.0f%%, delta with true %.0f%%, the method %.0f%% of the samples",
                 100.0 * plain, 100.0 * eq, 100.0 * (1.0 - eq - plain));
     if (mixed) rt_expect_same(&d, &g, "guided-unbiased with delta's tiles of both modes");
     rd_render_result_free(&g);
     rd_render_result_free(&d);
     rd_scene_free(s);
-    cr_assert(mixed, "shares: delta %g, delta with auto %g: not both kinds of delta tile", plain, eq);
-    rd_scene *s2 = rt_scene("sel2.json", full_fog_scene("{\"select\":\"tiles\",\"equiangular\":\"auto\"}"));
-    rd_render_result g2 = rt_render(s2, "guided-unbiased", 16, 32, NULL);
+    cr_assert(mixed, "shares: delta %g, delta with true %g: not both kinds of delta tile", plain, eq);
+    /* delta's own mode "true": nothing for a third to add */
+    rd_render_result g2 = rt_render(ref, "guided-unbiased", 16, 32, NULL);
     cr_assert(g2.stats.delta_eq_samples == 0 && g2.stats.delta_samples > 0,
-              "the method's mode is delta's: no third estimator (%llu of its samples)",
+              "delta's mode is true: no third estimator (%llu of its samples)",
               (unsigned long long)g2.stats.delta_eq_samples);
     rd_render_result_free(&g2);
-    rd_scene_free(s2);
+    rd_scene_free(ref);
+    /* the method's mode off: it does not sample with the strategy, nor does its selection */
+    rd_scene *s3 = rt_scene("sel3o.json", full_fog_scene("{\"select\":\"tiles\"},\"guide\":{\"equiangular\":false}"));
+    rd_render_result g3 = rt_render(s3, "guided-unbiased", 16, 32, NULL);
+    cr_assert(g3.stats.delta_eq_samples == 0 && g3.stats.delta_samples > 0,
+              "the method's mode is off: no third estimator (%llu of its samples)",
+              (unsigned long long)g3.stats.delta_eq_samples);
+    rd_render_result_free(&g3);
+    rd_scene_free(s3);
 }
 
 Test(select, the_choice_does_not_depend_on_the_threads, .timeout = 300)

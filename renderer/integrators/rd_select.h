@@ -1,6 +1,6 @@
 /* rd_select.h: the guided methods' choice, per tile of the image, between the method and
- * delta's path, and delta's path with the method's equiangular mode where that differs
- * (settings.select = "tiles"; integrators/select.c). Internal to integrators/ (tests include
+ * delta's path, and delta's path with equiangular sampling on every flight where the method
+ * samples with it (settings.select = "tiles"; integrators/select.c). Internal to integrators/ (tests include
  * it). */
 #ifndef RD_SELECT_H
 #define RD_SELECT_H
@@ -11,8 +11,9 @@
 #define RD_SELECT_TILE 8
 
 /* The estimators a tile can be given (rd_select.choice): delta's path with settings.equiangular,
- * the method, and delta's path with the method's own equiangular mode (only where that mode
- * differs from settings.equiangular and a point or spot light can be sampled: rd_select.n). */
+ * the method, and delta's path with equiangular sampling on every flight, RD_EQ_ALL (only where
+ * the method's own mode is not off, settings.equiangular is not RD_EQ_ALL, and a point or spot
+ * light can be sampled: rd_select.n). */
 enum { RD_SEL_DELTA = 0, RD_SEL_METHOD = 1, RD_SEL_DELTA_EQ = 2, RD_SEL_MAX = 3 };
 
 /* One estimator's samples in one tile, from the pilot and the image's epochs so far: the
@@ -70,8 +71,9 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
                          char *err, size_t errlen);
 /* Run the pilot and make the first choice: on random numbers of its own, the variance and cost
  * per sample of `method` and of delta's path in every tile (and of delta's path with the
- * method's equiangular mode `equiangular`, RD_EQ_*, where it differs from
- * settings.equiangular and the scene has a point or spot light to sample); keeps the choices
+ * equiangular strategy on every flight, where the method's own mode `equiangular`, RD_EQ_*, is
+ * not RD_EQ_OFF, settings.equiangular is not RD_EQ_ALL, and the scene has a point or spot
+ * light to sample); keeps the choices
  * that give the image the least error at equal time. The cost is counted work (select.c):
  * `cell_cost` is what one of the method's PDF segments (rd_thread.cells) costs, in density
  * lookups, fitted on the calibration scenes. Call at the end of the method's prepare

@@ -21,24 +21,33 @@
  * epoch's choice depends only on samples drawn before it, so every sample is still an unbiased
  * estimate given the past, and so is each pixel's mean of a fixed number of them.
  *
- * The third estimator (session 24). The methods' own paths and samples take `delta`'s
- * equiangular strategy in their own mode (march.equiangular, guide.equiangular: "auto" by
- * default), while delta's path takes settings.equiangular (off by default: "auto" costs 4-38%
- * of the time where it samples nothing, docs/free-path.md and docs/benchmarks.md "Session
- * 24"). On a narrow spot across thin fog `delta` with
- * "auto" is 34x plain `delta` and beat both methods (docs/benchmarks.md, session 23): what the
- * methods gained there came from the strategy, and their own estimators cost 3.5-11x a delta
- * path for the same variance. So where the method's mode differs from settings.equiangular
- * and the scene has a point or spot light, delta's path in the method's mode is a third
- * estimator (RD_SEL_DELTA_EQ) with statistics of its own, and every rule below runs over the
- * three: each tile gets delta's path with or without the strategy, or the method, whichever
- * pays there. The pilot samples it too (on default, 160x120, two threads, `render --spp 1`:
- * prepare_seconds 0.12 against 0.09 with guide.equiangular false, two estimators; 0.3% of a
- * 10-s render), and a trial between any two of them puts the higher-numbered one on
- * the odd squares (with two estimators: the method, as before). All three are unbiased for the
- * same image, so the mix is too (tests/test_select.c). Its cost counts one more kind of work:
- * the flights' equiangular set-up, the choice of lights that "auto" makes per flight
- * (rd_track_counters.eq_flights, weight 0.59 lookups, below).
+ * The third estimator (session 24; its mode since session 25). The methods' own paths and
+ * samples take `delta`'s equiangular strategy in their own mode (march.equiangular,
+ * guide.equiangular: "auto" by default), while delta's path takes settings.equiangular (off by
+ * default: "auto" costs 4-38% of the time where it samples nothing, docs/free-path.md and
+ * docs/benchmarks.md "Session 24"). On a narrow spot across thin fog `delta` with "auto" is
+ * 34x plain `delta` and beat both methods (docs/benchmarks.md, session 23): what the methods
+ * gained there came from the strategy, and their own estimators cost 3.5-11x a delta path for
+ * the same variance. So where the method samples with the strategy (its mode not "false"), the
+ * scene has a point or spot light and settings.equiangular is not "true", delta's path with
+ * the strategy on every flight ("true") is a third estimator (RD_SEL_DELTA_EQ) with statistics
+ * of its own, and every rule below runs over the three: each tile gets delta's path with or
+ * without the strategy, or the method, whichever pays there. Why "true" and not the method's
+ * "auto": "auto" is a choice for a whole image, which bounds the loss where the strategy has
+ * nothing to win (the dense smoke of default) by giving up part of the gain where it has (a
+ * point light over a thick span: homogeneous, `true` 1.39x plain `delta` against "auto"'s
+ * 0.95x; the flights whose lit span lies behind the medium: the narrow spot, 75x against 39x;
+ * docs/free-path.md). Per tile the selection bounds the loss itself, so it can take the
+ * strategy at full strength where it pays. Measured at 10 s (docs/benchmarks.md, "Session
+ * 25"): on the calibration scenes the same as with "auto" within the runs' spread (neither
+ * pays there); on the narrow spot `guided` went from 27x to 65x plain `delta`, on homogeneous
+ * from 1.1x to 1.5x. The pilot samples it too (with "auto" as the third: prepare_seconds 0.12
+ * against 0.09 for two estimators, default, 160x120, two threads, `render --spp 1`; 0.3% of a
+ * 10-s render), and a trial between any two of them puts the higher-numbered one on the odd
+ * squares (with two estimators: the method, as before). All three are unbiased for the same
+ * image, so the mix is too (tests/test_select.c). Its cost counts one more kind of work: the
+ * flights' equiangular set-up (rd_track_counters.eq_flights, weight 0.40 lookups, below); the
+ * samples it then draws count as the lookups and shadow rays they are.
  *
  * The variance. Per channel, the squared deviations from each pixel's own mean, pooled over the
  * tile's pixels (the image's squared error sums the pixels' variances). It is bounded below by
@@ -426,10 +435,11 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, doubl
 {
     const rd_scene *s = ctx->scene;
     const rd_camera *cam = &s->camera;
-    int third = equiangular != s->settings.equiangular && has_point_or_spot(s);
+    /* the third estimator: delta's path with the strategy on every flight (the head) */
+    int third = equiangular != RD_EQ_OFF && s->settings.equiangular != RD_EQ_ALL && has_point_or_spot(s);
     rd_status st = rd_select_init(sel, cam->width, cam->height, cell_cost, third ? 3 : 2, err, errlen);
     if (st != RD_OK) return st;
-    sel->equiangular = equiangular;
+    sel->equiangular = RD_EQ_ALL;
     sel->epochs = ctx->scene->settings.select != RD_SELECT_PILOT;
     int n = sel->tiles_x * sel->tiles_y;
     int threads = ctx->threads > 0 ? ctx->threads : 1;
