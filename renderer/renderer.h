@@ -222,7 +222,9 @@ typedef struct {
     double cells_per_ray;
     /* the guided methods with a tile selection (settings.select): camera samples it gave to
      * delta's path instead of the method (integrators/select.c), and how many of those were
-     * delta's path with the method's equiangular mode (RD_SEL_DELTA_EQ). */
+     * delta's path with equiangular sampling on every flight (RD_SEL_DELTA_EQ); `delta` with
+     * settings.equiangular "tiles": the samples its tiles rendered without the strategy
+     * (integrators/delta.c). */
     uint64_t delta_samples, delta_eq_samples;
     /* guided-unbiased: distance-pdf segments its flights built (guide cells crossed) and path
      * vertices whose policy read the guide: with lookups and shadow rays, what a sample costs

@@ -85,7 +85,8 @@ static const bad_case catalogue[] = {
     {"tracker_b_without_weighted.json", "settings.b: only with \"tracker\": \"weighted\" or \"decomposition\""},
     {"tracker_b_negative.json", "settings.b: must be in (0, 100], found -1"},
     {"transmittance_unknown.json", "settings.transmittance: unknown value \"guess\""},
-    {"equiangular_unknown.json", "settings.equiangular: expected true, false, \"camera\" or \"auto\", found \"always\""},
+    {"equiangular_unknown.json", "settings.equiangular: expected true, false, \"camera\", \"auto\" or \"tiles\", found \"always\""},
+    {"guide_equiangular_tiles.json", "guide.equiangular: expected true, false, \"camera\" or \"auto\", found \"tiles\""},
     {"thin_bias_above_one.json", "settings.thin_bias: expected false or a number in (0, 1), found 1.5"},
     {"thin_bias_weighted.json", "settings.thin_bias: only with \"tracker\": \"auto\", \"supervoxel\" or \"woodcock\""},
     {"too_thick.json", "media[0].sigma_t: majorant optical depth across the bounds is 3.46e+12"},
@@ -95,7 +96,7 @@ static const bad_case catalogue[] = {
 /* Every case through `render` and `info`: exit 2, one line naming the file and the field, no
  * output, and refused at load: each run costs at most cpu_max CPU seconds (the program's start-up,
  * about 0.2 s in the release build, and the scene's parsing). CPU time, not wall time: how long the
- * 84 runs take on the clock depends on the machine's load, which is not what is tested. */
+ * 88 runs take on the clock depends on the machine's load, which is not what is tested. */
 static void run_catalogue(const char *bin, double cpu_max)
 {
     int n = sizeof catalogue / sizeof catalogue[0];

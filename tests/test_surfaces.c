@@ -455,6 +455,65 @@ Test(surfaces, open_region_stochastic_estimators_unbiased, .timeout = 60)
 
 /* ---- 3. Regions of points -------------------------------------------------------------------- */
 
+/* A flight sampler for shared_intervals_change_no_path: delta tracking, with thin bias where
+ * the scene asks for it, over the media intervals the path loop hands it (in->iv), or, with
+ * `fresh`, found again by the tracker as before the loop shared them. */
+typedef struct {
+    int fresh;
+    long given; /* flights that came with the loop's intervals */
+} shared_user;
+
+static rd_flight shared_sample(const rd_flight_sampler *fs, const rd_scene *s, const rd_flight_in *in,
+                               pcg32 *rng, rd_track_counters *c)
+{
+    shared_user *u = fs->user;
+    rd_flight_in own = *in;
+    u->given += in->iv != NULL;
+    if (u->fresh) own.iv = NULL;
+    double q = rd_thin_bias_q(s, &own);
+    if (!(q > 0.0)) return rd_flight_delta(s, &own, rng, c);
+    rd_collision col = own.iv ? rd_sample_free_path_thin_iv(s, own.iv, own.n_iv, own.r, own.t_light, q, rng, c)
+                              : rd_sample_free_path_thin(s, own.region, own.r, own.t_light, q, rng, c);
+    rd_flight f = {.kind = col.hit ? RD_FLIGHT_SCATTER : RD_FLIGHT_PASS, .t = col.t, .medium = col.medium, .pdf = 0.0};
+    f.weight = col.hit ? v3_scale(col.medium->albedo, col.weight) : v3(col.weight, col.weight, col.weight);
+    return f;
+}
+
+Test(surfaces, shared_intervals_change_no_path, .timeout = 60)
+{
+    /* The path loop finds a flight's media intervals once, for the flight and the equiangular
+     * set-up (transport/path.c). Paths through interfaces, glass, a diffuse wall and a
+     * scene-wide medium, with the strategy on every flight and "auto", with and without thin
+     * bias: the same random numbers give the same radiance and counters, to the bit, whether
+     * the flight takes the loop's intervals or finds them itself. */
+    rd_scene *s = shadow_scene("shared.json", 1, "ratio");
+    int differ = 0;
+    long given = 0;
+    for (int v = 0; v < 4; v++) {
+        s->settings.thin_bias = v & 1 ? 0.3 : 0.0;
+        int mode = v & 2 ? RD_EQ_AUTO : RD_EQ_ALL;
+        shared_user ua = {0, 0}, ub = {1, 0};
+        rd_flight_sampler fa = {.sample = shared_sample, .user = &ua, .equiangular = mode};
+        rd_flight_sampler fb = {.sample = shared_sample, .user = &ub, .equiangular = mode};
+        for (int i = 0; i < 3000; i++) {
+            pcg32 g = pcg32_seed(21, (uint64_t)i, (uint64_t)v);
+            vec3 o = v3(0, 0, 9), at = v3(8.0 * pcg32_uniform(&g) - 4.0, 10.0 * pcg32_uniform(&g) - 5.0, 0);
+            ray3 r = {o, v3_norm(v3_sub(at, o))};
+            pcg32 a = pcg32_seed(23, (uint64_t)i, (uint64_t)v), b = a;
+            rd_track_counters ca = {0}, cb = {0};
+            vec3 La = rd_path_radiance(s, r, &fa, &a, &ca), Lb = rd_path_radiance(s, r, &fb, &b, &cb);
+            differ += La.x != Lb.x || La.y != Lb.y || La.z != Lb.z || ca.lookups != cb.lookups ||
+                      ca.shadow_rays != cb.shadow_rays || ca.eq_flights != cb.eq_flights ||
+                      pcg32_uniform(&a) != pcg32_uniform(&b);
+        }
+        given += ua.given;
+    }
+    cr_log_info("%ld flights took the loop's intervals", given);
+    cr_expect(given > 10000, "the loop must hand its intervals on: %ld flights", given);
+    cr_expect(differ == 0, "%d paths differ", differ);
+    rd_scene_free(s);
+}
+
 Test(surfaces, region_at_nested_shapes_and_behind_lights)
 {
     /* outer: an interface box [-4,4]^3 holding "outer" in the scene-wide "wide"; inner: a glass

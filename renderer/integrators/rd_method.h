@@ -39,7 +39,7 @@ typedef struct rd_thread {
     uint64_t beam_queries, beam_hits; /* march.ls nee+beams: segments queried, balls they crossed */
     uint32_t samples_min, samples_max;
     uint64_t delta_samples; /* settings.select: camera samples given to delta's path */
-    uint64_t delta_eq_samples; /* ... of those, with the method's equiangular mode */
+    uint64_t delta_eq_samples; /* ... of those, with equiangular sampling on every flight */
     void *scratch;
     size_t scratch_bytes;
 } rd_thread;

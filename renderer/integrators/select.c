@@ -223,7 +223,7 @@ static vec3 estimate(const rd_render_ctx *ctx, const rd_select *sel, rd_thread *
 {
     if (e == RD_SEL_METHOD) return method(ctx, th, r, smp);
     pcg32 rng = rd_sampler_stream(smp);
-    int mode = e == RD_SEL_DELTA_EQ ? sel->equiangular : ctx->scene->settings.equiangular;
+    int mode = e == RD_SEL_DELTA_EQ ? sel->equiangular : rd_eq_path_mode(ctx->scene->settings.equiangular);
     return rd_delta_radiance_eq(ctx->scene, r, mode, &rng, &th->counters);
 }
 

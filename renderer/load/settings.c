@@ -11,18 +11,23 @@
 
 /* ---- settings ------------------------------------------------------------------------------ */
 
-/* An equiangular mode at `key` of j (path.key in errors): true, false, "auto", and "camera"
- * where `camera` allows it (settings.equiangular and guide.equiangular; march.equiangular has
- * no camera-only mode). */
-static rd_status parse_equiangular(ld_ctx *c, const cJSON *j, const char *path, int camera, int *out)
+/* An equiangular mode at `key` of j (path.key in errors): true, false, "auto", "camera" where
+ * `camera` allows it (settings.equiangular and guide.equiangular; march.equiangular has no
+ * camera-only mode), and "tiles" where `tiles` does (settings.equiangular: `delta`'s choice
+ * per tile). */
+static rd_status parse_equiangular(ld_ctx *c, const cJSON *j, const char *path, int camera, int tiles,
+                                   int *out)
 {
     const cJSON *e = cJSON_GetObjectItemCaseSensitive(j, "equiangular");
     if (!e) return RD_OK;
     char field[64];
     snprintf(field, sizeof field, "%s.equiangular", path);
-    const char *want = camera ? "true, false, \"camera\" or \"auto\"" : "true, false or \"auto\"";
+    const char *want = tiles    ? "true, false, \"camera\", \"auto\" or \"tiles\""
+                       : camera ? "true, false, \"camera\" or \"auto\""
+                                : "true, false or \"auto\"";
     if (cJSON_IsBool(e)) *out = cJSON_IsTrue(e) ? RD_EQ_ALL : RD_EQ_OFF;
     else if (camera && cJSON_IsString(e) && strcmp(e->valuestring, "camera") == 0) *out = RD_EQ_CAMERA;
+    else if (tiles && cJSON_IsString(e) && strcmp(e->valuestring, "tiles") == 0) *out = RD_EQ_TILES;
     else if (cJSON_IsString(e) && strcmp(e->valuestring, "auto") == 0) *out = RD_EQ_AUTO;
     else if (cJSON_IsString(e)) return ld_fail(c, field, "expected %s, found \"%s\"", want, e->valuestring);
     else return ld_fail(c, field, "expected %s, found %s", want, ld_type_name(e));
@@ -30,12 +35,12 @@ static rd_status parse_equiangular(ld_ctx *c, const cJSON *j, const char *path, 
 }
 
 /* `delta`'s thin-media strategies (docs/free-path.md): settings.equiangular is true, false,
- * "camera" or "auto"; settings.thin_bias is false or a number in (0, 1) (1 would never pass: biased wherever a
+ * "camera", "auto" or "tiles"; settings.thin_bias is false or a number in (0, 1) (1 would never pass: biased wherever a
  * pass-through is worth something), and needs an analog delta tracker
  * (it replaces the tracker's flight: weighted trackers bring weights of their own). */
 static rd_status parse_strategies(ld_ctx *c, const cJSON *j, rd_settings *s)
 {
-    LD_TRY(parse_equiangular(c, j, "settings", 1, &s->equiangular));
+    LD_TRY(parse_equiangular(c, j, "settings", 1, 1, &s->equiangular));
     const cJSON *b = cJSON_GetObjectItemCaseSensitive(j, "thin_bias");
     if (b) {
         if (cJSON_IsFalse(b)) s->thin_bias = 0.0;
@@ -211,7 +216,7 @@ rd_status ld_parse_guide(ld_ctx *c, const cJSON *j, rd_guide_settings *g)
     LD_TRY(ld_get_int(c, j, path, "eval_bands", 0, 2, 1, 8, &v));
     g->eval_bands = (int)v;
     LD_TRY(ld_get_num(c, j, path, "photon_share", 0, 0.25, 0, 1, 1, 0, &g->photon_share));
-    LD_TRY(parse_equiangular(c, j, path, 1, &g->equiangular));
+    LD_TRY(parse_equiangular(c, j, path, 1, 0, &g->equiangular));
     const cJSON *res = cJSON_GetObjectItemCaseSensitive(j, "resolution");
     if (res) {
         if (!cJSON_IsArray(res) || cJSON_GetArraySize(res) != 3)
@@ -263,5 +268,5 @@ rd_status ld_parse_march(ld_ctx *c, const cJSON *j, rd_march_settings *m)
     LD_TRY(ld_get_num(c, j, path, "paths", 0, 0.0, 0, 1, 1, 0, &m->paths));
     static const char *const detail[] = {"cells", "lookups", NULL};
     LD_TRY(ld_get_enum(c, j, path, "detail", 0, detail, 0, &m->detail));
-    return parse_equiangular(c, j, path, 0, &m->equiangular);
+    return parse_equiangular(c, j, path, 0, 0, &m->equiangular);
 }

@@ -4,6 +4,7 @@
  * leaves a partial file where a good one was. */
 #include "core/rd_core.h"
 #include "integrators/rd_method.h"
+#include "transport/rd_transport.h"
 
 #include <cJSON.h>
 #include <stdlib.h>
@@ -62,8 +63,16 @@ static char *report_json(const rd_scene *s, const rd_render_opts *o, const rd_re
         }
     }
     /* settings.select: the share of camera samples the tile selection gave to delta's path, and
-     * of those with the method's equiangular mode (integrators/select.c) */
-    if (st->rays_marched || st->delta_samples) {
+     * of those with equiangular sampling on every flight (integrators/select.c) */
+    if (m && strcmp(m->name, "delta") == 0) {
+        /* settings.equiangular "tiles": the share the tiles gave to the path with the strategy
+         * on every flight (the selection's "method", integrators/delta.c; none without a point
+         * or spot light, where there is no choice) */
+        if (s->settings.equiangular == RD_EQ_TILES)
+            cJSON_AddNumberToObject(j, "equiangular_share",
+                                    st->paths && rd_eq_has_lights(s) ? 1.0 - (double)st->delta_samples / (double)st->paths
+                                                                     : 0.0);
+    } else if (st->rays_marched || st->delta_samples) {
         cJSON_AddNumberToObject(j, "delta_share", st->paths ? (double)st->delta_samples / (double)st->paths : 0.0);
         cJSON_AddNumberToObject(j, "delta_equiangular_share",
                                 st->paths ? (double)st->delta_eq_samples / (double)st->paths : 0.0);

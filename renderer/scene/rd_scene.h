@@ -45,8 +45,13 @@ typedef struct {
 enum { RD_SELECT_OFF, RD_SELECT_TILES, RD_SELECT_PILOT, RD_SELECT_AUTO };
 /* settings.equiangular: off, every flight, the camera's flight only, or every flight for the
  * lights whose lit span delta tracking reaches but mostly crosses without colliding
- * (transport/equiangular.c, "auto"). */
-typedef enum { RD_EQ_OFF, RD_EQ_ALL, RD_EQ_CAMERA, RD_EQ_AUTO } rd_equiangular_mode;
+ * (transport/equiangular.c, "auto"); and for settings.equiangular only, RD_EQ_TILES ("tiles"):
+ * `delta` chooses per tile of the image between off and every flight (integrators/delta.c). A
+ * path's flights never see RD_EQ_TILES: rd_eq_path_mode maps it. */
+typedef enum { RD_EQ_OFF, RD_EQ_ALL, RD_EQ_CAMERA, RD_EQ_AUTO, RD_EQ_TILES } rd_equiangular_mode;
+/* The mode a path's flights take for settings.equiangular `mode`: "tiles" is off where no tile
+ * choice gives a path the strategy (the tile choice itself names RD_EQ_ALL). */
+static inline int rd_eq_path_mode(int mode) { return mode == RD_EQ_TILES ? RD_EQ_OFF : mode; }
 
 /* Photon tracing settings (scene key "photons", docs/scene-format.md). */
 typedef struct {

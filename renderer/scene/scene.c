@@ -187,7 +187,8 @@ void rd_scene_info(const rd_scene *s, FILE *out)
     fprintf(out, "settings   method %s, spp %d, time %g s, seed %llu, max_depth %d, rr_depth %d\n",
             s->settings.method, s->settings.spp, s->settings.time_limit,
             (unsigned long long)s->settings.seed, s->settings.max_depth, s->settings.rr_depth);
-    static const char *const eq_names[] = {"off", "every flight", "camera ray", "auto (lit spans crossed)"};
+    static const char *const eq_names[] = {"off", "every flight", "camera ray", "auto (lit spans crossed)",
+                                           "tiles (off or every flight, chosen per tile)"};
     char thin[32] = "off";
     if (s->settings.thin_bias > 0.0) snprintf(thin, sizeof thin, "%g", s->settings.thin_bias);
     fprintf(out, "delta      equiangular %s, thin_bias %s\n", eq_names[s->settings.equiangular], thin);

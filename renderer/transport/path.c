@@ -339,6 +339,6 @@ vec3 rd_delta_radiance_eq(const rd_scene *s, ray3 r, int equiangular, pcg32 *rng
 
 vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c)
 {
-    return rd_delta_radiance_eq(s, r, s->settings.equiangular, rng, c);
+    return rd_delta_radiance_eq(s, r, rd_eq_path_mode(s->settings.equiangular), rng, c);
 }
 

@@ -14,10 +14,11 @@ extern "C" {
  * tracing (delta tracking, next-event estimation with ratio tracking, HG sampling, Russian
  * roulette, multiple importance sampling for area and environment lights), with the scene's
  * settings.equiangular (an equiangular sample toward a point or spot light per flight, MIS with
- * the collision's next-event estimate) and settings.thin_bias (rd_sample_free_path_thin). */
+ * the collision's next-event estimate; "tiles" is off here: rd_eq_path_mode) and
+ * settings.thin_bias (rd_sample_free_path_thin). */
 vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c);
-/* The same with the equiangular mode `equiangular` (RD_EQ_*) in place of settings.equiangular
- * (the guided methods' tile selection: its third estimator, integrators/select.c). */
+/* The same with the equiangular mode `equiangular` (RD_EQ_*, not RD_EQ_TILES) in place of
+ * settings.equiangular (the tile selections' estimators: integrators/select.c, delta.c). */
 vec3 rd_delta_radiance_eq(const rd_scene *s, ray3 r, int equiangular, pcg32 *rng, rd_track_counters *c);
 
 /* ---- The unbiased path loop and its free-flight samplers (transport/path.c) ------------- *
@@ -56,7 +57,9 @@ typedef struct {
                                * only (an escape then sees the background) */
     const rd_interval *iv;    /* the media intervals of [0, t_light] (rd_media_intervals), when
                                * the loop has them for its equiangular set-up; NULL: the
-                               * sampler finds them itself */
+                               * sampler finds them itself. They belong to this r, region and
+                               * t_light: a sampler that hands on a changed copy of *in must
+                               * set iv NULL in it */
     int n_iv;                 /* their number (with iv) */
 } rd_flight_in;
 /* A scattering vertex, as the path loop offers it to a vertex policy. */
