@@ -28,10 +28,15 @@
 # scenes, paired (the scenes with no point or spot light set nothing up and drop out),
 #     (t_auto - t_off) / samples - (held terms of the difference) = a_E set-ups.
 #
+# FIT=eqs fits the weight of an equiangular sample's own work (the light and distance it draws,
+# the MIS weight's majorant walk: all but its one lookup, its transmittance's lookups and its
+# shadow ray, which count as such): delta with settings.equiangular "true" and "false", paired,
+#     (t_true - t_off) / samples - (held terms, the set-ups' included) = a_Z samples.
+#
 #   bench/bench_cost_fit.sh [BIN]
 #       environment: SCENES (the six below), SPP (16), RES ([160,120]), ROUNDS (3),
-#                    FIT (all, beams, gu or eq), OUT (bench/results/cost_fit, cost_fit_beams,
-#                    cost_fit_gu, cost_fit_eq)
+#                    FIT (all, beams, gu, eq or eqs), OUT (bench/results/cost_fit,
+#                    cost_fit_beams, cost_fit_gu, cost_fit_eq, cost_fit_eqs)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . bench/machine.sh
@@ -50,6 +55,7 @@ case $FIT in
   beams) OUT=${OUT:-bench/results/cost_fit_beams} ;;
   gu) OUT=${OUT:-bench/results/cost_fit_gu} ;;
   eq) OUT=${OUT:-bench/results/cost_fit_eq} ;;
+  eqs) OUT=${OUT:-bench/results/cost_fit_eqs} ;;
   *) OUT=${OUT:-bench/results/cost_fit} ;;
 esac
 mkdir -p "$OUT"
@@ -64,6 +70,9 @@ elif [ "$FIT" = gu ]; then
 elif [ "$FIT" = eq ]; then
   methods="delta-auto delta-off"
   extra=()
+elif [ "$FIT" = eqs ]; then
+  methods="delta-true delta-off"
+  extra=()
 else
   methods="delta guided guided-unbiased"
   extra=()
@@ -77,11 +86,13 @@ for r in $(seq "$ROUNDS"); do
       case $m in
         delta-auto) meth=delta variant=(--set settings.equiangular='"auto"') ;;
         delta-off) meth=delta variant=(--set settings.equiangular=false) ;;
+        delta-true) meth=delta variant=(--set settings.equiangular=true) ;;
       esac
       "$BIN" render "scenes/$name.json" --method "$meth" --spp "$SPP" --threads 1 \
         --set settings.select='"off"' --set camera.resolution="$RES" "${extra[@]}" "${variant[@]}" -o "$o" > /dev/null 2>&1
       jq -c --arg s "$name" --arg m "$m" '{scene: $s, method: $m, t: .render_seconds, n: .paths,
           L: .density_lookups, S: .shadow_rays, E: (.equiangular_flights // 0),
+          Z: (.equiangular_samples // 0),
           M: ((.march.rays // 0) * (.march.pdf_segments_per_ray // 0)),
           F: ((.guided_paths.flight_segments_per_path // 0) * .paths),
           V: ((.guided_paths.guide_vertices_per_path // 0) * .paths),

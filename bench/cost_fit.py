@@ -2,16 +2,18 @@
 """cost_fit.py: the fits of bench/bench_cost_fit.sh (the tile selection's cost weights,
 renderer/integrators/select.c), over the runs file the script wrote: one JSON object a render
 with the scene, the method (or variant), the render seconds t, the camera samples n and the
-counts L (lookups), S (shadow rays), E (equiangular set-ups), M (marcher segments), F (flight
-segments), V (guided vertices), H (balls a beam query crossed).
+counts L (lookups), S (shadow rays), E (equiangular set-ups), Z (equiangular samples), M
+(marcher segments), F (flight segments), V (guided vertices), H (balls a beam query crossed).
 
-    bench/cost_fit.py all|beams|gu|eq RUNS_FILE
+    bench/cost_fit.py all|beams|gu|eq|eqs RUNS_FILE
 
 all    every weight, a least-squares fit of time per camera sample on every render;
 beams  the weight of a ball, the others held at select.c's;
 gu     guided-unbiased's flight segment and guided vertex, the others held;
 eq     a flight's equiangular set-up, on the paired difference of delta with
-       settings.equiangular "auto" and "false".
+       settings.equiangular "auto" and "false";
+eqs    an equiangular sample's own work (beyond its lookups and shadow ray), on the paired
+       difference of delta with settings.equiangular "true" and "false", the set-up held.
 Every fit minimises relative errors (each row divided by its measured time). Prints markdown
 tables: the weights, then each render's measured and modelled time."""
 import collections
@@ -20,7 +22,7 @@ import statistics
 import sys
 
 # select.c's weights in lookups, and the lookup's time in microseconds (the "all" fit's)
-LOOKUP, SHADOW, CELL, SAMPLE, EQ = 0.164, 1.96, 1.52, 2.18, 0.59
+LOOKUP, SHADOW, CELL, SAMPLE, EQ = 0.164, 1.96, 1.52, 2.18, 0.40
 
 
 def load(path, key):
@@ -144,6 +146,26 @@ def fit_eq(path):
         print('| %s | %.3f | %.3f | %.3f | %.2f | %.3f |' % (s, ta, to, held, e, (to + held + aE * e) / ta))
 
 
+def fit_eqs(path):
+    runs = load(path, lambda j: (j['scene'], j['method']))
+    rows, shown = [], []
+    for s in sorted({k[0] for k in runs}):
+        a, o = runs.get((s, 'delta-true')), runs.get((s, 'delta-off'))
+        if not a or not o or not a[0]['Z']:
+            continue  # no point or spot light: nothing sampled
+        ja, n, ta = per_sample(a)
+        jo, _, to = per_sample(o)
+        held = LOOKUP * ((ja['L'] - jo['L']) / n + SHADOW * (ja['S'] - jo['S']) / n + EQ * ja['E'] / n)
+        rows.append(([ja['Z'] / n], to + held, ta))
+        shown.append((s, ta, to, held, ja['Z'] / n))
+    (aZ,) = fit_relative(rows)
+    weights_table(['equiangular sample'], [aZ])
+    print('| scene | us per sample, true | off | held part of the difference | samples | model / measured |')
+    print('|---|---|---|---|---|---|')
+    for s, ta, to, held, z in shown:
+        print('| %s | %.3f | %.3f | %.3f | %.2f | %.3f |' % (s, ta, to, held, z, (to + held + aZ * z) / ta))
+
+
 def main():
     mode, path = sys.argv[1], sys.argv[2]
     if mode == 'all':
@@ -157,6 +179,8 @@ def main():
     elif mode == 'gu':
         fit_held(path, ['flight segment', 'guided vertex'], ['F', 'V'],
                  lambda j, n: LOOKUP * (j['L'] / n + SHADOW * j['S'] / n + EQ * j['E'] / n + SAMPLE), ['F', 'V'])
+    elif mode == 'eqs':
+        fit_eqs(path)
     elif mode == 'eq':
         fit_eq(path)
     else:

@@ -209,6 +209,7 @@ typedef struct {
     uint64_t lookups;        /* density evaluations */
     uint64_t shadow_rays;    /* next-event transmittance estimates */
     uint64_t eq_flights;     /* flights that set up the equiangular strategy */
+    uint64_t eq_samples;     /* equiangular samples evaluated */
     uint64_t invalid;        /* non-finite samples dropped (should be 0; reported if not) */
     int cancelled;           /* 1 when the cancel flag stopped the render early */
     int timed_out;           /* 1 when the time limit stopped it */

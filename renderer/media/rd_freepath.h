@@ -26,6 +26,8 @@ typedef struct {
     uint64_t eq_flights;   /* flights that set up the equiangular strategy over media with a
                             * point or spot light to choose (transport/equiangular.c), which
                             * the tile selection's counted cost charges (integrators/select.c) */
+    uint64_t eq_samples;   /* equiangular samples evaluated (rd_eq_estimate); reported only: no
+                            * weight for them held across scenes (bench_cost_fit.sh FIT=eqs) */
 } rd_track_counters;
 
 typedef struct {

@@ -46,6 +46,7 @@ static char *report_json(const rd_scene *s, const rd_render_opts *o, const rd_re
     cJSON_AddNumberToObject(j, "density_lookups", (double)st->lookups);
     cJSON_AddNumberToObject(j, "shadow_rays", (double)st->shadow_rays);
     cJSON_AddNumberToObject(j, "equiangular_flights", (double)st->eq_flights);
+    cJSON_AddNumberToObject(j, "equiangular_samples", (double)st->eq_samples);
     cJSON_AddNumberToObject(j, "collisions_per_path", st->collisions / paths);
     cJSON_AddNumberToObject(j, "lookups_per_path", st->lookups / paths);
     cJSON_AddNumberToObject(j, "paths_per_second", st->seconds > 0 ? st->paths / st->seconds : 0.0);

@@ -302,6 +302,7 @@ vec3 rd_eq_estimate(const rd_scene *s, int region, ray3 r, double t_from, double
 {
     vec3 x = ray_at(r, t);
     c->lookups++;
+    c->eq_samples++; /* the report's equiangular_samples */
     double sigma_t = rd_medium_sigma_t(m, x);
     if (!(sigma_t > 0.0) || !(w > 0.0)) return v3(0, 0, 0);
     vec3 Lj = rd_nee_light(s, region, x, r.d, m->g, light, rng, c);
