@@ -126,44 +126,30 @@ def fit_held(path, names, unknowns, held_terms, cols):
         print('| %s | %.3f | %.3f | %s | %.3f | %.3f |' % (s, t, held, ' | '.join('%.2f' % v for v in c), m, m / t))
 
 
-def fit_eq(path):
+def fit_paired(path, variant, count, name, held_setups):
+    """One weight on the paired difference of delta with settings.equiangular `variant` and
+    "false": per scene (t_variant - t_off) / samples - held = a x count, the held part the
+    difference's lookups and shadow rays at select.c's weights (and the set-ups at EQ's when
+    `held_setups`)."""
     runs = load(path, lambda j: (j['scene'], j['method']))
     rows, shown = [], []
     for s in sorted({k[0] for k in runs}):
-        a, o = runs.get((s, 'delta-auto')), runs.get((s, 'delta-off'))
-        if not a or not o or not a[0]['E']:
-            continue  # no point or spot light: nothing set up
+        a, o = runs.get((s, 'delta-' + variant)), runs.get((s, 'delta-off'))
+        if not a or not o or not a[0][count]:
+            continue  # no point or spot light: nothing set up or sampled
         ja, n, ta = per_sample(a)
         jo, _, to = per_sample(o)
-        held = LOOKUP * ((ja['L'] - jo['L']) / n + SHADOW * (ja['S'] - jo['S']) / n)
-        rows.append(([ja['E'] / n], to + held, ta))
-        shown.append((s, ta, to, held, ja['E'] / n))
-    (aE,) = fit_relative(rows)
-    weights_table(['equiangular set-up'], [aE])
-    print('| scene | us per sample, auto | off | held part of the difference | set-ups | model / measured |')
+        held = LOOKUP * ((ja['L'] - jo['L']) / n + SHADOW * (ja['S'] - jo['S']) / n +
+                         (EQ * ja['E'] / n if held_setups else 0.0))
+        rows.append(([ja[count] / n], to + held, ta))
+        shown.append((s, ta, to, held, ja[count] / n))
+    (w,) = fit_relative(rows)
+    weights_table([name], [w])
+    print('| scene | us per sample, %s | off | held part of the difference | %ss | model / measured |'
+          % (variant, name))
     print('|---|---|---|---|---|---|')
-    for s, ta, to, held, e in shown:
-        print('| %s | %.3f | %.3f | %.3f | %.2f | %.3f |' % (s, ta, to, held, e, (to + held + aE * e) / ta))
-
-
-def fit_eqs(path):
-    runs = load(path, lambda j: (j['scene'], j['method']))
-    rows, shown = [], []
-    for s in sorted({k[0] for k in runs}):
-        a, o = runs.get((s, 'delta-true')), runs.get((s, 'delta-off'))
-        if not a or not o or not a[0]['Z']:
-            continue  # no point or spot light: nothing sampled
-        ja, n, ta = per_sample(a)
-        jo, _, to = per_sample(o)
-        held = LOOKUP * ((ja['L'] - jo['L']) / n + SHADOW * (ja['S'] - jo['S']) / n + EQ * ja['E'] / n)
-        rows.append(([ja['Z'] / n], to + held, ta))
-        shown.append((s, ta, to, held, ja['Z'] / n))
-    (aZ,) = fit_relative(rows)
-    weights_table(['equiangular sample'], [aZ])
-    print('| scene | us per sample, true | off | held part of the difference | samples | model / measured |')
-    print('|---|---|---|---|---|---|')
-    for s, ta, to, held, z in shown:
-        print('| %s | %.3f | %.3f | %.3f | %.2f | %.3f |' % (s, ta, to, held, z, (to + held + aZ * z) / ta))
+    for s, ta, to, held, x in shown:
+        print('| %s | %.3f | %.3f | %.3f | %.2f | %.3f |' % (s, ta, to, held, x, (to + held + w * x) / ta))
 
 
 def main():
@@ -180,11 +166,11 @@ def main():
         fit_held(path, ['flight segment', 'guided vertex'], ['F', 'V'],
                  lambda j, n: LOOKUP * (j['L'] / n + SHADOW * j['S'] / n + EQ * j['E'] / n + SAMPLE), ['F', 'V'])
     elif mode == 'eqs':
-        fit_eqs(path)
+        fit_paired(path, 'true', 'Z', 'equiangular sample', True)
     elif mode == 'eq':
-        fit_eq(path)
+        fit_paired(path, 'auto', 'E', 'equiangular set-up', False)
     else:
-        sys.exit('cost_fit.py: mode must be all, beams, gu or eq, not ' + mode)
+        sys.exit('cost_fit.py: mode must be all, beams, gu, eq or eqs, not ' + mode)
 
 
 if __name__ == '__main__':

@@ -422,6 +422,17 @@ Test(select, tiles_of_both_kinds_give_delta_s_image, .timeout = 300)
     cr_assert(mixed, "delta's share of the samples is %g: one kind of tile only", share);
 }
 
+/* `method` on scene s at spp samples and seed, on one thread and on two: r[0] and r[1]. */
+static void render_on_1_and_2_threads(const rd_scene *s, const char *method, int spp, uint64_t seed,
+                                      rd_render_result r[2])
+{
+    for (int i = 0; i < 2; i++) {
+        rd_render_opts o = {.method = method, .spp = spp, .seed = seed, .threads = i + 1};
+        char err[RD_ERRLEN];
+        cr_assert(rd_render(s, &o, &r[i], err, sizeof err) == RD_OK, "%s", err);
+    }
+}
+
 /* The selection scene with the fog filling the whole view (hard-narrow-spot made small), the
  * settings object `settings`. */
 static const char *full_fog_scene(const char *settings)
@@ -466,20 +477,19 @@ Test(select, delta_with_equiangular_sampling_on_every_flight_is_a_third_kind_of_
     rd_render_result_free(&d);
     rd_scene_free(s);
     cr_assert(mixed, "shares: delta %g, delta with true %g: not both kinds of delta tile", plain, eq);
-    /* delta's own mode "true": nothing for a third to add */
-    rd_render_result g2 = rt_render(ref, "guided-unbiased", 16, 32, NULL);
-    cr_assert(g2.stats.delta_eq_samples == 0 && g2.stats.delta_samples > 0,
-              "delta's mode is true: no third estimator (%llu of its samples)",
-              (unsigned long long)g2.stats.delta_eq_samples);
-    rd_render_result_free(&g2);
-    rd_scene_free(ref);
-    /* the method's mode off: it does not sample with the strategy, nor does its selection */
+    /* No third estimator where delta's own mode is "true" (nothing for a third to add), nor
+     * where the method's mode is off (it does not sample with the strategy, nor does its
+     * selection). */
     rd_scene *s3 = rt_scene("sel3o.json", full_fog_scene("{\"select\":\"tiles\"},\"guide\":{\"equiangular\":false}"));
-    rd_render_result g3 = rt_render(s3, "guided-unbiased", 16, 32, NULL);
-    cr_assert(g3.stats.delta_eq_samples == 0 && g3.stats.delta_samples > 0,
-              "the method's mode is off: no third estimator (%llu of its samples)",
-              (unsigned long long)g3.stats.delta_eq_samples);
-    rd_render_result_free(&g3);
+    const rd_scene *two[2] = {ref, s3};
+    for (int k = 0; k < 2; k++) {
+        rd_render_result g2 = rt_render(two[k], "guided-unbiased", 16, 32, NULL);
+        cr_assert(g2.stats.delta_eq_samples == 0 && g2.stats.delta_samples > 0,
+                  "%s: no third estimator (%llu of its samples)", k ? "the method's mode is off" : "delta's mode is true",
+                  (unsigned long long)g2.stats.delta_eq_samples);
+        rd_render_result_free(&g2);
+    }
+    rd_scene_free(ref);
     rd_scene_free(s3);
 }
 
@@ -507,11 +517,7 @@ Test(select, delta_s_own_tiles_mix_its_two_modes_and_give_delta_s_image, .timeou
     rd_scene *s = rt_scene("selD.json", js);
     rd_render_result d = rt_render(ref, "delta", 4096, 31, NULL);
     rd_render_result t[2];
-    for (int i = 0; i < 2; i++) {
-        rd_render_opts o = {.method = "delta", .spp = 1024, .seed = 32, .threads = i + 1};
-        char err[RD_ERRLEN];
-        cr_assert(rd_render(s, &o, &t[i], err, sizeof err) == RD_OK, "%s", err);
-    }
+    render_on_1_and_2_threads(s, "delta", 1024, 32, t);
     double plain = (double)t[0].stats.delta_samples / (double)t[0].stats.paths;
     int mixed = plain > 0.0 && plain < 1.0;
     cr_log_info("delta with tiles: %.0f%% of the samples without the strategy", 100.0 * plain);
@@ -547,12 +553,8 @@ Test(select, the_choice_does_not_depend_on_the_threads, .timeout = 300)
 {
     rd_scene *s = rt_scene("selt.json", select_scene("{\"select\":\"tiles\"}"));
     rd_render_result r[2];
-    for (int i = 0; i < 2; i++) {
-        /* 20 samples: past the epochs at 4 and 16, which choose again */
-        rd_render_opts o = {.method = "guided", .spp = 20, .seed = 5, .threads = i + 1};
-        char err[RD_ERRLEN];
-        cr_assert(rd_render(s, &o, &r[i], err, sizeof err) == RD_OK, "%s", err);
-    }
+    /* 20 samples: past the epochs at 4 and 16, which choose again */
+    render_on_1_and_2_threads(s, "guided", 20, 5, r);
     cr_assert(r[0].stats.delta_samples == r[1].stats.delta_samples, "the tiles differ: %llu against %llu delta samples",
               (unsigned long long)r[0].stats.delta_samples, (unsigned long long)r[1].stats.delta_samples);
     cr_assert(memcmp(r[0].image.rgb, r[1].image.rgb, sizeof(float) * 3 * r[0].image.w * r[0].image.h) == 0,
@@ -613,11 +615,7 @@ Test(select, beams_mix_only_when_asked_and_the_choice_does_not_depend_on_the_thr
     rd_scene_free(sp);
     rd_scene *s = rt_scene("selb.json", beams_scene("{\"select\":\"tiles\"}", 1, 0));
     rd_render_result r[2];
-    for (int i = 0; i < 2; i++) {
-        rd_render_opts o = {.method = "guided", .spp = 20, .seed = 5, .threads = i + 1};
-        char err[RD_ERRLEN];
-        cr_assert(rd_render(s, &o, &r[i], err, sizeof err) == RD_OK, "%s", err);
-    }
+    render_on_1_and_2_threads(s, "guided", 20, 5, r);
     double share = (double)r[0].stats.delta_samples / (double)r[0].stats.paths;
     cr_log_info("nee+beams: delta renders %.0f%% of the samples", 100.0 * share);
     cr_assert(share > 0.0 && share < 1.0, "delta's share %g: one kind of tile only", share);
