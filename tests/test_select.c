@@ -525,6 +525,31 @@ Test(select, delta_s_own_tiles_mix_its_two_modes_and_give_delta_s_image, .timeou
     cr_expect(t[0].stats.delta_samples == t[1].stats.delta_samples &&
                   memcmp(t[0].image.rgb, t[1].image.rgb, sizeof(float) * 3 * t[0].image.w * t[0].image.h) == 0,
               "one thread and two give different images");
+    /* The two kinds are what they say: the tiles without the strategy draw no equiangular
+     * sample (a "tiles" that reached the flights as "every flight" would), so the mix draws
+     * fewer a path than `true` does, by about the share without it (the two images' pixels
+     * differ in how many flights they make, hence the margin of a tenth). Planted: "tiles"
+     * passed to the flights unmapped fails both checks (1.307 samples a path against true's
+     * 1.305). */
+    double z_true = (double)d.stats.eq_samples / (double)d.stats.paths,
+           z_tiles = (double)t[0].stats.eq_samples / (double)t[0].stats.paths;
+    cr_log_info("equiangular samples a path: %.3f with true, %.3f with tiles", z_true, z_tiles);
+    cr_expect(z_tiles > 0.0 && z_tiles < (1.0 - plain + 0.1) * z_true,
+              "tiles draws %g equiangular samples a path against true's %g, %.0f%% of its samples without the strategy",
+              z_tiles, z_true, 100.0 * plain);
+    /* and a path of "tiles" outside the selection is the path of "false", to the bit */
+    snprintf(js, sizeof js, cube, "false");
+    rd_scene *off = rt_scene("selDo.json", js);
+    int same = 1;
+    for (int i = 0; i < 200; i++) {
+        ray3 r = rd_camera_ray(&s->camera, 4.0 + 0.12 * i, 12.0);
+        pcg32 a = pcg32_seed(3, (uint64_t)i, 9), b = a;
+        rd_track_counters ca = {0}, cb = {0};
+        vec3 La = rd_delta_radiance(s, r, &a, &ca), Lb = rd_delta_radiance(off, r, &b, &cb);
+        same &= La.x == Lb.x && La.y == Lb.y && La.z == Lb.z && ca.eq_flights == 0 && cb.lookups == ca.lookups;
+    }
+    cr_expect(same, "delta's path with settings.equiangular \"tiles\" must be the path of \"false\"");
+    rd_scene_free(off);
     for (int i = 0; i < 2; i++) rd_render_result_free(&t[i]);
     rd_render_result_free(&d);
     rd_scene_free(s);

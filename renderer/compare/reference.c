@@ -73,7 +73,10 @@ static uint64_t hash_v(uint64_t h, vec3 v) { return hash_d(hash_d(hash_d(h, v.x)
  * keyed by neither: it is the first N samples per pixel of one stream (delta, the reference's
  * seed, sample indices 0, 1, 2, ...), N recorded beside it, so a cached one of N samples is
  * extended by rendering samples N, N + 1, ... (rd_render_opts.first_sample) and saved again
- * under the same key: the same key always names a prefix of the same stream. */
+ * under the same key: the same key always names a prefix of the same stream. (Not with
+ * settings.equiangular "tiles": each part of the reference runs delta's own pilot and epochs
+ * on its own samples, so an extended reference is a mean of parts whose tiles may differ;
+ * unbiased all the same.) */
 static uint64_t reference_key(const rd_scene *s, int auto_ref, int photons, int spp, double time_cap, uint64_t seed)
 {
     uint64_t h = auto_ref ? fnv1a(0xcbf29ce484222325ULL, "photonmarch reference v2 stream", 31)
@@ -231,7 +234,8 @@ static rd_status reference_part(rd_comparison *c, const rd_scene *s, int first, 
  * M = M_a + M_b + (m_b - m_a)^2 n_a n_b / (n_a + n_b) (Chan, Golub & LeVeque 1979, the
  * pairwise update; no cancellation), mean (n_a m_a + n_b m_b) / (n_a + n_b), se = sqrt(M /
  * (N - 1) / N). The result is the render of n + n2 samples to float rounding
- * (rd_render_opts.first_sample). Pixels that dropped a non-finite sample
+ * (rd_render_opts.first_sample; with delta's settings.equiangular "tiles", whose parts choose
+ * their tiles apart, an unbiased render of as many). Pixels that dropped a non-finite sample
  * (rd_render_stats.invalid, normally 0) are counted as if they had not. */
 static void reference_merge(rd_comparison *c, double n, const rd_image *m2, const rd_image *se2, double n2)
 {

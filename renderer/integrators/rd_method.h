@@ -38,7 +38,9 @@ typedef struct rd_thread {
     uint64_t guide_vertices; /* guided-unbiased: path vertices whose policy read the guide */
     uint64_t beam_queries, beam_hits; /* march.ls nee+beams: segments queried, balls they crossed */
     uint32_t samples_min, samples_max;
-    uint64_t delta_samples; /* settings.select: camera samples given to delta's path */
+    uint64_t delta_samples; /* settings.select: camera samples given to delta's path (for
+                             * delta with settings.equiangular "tiles": to its path without
+                             * the strategy) */
     uint64_t delta_eq_samples; /* ... of those, with equiangular sampling on every flight */
     void *scratch;
     size_t scratch_bytes;

@@ -1,6 +1,8 @@
 /* rd_select.h: the guided methods' choice, per tile of the image, between the method and
  * delta's path, and delta's path with equiangular sampling on every flight where the method
- * samples with it (settings.select = "tiles"; integrators/select.c). Internal to integrators/ (tests include
+ * samples with it (settings.select = "tiles"; integrators/select.c); and `delta`'s own between
+ * its path without and with that strategy (settings.equiangular "tiles": the "method" is the
+ * path with it; integrators/delta.c). Internal to integrators/ (tests include
  * it). */
 #ifndef RD_SELECT_H
 #define RD_SELECT_H
@@ -10,7 +12,8 @@
 /* The tile edge in pixels. */
 #define RD_SELECT_TILE 8
 
-/* The estimators a tile can be given (rd_select.choice): delta's path with settings.equiangular,
+/* The estimators a tile can be given (rd_select.choice): delta's path with settings.equiangular
+ * ("tiles" read as off: rd_eq_path_mode),
  * the method, and delta's path with equiangular sampling on every flight, RD_EQ_ALL (only where
  * the method's own mode is not off, settings.equiangular is not RD_EQ_ALL, and a point or spot
  * light can be sampled: rd_select.n). */
@@ -46,8 +49,9 @@ typedef struct {
                                 too) */
     int equiangular;         /* RD_SEL_DELTA_EQ's equiangular mode (rd_scene.h RD_EQ_*) */
     int tiles_x, tiles_y, width, height;
-    int epochs;              /* choose again at the epochs (settings.select "tiles" or "auto";
-                                "pilot": 0) */
+    int epochs;              /* choose again at the epochs (settings.select "pilot": 0; every
+                                other value 1: the guided methods select only with "tiles" or
+                                "auto", delta's "tiles" whatever settings.select says) */
     double cell_cost;        /* the method's cost per PDF segment it counts in rd_thread.cells,
                                 in density lookups (select.c) */
     rd_select_stats *stats;  /* per tile k and estimator e, [n k + e] */

@@ -23,8 +23,8 @@
  *
  * The third estimator (session 24; its mode since session 25). The methods' own paths and
  * samples take `delta`'s equiangular strategy in their own mode (march.equiangular,
- * guide.equiangular: "auto" by default), while delta's path takes settings.equiangular (off by
- * default: "auto" costs 4-38% of the time where it samples nothing, docs/free-path.md and
+ * guide.equiangular: "auto" by default), while delta's path takes settings.equiangular ("tiles"
+ * read as off; off by default: "auto" costs 4-38% of the time where it samples nothing, docs/free-path.md and
  * docs/benchmarks.md "Session 24"). On a narrow spot across thin fog `delta` with "auto" is
  * 34x plain `delta` and beat both methods (docs/benchmarks.md, session 23): what the methods
  * gained there came from the strategy, and their own estimators cost 3.5-11x a delta path for
