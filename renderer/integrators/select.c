@@ -39,9 +39,10 @@
  * 0.95x; the flights whose lit span lies behind the medium: the narrow spot, 75x against 39x;
  * docs/free-path.md). Per tile the selection bounds the loss itself, so it can take the
  * strategy at full strength where it pays. Measured at 10 s (docs/benchmarks.md, "Session
- * 25"): on the calibration scenes the same as with "auto" within the runs' spread (neither
- * pays there); on the narrow spot `guided` went from 27x to 65x plain `delta`, on homogeneous
- * from 1.1x to 1.5x. The pilot samples it too (with "auto" as the third: prepare_seconds 0.12
+ * 25"): on cloud and hetero-forward the same as with "auto" within the runs' spread (neither
+ * pays there), `guided-unbiased` on glass-fog 15% lower (9.3x -> 7.9x, the edge of the spread);
+ * on the narrow spot `guided` went from 25x to 65x plain `delta`, on homogeneous from 1.10x to
+ * 1.53x (the same session's runs). The pilot samples it too (with "auto" as the third: prepare_seconds 0.12
  * against 0.09 for two estimators, default, 160x120, two threads, `render --spp 1`; 0.3% of a
  * 10-s render), and a trial between any two of them puts the higher-numbered one on the odd
  * squares (with two estimators: the method, as before). All three are unbiased for the same
@@ -420,23 +421,13 @@ static void choose_tiles(rd_select *sel)
     free(var);
 }
 
-/* Whether a point or spot light can be sampled (the equiangular strategy's lights). */
-static int has_point_or_spot(const rd_scene *s)
-{
-    for (int i = 0; i < s->n_lights; i++)
-        if ((s->lights[i].kind == RD_LIGHT_POINT || s->lights[i].kind == RD_LIGHT_SPOT) &&
-            s->light_sampler.pmf[i] > 0.0)
-            return 1;
-    return 0;
-}
-
 rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, double cell_cost,
                             int equiangular, rd_select *sel, char *err, size_t errlen)
 {
     const rd_scene *s = ctx->scene;
     const rd_camera *cam = &s->camera;
     /* the third estimator: delta's path with the strategy on every flight (the head) */
-    int third = equiangular != RD_EQ_OFF && s->settings.equiangular != RD_EQ_ALL && has_point_or_spot(s);
+    int third = equiangular != RD_EQ_OFF && s->settings.equiangular != RD_EQ_ALL && rd_eq_has_lights(s);
     rd_status st = rd_select_init(sel, cam->width, cam->height, cell_cost, third ? 3 : 2, err, errlen);
     if (st != RD_OK) return st;
     sel->equiangular = RD_EQ_ALL;
