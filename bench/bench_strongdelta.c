@@ -6,7 +6,9 @@
  *                     [--seconds S] [--runs K] [--threads N] [--seed N]
  *
  * Each variant is the scene with its own --set overrides (those before the first --variant
- * apply to all, e.g. camera.resolution). Round k renders every variant once with seed + k for
+ * apply to all, e.g. camera.resolution), rendered by its settings.method (`delta` unless a
+ * --set names another: --set settings.method=guided-unbiased; a method that bakes bakes in
+ * every round, inside the timed render, as `render --no-cache` would). Round k renders every variant once with seed + k for
  * S seconds (rd_render with a time limit, the public API of `photonmarch render`), variants in
  * turn, so that load from other jobs on a shared machine falls on all of them alike. Each
  * render's error against the reference: MSE = mean over pixels and channels of (x - r)^2, less
@@ -15,7 +17,9 @@
  * (THEORY.md §7, Veach 1997 §2.4). Printed per variant: the medians over the K rounds with
  * min-max of seconds, samples per pixel, MSE and efficiency, and of the efficiency ratio to the
  * first variant within the same round (the figure to quote: one round's variants share one
- * load). The reference is yours to render, by plain `delta`, 20x longer or more:
+ * load). The reference is yours to render, 20x longer or more, by the strongest `delta` for the
+ * scene (with a point or spot light, settings.equiangular true or "tiles": a plain reference's
+ * own noise can be as large as the best variant's error, docs/benchmarks.md "Session 26"):
  *     build/photonmarch render SCENE --set ... --time 600 --seed 99 -o REF.exr
  * Without arguments (as `make bench` runs every tool) it says so and exits 0. */
 #include "renderer.h"
@@ -129,7 +133,9 @@ int main(int argc, char **argv)
     fflush(stdout);
     for (int r = 0; r < runs; r++) {
         for (int k = 0; k < nv; k++) {
-            rd_render_opts o = {.method = "delta", .spp = 1 << 24, .time_limit = seconds, .seed = seed + r, .threads = threads};
+            /* the variant's settings.method (a guided method bakes inside rd_render: charged) */
+            const char *method = rd_scene_method(v[k].scene);
+            rd_render_opts o = {.method = method, .spp = 1 << 24, .time_limit = seconds, .seed = seed + r, .threads = threads};
             rd_render_result res;
             if (rd_render(v[k].scene, &o, &res, err, sizeof err) != RD_OK) {
                 fprintf(stderr, "bench_strongdelta: %s: %s\n", v[k].label, err);
