@@ -3,7 +3,9 @@
 # docs/scenes.md, "The suites") at equal time, with one command. For each scene one
 # `photonmarch compare` run (docs/compare.md): every method in METHODS, RUNS independent runs of
 # BUDGET seconds each (wall time per run, the bake of a photon-map method charged to every one
-# of its runs), measured against one reference rendered by delta for REF_TIME seconds (a cap;
+# of its runs), measured against one reference rendered by delta (with settings.equiangular
+# "tiles" where the scene has a point or spot light and does not name the key: docs/compare.md)
+# for REF_TIME seconds (a cap;
 # REF_SPP is set high so that the time decides), whose own per-pixel variance compare removes
 # from bias^2 and this script's table removes from the MSE. Each scene's report folder is
 # OUT/SCENE/ (index.html, metrics.json, images) with compare's own table in OUT/SCENE.txt; the

@@ -15,6 +15,17 @@
 
 static const char *const only_delta[] = {"delta"};
 
+/* small_scene_json with settings.equiangular named (false): its rendered reference is plain
+ * `delta`, one stream whose extension is a prefix (without the key, a scene with a point light
+ * gets a reference with "tiles", whose parts choose their tiles apart: reference.c). */
+static const char *const small_plain_json =
+    "{\"camera\":{\"position\":[0,0,4],\"look_at\":[0,0,0],\"resolution\":[24,16]},"
+    "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},\"density\":{\"type\":\"noise\",\"octaves\":2},"
+    "\"sigma_t\":2,\"albedo\":0.9,\"g\":0.4}],"
+    "\"lights\":[{\"type\":\"point\",\"position\":[1,2,1],\"intensity\":[5,4,3]}],"
+    "\"photons\":{\"count\":3000},\"guide\":{\"resolution\":[6,6,6]},"
+    "\"settings\":{\"spp\":4, \"seed\":5, \"equiangular\":false}}";
+
 static rd_cmp_opts delta_opts(const char *cache, double spp)
 {
     rd_cmp_opts o = {.methods = only_delta, .n_methods = 1, .equal_spp = 1, .budget = spp, .runs = 2,
@@ -45,7 +56,7 @@ Test(compare_rule, a_reference_above_a_tenth_of_the_best_mse_needs_more_samples)
  * the reference is the render of that many samples, and the cache holds it afterwards. */
 Test(compare_rule, a_cached_reference_too_noisy_for_the_runs_is_extended, .timeout = 120)
 {
-    rd_scene *s = rt_scene("rule.json", small_scene_json);
+    rd_scene *s = rt_scene("rule.json", small_plain_json);
     char cache[256], err[RD_ERRLEN];
     snprintf(cache, sizeof cache, "%s/cache", rt_tmpdir());
     rd_cmp_opts o = delta_opts(cache, 1);
@@ -105,6 +116,56 @@ Test(compare_rule, a_cached_reference_too_noisy_for_the_runs_is_extended, .timeo
     cr_assert(rd_compare_run(s, &o, &c, err, sizeof err) == RD_OK, "%s", err);
     cr_expect(rd_comparison_summary(c)->ref_rendered == 1 && !rd_comparison_summary(c)->ref_auto);
     rd_comparison_free(c);
+    rd_scene_free(s);
+}
+
+/* The default reference is `delta` at its strongest (reference.c): with settings.equiangular
+ * "tiles" where the scene has a point or spot light and leaves the key to its default, plain
+ * `delta` where the scene names it. It is unbiased: against an independent plain `delta` render
+ * of many more samples, the pixels' summed difference over its standard error (the two images'
+ * errors combined) is N(0, 1), checked to 5 sigma (fixed seeds; 0.08 sigma here). The check
+ * can fail: the same reference 5% too bright fails it (10.2 sigma here). */
+Test(compare_rule, the_default_reference_is_delta_at_its_strongest, .timeout = 120)
+{
+    char err[RD_ERRLEN];
+    rd_scene *s = rt_scene("strong.json", small_scene_json);
+    rd_cmp_opts o = delta_opts(NULL, 64); /* its reference: 640 spp, or more by the rule */
+    rd_comparison *c = NULL;
+    cr_assert(rd_compare_run(s, &o, &c, err, sizeof err) == RD_OK, "%s", err);
+    const rd_cmp_summary *S = rd_comparison_summary(c);
+    cr_expect(strcmp(S->ref_method, "delta, settings.equiangular tiles") == 0, "reference by %s", S->ref_method);
+    cr_assert(rd_compare_write_report(c, s, rt_tmp_path("strong-report"), err, sizeof err) == RD_OK, "%s", err);
+    rd_comparison_free(c);
+    rd_image ref, ref_se;
+    char path[512];
+    snprintf(path, sizeof path, "%s/reference.exr", rt_tmp_path("strong-report"));
+    cr_assert(rd_image_read(path, &ref, err, sizeof err) == RD_OK, "%s", err);
+    snprintf(path, sizeof path, "%s/reference-stderr.exr", rt_tmp_path("strong-report"));
+    cr_assert(rd_image_read(path, &ref_se, err, sizeof err) == RD_OK, "%s", err);
+
+    rd_scene *plain = rt_scene("strong-plain.json", small_plain_json);
+    rd_render_opts ro = {.method = "delta", .spp = 2048, .seed = 11, .threads = 2};
+    rd_render_result one;
+    cr_assert(rd_render(plain, &ro, &one, err, sizeof err) == RD_OK, "%s", err);
+    double d = 0, d_bright = 0, v = 0;
+    for (int i = 0; i < 24 * 16 * 3; i++) {
+        d += ref.rgb[i] - one.image.rgb[i];
+        d_bright += 1.05 * ref.rgb[i] - one.image.rgb[i];
+        v += (double)ref_se.rgb[i] * ref_se.rgb[i] + (double)one.stderr_img.rgb[i] * one.stderr_img.rgb[i];
+    }
+    double z = d / sqrt(v), z_bright = d_bright / sqrt(v);
+    cr_expect(fabs(z) < 5.0, "the tiles reference is %.2f sigma from plain delta", z);
+    cr_expect(z_bright > 5.0, "5%% too bright is only %.2f sigma off: the check is too weak", z_bright);
+    rd_render_result_free(&one);
+    rd_image_free_pixels(&ref);
+    rd_image_free_pixels(&ref_se);
+
+    /* The scene names the key: its own `delta`. */
+    cr_assert(rd_compare_run(plain, &o, &c, err, sizeof err) == RD_OK, "%s", err);
+    S = rd_comparison_summary(c);
+    cr_expect(strcmp(S->ref_method, "delta") == 0, "reference by %s", S->ref_method);
+    rd_comparison_free(c);
+    rd_scene_free(plain);
     rd_scene_free(s);
 }
 

@@ -56,7 +56,8 @@ struct rd_comparison {
     rd_cmp_summary sum;
     double planned_seconds; /* seconds the runs not yet started will take (progress) */
     int photon_ref;       /* the reference is rendered by ref_scene's photons (RD_HIDDEN_SHARE) */
-    rd_scene ref_scene;   /* the scene with the photon reference's settings (a shallow copy) */
+    int tiles_ref;        /* the reference is rendered by ref_scene's delta with equiangular "tiles" */
+    rd_scene ref_scene;   /* the scene with the rendered reference's settings (a shallow copy) */
     uint64_t ref_key;     /* the rendered reference's cache key ... */
     char ref_base[1200];  /* ... and its cache path without extension ("": not cached) */
 };

@@ -13,8 +13,21 @@
  * ray stops at glass) nor by a path (it cannot hit a delta light). Its share of the light
  * scattered in the media is measured when the scene is loaded (rd_hidden_light); above
  * RD_HIDDEN_SHARE the rendered reference is a consistent photon render instead
- * (photon_reference). */
+ * (reference_scene).
+ *
+ * delta at its strongest (session 26). A rendered reference must be less noisy than the best
+ * method's error (the rule, rd_cmp_reference_extend), and where a point or spot light lights
+ * thin fog, `delta` with its equiangular sample is 19-76x plain `delta` (glass-fog,
+ * hard-narrow-spot; docs/benchmarks.md "Session 26"): a plain `delta` reference stops at its
+ * cap, too noisy to rank the methods, or costs that much more to reach the rule; and a noisy
+ * reference's variance is part of every method's measured MSE, so the best methods look worse
+ * than they are (glass-fog's `guided-unbiased` read 7.9x plain `delta` against a plain
+ * reference whose variance was about its own MSE, 13x against a `true` one). So when the
+ * scene does not name settings.equiangular and has a point or spot light, the reference is
+ * `delta` with settings.equiangular "tiles" (its own choice per tile between the strategy and
+ * none: integrators/delta.c), unbiased for the same image, and the report names it. */
 #include "compare/rd_compare.h"
+#include "transport/rd_transport.h"
 
 #include <ctype.h>
 #include <math.h>
@@ -81,7 +94,7 @@ static uint64_t reference_key(const rd_scene *s, int auto_ref, int photons, int 
 {
     uint64_t h = auto_ref ? fnv1a(0xcbf29ce484222325ULL, "photonmarch reference v2 stream", 31)
                           : fnv1a(0xcbf29ce484222325ULL, "photonmarch reference v2 fixed", 30);
-    if (photons) { /* the photon reference: its method's settings too (photon_reference) */
+    if (photons) { /* the photon reference: its method's settings too (reference_scene) */
         const rd_march_settings *m = &s->march;
         const rd_photon_settings *p = &s->photons;
         h = fnv1a(h, "photons", 7);
@@ -209,7 +222,7 @@ static rd_status reference_part(rd_comparison *c, const rd_scene *s, int first, 
                                 ref_progress_ctx *pc, rd_render_result *res, char *err, size_t errlen)
 {
     const rd_cmp_opts *o = &c->opts;
-    if (c->photon_ref) s = &c->ref_scene;
+    if (c->photon_ref || c->tiles_ref) s = &c->ref_scene;
     rd_render_opts ro = {.method = c->photon_ref ? "guided" : "delta", .spp = spp, .time_limit = time_limit,
                          .seed = REF_SEED(o->seed),
                          .threads = o->threads, .cancel = o->cancel, .progress = reference_progress,
@@ -366,18 +379,28 @@ int rd_cmp_reference_is_auto(const rd_cmp_opts *o)
     return !o->reference && o->ref_spp <= 0 && o->ref_time <= 0;
 }
 
-/* Light delta cannot render (the head): its share (measured when the scene was loaded, with a
- * fixed seed: the same on every rank), and the photon reference's scene when a rendered
- * reference must hold it: `guided` with the photon map as its whole source, fresh photons
- * every pass with a shrinking radius (consistent), and no tile selection (its `delta` tiles
- * would lack that light again). */
-static void photon_reference(rd_comparison *c, const rd_scene *s)
+/* The rendered reference's scene and the report's name for its method (the head). Light delta
+ * cannot render: its share (measured when the scene was loaded, with a fixed seed: the same on
+ * every rank), and the photon reference's scene when a rendered reference must hold it:
+ * `guided` with the photon map as its whole source, fresh photons every pass with a shrinking
+ * radius (consistent), and no tile selection (its `delta` tiles would lack that light again).
+ * Else `delta`, with settings.equiangular "tiles" where the scene leaves that key to its
+ * default and has a point or spot light. */
+static void reference_scene(rd_comparison *c, const rd_scene *s)
 {
     double share = rd_scene_hidden_light(s); /* measured at load (load/load.c) */
     c->sum.hidden_share = share;
     c->photon_ref = share > RD_HIDDEN_SHARE && !c->opts.reference;
+    c->tiles_ref = !c->opts.reference && !c->photon_ref && !s->settings.equiangular_given && rd_eq_has_lights(s);
     snprintf(c->sum.ref_method, sizeof c->sum.ref_method, "%s",
-             c->opts.reference ? "given" : c->photon_ref ? "guided, march.ls photons, progressive passes" : "delta");
+             c->opts.reference ? "given"
+             : c->photon_ref  ? "guided, march.ls photons, progressive passes"
+             : c->tiles_ref   ? "delta, settings.equiangular tiles"
+                              : "delta");
+    if (c->tiles_ref) {
+        c->ref_scene = *s;
+        c->ref_scene.settings.equiangular = RD_EQ_TILES;
+    }
     if (c->photon_ref) {
         c->ref_scene = *s;
         c->ref_scene.march.ls = RD_LS_PHOTONS;
@@ -393,7 +416,7 @@ rd_status rd_cmp_reference_get(rd_comparison *c, const rd_scene *s, char *err, s
 {
     const rd_cmp_opts *o = &c->opts;
     const rd_comm *comm = cmp_ranks(c);
-    photon_reference(c, s);
+    reference_scene(c, s);
     if (o->reference) /* several ranks: each reads the file, as it loads the scene */
         return rd_comm_agree(comm, reference_given(c, err, errlen), "compare: the reference", err, errlen);
     /* The photon reference is one render (its passes restart in every render, so parts would
@@ -406,7 +429,7 @@ rd_status rd_cmp_reference_get(rd_comparison *c, const rd_scene *s, char *err, s
         ref_spp = o->equal_spp ? (int)fmin(RD_CMP_REF_FIRST * o->budget, 1 << 24) : 0;
         ref_time = o->equal_spp ? 0.0 : RD_CMP_REF_FIRST * o->budget;
     }
-    c->ref_key = reference_key(c->photon_ref ? &c->ref_scene : s, auto_ref, c->photon_ref, auto_ref ? 0 : ref_spp,
+    c->ref_key = reference_key(c->photon_ref || c->tiles_ref ? &c->ref_scene : s, auto_ref, c->photon_ref, auto_ref ? 0 : ref_spp,
                                auto_ref ? 0.0 : ref_time, REF_SEED(o->seed));
     c->ref_base[0] = 0;
     if (o->cache_dir) {

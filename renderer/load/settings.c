@@ -41,6 +41,7 @@ static rd_status parse_equiangular(ld_ctx *c, const cJSON *j, const char *path, 
 static rd_status parse_strategies(ld_ctx *c, const cJSON *j, rd_settings *s)
 {
     LD_TRY(parse_equiangular(c, j, "settings", 1, 1, &s->equiangular));
+    s->equiangular_given = cJSON_GetObjectItemCaseSensitive(j, "equiangular") != NULL;
     const cJSON *b = cJSON_GetObjectItemCaseSensitive(j, "thin_bias");
     if (b) {
         if (cJSON_IsFalse(b)) s->thin_bias = 0.0;
