@@ -1,5 +1,6 @@
-/* bench_strongdelta: efficiency of `delta` with its thin-media strategies against plain `delta`
- * at equal time (issue 21 item 4: settings.equiangular, settings.thin_bias).
+/* bench_strongdelta: efficiency of `delta` with its thin-media strategies (issue 21 item 4:
+ * settings.equiangular, settings.thin_bias), and of the guided methods beside them, against
+ * plain `delta` at equal time.
  *
  *   bench_strongdelta SCENE --reference REF.exr [--set KEY=VAL]...
  *                     --variant LABEL [--set KEY=VAL]... [--variant LABEL ...]...
@@ -8,9 +9,9 @@
  * Each variant is the scene with its own --set overrides (those before the first --variant
  * apply to all, e.g. camera.resolution), rendered by its settings.method (`delta` unless a
  * --set names another: --set settings.method=guided-unbiased; a method that bakes bakes in
- * every round, inside the timed render, as `render --no-cache` would). Round k renders every variant once with seed + k for
- * S seconds (rd_render with a time limit, the public API of `photonmarch render`), variants in
- * turn, so that load from other jobs on a shared machine falls on all of them alike. Each
+ * every round, inside the timed render, as `render --no-cache` would). Round k renders every
+ * variant once with seed + k for S seconds (rd_render with a time limit, the public API of
+ * `photonmarch render`), variants in turn, so that load from other jobs on a shared machine falls on all of them alike. Each
  * render's error against the reference: MSE = mean over pixels and channels of (x - r)^2, less
  * the reference's own variance (mean of REF-stderr.exr squared, when that file is beside it:
  * E[(x - r)^2] = MSE_true + var_r for an independent r), and its efficiency 1 / (MSE x seconds)

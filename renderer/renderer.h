@@ -500,7 +500,8 @@ typedef struct {
     uint64_t seed;
     int threads;         /* 0 = all */
     const char *reference; /* REF.exr (REF-stderr.exr beside it is read when present), or NULL:
-                              rendered by delta and cached */
+                              rendered by delta (settings.equiangular "tiles" where a point or
+                              spot light exists and the scene does not name the key) and cached */
     /* The rendered reference. Neither given (both <= 0): the default, rendered until its
      * variance is at most RD_CMP_REF_SHARE of the smallest method MSE (rd_cmp_ref_spp_needed:
      * RD_CMP_REF_FIRST x a run's budget before the runs, more after them if the rule asks),
@@ -568,7 +569,8 @@ typedef struct {
      * through glass first (L S+ paths; 0 when the scene cannot have any). Above
      * RD_HIDDEN_SHARE the summary says so and a rendered reference is made by ref_method. */
     double hidden_share;
-    char ref_method[96];    /* what rendered the reference ("delta", or the photon method) */
+    char ref_method[96];    /* what rendered the reference ("delta", "delta, settings.equiangular
+                             * tiles", the photon method, or "given") */
 } rd_cmp_summary;
 
 typedef struct rd_comparison rd_comparison; /* the runs' images, curves and rows; opaque */

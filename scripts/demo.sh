@@ -15,7 +15,8 @@ start=$(date +%s)
 # (guided's 1-2 s bake charged to each of its runs) the four runs and the reference take about
 # 2.5 min on 2 cores; the reference is cached in out/.photonmarch-cache/, so a second demo reuses it.
 echo "photonmarch demo: comparing guided and delta at equal time (128x96, 2 runs of 8 s each, against" >&2
-echo "  a delta reference rendered until it can rank them, cached in out/.photonmarch-cache/)..." >&2
+echo "  a delta reference rendered until it can rank them (its equiangular sample chosen per tile:" >&2
+echo "  the scene has spot lights), cached in out/.photonmarch-cache/)..." >&2
 summary=$("$BIN" compare "$SCENE" --methods guided,delta --budget 8 --runs 2 \
     --set 'camera.resolution=[128,96]' -o out/compare)
 printf '%s\n' "$summary"

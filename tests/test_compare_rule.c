@@ -15,16 +15,23 @@
 
 static const char *const only_delta[] = {"delta"};
 
-/* small_scene_json with settings.equiangular named (false): its rendered reference is plain
- * `delta`, one stream whose extension is a prefix (without the key, a scene with a point light
- * gets a reference with "tiles", whose parts choose their tiles apart: reference.c). */
-static const char *const small_plain_json =
-    "{\"camera\":{\"position\":[0,0,4],\"look_at\":[0,0,0],\"resolution\":[24,16]},"
-    "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},\"density\":{\"type\":\"noise\",\"octaves\":2},"
-    "\"sigma_t\":2,\"albedo\":0.9,\"g\":0.4}],"
-    "\"lights\":[{\"type\":\"point\",\"position\":[1,2,1],\"intensity\":[5,4,3]}],"
-    "\"photons\":{\"count\":3000},\"guide\":{\"resolution\":[6,6,6]},"
-    "\"settings\":{\"spp\":4, \"seed\":5, \"equiangular\":false}}";
+/* small_scene_json with --set overrides KEY=VALUE (n of them; e.g. settings.equiangular=false:
+ * its rendered reference is then plain `delta`, one stream whose extension is a prefix; without
+ * the key, a scene with a point light gets a reference with "tiles", whose parts choose their
+ * tiles apart: reference.c), loaded as rt_scene loads it. */
+static rd_scene *small_scene_with(const char *name, int n, const char *const *kv)
+{
+    char path[256], err[RD_ERRLEN];
+    snprintf(path, sizeof path, "%s/%s", rt_tmpdir(), name);
+    rt_write_file(path, small_scene_json, strlen(small_scene_json));
+    rd_override ov[4];
+    cr_assert(n <= 4);
+    for (int i = 0; i < n; i++) ov[i] = (rd_override){.key = kv[2 * i], .value = kv[2 * i + 1]};
+    rd_scene *s = NULL;
+    cr_assert(rd_scene_load(&s, path, ov, n, err, sizeof err) == RD_OK, "%s", err);
+    s->settings.select = RD_SELECT_OFF; /* as rt_scene */
+    return s;
+}
 
 static rd_cmp_opts delta_opts(const char *cache, double spp)
 {
@@ -56,7 +63,8 @@ Test(compare_rule, a_reference_above_a_tenth_of_the_best_mse_needs_more_samples)
  * the reference is the render of that many samples, and the cache holds it afterwards. */
 Test(compare_rule, a_cached_reference_too_noisy_for_the_runs_is_extended, .timeout = 120)
 {
-    rd_scene *s = rt_scene("rule.json", small_plain_json);
+    static const char *const plain_kv[] = {"settings.equiangular", "false"};
+    rd_scene *s = small_scene_with("rule.json", 1, plain_kv);
     char cache[256], err[RD_ERRLEN];
     snprintf(cache, sizeof cache, "%s/cache", rt_tmpdir());
     rd_cmp_opts o = delta_opts(cache, 1);
@@ -119,21 +127,30 @@ Test(compare_rule, a_cached_reference_too_noisy_for_the_runs_is_extended, .timeo
     rd_scene_free(s);
 }
 
-/* The default reference is `delta` at its strongest (reference.c): with settings.equiangular
- * "tiles" where the scene has a point or spot light and leaves the key to its default, plain
- * `delta` where the scene names it. It is unbiased: against an independent plain `delta` render
- * of many more samples, the pixels' summed difference over its standard error (the two images'
- * errors combined) is N(0, 1), checked to 5 sigma (fixed seeds; 0.08 sigma here). The check
- * can fail: the same reference 5% too bright fails it (10.2 sigma here). */
-Test(compare_rule, the_default_reference_is_delta_at_its_strongest, .timeout = 120)
+/* The rendered reference of a scene with a point light that does not name settings.equiangular
+ * is `delta` with "tiles" (reference.c; the default reference and --ref-spp alike): the report
+ * says so, and a --ref-spp one (one render) is the very render of that scene with "tiles" at
+ * the reference's seed, whose tiles took the strategy (in thin fog, sigma_t 0.5: 96% of the
+ * samples here), so it is not plain `delta`'s image. It is unbiased: against an independent
+ * plain `delta` render of many more samples, the pixels' summed difference over its standard
+ * error (the two images' errors combined) is N(0, 1), checked to 5 sigma (fixed seeds; 0.36
+ * sigma here). The check can fail: the same reference 5% too bright fails it (9.9 sigma here).
+ * A scene that names the key gets its own `delta`. */
+Test(compare_rule, a_point_lit_scene_s_rendered_reference_is_delta_with_tiles, .timeout = 120)
 {
     char err[RD_ERRLEN];
-    rd_scene *s = rt_scene("strong.json", small_scene_json);
-    rd_cmp_opts o = delta_opts(NULL, 64); /* its reference: 640 spp, or more by the rule */
+    /* thin fog (sigma_t 0.2), where the strategy pays in some tiles */
+    static const char *const thin[] = {"media[0].sigma_t", "0.5", "settings.equiangular", "\"tiles\""};
+    static const char *const thin_plain[] = {"media[0].sigma_t", "0.5", "settings.equiangular", "false"};
+    rd_scene *s = small_scene_with("strong.json", 1, thin);
+    rd_cmp_opts o = delta_opts(NULL, 64);
+    o.ref_spp = 640; /* one render, never extended (the default reference's first part is one too) */
     rd_comparison *c = NULL;
     cr_assert(rd_compare_run(s, &o, &c, err, sizeof err) == RD_OK, "%s", err);
     const rd_cmp_summary *S = rd_comparison_summary(c);
     cr_expect(strcmp(S->ref_method, "delta, settings.equiangular tiles") == 0, "reference by %s", S->ref_method);
+    int spp = (int)S->ref_spp;
+    cr_assert(spp == 640 && S->ref_extended == 0, "%d spp, extended %d", spp, S->ref_extended);
     cr_assert(rd_compare_write_report(c, s, rt_tmp_path("strong-report"), err, sizeof err) == RD_OK, "%s", err);
     rd_comparison_free(c);
     rd_image ref, ref_se;
@@ -142,13 +159,29 @@ Test(compare_rule, the_default_reference_is_delta_at_its_strongest, .timeout = 1
     cr_assert(rd_image_read(path, &ref, err, sizeof err) == RD_OK, "%s", err);
     snprintf(path, sizeof path, "%s/reference-stderr.exr", rt_tmp_path("strong-report"));
     cr_assert(rd_image_read(path, &ref_se, err, sizeof err) == RD_OK, "%s", err);
+    const int nv = 24 * 16 * 3;
 
-    rd_scene *plain = rt_scene("strong-plain.json", small_plain_json);
+    { /* one render: that of the scene with "tiles" */
+        rd_scene *tiles = small_scene_with("strong-tiles.json", 2, thin);
+        rd_render_opts ro = {.method = "delta", .spp = spp, .seed = REF_SEED(o.seed), .threads = 2};
+        rd_render_result t;
+        cr_assert(rd_render(tiles, &ro, &t, err, sizeof err) == RD_OK, "%s", err);
+        double worst = 0;
+        for (int i = 0; i < nv; i++) worst = fmax(worst, fabs(ref.rgb[i] - t.image.rgb[i]) / (fabs(t.image.rgb[i]) + 1e-6));
+        cr_expect(worst < 1e-5, "the reference differs from the render with tiles by %g (relative)", worst);
+        uint64_t all = (uint64_t)24 * 16 * spp, without = t.stats.delta_samples;
+        cr_expect(without < all, "no tile took the strategy (%llu of %llu samples without it): plain delta's image",
+                  (unsigned long long)without, (unsigned long long)all);
+        rd_render_result_free(&t);
+        rd_scene_free(tiles);
+    }
+
+    rd_scene *plain = small_scene_with("strong-plain.json", 2, thin_plain);
     rd_render_opts ro = {.method = "delta", .spp = 2048, .seed = 11, .threads = 2};
     rd_render_result one;
     cr_assert(rd_render(plain, &ro, &one, err, sizeof err) == RD_OK, "%s", err);
     double d = 0, d_bright = 0, v = 0;
-    for (int i = 0; i < 24 * 16 * 3; i++) {
+    for (int i = 0; i < nv; i++) {
         d += ref.rgb[i] - one.image.rgb[i];
         d_bright += 1.05 * ref.rgb[i] - one.image.rgb[i];
         v += (double)ref_se.rgb[i] * ref_se.rgb[i] + (double)one.stderr_img.rgb[i] * one.stderr_img.rgb[i];

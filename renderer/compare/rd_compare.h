@@ -56,7 +56,7 @@ struct rd_comparison {
     rd_cmp_summary sum;
     double planned_seconds; /* seconds the runs not yet started will take (progress) */
     int photon_ref;       /* the reference is rendered by ref_scene's photons (RD_HIDDEN_SHARE) */
-    int tiles_ref;        /* the reference is rendered by ref_scene's delta with equiangular "tiles" */
+    int tiles_ref;        /* the reference is rendered by ref_scene's delta, equiangular "tiles" */
     rd_scene ref_scene;   /* the scene with the rendered reference's settings (a shallow copy) */
     uint64_t ref_key;     /* the rendered reference's cache key ... */
     char ref_base[1200];  /* ... and its cache path without extension ("": not cached) */
@@ -100,7 +100,9 @@ static inline int cmp_double(const void *a, const void *b)
 /* ---- reference.c ---- */
 
 /* The reference into c->ref (and c->ref_se when its error is known) and c->sum's ref_*:
- * opts.reference, else the cache (opts.cache_dir), else rendered by delta and cached.
+ * opts.reference, else the cache (opts.cache_dir), else rendered and cached: by delta (with
+ * settings.equiangular "tiles" where the scene has a point or spot light and does not name the
+ * key), or by photons where delta cannot render part of the light (reference.c's head).
  * Cancelled while rendering: RD_OK with c->sum.cancelled = 1 and no reference. */
 rd_status rd_cmp_reference_get(rd_comparison *c, const rd_scene *s, char *err, size_t errlen);
 /* Several ranks (comm; NULL or one rank: nothing to do): rank root's w x h image into img on
@@ -109,7 +111,8 @@ rd_status rd_cmp_share_image(const rd_comm *comm, rd_image *img, int w, int h, i
 /* 1 when opts ask for the default reference (none given, neither --ref-spp nor --ref-time). */
 int rd_cmp_reference_is_auto(const rd_cmp_opts *o);
 /* Render `more` samples per pixel of the default reference's stream onto c->ref (the samples
- * after those it has, merged as one render would have them) and save it in the cache again.
+ * after those it has, merged as one render would have them; with "tiles", a render whose
+ * parts chose their tiles apart) and save it in the cache again.
  * Ctrl-C: the reference stays as it was, c->sum.cancelled = 1. */
 rd_status rd_cmp_reference_extend(rd_comparison *c, const rd_scene *s, int more, char *err, size_t errlen);
 /* Whether a --add label's files (LABEL.exr, ...) would be one of the report's other files:

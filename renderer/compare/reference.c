@@ -15,17 +15,20 @@
  * RD_HIDDEN_SHARE the rendered reference is a consistent photon render instead
  * (reference_scene).
  *
- * delta at its strongest (session 26). A rendered reference must be less noisy than the best
- * method's error (the rule, rd_cmp_reference_extend), and where a point or spot light lights
- * thin fog, `delta` with its equiangular sample is 19-76x plain `delta` (glass-fog,
- * hard-narrow-spot; docs/benchmarks.md "Session 26"): a plain `delta` reference stops at its
- * cap, too noisy to rank the methods, or costs that much more to reach the rule; and a noisy
- * reference's variance is part of every method's measured MSE, so the best methods look worse
- * than they are (glass-fog's `guided-unbiased` read 7.9x plain `delta` against a plain
- * reference whose variance was about its own MSE, 13x against a `true` one). So when the
- * scene does not name settings.equiangular and has a point or spot light, the reference is
- * `delta` with settings.equiangular "tiles" (its own choice per tile between the strategy and
- * none: integrators/delta.c), unbiased for the same image, and the report names it. */
+ * `delta` with its equiangular choice per tile (session 26). A rendered reference must be less
+ * noisy than the best method's error (the rule, rd_cmp_reference_extend), and a plain `delta`
+ * reference reaches that only while the best method is under about 5x plain `delta`'s
+ * efficiency (at 50x a run: its cap). Where a point or spot light lights thin fog the methods
+ * are far past that: on hard-narrow-spot `delta` with settings.equiangular "tiles" is 71x plain
+ * `delta` and `guided-unbiased` 59x (docs/benchmarks.md "Session 26"), so a plain reference
+ * stops at its cap too noisy to rank them, and its noise, which compare counts in every
+ * method's MSE, makes the best look worse than they are. So when the scene does not name
+ * settings.equiangular and has a point or spot light, the reference is `delta` with "tiles"
+ * (its own choice per tile between the strategy and none: integrators/delta.c), unbiased for
+ * the same image, and the report names it. Where the strategy does not pay it costs a little:
+ * "tiles" is 0.85-0.97x plain `delta` on default, hard-dense-block, cloud and hetero-forward,
+ * 1.59x on homogeneous. (glass-fog's light comes through glass: its reference is the photon
+ * render above.) */
 #include "compare/rd_compare.h"
 #include "transport/rd_transport.h"
 
@@ -384,8 +387,8 @@ int rd_cmp_reference_is_auto(const rd_cmp_opts *o)
  * every rank), and the photon reference's scene when a rendered reference must hold it:
  * `guided` with the photon map as its whole source, fresh photons every pass with a shrinking
  * radius (consistent), and no tile selection (its `delta` tiles would lack that light again).
- * Else `delta`, with settings.equiangular "tiles" where the scene leaves that key to its
- * default and has a point or spot light. */
+ * Else `delta`, with settings.equiangular "tiles" (and settings.select at its default) where
+ * the scene leaves that key to its default and has a point or spot light. */
 static void reference_scene(rd_comparison *c, const rd_scene *s)
 {
     double share = rd_scene_hidden_light(s); /* measured at load (load/load.c) */
@@ -400,6 +403,9 @@ static void reference_scene(rd_comparison *c, const rd_scene *s)
     if (c->tiles_ref) {
         c->ref_scene = *s;
         c->ref_scene.settings.equiangular = RD_EQ_TILES;
+        /* delta's tiles read settings.select ("pilot": no epochs), which is not in the key:
+         * the reference takes the default whatever the scene asks of the guided methods */
+        c->ref_scene.settings.select = RD_SELECT_AUTO;
     }
     if (c->photon_ref) {
         c->ref_scene = *s;

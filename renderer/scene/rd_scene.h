@@ -30,7 +30,8 @@ typedef struct {
     int equiangular;     /* rd_equiangular_mode: an equiangular distance sample toward a point
                           * or spot light per flight, MIS with delta tracking's collision */
     int equiangular_given; /* settings.equiangular was in the file (else compare's rendered
-                            * reference takes "tiles", delta at its strongest: reference.c) */
+                            * reference takes "tiles" where a point or spot light exists:
+                            * compare/reference.c) */
     double thin_bias;    /* 0: off; in (0, 1): the least probability that a flight of `delta`
                           * has a tentative collision (flights whose pass-through is worth
                           * exactly 0 are forced: 1) */
