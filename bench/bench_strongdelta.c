@@ -11,10 +11,11 @@
  * --set names another: --set settings.method=guided-unbiased; a method that bakes bakes in
  * every round, inside the timed render, as `render --no-cache` would). Round k renders every
  * variant once with seed + k for S seconds (rd_render with a time limit, the public API of
- * `photonmarch render`), variants in turn, so that load from other jobs on a shared machine falls on all of them alike. Each
- * render's error against the reference: MSE = mean over pixels and channels of (x - r)^2, less
- * the reference's own variance (mean of REF-stderr.exr squared, when that file is beside it:
- * E[(x - r)^2] = MSE_true + var_r for an independent r), and its efficiency 1 / (MSE x seconds)
+ * `photonmarch render`), variants in turn, so that load from other jobs on a shared machine
+ * falls on all of them alike. Each render's error against the reference: MSE = mean over
+ * pixels and channels of (x - r)^2, less the reference's own variance (mean of REF-stderr.exr
+ * squared, when that file is beside it: E[(x - r)^2] = MSE_true + var_r for an independent r),
+ * and its efficiency 1 / (MSE x seconds)
  * (THEORY.md §7, Veach 1997 §2.4). Printed per variant: the medians over the K rounds with
  * min-max of seconds, samples per pixel, MSE and efficiency, and of the efficiency ratio to the
  * first variant within the same round (the figure to quote: one round's variants share one

@@ -139,7 +139,7 @@ Test(compare_rule, a_cached_reference_too_noisy_for_the_runs_is_extended, .timeo
 Test(compare_rule, a_point_lit_scene_s_rendered_reference_is_delta_with_tiles, .timeout = 120)
 {
     char err[RD_ERRLEN];
-    /* thin fog (sigma_t 0.2), where the strategy pays in some tiles */
+    /* thin fog (sigma_t 0.5), where the tiles take the strategy on most samples */
     static const char *const thin[] = {"media[0].sigma_t", "0.5", "settings.equiangular", "\"tiles\""};
     static const char *const thin_plain[] = {"media[0].sigma_t", "0.5", "settings.equiangular", "false"};
     rd_scene *s = small_scene_with("strong.json", 1, thin);

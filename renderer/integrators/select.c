@@ -40,7 +40,8 @@
  * docs/free-path.md). Per tile the selection bounds the loss itself, so it can take the
  * strategy at full strength where it pays. Measured at 10 s (docs/benchmarks.md, "Session
  * 25"): on cloud and hetero-forward the same as with "auto" within the runs' spread (neither
- * pays there), `guided-unbiased` on glass-fog 15% lower (9.3x -> 7.9x, the edge of the spread);
+ * pays there), `guided-unbiased` on glass-fog 15% lower (9.3x -> 7.9x, the edge of the spread;
+ * both against a plain `delta` reference as noisy as the runs: docs/benchmarks.md "Session 26");
  * on the narrow spot `guided` went from 25x to 65x plain `delta`, on homogeneous from 1.10x to
  * 1.53x (the same session's runs). The pilot samples it too (with "auto" as the third: prepare_seconds 0.12
  * against 0.09 for two estimators, default, 160x120, two threads, `render --spp 1`; 0.3% of a
