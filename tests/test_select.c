@@ -7,7 +7,9 @@
  *  - the image: with tiles of both kinds, guided equals delta region by region (8x8 regions,
  *    the tiles themselves; z-scores as in test_march.c: each standard normal under equal
  *    expectations, bounds 4.5 per region and 5 for the image);
- *  - the choice is deterministic: one thread and two give the same image bit for bit. */
+ *  - the choice is deterministic: one thread and two give the same image bit for bit;
+ *  - replication: a tile's samples fall 50/50 into two halves, and a costlier estimator takes
+ *    the tile only when the rule on each half alone wants it. */
 #include "support/rd_test.h"
 #include "integrators/rd_select.h"
 
@@ -105,14 +107,42 @@ Test(select, a_tie_goes_to_delta)
 
 /* ---- The epochs: the image's samples correct the pilot -------------------------------------- */
 
-/* A one-tile selection whose statistics say what a pilot of 16 pixels x 8 samples would have
- * seen, each estimator with the per-sample variance v, mean mu, non-zero rate p and cost c. */
-static void fake_pilot(rd_select *sel, int e, double mu, double v, double p, double c)
+/* Statistics i = n k + e (tile k, estimator e) of half h of the samples (select.c,
+ * "Replication"): what `pixels` pixels x `spp` samples each would have shown, with per-sample
+ * variance v, mean mu, non-zero rate p and cost c, added to what the half holds. */
+static void add_half(rd_select *sel, int h, int i, double pixels, double spp, double mu, double v, double p,
+                     double c)
 {
-    rd_select_stats *st = &sel->stats[e];
-    memset(st, 0, sizeof *st);
-    st->n = 128, st->dof = 112, st->nonzero = p * 128, st->cost = c * 128;
-    for (int k = 0; k < 3; k++) st->sum[k] = mu * 128, st->dev2[k] = v * 112;
+    rd_select_stats *st = &sel->stats[(size_t)h * sel->n * sel->tiles_x * sel->tiles_y + i];
+    double n = pixels * spp, dof = pixels * (spp - 1.0);
+    st->n += n, st->dof += dof, st->nonzero += p * n, st->cost += c * n;
+    for (int k = 0; k < 3; k++) st->sum[k] += mu * n, st->dev2[k] += v * dof;
+}
+
+/* Statistics i = n k + e as a pilot of 16 pixels x 8 samples would have shown them (v, mu, p, c
+ * as add_half's), 8 pixels in each half: the halves agree. */
+static void fake_pilot(rd_select *sel, int i, double mu, double v, double p, double c)
+{
+    for (int h = 0; h < 2; h++) {
+        memset(&sel->stats[(size_t)h * sel->n * sel->tiles_x * sel->tiles_y + i], 0, sizeof *sel->stats);
+        add_half(sel, h, i, 8, 8, mu, v, p, c);
+    }
+}
+
+/* Statistics i = n k + e of all of a tile's samples: its two halves' (select.c). */
+static rd_select_stats tile_stats(const rd_select *sel, int i)
+{
+    const rd_select_stats *a = &sel->stats[i], *b = &sel->stats[(size_t)sel->n * sel->tiles_x * sel->tiles_y + i];
+    rd_select_stats t = {a->n + b->n, a->nonzero + b->nonzero, a->dof + b->dof, {0, 0, 0}, {0, 0, 0}, a->cost + b->cost};
+    for (int c = 0; c < 3; c++) t.sum[c] = a->sum[c] + b->sum[c], t.dev2[c] = a->dev2[c] + b->dev2[c];
+    return t;
+}
+
+/* Delta's variance per sample over all of tile statistics i's samples. */
+static double tile_var(const rd_select *sel, int i)
+{
+    rd_select_stats t = tile_stats(sel, i);
+    return t.dev2[0] / t.dof;
 }
 
 /* n samples of every pixel of the tile drawn from X = mu / q with probability q, else 0 (mean
@@ -159,8 +189,8 @@ Test(select, an_epoch_drops_the_method_when_the_image_shows_its_heavy_tail)
      * 1 / 0.002 - 1 = 499 per sample over 64 x 256 samples. */
     observe_rare(&sel, 256, 1.0, 0.002, 2.0, 11);
     rd_select_epoch(&sel, NULL);
-    cr_assert(sel.stats[1].n == 128 + 64 * 256 && sel.stats[0].n == 128,
-              "the samples go to the estimator that drew them: %g and %g", sel.stats[0].n, sel.stats[1].n);
+    cr_assert(tile_stats(&sel, 1).n == 128 + 64 * 256 && tile_stats(&sel, 0).n == 128,
+              "the samples go to the estimator that drew them: %g and %g", tile_stats(&sel, 0).n, tile_stats(&sel, 1).n);
     /* delta's 128 samples against the method's 16512: delta goes on trial, not in at once. */
     cr_assert(sel.choice[0] == RD_SEL_METHOD && sel.trial[0] == 1 + RD_SEL_DELTA, "delta on trial (method %d, trial %d)", sel.choice[0],
               sel.trial[0]);
@@ -168,9 +198,10 @@ Test(select, an_epoch_drops_the_method_when_the_image_shows_its_heavy_tail)
     observe_trial(&sel, 256, 1.0, 0.5, 1.0, 0.002, 2.0, 13);
     rd_select_epoch(&sel, NULL);
     cr_assert(sel.choice[0] == 0 && sel.trial[0] == 0, "after the trial, delta (method's variance %g over %g samples)",
-              sel.stats[1].dev2[0] / sel.stats[1].dof, sel.stats[1].n);
-    cr_assert(sel.stats[0].n == 128 + 32 * 256 && sel.stats[1].n == 128 + 64 * 256 + 32 * 256,
-              "the trial's samples go to the estimator of their pixel: %g and %g", sel.stats[0].n, sel.stats[1].n);
+              tile_var(&sel, 1), tile_stats(&sel, 1).n);
+    cr_assert(tile_stats(&sel, 0).n == 128 + 32 * 256 && tile_stats(&sel, 1).n == 128 + 64 * 256 + 32 * 256,
+              "the trial's samples go to the estimator of their pixel: %g and %g", tile_stats(&sel, 0).n,
+              tile_stats(&sel, 1).n);
     rd_select_free(&sel);
 }
 
@@ -189,7 +220,7 @@ static void rare_light_tile_on_trial(rd_select *sel)
     observe_rare(sel, 256, 1.0, 0.005, 1.0, 12);
     rd_select_epoch(sel, NULL);
     cr_assert(sel->choice[0] == RD_SEL_DELTA && sel->trial[0] == 1 + RD_SEL_METHOD, "the method on trial (method %d, trial %d; delta's variance %g)",
-              sel->choice[0], sel->trial[0], sel->stats[0].dev2[0] / sel->stats[0].dof);
+              sel->choice[0], sel->trial[0], tile_var(sel, 0));
 }
 
 Test(select, an_epoch_takes_the_method_when_delta_s_paths_rarely_find_the_light)
@@ -201,7 +232,7 @@ Test(select, an_epoch_takes_the_method_when_delta_s_paths_rarely_find_the_light)
     observe_trial(&sel, 256, 1.0, 0.005, 1.0, 1.0 / 1.2, 8.0, 14);
     rd_select_epoch(&sel, NULL);
     cr_assert(sel.choice[0] == 1 && sel.trial[0] == 0, "after the trial, the method (its variance %g over %g samples)",
-              sel.stats[1].dev2[0] / sel.stats[1].dof, sel.stats[1].n);
+              tile_var(&sel, 1), tile_stats(&sel, 1).n);
     rd_select_free(&sel);
 }
 
@@ -229,7 +260,7 @@ Test(select, a_trial_keeps_delta_where_the_method_s_tail_is_delta_s)
     observe_trial(&sel, 256, 1.0, 0.005, 1.0, 0.005, 8.0, 15);
     rd_select_epoch(&sel, NULL);
     cr_assert(sel.choice[0] == 0 && sel.trial[0] == 0, "after the trial, delta (the method's variance %g)",
-              sel.stats[1].dev2[0] / sel.stats[1].dof);
+              tile_var(&sel, 1));
     rd_select_free(&sel);
 }
 
@@ -246,9 +277,7 @@ Test(select, a_trial_between_delta_and_delta_with_equiangular_sampling_is_a_chec
     cr_assert(rd_select_init(&sel, 8, 8, 1.0, 3, err, sizeof err) == RD_OK, "%s", err);
     cr_assert(sel.n == 3);
     fake_pilot(&sel, RD_SEL_DELTA, 1.0, 1.0, 1.0, 1.0);
-    sel.stats[RD_SEL_DELTA].n += 4096, sel.stats[RD_SEL_DELTA].dof += 4096 - 64, sel.stats[RD_SEL_DELTA].cost += 4096;
-    for (int c = 0; c < 3; c++)
-        sel.stats[RD_SEL_DELTA].sum[c] += 4096, sel.stats[RD_SEL_DELTA].dev2[c] += 4096 - 64;
+    for (int h = 0; h < 2; h++) add_half(&sel, h, RD_SEL_DELTA, 32, 64, 1.0, 1.0, 1.0, 1.0);
     fake_pilot(&sel, RD_SEL_METHOD, 1.0, 1.0, 1.0, 10.0);
     fake_pilot(&sel, RD_SEL_DELTA_EQ, 1.0, 0.1, 1.0, 1.2);
     rd_select_epoch(&sel, NULL);
@@ -275,16 +304,76 @@ Test(select, a_trial_between_delta_and_delta_with_equiangular_sampling_is_a_chec
     fake_pilot(&sel, RD_SEL_DELTA, 1.0, 1.0, 1.0, 1.0);
     fake_pilot(&sel, RD_SEL_METHOD, 1.0, 1.0, 1.0, 10.0);
     fake_pilot(&sel, RD_SEL_DELTA_EQ, 1.0, 0.1, 1.0, 1.2);
-    for (int e = 0; e < 2; e++) { /* delta's and the method's samples after the trial: 4224 and 2176 */
-        rd_select_stats *st = &sel.stats[e];
-        double more = e == RD_SEL_DELTA ? 4096 : 2048;
-        st->n += more, st->dof += more - 64, st->cost += more * (e == RD_SEL_DELTA ? 1.0 : 10.0);
-        for (int c = 0; c < 3; c++) st->sum[c] += more, st->dev2[c] += more - 64;
+    for (int h = 0; h < 2; h++) { /* delta's and the method's samples after the trial: 4224 and 2176 */
+        add_half(&sel, h, RD_SEL_DELTA, 16, 128, 1.0, 1.0, 1.0, 1.0);
+        add_half(&sel, h, RD_SEL_METHOD, 16, 64, 1.0, 1.0, 1.0, 10.0);
     }
     sel.choice[0] = RD_SEL_DELTA, sel.trial[0] = 1 + RD_SEL_METHOD;
     rd_select_epoch(&sel, NULL);
     cr_assert(sel.choice[0] == RD_SEL_DELTA && sel.trial[0] == 1 + RD_SEL_DELTA_EQ,
               "after the method's trial: choice %d, trial %d (the third must go on trial)", sel.choice[0], sel.trial[0]);
+    rd_select_free(&sel);
+}
+
+/* ---- Replication: a costlier estimator needs both halves of the samples --------------------- */
+
+/* A one-tile selection whose halves show delta (cost 1) with variance v0 and v1 and the method
+ * (cost 2) with variance 1, each half a pilot's 8 pixels x 8 samples. */
+static void halves_tile(rd_select *sel, double v0, double v1)
+{
+    char err[RD_ERRLEN];
+    cr_assert(rd_select_init(sel, 8, 8, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
+    for (int h = 0; h < 2; h++) {
+        add_half(sel, h, RD_SEL_DELTA, 8, 8, 1.0, h ? v1 : v0, 1.0, 1.0);
+        add_half(sel, h, RD_SEL_METHOD, 8, 8, 1.0, 1.0, 1.0, 2.0);
+    }
+    rd_select_epoch(sel, NULL); /* no samples: the choice from these statistics */
+}
+
+Test(select, a_costlier_estimator_takes_a_tile_only_when_both_halves_want_it)
+{
+    /* One half's delta samples carry a firefly (variance 4), the other's not (1): over all the
+     * samples delta's variance is 2.5, and the rule on them gives the method (V C 2 < 2.5),
+     * which its own half does not support (2 > 1). The halves differ, so the cheaper of their
+     * two choices, delta, takes the tile: a variance gain at twice the cost is taken only where
+     * it shows twice. */
+    rd_select sel;
+    halves_tile(&sel, 4.0, 1.0);
+    cr_assert(sel.choice[0] == RD_SEL_DELTA && sel.trial[0] == 0, "one half's firefly gave the method the tile");
+    rd_select_free(&sel);
+    /* the same with the halves swapped */
+    halves_tile(&sel, 1.0, 4.0);
+    cr_assert(sel.choice[0] == RD_SEL_DELTA, "the other half's firefly gave the method the tile");
+    rd_select_free(&sel);
+    /* Both halves show it (delta's variance 4 and 3): the method. */
+    halves_tile(&sel, 4.0, 3.0);
+    cr_assert(sel.choice[0] == RD_SEL_METHOD, "a gain both halves show went to delta");
+    rd_select_free(&sel);
+}
+
+Test(select, the_halves_split_a_tile_s_pilot_pixels_and_a_trial_s_checkerboard_evenly)
+{
+    /* The pilot's pixels (every other pixel each way) and a trial's squares fall 50/50 into the
+     * two halves, so each half holds a replicate of the tile's evidence for every estimator. */
+    rd_select sel;
+    char err[RD_ERRLEN];
+    cr_assert(rd_select_init(&sel, 16, 16, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
+    size_t mn = (size_t)sel.n * sel.tiles_x * sel.tiles_y;
+    for (int y = 0; y < 16; y += 2) /* the pilot's pattern, every tile with delta */
+        for (int x = 0; x < 16; x += 2) rd_select_observe(&sel, (uint64_t)(16 * y + x), v3(1, 1, 1), 1.0);
+    rd_select_epoch(&sel, NULL);
+    for (int k = 0; k < 4; k++)
+        cr_assert(sel.stats[2 * k].n == 8 && sel.stats[mn + 2 * k].n == 8,
+                  "tile %d's pilot pixels: %g and %g in the halves (8 each)", k, sel.stats[2 * k].n, sel.stats[mn + 2 * k].n);
+    memset(sel.stats, 0, 2 * mn * sizeof *sel.stats);
+    for (int k = 0; k < 4; k++) sel.choice[k] = RD_SEL_DELTA, sel.trial[k] = 1 + RD_SEL_METHOD; /* all on trial */
+    for (int p = 0; p < 256; p++) rd_select_observe(&sel, (uint64_t)p, v3(1, 1, 1), 1.0);
+    rd_select_epoch(&sel, NULL);
+    for (int k = 0; k < 4; k++)
+        for (int e = 0; e < 2; e++)
+            cr_assert(sel.stats[2 * k + e].n == 16 && sel.stats[mn + 2 * k + e].n == 16,
+                      "tile %d, estimator %d on trial: %g and %g samples in the halves (16 each)", k, e,
+                      sel.stats[2 * k + e].n, sel.stats[mn + 2 * k + e].n);
     rd_select_free(&sel);
 }
 

@@ -54,7 +54,9 @@ typedef struct {
                                 "auto", delta's "tiles" whatever settings.select says) */
     double cell_cost;        /* the method's cost per PDF segment it counts in rd_thread.cells,
                                 in density lookups (select.c) */
-    rd_select_stats *stats;  /* per tile k and estimator e, [n k + e] */
+    rd_select_stats *stats;  /* per half h of the samples (select.c, "Replication"), tile k
+                                and estimator e, [n (tiles h + k) + e], tiles = tiles_x
+                                tiles_y: a tile's samples are the sum of its two halves' */
     rd_select_pixel *pixels; /* per pixel, the current epoch's samples */
 } rd_select;
 

@@ -87,6 +87,32 @@
  * narrow beam that delta's paths rarely find), the trial shows it and the tile moves one epoch
  * later; where it only looked better, the trial shows its tail too.
  *
+ * Replication (session 27). The rule takes in each tile the estimator whose figures came out
+ * least, and where they are noisy that is in part the one whose noise ran low: a costlier
+ * estimator then takes a tile for a variance gain that was noise, and pays its cost for sure.
+ * Heavy tails make this common, and the pool spreads one tile's outlier over nine. On
+ * hard-dense-block (`delta` with "tiles", 160x120), a pilot of 256 samples a pixel (4096 a tile
+ * and estimator) read delta's V over its V with the strategy at 0.08 to 73 across the lit
+ * tiles, where over the whole image it is 1.36 (0.230 against 0.169 a sample, 512 spp); the rule
+ * gave 30-41 tiles the strategy at twice the cost, and "tiles" made 0.85x plain `delta`'s
+ * efficiency where every tile forced to delta's path made 0.956x (a debug switch, not kept). One
+ * of those tiles kept the strategy with its own 128 delta samples at V 0.0013 against the
+ * strategy's 27.7: its neighbour's delta pilot read 1604. On hard-narrow-spot one pilot firefly
+ * of the strategy held nine tiles on guided-unbiased's paths at 2.7x its cost
+ * (docs/benchmarks.md "Session 26"). So each tile's samples are kept in two halves, by 2x2
+ * blocks of pixels in a checkerboard (half_stats: each half holds half of a tile's pilot pixels
+ * and half of a trial's squares), the rule runs on each half alone, and a tile takes the
+ * estimator both halves want; where they differ, the cheaper of the two by the whole tile's
+ * counted cost (cost is counted, so nearly exact; the noise is in the variance). A real gain
+ * shows in both halves, one firefly in one. The prior pbar and the trial's evidence are the
+ * whole tile's. Measured at 10 s against 200-s references of the strongest `delta`, medians of
+ * four alternating rounds over plain `delta` (docs/benchmarks.md "Session 27"), before -> after:
+ * "tiles" / guided-unbiased on the calibration scenes cloud 0.979 -> 0.983 / 0.963 -> 0.960,
+ * hetero-forward 0.967 -> 0.971 / 1.26 -> 1.20, glass-fog 18.9 -> 18.4 / 15.8 -> 18.7; on
+ * hard-dense-block 0.851 -> 0.913 / 0.797 -> 0.883, hard-narrow-spot 70.5 -> 68.6 / 53.7 ->
+ * 71.0, homogeneous 1.58 -> 1.62 / 1.61 -> 1.63, default 0.928 -> 0.966 / 0.921 -> 0.909. The
+ * dense block's lit tiles on the strategy went from 30-41 to 7-23.
+ *
  * A consistent method. The marcher with march.ls nee+beams is consistent, not unbiased: its
  * photon part carries the kernel's bias (shrinking with the progressive passes). It mixes with
  * delta's path only when settings.select names "tiles" or "pilot" (the default "auto" marches
@@ -197,6 +223,15 @@ static void pixel_fold(rd_select_stats *st, const rd_select_pixel *px)
     st->dof += n - 1.0;
     st->nonzero += px->nonzero;
     st->cost += px->cost;
+}
+
+/* The statistics of the half pixel (x, y)'s samples count in, [n k + e] (see the head,
+ * "Replication"): 2x2 blocks of pixels in a checkerboard, so that a tile's pilot pixels (every
+ * other pixel each way) and a trial's checkerboard of pixels fall evenly into both halves. */
+static rd_select_stats *half_stats(const rd_select *sel, int x, int y)
+{
+    int h = ((x >> 1) + (y >> 1)) & 1;
+    return sel->stats + (size_t)h * sel->n * sel->tiles_x * sel->tiles_y;
 }
 
 /* The counted cost of one sample, from th's counters before it (c0) and after (see the head). */
@@ -331,7 +366,8 @@ void rd_select_choose(const double *var, const double *cost, int n, int m, uint8
  * neighbourhood (clipped at the image's edge), in tmp's room of m nx ny doubles. A
  * tile's own pilot has 16 pixels x SEL_SPP samples, and delta's variance is heavy-tailed (a rare
  * path that finds the light): alone, one tile's estimate swings the choice from seed to seed;
- * nine tiles' pooled steady it, at the price of a one-tile blur of the map. */
+ * nine tiles' pooled steady it, at the price of a one-tile blur of the map, and of one tile's
+ * outlier moving nine tiles' figures (which the halves check: the head, "Replication"). */
 static void pool(double *a, double *tmp, int nx, int ny, int m)
 {
     size_t n = (size_t)nx * ny;
@@ -363,7 +399,7 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
     size_t n = (size_t)sel->tiles_x * sel->tiles_y;
     sel->choice = calloc(n, 1);
     sel->trial = calloc(n, 1);
-    sel->stats = calloc((size_t)sel->n * n, sizeof *sel->stats);
+    sel->stats = calloc(2 * (size_t)sel->n * n, sizeof *sel->stats); /* two halves */
     sel->pixels = rd_alloc_lines((size_t)width * height * sizeof *sel->pixels);
     if (sel->choice && sel->trial && sel->stats && sel->pixels) return RD_OK;
     rd_select_free(sel);
@@ -371,45 +407,73 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
     return RD_ERR_NOMEM;
 }
 
-/* Choose every tile's estimator from the statistics so far: each tile's V and C (as sums over
- * its pixels, which is what the image's error and time add up), pooled, then the rule; a move
- * to the estimator with far fewer samples goes on trial first (see the head). */
+/* The rule's figures from statistics st ([m k + e], one set of m per tile): each tile's V and C
+ * (as sums over its pixels, which is what the image's error and time add up), pooled over 3x3
+ * tiles (pool), with each estimator's non-zero prior pbar[e]. var or cost may be NULL. */
+static void figures(const rd_select *sel, const rd_select_stats *st, const double *pbar, double *var,
+                    double *cost, double *tmp)
+{
+    int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
+    for (int k = 0; k < n; k++) {
+        int tx = k % nx, ty = k / nx;
+        int w = sel->width - tx * RD_SELECT_TILE, h = sel->height - ty * RD_SELECT_TILE;
+        double pixels = (double)(w < RD_SELECT_TILE ? w : RD_SELECT_TILE) * (h < RD_SELECT_TILE ? h : RD_SELECT_TILE);
+        for (int e = 0; e < m; e++) {
+            const rd_select_stats *s = &st[m * k + e];
+            if (var) var[m * k + e] = pixels * tile_variance(&st[m * k], m, e, pbar[e]);
+            if (cost) cost[m * k + e] = s->n > 0.0 ? pixels * s->cost / s->n : 0.0;
+        }
+    }
+    if (var) pool(var, tmp, nx, ny, m);
+    if (cost) pool(cost, tmp, nx, ny, m);
+}
+
+/* Choose every tile's estimator from the statistics so far: the rule on each half of the
+ * samples alone, the estimator both halves want or else the cheaper of their two (see the head,
+ * "Replication"); a move to the estimator with far fewer samples goes on trial first ("Evidence
+ * of unequal size"). */
 static void choose_tiles(rd_select *sel)
 {
     int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
-    double *var = malloc(3 * (size_t)m * n * sizeof *var + (size_t)n);
-    if (!var) return; /* the choices stay as they are */
-    double *cost = var + (size_t)m * n, *tmp = cost + (size_t)m * n;
-    uint8_t *want = (uint8_t *)(tmp + (size_t)m * n);
+    size_t mn = (size_t)m * n;
+    rd_select_stats *all = malloc(mn * sizeof *all);
+    double *buf = malloc(4 * mn * sizeof *buf);
+    uint8_t *want = malloc(2 * (size_t)n);
+    if (!all || !buf || !want) { /* the choices stay as they are */
+        free(all), free(buf), free(want);
+        return;
+    }
+    double *var = buf, *cost = buf + mn, *all_cost = buf + 2 * mn, *tmp = buf + 3 * mn;
+    const rd_select_stats *half[2] = {sel->stats, sel->stats + mn};
+    for (size_t i = 0; i < mn; i++) { /* a tile's samples: its two halves' */
+        const rd_select_stats *a = &half[0][i], *b = &half[1][i];
+        rd_select_stats *t = &all[i];
+        t->n = a->n + b->n, t->nonzero = a->nonzero + b->nonzero, t->dof = a->dof + b->dof;
+        t->cost = a->cost + b->cost;
+        for (int c = 0; c < 3; c++) t->sum[c] = a->sum[c] + b->sum[c], t->dev2[c] = a->dev2[c] + b->dev2[c];
+    }
     /* Each estimator's non-zero fraction over the lit tiles: the prior of every tile's p. */
     double nz[RD_SEL_MAX] = {0, 0, 0}, nn[RD_SEL_MAX] = {0, 0, 0}, pbar[RD_SEL_MAX];
     for (int k = 0; k < n; k++) {
-        const rd_select_stats *st = &sel->stats[m * k];
+        const rd_select_stats *st = &all[m * k];
         double lit = 0.0;
         for (int e = 0; e < m; e++) lit += st[e].nonzero;
         if (!(lit > 0.0)) continue;
         for (int e = 0; e < m; e++) nz[e] += st[e].nonzero, nn[e] += st[e].n;
     }
     for (int e = 0; e < m; e++) pbar[e] = (nz[e] + 1.0) / (nn[e] + 2.0);
-    for (int k = 0; k < n; k++) {
-        int tx = k % nx, ty = k / nx;
-        int w = sel->width - tx * RD_SELECT_TILE, h = sel->height - ty * RD_SELECT_TILE;
-        double pixels = (double)(w < RD_SELECT_TILE ? w : RD_SELECT_TILE) * (h < RD_SELECT_TILE ? h : RD_SELECT_TILE);
-        for (int e = 0; e < m; e++) {
-            const rd_select_stats *st = &sel->stats[m * k + e];
-            var[m * k + e] = pixels * tile_variance(&sel->stats[m * k], m, e, pbar[e]);
-            cost[m * k + e] = st->n > 0.0 ? pixels * st->cost / st->n : 0.0;
-        }
+    for (int h = 0; h < 2; h++) {
+        figures(sel, half[h], pbar, var, cost, tmp);
+        rd_select_choose(var, cost, n, m, want + (size_t)h * n);
     }
-    pool(var, tmp, nx, ny, m);
-    pool(cost, tmp, nx, ny, m);
-    rd_select_choose(var, cost, n, m, want);
+    figures(sel, all, pbar, NULL, all_cost, tmp);
     /* The evidence is the tile's own samples (its neighbours, committed to one estimator,
      * would outweigh its trial in a pooled count for ever). A trial lasts one epoch: then the
      * rule decides. */
     for (int k = 0; k < n; k++) {
-        int cur = sel->choice[k], w = want[k];
-        const rd_select_stats *st = &sel->stats[m * k];
+        int a = want[k], b = want[n + k];
+        int cur = sel->choice[k], w = a == b || all_cost[m * k + a] <= all_cost[m * k + b] ? a : b;
+        const rd_select_stats *st = &all[m * k];
         /* after a trial, only the estimator on trial is taken without the ratio's test: with
          * three, the rule may want the one that was not on trial, on its pilot's samples alone */
         if (w == cur || (sel->trial[k] && w == sel->trial[k] - 1) || st[w].n * RD_SELECT_TRIAL_RATIO >= st[cur].n) {
@@ -419,7 +483,7 @@ static void choose_tiles(rd_select *sel)
             sel->trial[k] = (uint8_t)(1 + w); /* lopsided evidence: half the pixels try w for an epoch */
         }
     }
-    free(var);
+    free(all), free(buf), free(want);
 }
 
 rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, double cell_cost,
@@ -446,7 +510,7 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, doubl
             for (int y = y0; y < y0 + RD_SELECT_TILE && y < cam->height; y += 2)
                 for (int x = x0; x < x0 + RD_SELECT_TILE && x < cam->width; x += 2)
                     for (int e = 0; e < sel->n; e++) /* RD_SEL_* */
-                        pilot_pixel(ctx, t, sel, x, y, e, method, &sel->stats[sel->n * k + e]);
+                        pilot_pixel(ctx, t, sel, x, y, e, method, &half_stats(sel, x, y)[sel->n * k + e]);
         }
         choose_tiles(sel);
     }
@@ -516,7 +580,7 @@ void rd_select_epoch(rd_select *sel, const rd_comm *comm)
         for (int x = 0; x < sel->width; x++) {
             int k = (y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE;
             rd_select_pixel *px = &sel->pixels[(size_t)y * sel->width + x];
-            pixel_fold(&sel->stats[sel->n * k + rd_select_uses(sel, x, y)], px);
+            pixel_fold(&half_stats(sel, x, y)[sel->n * k + rd_select_uses(sel, x, y)], px);
             memset(px, 0, sizeof *px);
         }
     choose_tiles(sel);
