@@ -19,10 +19,10 @@
  * light can be sampled: rd_select.n). */
 enum { RD_SEL_DELTA = 0, RD_SEL_METHOD = 1, RD_SEL_DELTA_EQ = 2, RD_SEL_MAX = 3 };
 
-/* One estimator's samples in one tile, from the pilot and the image's epochs so far: the
- * count, the count with any channel non-zero, per channel the sum and the squared deviations
- * from each pixel's own mean (dev2, with dof = samples - pixels degrees of freedom), and the
- * counted cost. */
+/* One estimator's samples in one half of one tile (rd_select.stats), from the pilot and the
+ * image's epochs so far: the count, the count with any channel non-zero, per channel the sum
+ * and the squared deviations from each pixel's own mean (dev2, with dof = samples - pixels
+ * degrees of freedom), and the counted cost. */
 typedef struct {
     double n, nonzero, dof, sum[3], dev2[3], cost;
 } rd_select_stats;

@@ -91,10 +91,11 @@
  * least, and where they are noisy that is in part the one whose noise ran low: a costlier
  * estimator then takes a tile for a variance gain that was noise, and pays its cost for sure.
  * Heavy tails make this common, and the pool spreads one tile's outlier over nine. On
- * hard-dense-block (`delta` with "tiles", 160x120), a pilot of 256 samples a pixel (4096 a tile
- * and estimator) read delta's V over its V with the strategy at 0.08 to 73 across the lit
- * tiles, where over the whole image it is 1.36 (0.230 against 0.169 a sample, 512 spp); the rule
- * gave 30-41 tiles the strategy at twice the cost, and "tiles" made 0.85x plain `delta`'s
+ * hard-dense-block (`delta` with "tiles", 160x120), a pilot of 256 samples a pixel instead of
+ * SEL_SPP (4096 a tile and estimator; a scratch switch, not kept) read delta's V over its V
+ * with the strategy at 0.08 to 73 across the lit tiles, where over the whole image it is 1.36
+ * (0.230 against 0.169 a sample, 512 spp); the rule gave 30-41 tiles the strategy at 1.6x the
+ * counted cost (1.9x the time), and "tiles" made 0.85x plain `delta`'s
  * efficiency where every tile forced to delta's path made 0.956x (a debug switch, not kept). One
  * of those tiles kept the strategy with its own 128 delta samples at V 0.0013 against the
  * strategy's 27.7: its neighbour's delta pilot read 1604. On hard-narrow-spot one pilot firefly
@@ -102,10 +103,14 @@
  * (docs/benchmarks.md "Session 26"). So each tile's samples are kept in two halves, by 2x2
  * blocks of pixels in a checkerboard (half_stats: each half holds half of a tile's pilot pixels
  * and half of a trial's squares), the rule runs on each half alone, and a tile takes the
- * estimator both halves want; where they differ, the cheaper of the two by the whole tile's
- * counted cost (cost is counted, so nearly exact; the noise is in the variance). A real gain
- * shows in both halves, one firefly in one. The prior pbar and the trial's evidence are the
- * whole tile's. Measured at 10 s against 200-s references of the strongest `delta`, medians of
+ * estimator both halves want; where they differ, the cheaper of the two by the counted cost of
+ * all the tile's samples, pooled as the rule's figures are (cost is counted, so nearly exact;
+ * the noise is in the variance; an exact tie goes to the lower index, as in `least`). A real
+ * gain shows in both halves, one firefly in one. The prior pbar and the trial's evidence are
+ * all the tile's samples'. A tile of at most 2x2 pixels (at the image's right and bottom edges)
+ * lies in one half: the other half's figures for it are zero and its choice is the half that
+ * has samples. Measured at 10 s against 200-s references (`delta` with `true` or "tiles",
+ * docs/benchmarks.md "Session 26"), medians of
  * four alternating rounds over plain `delta` (docs/benchmarks.md "Session 27"), before -> after:
  * "tiles" / guided-unbiased on the calibration scenes cloud 0.979 -> 0.983 / 0.963 -> 0.960,
  * hetero-forward 0.967 -> 0.971 / 1.26 -> 1.20, glass-fog 18.9 -> 18.4 / 15.8 -> 18.7; on
@@ -228,7 +233,7 @@ static void pixel_fold(rd_select_stats *st, const rd_select_pixel *px)
 /* The statistics of the half pixel (x, y)'s samples count in, [n k + e] (see the head,
  * "Replication"): 2x2 blocks of pixels in a checkerboard, so that a tile's pilot pixels (every
  * other pixel each way) and a trial's checkerboard of pixels fall evenly into both halves. */
-static rd_select_stats *half_stats(const rd_select *sel, int x, int y)
+static rd_select_stats *half_stats(rd_select *sel, int x, int y)
 {
     int h = ((x >> 1) + (y >> 1)) & 1;
     return sel->stats + (size_t)h * sel->n * sel->tiles_x * sel->tiles_y;
@@ -364,7 +369,8 @@ void rd_select_choose(const double *var, const double *cost, int n, int m, uint8
 
 /* Each tile's figures a[m k + e] (one per estimator) replaced by the mean over its 3x3
  * neighbourhood (clipped at the image's edge), in tmp's room of m nx ny doubles. A
- * tile's own pilot has 16 pixels x SEL_SPP samples, and delta's variance is heavy-tailed (a rare
+ * tile's own pilot has 16 pixels x SEL_SPP samples (8 pixels in each half), and delta's
+ * variance is heavy-tailed (a rare
  * path that finds the light): alone, one tile's estimate swings the choice from seed to seed;
  * nine tiles' pooled steady it, at the price of a one-tile blur of the map, and of one tile's
  * outlier moving nine tiles' figures (which the halves check: the head, "Replication"). */
@@ -471,8 +477,12 @@ static void choose_tiles(rd_select *sel)
      * would outweigh its trial in a pooled count for ever). A trial lasts one epoch: then the
      * rule decides. */
     for (int k = 0; k < n; k++) {
-        int a = want[k], b = want[n + k];
-        int cur = sel->choice[k], w = a == b || all_cost[m * k + a] <= all_cost[m * k + b] ? a : b;
+        int a = want[k], b = want[n + k], w = a;
+        double na = 0.0, nb = 0.0, ca = all_cost[m * k + a], cb = all_cost[m * k + b];
+        for (int e = 0; e < m; e++) na += half[0][m * k + e].n, nb += half[1][m * k + e].n;
+        if (a != b && nb > 0.0) /* they differ and both have samples: the cheaper of the two */
+            w = !(na > 0.0) ? b : ca < cb || (ca == cb && a < b) ? a : b;
+        int cur = sel->choice[k];
         const rd_select_stats *st = &all[m * k];
         /* after a trial, only the estimator on trial is taken without the ratio's test: with
          * three, the rule may want the one that was not on trial, on its pilot's samples alone */
