@@ -397,6 +397,31 @@ Test(select, the_halves_are_a_checkerboard_of_2x2_blocks_that_splits_a_trial_eve
     rd_select_free(&sel);
 }
 
+Test(select, a_move_the_halves_do_not_agree_on_goes_on_trial_first)
+{
+    /* The tile is on the method (cost 2) and the halves differ: one half's delta samples carry
+     * a firefly (variance 4: the method), the other's not (1: delta, the cheaper). The evidence
+     * is of equal size, which would move the tile at once; but one half's word is weak evidence
+     * (a firefly of the method's own in one half sent a thin-fog tile to delta for good, where
+     * the strategy was 1.8x delta's efficiency), so delta goes on trial for an epoch. */
+    rd_select sel;
+    char err[RD_ERRLEN];
+    cr_assert(rd_select_init(&sel, 8, 8, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
+    for (int h = 0; h < 2; h++) {
+        add_half(&sel, h, RD_SEL_DELTA, 8, 8, 1.0, h ? 1.0 : 4.0, 1.0, 1.0);
+        add_half(&sel, h, RD_SEL_METHOD, 8, 8, 1.0, 1.0, 1.0, 2.0);
+    }
+    sel.choice[0] = RD_SEL_METHOD;
+    rd_select_epoch(&sel, NULL);
+    cr_assert(sel.choice[0] == RD_SEL_METHOD && sel.trial[0] == 1 + RD_SEL_DELTA, "choice %d, trial %d: delta must go on trial",
+              sel.choice[0], sel.trial[0]);
+    /* after the trial (no new samples here), the halves still differ: the cheaper, delta */
+    rd_select_epoch(&sel, NULL);
+    cr_assert(sel.choice[0] == RD_SEL_DELTA && sel.trial[0] == 0, "after the trial: choice %d, trial %d", sel.choice[0],
+              sel.trial[0]);
+    rd_select_free(&sel);
+}
+
 static const char *select_scene(const char *settings); /* below, with the image tests */
 
 /* A camera sample of a stand-in method: always 1. */
