@@ -95,29 +95,32 @@
  * SEL_SPP (4096 a tile and estimator; a scratch switch, not kept) read delta's V over its V
  * with the strategy at 0.08 to 73 across the lit tiles, where over the whole image it is 1.36
  * (0.230 against 0.169 a sample, 512 spp); the rule gave 30-41 tiles the strategy at 1.6x the
- * counted cost (1.9x the time), and "tiles" made 0.85x plain `delta`'s
- * efficiency where every tile forced to delta's path made 0.956x (a debug switch, not kept). One
- * of those tiles kept the strategy with its own 128 delta samples at V 0.0013 against the
- * strategy's 27.7: its neighbour's delta pilot read 1604. On hard-narrow-spot one pilot firefly
- * of the strategy held nine tiles on guided-unbiased's paths at 2.7x its cost
- * (docs/benchmarks.md "Session 26"). So each tile's samples are kept in two halves, by 2x2
- * blocks of pixels in a checkerboard (half_stats: each half holds half of a tile's pilot pixels
- * and half of a trial's squares), the rule runs on each half alone, and a tile takes the
- * estimator both halves want; where they differ, the cheaper of the two by the counted cost of
- * all the tile's samples, pooled as the rule's figures are (cost is counted, so nearly exact;
- * the noise is in the variance; an exact tie goes to the lower index, as in `least`). A real
- * gain shows in both halves, one firefly in one. A move the halves do not agree on goes on
- * trial first, whatever the evidence's size: one half's word is weak evidence, and taken at once
- * it can strand a tile. On a 24x16 view of thin fog (the compare tests' scene, sigma_t 0.25,
- * seed 2, "tiles") one firefly of the strategy's own in one half at the first epoch sent all six
- * tiles to plain delta for good, where the strategy is 1.8x plain delta's efficiency; with the
- * trial, six seeds of six keep the strategy (as without the halves). The prior pbar and the
- * trial's evidence are all the tile's samples'. A tile of at most 2x2 pixels (at the image's right and bottom edges)
- * lies in one half: the other half's figures for it are zero and its choice is the half that
- * has samples. Measured at 10 s against 200-s references (`delta` with `true` or "tiles",
- * docs/benchmarks.md "Session 26"), medians of
- * four alternating rounds over plain `delta` (docs/benchmarks.md "Session 27"), before -> after:
- * "tiles" / guided-unbiased on the calibration scenes cloud 0.979 -> 0.983 / 0.963 -> 0.960,
+ * counted cost (1.9x the time), and "tiles" made 0.85x plain `delta`'s efficiency where every
+ * tile forced to delta's path made 0.956x (a debug switch, not kept). One of those tiles kept
+ * the strategy with its own 128 delta samples at V 0.0013 against the strategy's 27.7: its
+ * neighbour's delta pilot read 1604. On hard-narrow-spot one pilot firefly of the strategy held
+ * nine tiles on guided-unbiased's paths at 2.7x its cost (docs/benchmarks.md "Session 26").
+ *
+ * So each tile's samples are kept in two halves, by 2x2 blocks of pixels in a checkerboard
+ * (half_stats: each half holds half of a tile's pilot pixels and half of a trial's squares),
+ * the rule runs on each half alone, and a tile takes the estimator both halves want; where they
+ * differ, the cheaper of the two by the counted cost of all the tile's samples, pooled as the
+ * rule's figures are (cost is counted, so nearly exact; the noise is in the variance; an exact
+ * tie goes to the lower index, as in `least`). A real gain shows in both halves, one firefly in
+ * one. A move the halves do not agree on goes on trial first, whatever the evidence's size: one
+ * half's word is weak evidence, and taken at once it can strand a tile. On a 24x16 view of thin
+ * fog (the compare tests' scene, sigma_t 0.25, seed 2, "tiles") one firefly of the strategy's
+ * own in one half at the first epoch sent all six tiles to plain delta for good, where the
+ * strategy is 1.8x plain delta's efficiency; with the trial, six seeds of six keep the strategy
+ * (as without the halves). The prior pbar and the trial's evidence are all the tile's samples'.
+ * A tile of at most 2x2 pixels (at the image's right and bottom edges) lies in one half: the
+ * other half's figures for it are zero and its choice is the half that has samples.
+ *
+ * Measured at 10 s against 200-s references (`delta` with `true` or "tiles", docs/benchmarks.md
+ * "Session 26"), medians of four alternating rounds over plain `delta` (docs/benchmarks.md
+ * "Session 27"), before -> after the halves (fd86dfa, without the trial on disagreement, which
+ * measured neutral on hard-dense-block, hard-narrow-spot and hetero-forward): "tiles" /
+ * guided-unbiased on the calibration scenes cloud 0.979 -> 0.983 / 0.963 -> 0.960,
  * hetero-forward 0.967 -> 0.971 / 1.26 -> 1.20, glass-fog 18.9 -> 18.4 / 15.8 -> 18.7; on
  * hard-dense-block 0.851 -> 0.913 / 0.797 -> 0.883, hard-narrow-spot 70.5 -> 68.6 / 53.7 ->
  * 71.0, homogeneous 1.58 -> 1.62 / 1.61 -> 1.63, default 0.928 -> 0.966 / 0.921 -> 0.909. The
@@ -373,12 +376,12 @@ void rd_select_choose(const double *var, const double *cost, int n, int m, uint8
 }
 
 /* Each tile's figures a[m k + e] (one per estimator) replaced by the mean over its 3x3
- * neighbourhood (clipped at the image's edge), in tmp's room of m nx ny doubles. A
- * tile's own pilot has 16 pixels x SEL_SPP samples (8 pixels in each half), and delta's
- * variance is heavy-tailed (a rare
- * path that finds the light): alone, one tile's estimate swings the choice from seed to seed;
- * nine tiles' pooled steady it, at the price of a one-tile blur of the map, and of one tile's
- * outlier moving nine tiles' figures (which the halves check: the head, "Replication"). */
+ * neighbourhood (clipped at the image's edge), in tmp's room of m nx ny doubles. A tile's own
+ * pilot has 16 pixels x SEL_SPP samples (8 pixels in each half), and delta's variance is
+ * heavy-tailed (a rare path that finds the light): alone, one tile's estimate swings the choice
+ * from seed to seed; nine tiles' pooled steady it, at the price of a one-tile blur of the map,
+ * and of one tile's outlier moving nine tiles' figures (which the halves check: the head,
+ * "Replication"). */
 static void pool(double *a, double *tmp, int nx, int ny, int m)
 {
     size_t n = (size_t)nx * ny;
@@ -498,7 +501,8 @@ static void choose_tiles(rd_select *sel)
             sel->choice[k] = (uint8_t)w; /* the same, after its trial, or on comparable evidence */
             sel->trial[k] = 0;
         } else {
-            sel->trial[k] = (uint8_t)(1 + w); /* lopsided evidence: half the pixels try w for an epoch */
+            sel->trial[k] = (uint8_t)(1 + w); /* lopsided evidence, or halves that differ: half
+                                                 the pixels try w for an epoch */
         }
     }
     free(all), free(buf), free(want);
