@@ -515,6 +515,60 @@ Test(guided_unbiased, guide_lobe_points_at_the_light, .timeout = 300)
     rd_scene_free(s);
 }
 
+/* The path loop hands a vertex policy the path's throughput from the camera (rd_vertex_in.beta),
+ * in a copy that splitting made as in the path it came from: the policy's roulette and
+ * splitting weigh the path's expected contribution against the pixel's, so a copy must carry
+ * its share 1/n of the throughput. Here a policy splits every first vertex into two and ends
+ * every second one, recording the throughput it is given there. In a constant medium of albedo
+ * 1/2, delta tracking's flight weight is the albedo, and phase sampling's weight is 1, so at a
+ * second vertex it is exactly 1/2 x 1/2 x 1/2 = 1/8 in both copies. (Until session 28 the
+ * copy that recursed started its own throughput at 1 and reported 1/2: the weight window
+ * then split the copies again and again, 11.3 collisions a camera path against 3.0 on
+ * hard-dense-block.) */
+typedef struct {
+    int seen[2];       /* second vertices reached: [0] all, [1] with the expected throughput */
+} beta_record;
+
+static rd_flight beta_test_flight(const rd_flight_sampler *fs, const rd_scene *s, const rd_flight_in *in,
+                                  pcg32 *rng, rd_track_counters *c)
+{
+    (void)fs;
+    return rd_flight_delta(s, in, rng, c);
+}
+
+static void beta_test_vertex(const rd_flight_sampler *fs, const rd_scene *s, const rd_vertex_in *v,
+                             pcg32 *rng, rd_vertex_out *out)
+{
+    (void)s, (void)rng;
+    beta_record *rec = fs->user;
+    out->mix = (rd_dir_mix){.a = 0.0};
+    out->rr_scale = 1.0;
+    out->n = v->depth == 1 ? 2 : 0;
+    if (v->depth == 2) {
+        rec->seen[0]++;
+        rec->seen[1] += v->beta.x == 0.125 && v->beta.y == 0.125 && v->beta.z == 0.125;
+    }
+}
+
+Test(guided_unbiased, a_split_copy_gives_its_vertex_policy_the_path_s_throughput)
+{
+    rd_scene *s = rt_scene("split.json",
+        "{\"camera\":{\"position\":[0,0,5],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
+        "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
+        "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":3,\"albedo\":0.5,\"g\":0.3}],"
+        "\"lights\":[{\"type\":\"point\",\"position\":[0,2,0],\"intensity\":1}]}");
+    beta_record rec = {{0, 0}};
+    const rd_flight_sampler fs = {.sample = beta_test_flight, .vertex = beta_test_vertex, .user = &rec,
+                                  .equiangular = RD_EQ_OFF};
+    pcg32 rng = pcg32_seed(3, 4, 5);
+    rd_track_counters c = {0};
+    for (int i = 0; i < 2000; i++) rd_path_radiance(s, (ray3){v3(0, 0, 5), v3(0, 0, -1)}, &fs, &rng, &c);
+    /* sigma_t 3 over 2 m: nearly every path scatters twice in both copies */
+    cr_assert(rec.seen[0] > 3000, "only %d second vertices", rec.seen[0]);
+    cr_expect(rec.seen[1] == rec.seen[0], "%d of %d second vertices had throughput 1/8", rec.seen[1], rec.seen[0]);
+    rd_scene_free(s);
+}
+
 /* Next-event estimation and the direction mixture share the direct light of a sphere light by
  * MIS: at a vertex outside every medium (T = 1), looking straight at the light, the two
  * estimates together must give exactly

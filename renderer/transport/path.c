@@ -121,11 +121,13 @@ int rd_surface_event(const rd_scene *s, const rd_hit *h, int depth, rd_surface_s
  * of L(r.o, -r.d). `region` is where r starts (rd_scene.h "Surfaces in the transport"),
  * `phase_pdf` the pdf with which r.d was drawn (0 for the camera ray), `depth` the scattering
  * events before this flight, *budget the extra copies splitting may still add to this camera
- * sample. With `scattered_only`, the first flight's pass-through and its vertex's next-event
- * estimate are left to the caller (rd_delta_scattered). */
+ * sample, beta0 the throughput from the camera to r.o (the vertex policy weighs the whole
+ * path's: in a split copy, beta0 holds the copy's share). With `scattered_only`, the first
+ * flight's pass-through and its vertex's next-event estimate are left to the caller
+ * (rd_delta_scattered). */
 static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int depth0,
                   int camera_chain, int scattered_only, const rd_flight_sampler *fs, pcg32 *rng,
-                  rd_track_counters *c, int *budget);
+                  rd_track_counters *c, int *budget, vec3 beta0);
 
 /* The flight whose vertex a next-event estimate serves, when the flight had the equiangular
  * strategy: its set-up and the vertex's distance t and density pdf (rd_flight.pdf). */
@@ -147,10 +149,12 @@ static vec3 vertex_nee(const rd_scene *s, int region, vec3 x, vec3 d, const rd_m
 
 /* One copy of a continuation from vertex x (arrived along d) with the vertex policy's
  * direction mixture: next-event estimation plus the continued path, with unit throughput
- * (an estimate of L_s(x, -d)). */
+ * (an estimate of L_s(x, -d)); beta0 is the copy's throughput from the camera, for the vertex
+ * policies further on. */
 static vec3 continue_from(const rd_scene *s, vec3 x, vec3 d, int region, const rd_medium *m,
                           const rd_dir_mix *mx, const vertex_eq *v, int depth,
-                          const rd_flight_sampler *fs, pcg32 *rng, rd_track_counters *c, int *budget)
+                          const rd_flight_sampler *fs, pcg32 *rng, rd_track_counters *c, int *budget,
+                          vec3 beta0)
 {
     vec3 L = vertex_nee(s, region, x, d, m, mx, v, rng, c);
     double pdf;
@@ -159,7 +163,7 @@ static vec3 continue_from(const rd_scene *s, vec3 x, vec3 d, int region, const r
     /* Weight p / pdf: 1 for phase sampling alone, the mixture's ratio otherwise. */
     double w = rd_hg_eval(m->g, v3_dot(d, wo)) / pdf;
     ray3 next = {x, wo};
-    return v3_add(L, v3_scale(trace(s, next, region, pdf, depth, 0, 0, fs, rng, c, budget), w));
+    return v3_add(L, v3_scale(trace(s, next, region, pdf, depth, 0, 0, fs, rng, c, budget, v3_scale(beta0, w)), w));
 }
 
 /* The sampler's density (rd_flight_sampler.density) in the form rd_eq_flight holds it. */
@@ -175,7 +179,7 @@ static double flight_density(const void *user, double t)
 
 static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int depth0,
                   int camera_chain, int scattered_only, const rd_flight_sampler *fs, pcg32 *rng,
-                  rd_track_counters *c, int *budget)
+                  rd_track_counters *c, int *budget, vec3 beta0)
 {
     vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
     rd_hit hit, prev;
@@ -263,7 +267,8 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
         if (fs->vertex) {
             /* The sampler's vertex policy: roulette or splitting, and the direction mixture.
              * Every copy but the last recurses; the last continues this loop. */
-            rd_vertex_in vi = {.x = x, .d = r.d, .medium = m, .region = region, .depth = depth + 1, .beta = beta};
+            rd_vertex_in vi = {.x = x, .d = r.d, .medium = m, .region = region, .depth = depth + 1,
+                               .beta = v3_mul(beta0, beta)};
             rd_vertex_out vo;
             fs->vertex(fs, s, &vi, rng, &vo);
             int n = vo.n;
@@ -273,7 +278,7 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
             beta = v3_scale(beta, vo.rr_scale / n);
             for (int k = 1; k < n; k++)
                 L = v3_add(L, v3_mul(beta, continue_from(s, x, r.d, region, m, &vo.mix, &ve, depth + 1,
-                                                         fs, rng, c, budget)));
+                                                         fs, rng, c, budget, v3_mul(beta0, beta))));
             L = v3_add(L, v3_mul(beta, vertex_nee(s, region, x, r.d, m, &vo.mix, &ve, rng, c)));
             double pdf;
             vec3 wo = rd_dir_mix_sample(&vo.mix, m->g, r.d, rng, &pdf);
@@ -309,7 +314,7 @@ vec3 rd_path_radiance(const rd_scene *s, ray3 r, const rd_flight_sampler *fs, pc
 {
     int budget = RD_SPLIT_BUDGET;
     /* The camera's region (rd_scene_camera_region: found once for a perspective camera). */
-    return trace(s, r, rd_scene_camera_region(s, r), 0.0, 0, 1, 0, fs, rng, c, &budget);
+    return trace(s, r, rd_scene_camera_region(s, r), 0.0, 0, 1, 0, fs, rng, c, &budget, v3(1, 1, 1));
 }
 
 vec3 rd_delta_continue(const rd_scene *s, ray3 r, int region, double pdf, int depth,
@@ -318,7 +323,7 @@ vec3 rd_delta_continue(const rd_scene *s, ray3 r, int region, double pdf, int de
     const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL,
                                   .equiangular = equiangular};
     int budget = 0;
-    return trace(s, r, region, pdf, depth, camera_chain, 0, &fs, rng, c, &budget);
+    return trace(s, r, region, pdf, depth, camera_chain, 0, &fs, rng, c, &budget, v3(1, 1, 1));
 }
 
 vec3 rd_delta_scattered(const rd_scene *s, ray3 r, int region, int depth, int equiangular,
@@ -327,7 +332,7 @@ vec3 rd_delta_scattered(const rd_scene *s, ray3 r, int region, int depth, int eq
     const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL,
                                   .equiangular = equiangular};
     int budget = 0;
-    return trace(s, r, region, 0.0, depth, 1, 1, &fs, rng, c, &budget);
+    return trace(s, r, region, 0.0, depth, 1, 1, &fs, rng, c, &budget, v3(1, 1, 1));
 }
 
 vec3 rd_delta_radiance_eq(const rd_scene *s, ray3 r, int equiangular, pcg32 *rng, rd_track_counters *c)

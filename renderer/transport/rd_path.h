@@ -68,7 +68,9 @@ typedef struct {
     const rd_medium *medium;
     int region;               /* the region of the vertex */
     int depth;                /* scattering events up to and including this one (>= 1) */
-    vec3 beta;                /* path throughput up to here, flight weight included */
+    vec3 beta;                /* path throughput from the camera up to here, flight weight
+                               * included; in a copy that splitting made, the copy's share
+                               * (rr_scale / n) and its direction weight included */
 } rd_vertex_in;
 /* What a vertex policy decides. The path continues as n copies (0: the path ends here), each
  * with throughput beta * rr_scale / n, each estimating L_s(x, -d) by next-event estimation and
