@@ -7,7 +7,8 @@
  *  - every part off (distances, directions, roulette, equiangular) makes it `delta`, bit for bit;
  *  - the free flight as the tracer draws it (scatter or pass, then the distance) passes a
  *    chi-square test against P_s and the guide pdf;
- *  - a white furnace (albedo 1, environment of radiance 1) gives 1.
+ *  - a white furnace (albedo 1, environment of radiance 1) gives 1;
+ *  - the path loop gives a split copy's vertex policy the path's throughput from the camera.
  * Image comparisons are z-scores of the image mean and of 8x8-pixel region means, with standard
  * errors from the films' per-pixel standard errors (pixels are independent, fixed seeds). Under
  * equal expectations each z is standard normal; with at most 12 regions per comparison the
