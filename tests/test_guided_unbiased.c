@@ -519,15 +519,22 @@ Test(guided_unbiased, guide_lobe_points_at_the_light, .timeout = 300)
 /* The path loop hands a vertex policy the path's throughput from the camera (rd_vertex_in.beta),
  * in a copy that splitting made as in the path it came from: the policy's roulette and
  * splitting weigh the path's expected contribution against the pixel's, so a copy must carry
- * its share 1/n of the throughput. Here a policy splits every first vertex into two and ends
- * every second one, recording the throughput it is given there. In a constant medium of albedo
- * 1/2, delta tracking's flight weight is the albedo, and phase sampling's weight is 1, so at a
- * second vertex it is exactly 1/2 x 1/2 x 1/2 = 1/8 in both copies. (Until session 28 the
- * copy that recursed started its own throughput at 1 and reported 1/2: the weight window
- * then split the copies again and again, 11.3 collisions a camera path against 3.0 on
- * hard-dense-block.) */
+ * its share 1/n of the throughput and every weight before it. Here a policy splits every first
+ * and second vertex into two, continues from them by a direction mixture with a vMF lobe (a
+ * direction weight p/pdf != 1), and ends every third vertex. In a constant medium of albedo 1/2
+ * delta tracking's flight weight is the albedo, so a vertex at depth k + 1 must see
+ *     beta_{k+1} = beta_k x 1/2 x p(d_k . d_{k+1}) / pdf_mix(d_{k+1}) x 1/2,
+ * beta_k and d_k its parent's throughput and arriving direction (the parent's the most recent
+ * vertex one level up: the loop finishes a copy's subtree before its next copy). Checked to
+ * 1e-12 relative (the loop multiplies the same factors in another order). The loop of before,
+ * in which a copy that recursed started its own throughput at 1, fails at the first copy's
+ * second vertex; dropping the direction weight or a copy's share fails too. */
+#define BETA_G 0.3
 typedef struct {
-    int seen[2];       /* second vertices reached: [0] all, [1] with the expected throughput */
+    rd_dir_mix mix;
+    vec3 d[3];         /* the arriving direction of the latest vertex at each depth 1, 2 */
+    double b[3];       /* and its throughput */
+    int seen, ok;      /* vertices at depths 2 and 3, and those with the expected throughput */
 } beta_record;
 
 static rd_flight beta_test_flight(const rd_flight_sampler *fs, const rd_scene *s, const rd_flight_in *in,
@@ -542,31 +549,39 @@ static void beta_test_vertex(const rd_flight_sampler *fs, const rd_scene *s, con
 {
     (void)s, (void)rng;
     beta_record *rec = fs->user;
-    out->mix = (rd_dir_mix){.a = 0.0};
-    out->rr_scale = 1.0;
-    out->n = v->depth == 1 ? 2 : 0;
-    if (v->depth == 2) {
-        rec->seen[0]++;
-        rec->seen[1] += v->beta.x == 0.125 && v->beta.y == 0.125 && v->beta.z == 0.125;
+    int k = v->depth;
+    cr_assert(k >= 1 && k <= 3 && v->beta.x == v->beta.y && v->beta.y == v->beta.z);
+    if (k > 1) {
+        const vec3 d = rec->d[k - 1];
+        double w = rd_hg_eval(BETA_G, v3_dot(d, v->d)) / rd_dir_mix_pdf(&rec->mix, BETA_G, d, v->d);
+        double want = rec->b[k - 1] * 0.5 * w * 0.5;
+        rec->seen++;
+        rec->ok += fabs(v->beta.x - want) <= 1e-12 * want;
     }
+    if (k < 3) rec->d[k] = v->d, rec->b[k] = v->beta.x;
+    out->mix = rec->mix;
+    out->rr_scale = 1.0;
+    out->n = k < 3 ? 2 : 0;
 }
 
 Test(guided_unbiased, a_split_copy_gives_its_vertex_policy_the_path_s_throughput)
 {
-    rd_scene *s = rt_scene("split.json",
-        "{\"camera\":{\"position\":[0,0,5],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
-        "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
-        "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":3,\"albedo\":0.5,\"g\":0.3}],"
-        "\"lights\":[{\"type\":\"point\",\"position\":[0,2,0],\"intensity\":1}]}");
-    beta_record rec = {{0, 0}};
+    char json[1024];
+    snprintf(json, sizeof json,
+             "{\"camera\":{\"position\":[0,0,5],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
+             "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
+             "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":3,\"albedo\":0.5,\"g\":%g}],"
+             "\"lights\":[{\"type\":\"point\",\"position\":[0,2,0],\"intensity\":1}]}", BETA_G);
+    rd_scene *s = rt_scene("split.json", json);
+    beta_record rec = {.mix = {.a = 0.5, .mu = v3(0, 1, 0), .kappa = 3.0}};
     const rd_flight_sampler fs = {.sample = beta_test_flight, .vertex = beta_test_vertex, .user = &rec,
                                   .equiangular = RD_EQ_OFF};
     pcg32 rng = pcg32_seed(3, 4, 5);
     rd_track_counters c = {0};
     for (int i = 0; i < 2000; i++) rd_path_radiance(s, (ray3){v3(0, 0, 5), v3(0, 0, -1)}, &fs, &rng, &c);
-    /* sigma_t 3 over 2 m: nearly every path scatters twice in both copies */
-    cr_assert(rec.seen[0] > 3000, "only %d second vertices", rec.seen[0]);
-    cr_expect(rec.seen[1] == rec.seen[0], "%d of %d second vertices had throughput 1/8", rec.seen[1], rec.seen[0]);
+    /* sigma_t 3 over 2 m: most copies scatter again (at most 2 + 4 vertices below each first) */
+    cr_assert(rec.seen > 6000, "only %d vertices at depths 2 and 3", rec.seen);
+    cr_expect(rec.ok == rec.seen, "%d of %d vertices had the path's throughput", rec.ok, rec.seen);
     rd_scene_free(s);
 }
 
