@@ -6,7 +6,9 @@
  *  - the test has teeth: the same samples judged against the pdf of a light 5% farther away fail;
  *  - the pdf integrates to 1 and the sampler returns the pdf of the distance it draws;
  *  - every point of a ray that a spot lights lies in the range rd_light_lit_range returns, and
- *    every point well inside the range is inside the cone. */
+ *    every point well inside the range is inside the cone;
+ *  - a directional beam (radius > 0): the range is the chord inside its cylinder, point for
+ *    point, and the sampler draws it uniformly (chi-square as above). */
 #include "support/rd_test.h"
 
 typedef struct {
@@ -152,4 +154,79 @@ Test(equiangular, spot_range_holds_every_lit_point)
     }
     cr_expect(lit_rays > 300, "too few rays met a cone (%d): the test would prove little", lit_rays);
     rd_scene_free(s);
+}
+
+/* A directional beam of radius R lights the points within R of its axis (scene/lights.c,
+ * rd_light_sample): the range along a ray is exactly the chord inside that cylinder, and the
+ * strategy's density over it is uniform (no 1 / r^2 from a light at infinity). */
+Test(equiangular, beam_range_is_the_chord_inside_the_cylinder)
+{
+    rd_scene *s = rt_scene("beam.json",
+                           "{\"camera\":{\"position\":[0,0,5],\"look_at\":[0,0,0],\"resolution\":[4,4]},\"media\":[],"
+                           "\"lights\":[{\"type\":\"directional\",\"direction\":[1,-0.1,0.45],\"irradiance\":1,"
+                           "\"radius\":0.3,\"center\":[0.1,0.2,0]}]}");
+    const rd_light *l = &s->lights[0];
+    cr_assert(rd_eq_light(l), "a directional beam is one of the strategy's lights");
+    pcg32 rng = pcg32_seed(19, 9, 9);
+    int lit_rays = 0;
+    for (int k = 0; k < 3000; k++) {
+        vec3 o = v3(2 * pcg32_uniform(&rng) - 1, 2 * pcg32_uniform(&rng) - 1, 2 * pcg32_uniform(&rng) - 1);
+        ray3 r = {o, rd_sample_sphere(pcg32_uniform(&rng), pcg32_uniform(&rng))};
+        double t0 = 0.0, t1 = 3.0;
+        int any = rd_light_lit_range(l, r, &t0, &t1);
+        int steps = 6000, lit = 0;
+        for (int i = 0; i <= steps; i++) {
+            double t = 3.0 * i / steps;
+            vec3 q = v3_sub(ray_at(r, t), l->beam_center);
+            vec3 perp = v3_madd(q, l->dir, -v3_dot(q, l->dir));
+            double d2 = v3_dot(perp, perp), R2 = l->radius * l->radius;
+            if (d2 < R2 * (1 - 1e-9)) {
+                lit = 1;
+                cr_assert(any && t >= t0 - 1e-9 && t <= t1 + 1e-9, "ray %d: lit point t = %g outside [%g, %g] (any %d)", k, t,
+                          t0, t1, any);
+            } else if (d2 > R2 * (1 + 1e-9)) {
+                cr_assert(!any || t < t0 + 1e-9 || t > t1 - 1e-9, "ray %d: unlit point t = %g inside [%g, %g]", k, t, t0, t1);
+            }
+        }
+        lit_rays += lit;
+        if (any && lit) { /* the density over the chord is uniform: 1 / (t1 - t0) */
+            rd_equiangular eq;
+            cr_assert(rd_equiangular_init_light(&eq, l, r, t0, t1));
+            double pdf, t = rd_equiangular_sample(&eq, 0.37, &pdf);
+            cr_assert(fabs(t - (t0 + 0.37 * (t1 - t0))) < 1e-12 && fabs(pdf * (t1 - t0) - 1) < 1e-12, "ray %d: t %g pdf %g", k,
+                      t, pdf);
+        }
+    }
+    cr_expect(lit_rays > 300, "too few rays met the beam (%d): the test would prove little", lit_rays);
+    /* a line along the axis: lit everywhere inside the cylinder, nowhere outside */
+    double t0 = 0.0, t1 = 2.0;
+    cr_expect(rd_light_lit_range(l, (ray3){l->beam_center, l->dir}, &t0, &t1) && t0 == 0.0 && t1 == 2.0);
+    ray3 far = {v3_add(l->beam_center, v3(0, 0, 1)), l->dir};
+    t0 = 0.0, t1 = 2.0;
+    cr_expect(!rd_light_lit_range(l, far, &t0, &t1), "a line parallel to the axis 1 m away is unlit");
+    /* a directional light without a radius lights every line whole and is not the strategy's */
+    rd_light sun = *l;
+    sun.radius = 0.0;
+    t0 = 0.0, t1 = 2.0;
+    cr_expect(rd_light_lit_range(&sun, far, &t0, &t1) && t0 == 0.0 && t1 == 2.0);
+    cr_expect(!rd_eq_light(&sun));
+    rd_scene_free(s);
+}
+
+Test(equiangular, beam_sampler_chi_square)
+{
+    /* The uniform density of a beam's chord, checked as the point lights' are above. */
+    rd_light beam = {.kind = RD_LIGHT_DIRECTIONAL, .dir = v3(0, 0, -1), .radius = 0.5};
+    ray3 r = {v3(-2, 0.1, 0), v3(1, 0, 0)};
+    double a = 0.0, b = 4.0;
+    cr_assert(rd_light_lit_range(&beam, r, &a, &b));
+    cr_expect(fabs(a - (2 - sqrt(0.24))) < 1e-12 && fabs(b - (2 + sqrt(0.24))) < 1e-12, "chord [%g, %g]", a, b);
+    rd_equiangular eq;
+    cr_assert(rd_equiangular_init_light(&eq, &beam, r, a, b));
+    double frac[NB], obs[NB];
+    expected(&eq, NB, frac);
+    int n = 200000, dof;
+    sample_bins(&eq, n, 41, obs);
+    double chi2 = chi2_of(obs, frac, NB, n, &dof), crit = rt_chi2_quantile(dof, 3.719);
+    cr_expect(chi2 < crit, "chi2 %.1f >= %.1f (dof %d)", chi2, crit, dof);
 }

@@ -394,7 +394,7 @@ static void reference_scene(rd_comparison *c, const rd_scene *s)
     double share = rd_scene_hidden_light(s); /* measured at load (load/load.c) */
     c->sum.hidden_share = share;
     c->photon_ref = share > RD_HIDDEN_SHARE && !c->opts.reference;
-    c->tiles_ref = !c->opts.reference && !c->photon_ref && !s->settings.equiangular_given && rd_eq_has_lights(s);
+    c->tiles_ref = !c->opts.reference && !c->photon_ref && !s->settings.equiangular_given && rd_eq_has_lights(s, 0);
     snprintf(c->sum.ref_method, sizeof c->sum.ref_method, "%s",
              c->opts.reference ? "given"
              : c->photon_ref  ? "guided, march.ls photons, progressive passes"

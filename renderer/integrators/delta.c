@@ -50,7 +50,7 @@ static rd_status delta_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
 {
     const rd_scene *s = ctx->scene;
     ctx->state = NULL;
-    if (s->settings.equiangular != RD_EQ_TILES || !rd_eq_has_lights(s)) return RD_OK;
+    if (s->settings.equiangular != RD_EQ_TILES || !rd_eq_has_lights(s, 0)) return RD_OK;
     rd_select *sel = calloc(1, sizeof *sel);
     if (!sel) {
         snprintf(err, errlen, "out of memory for the tile selection");

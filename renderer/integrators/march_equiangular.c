@@ -47,10 +47,9 @@ int rd_march_eq_begin(const rd_scene *s, ray3 r, int region, double t_end, const
     for (int i = 0; i < s->n_lights && eq->n < RD_MARCH_EQ_LIGHTS; i++) {
         const rd_light *l = &s->lights[i];
         double P = s->light_sampler.pmf[i], a = a_all, b = b_all;
-        if (l->kind != RD_LIGHT_POINT && l->kind != RD_LIGHT_SPOT) continue;
-        if (!(P > 0.0) || (i < 64 && (ef.left >> i & 1u))) continue;
+        if (!(P > 0.0) || !rd_eq_flight_samples(s, &ef, i)) continue;
         if (!rd_light_lit_range(l, r, &a, &b)) continue;
-        if (!rd_equiangular_init(&eq->e[eq->n], l->pos, r, a, b)) continue;
+        if (!rd_equiangular_init_light(&eq->e[eq->n], l, r, a, b)) continue;
         eq->light[eq->n] = i;
         eq->Q[eq->n] = P;
         sum += P;

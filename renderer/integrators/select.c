@@ -514,7 +514,7 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, doubl
     const rd_scene *s = ctx->scene;
     const rd_camera *cam = &s->camera;
     /* the third estimator: delta's path with the strategy on every flight (the head) */
-    int third = equiangular != RD_EQ_OFF && s->settings.equiangular != RD_EQ_ALL && rd_eq_has_lights(s);
+    int third = equiangular != RD_EQ_OFF && s->settings.equiangular != RD_EQ_ALL && rd_eq_has_lights(s, 0);
     rd_status st = rd_select_init(sel, cam->width, cam->height, cell_cost, third ? 3 : 2, err, errlen);
     if (st != RD_OK) return st;
     sel->equiangular = RD_EQ_ALL;

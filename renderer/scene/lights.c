@@ -123,9 +123,37 @@ double rd_light_pdf(const rd_light *l, vec3 x, vec3 w)
  * whose roots and the root of f (the apex plane) split the line into pieces on which the
  * condition is constant: each piece is tested at its midpoint with the unsquared condition,
  * and the lit pieces (one interval: the cone is convex) are kept. */
+/* A directional beam's cylinder along a line: x(t) = o + t d is lit when its distance from the
+ * axis (through c along a, |a| = 1) is at most the radius R. With the parts of d and q = o - c
+ * across the axis, u = d - (d.a) a and w = q - (q.a) a, that is |w + t u|^2 <= R^2:
+ *   (u.u) t^2 + 2 (u.w) t + (w.w - R^2) <= 0,
+ * one interval between the roots (a line parallel to the axis is lit everywhere or nowhere). */
+static int beam_chord(const rd_light *l, ray3 r, double *t0, double *t1)
+{
+    vec3 a = l->dir, q = v3_sub(r.o, l->beam_center);
+    vec3 u = v3_madd(r.d, a, -v3_dot(r.d, a)), w = v3_madd(q, a, -v3_dot(q, a));
+    double A = v3_dot(u, u), B = v3_dot(u, w), C = v3_dot(w, w) - l->radius * l->radius;
+    if (!(A > 1e-12)) return C <= 0.0; /* parallel to the axis: inside or not */
+    double disc = B * B - A * C;
+    if (!(disc > 0.0)) return 0;
+    /* the stable pair of roots (Numerical Recipes §5.6) of A t^2 + 2 B t + C */
+    double k = -(B + (B >= 0.0 ? sqrt(disc) : -sqrt(disc)));
+    double lo = k / A, hi = k != 0.0 ? C / k : -lo;
+    if (lo > hi) {
+        double tmp = lo;
+        lo = hi, hi = tmp;
+    }
+    lo = fmax(lo, *t0), hi = fmin(hi, *t1);
+    if (!(hi > lo)) return 0;
+    *t0 = lo;
+    *t1 = hi;
+    return 1;
+}
+
 int rd_light_lit_range(const rd_light *l, ray3 r, double *t0, double *t1)
 {
     if (!(*t1 > *t0)) return 0;
+    if (l->kind == RD_LIGHT_DIRECTIONAL && l->radius > 0.0) return beam_chord(l, r, t0, t1);
     if (l->kind != RD_LIGHT_SPOT) return 1;
     vec3 q = v3_sub(r.o, l->pos), a = l->dir;
     double c = fmax(0.0, l->cos_outer), ad = v3_dot(a, r.d), aq = v3_dot(a, q);

@@ -55,10 +55,11 @@ static inline int rd_light_hittable(const rd_light *l)
 double rd_light_pdf(const rd_light *l, vec3 x, vec3 w);
 /* Spot light angular falloff in [0, 1] at cos_theta from its axis (smoothstep over the edge). */
 double rd_spot_falloff(const rd_light *l, double cos_theta);
-/* The part of [*t0, *t1] along r (r.d unit) that point or spot light l can light: a spot's
+/* The part of [*t0, *t1] along r (r.d unit) that light l can light: a spot's
  * cone (cos from the axis > cos_outer, where the falloff is positive) cuts it to the one
  * interval where the line is inside the cone (a cone of half-angle <= 90 degrees is convex);
- * a point light keeps it whole. Returns 0 when nothing is left. Used to restrict equiangular
+ * a directional beam (radius > 0) to the chord inside its cylinder; a point light, and any
+ * other light, keeps it whole. Returns 0 when nothing is left. Used to restrict equiangular
  * sampling (transport/equiangular.c); a range a little too wide or narrow through round-off
  * costs efficiency there, never correctness (its MIS weights follow the range used). */
 int rd_light_lit_range(const rd_light *l, ray3 r, double *t0, double *t1);

@@ -209,7 +209,7 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
         int eq_here = !first && fs->equiangular != RD_EQ_OFF && depth + 1 <= s->settings.max_depth &&
                       (fs->equiangular != RD_EQ_CAMERA || depth == 0);
         ef.n = 0;
-        if (eq_here && rd_eq_has_lights(s)) {
+        if (eq_here && rd_eq_has_lights(s, fs->equiangular != RD_EQ_AUTO)) {
             ef.n = rd_media_intervals(s, region, r, 0.0, in.t_light, ef.iv);
             in.iv = ef.iv;
             in.n_iv = ef.n;

@@ -115,12 +115,20 @@ vec3 rd_nee_light(const rd_scene *s, int region, vec3 x, vec3 d, double g, int i
  * theta(t) = atan((t - Delta) / D) is uniform:
  *     t = Delta + D tan(theta_a + u (theta_b - theta_a)),
  *     pdf(t) = D / ((theta_b - theta_a) (D^2 + (t - Delta)^2)).                              */
+/* A light at infinity (a directional beam) has no 1 / r^2 along the line: the same family's
+ * limit D -> infinity, the uniform density 1 / (b - a), marked D = INFINITY. */
 typedef struct {
     double a, b, delta, D, th_a, th_b;
 } rd_equiangular;
 /* Returns 0 when [a, b] is empty or not finite. D is held above a tiny floor (a light on the
  * line itself has an infinite integrand there anyway). */
 int rd_equiangular_init(rd_equiangular *eq, vec3 c, ray3 r, double a, double b);
+/* The lights the strategy samples (rd_eq_light): point and spot lights, and directional beams
+ * (radius > 0: the lit part of a line is the chord inside the beam's cylinder). */
+int rd_eq_light(const rd_light *l);
+/* Light l's density over [a, b]: equiangular toward a point or spot light's position, uniform
+ * for a directional beam. Returns 0 as rd_equiangular_init. */
+int rd_equiangular_init_light(rd_equiangular *eq, const rd_light *l, ray3 r, double a, double b);
 double rd_equiangular_sample(const rd_equiangular *eq, double u, double *pdf);
 double rd_equiangular_pdf(const rd_equiangular *eq, double t); /* 0 outside [a, b] */
 
@@ -137,6 +145,7 @@ typedef struct {
     double ps_pmf;   /* sum of rd_nee's choice probabilities over the lights it samples */
     double dscale;   /* the tracking pdf's proxy is dscale sigma_maj(t) T_maj(0,t) */
     uint64_t left;   /* lights 0..63 left to delta tracking on this flight ("auto") */
+    int beams;       /* directional beams are in the set (every mode but "auto") */
     /* The flight sampler's own scattering density at t when it knows it exactly (a guided
      * flight), else NULL or a negative return: the stand-in above. Set by the caller after
      * rd_eq_flight_init (which sets it NULL). */
@@ -146,21 +155,28 @@ typedef struct {
 /* Set up the flight along r in `region` over [0, t_light] whose delta tracking runs with thin
  * bias q (0: none; rd_sample_free_path_thin). `automatic` (the mode "auto"): only
  * the lights whose lit span delta tracking reaches (global-majorant T(0,a) >= 1/2) but
- * rarely collides in (equiangular.c). Returns 0 when there is nothing to sample (no medium on
- * the way, no point or spot light, or none left to sample). */
+ * rarely collides in (equiangular.c), point and spot lights only; otherwise directional
+ * beams too. Returns 0 when there is nothing to sample (no medium on the way, no light of the
+ * set, or none left to sample). */
 int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, double q,
                       int automatic, rd_eq_flight *ef);
 /* rd_eq_flight_init in two steps, for a caller that needs the flight's media intervals itself
  * (the path loop: its flight and the set-up share one rd_media_intervals). First: does the
- * scene have a point or spot light that next-event estimation chooses (else the set-up stops
- * before the intervals, n = 0)? Then, with ef->iv[0..ef->n) filled by the caller from
- * rd_media_intervals(s, region, r, 0, t_light) (n = 0 allowed): the rest of the set-up, with
- * the same result as rd_eq_flight_init. */
-int rd_eq_has_lights(const rd_scene *s);
+ * scene have a light of the set that next-event estimation chooses, rd_eq_has_lights(s,
+ * !automatic) (else the set-up stops before the intervals, n = 0)? Then, with ef->iv[0..ef->n)
+ * filled by the caller from rd_media_intervals(s, region, r, 0, t_light) (n = 0 allowed): the
+ * rest of the set-up, with the same result as rd_eq_flight_init.
+ * rd_eq_has_lights with beams = 0: a point or spot light (what "auto", `delta`'s "tiles", the
+ * guided methods' third estimator and compare's reference look for); with beams = 1, a
+ * directional beam also counts (the set of `true` and "camera"). */
+int rd_eq_has_lights(const rd_scene *s, int beams);
 int rd_eq_flight_choose(const rd_scene *s, ray3 r, int region, double q, int automatic,
                         rd_eq_flight *ef);
-/* The equiangular strategy's MIS-weighted estimate of the single scattering from point and spot
- * lights along the flight, for unit throughput. */
+/* Does the strategy sample light i on this flight (in its set and not left to delta tracking)? */
+int rd_eq_flight_samples(const rd_scene *s, const rd_eq_flight *ef, int i);
+/* The equiangular strategy's MIS-weighted estimate of the single scattering from the set's
+ * lights (point and spot lights; directional beams too outside "auto") along the flight, for
+ * unit throughput. */
 vec3 rd_eq_nee(const rd_scene *s, const rd_eq_flight *ef, pcg32 *rng, rd_track_counters *c);
 /* One equiangular sample's estimate at t along r (r.d unit) in medium m, for light `light`
  * drawn with density pe (its choice probability times the equiangular pdf) and MIS weight w:
