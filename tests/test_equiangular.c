@@ -115,6 +115,13 @@ Test(equiangular, empty_span_is_refused)
     cr_expect(isfinite(pdf) && pdf > 0 && t >= 0 && t <= 2, "t %g pdf %g", t, pdf);
 }
 
+/* A random ray from a point uniform in the cube [-h, h]^3 in a uniform direction. */
+static ray3 random_ray(pcg32 *rng, double h)
+{
+    vec3 o = v3(h * (2 * pcg32_uniform(rng) - 1), h * (2 * pcg32_uniform(rng) - 1), h * (2 * pcg32_uniform(rng) - 1));
+    return (ray3){o, rd_sample_sphere(pcg32_uniform(rng), pcg32_uniform(rng))};
+}
+
 Test(equiangular, spot_range_holds_every_lit_point)
 {
     rd_scene *s = rt_scene("spot.json",
@@ -127,8 +134,7 @@ Test(equiangular, spot_range_holds_every_lit_point)
     for (int li = 0; li < 3; li++) {
         const rd_light *l = &s->lights[li];
         for (int k = 0; k < 3000; k++) {
-            vec3 o = v3(4 * pcg32_uniform(&rng) - 2, 4 * pcg32_uniform(&rng) - 2, 4 * pcg32_uniform(&rng) - 2);
-            ray3 r = {o, rd_sample_sphere(pcg32_uniform(&rng), pcg32_uniform(&rng))};
+            ray3 r = random_ray(&rng, 2.0);
             double t0 = 0.0, t1 = 4.0;
             int any = rd_light_lit_range(l, r, &t0, &t1);
             int steps = 4000, lit = 0;
@@ -170,8 +176,7 @@ Test(equiangular, beam_range_is_the_chord_inside_the_cylinder)
     pcg32 rng = pcg32_seed(19, 9, 9);
     int lit_rays = 0;
     for (int k = 0; k < 3000; k++) {
-        vec3 o = v3(2 * pcg32_uniform(&rng) - 1, 2 * pcg32_uniform(&rng) - 1, 2 * pcg32_uniform(&rng) - 1);
-        ray3 r = {o, rd_sample_sphere(pcg32_uniform(&rng), pcg32_uniform(&rng))};
+        ray3 r = random_ray(&rng, 1.0);
         double t0 = 0.0, t1 = 3.0;
         int any = rd_light_lit_range(l, r, &t0, &t1);
         int steps = 6000, lit = 0;
