@@ -208,7 +208,7 @@ Test(equiangular, beam_range_is_the_chord_inside_the_cylinder)
     cr_expect(rd_light_lit_range(l, (ray3){l->beam_center, l->dir}, &t0, &t1) && t0 == 0.0 && t1 == 2.0);
     ray3 far = {v3_add(l->beam_center, v3(0, 0, 1)), l->dir};
     t0 = 0.0, t1 = 2.0;
-    cr_expect(!rd_light_lit_range(l, far, &t0, &t1), "a line parallel to the axis 1 m away is unlit");
+    cr_expect(!rd_light_lit_range(l, far, &t0, &t1), "a line parallel to the axis, 0.91 m from it, is unlit");
     /* a directional light without a radius lights every line whole and is not the strategy's */
     rd_light sun = *l;
     sun.radius = 0.0;
@@ -234,4 +234,31 @@ Test(equiangular, beam_sampler_chi_square)
     sample_bins(&eq, n, 41, obs);
     double chi2 = chi2_of(obs, frac, NB, n, &dof), crit = rt_chi2_quantile(dof, 3.719);
     cr_expect(chi2 < crit, "chi2 %.1f >= %.1f (dof %d)", chi2, crit, dof);
+}
+
+/* Which modes put a beam in the strategy's set: `true` and "camera" (RD_EQ_ALL, RD_EQ_CAMERA);
+ * not "auto", nor the automatic choices' tiles (RD_EQ_POINTS: the guided methods' third
+ * estimator, `delta`'s "tiles"), so that on a scene with a spot and a beam those keep the images
+ * they had before beams were sampled. A flight in thin fog crossing both. */
+Test(equiangular, only_true_and_camera_sample_a_beam_beside_a_spot)
+{
+    rd_scene *s = rt_scene("spot_beam.json",
+                           "{\"camera\":{\"position\":[0,0,5],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
+                           "\"media\":[{\"bounds\":{\"min\":[-2,-1,-1],\"max\":[2,1,1]},"
+                           "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":0.1,\"albedo\":0.9,\"g\":0}],"
+                           "\"lights\":[{\"type\":\"spot\",\"position\":[-1,3,0],\"look_at\":[-1,0,0],\"angle\":4,\"intensity\":50},"
+                           "{\"type\":\"directional\",\"direction\":[0,-1,0],\"irradiance\":5,\"radius\":0.1,"
+                           "\"center\":[1,0,0]}]}");
+    ray3 r = {v3(-3, 0, 0), v3(1, 0, 0)};
+    int region = rd_scene_region_at(s, r.o);
+    const struct { int mode, spot, beam; const char *name; } want[] = {
+        {RD_EQ_ALL, 1, 1, "true"}, {RD_EQ_CAMERA, 1, 1, "camera"}, {RD_EQ_AUTO, 1, 0, "auto"}, {RD_EQ_POINTS, 1, 0, "points"}};
+    for (size_t i = 0; i < sizeof want / sizeof want[0]; i++) {
+        rd_eq_flight ef;
+        cr_assert(rd_eq_flight_init(s, r, region, INFINITY, 0.0, want[i].mode, &ef), "%s samples nothing", want[i].name);
+        cr_expect(rd_eq_flight_samples(s, &ef, 0) == want[i].spot && rd_eq_flight_samples(s, &ef, 1) == want[i].beam,
+                  "%s: spot %d, beam %d", want[i].name, rd_eq_flight_samples(s, &ef, 0), rd_eq_flight_samples(s, &ef, 1));
+    }
+    cr_expect(rd_eq_has_lights(s, 0) && rd_eq_has_lights(s, 1));
+    rd_scene_free(s);
 }

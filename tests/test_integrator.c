@@ -280,7 +280,7 @@ Test(integrator, equiangular_auto_samples_the_thin_lit_span_and_keeps_the_mean, 
              pos.x, pos.y, pos.z, aim.x, aim.y, aim.z);
     rd_scene *s = rt_scene("ss_auto.json", json);
     rd_eq_flight ef;
-    cr_assert(rd_eq_flight_init(s, r, rd_scene_region_at(s, r.o), INFINITY, 0.0, 1, &ef), "auto samples nothing on the flight");
+    cr_assert(rd_eq_flight_init(s, r, rd_scene_region_at(s, r.o), INFINITY, 0.0, RD_EQ_AUTO, &ef), "auto samples nothing on the flight");
     cr_expect((ef.left & 1u) && !(ef.left & 2u), "auto: left mask %#llx, expected the point light (bit 0) only",
               (unsigned long long)ef.left);
     ss_ctx k = {s, r, t0};
@@ -339,8 +339,10 @@ Test(integrator, equiangular_samples_a_directional_beam_s_chord, .timeout = 120)
     cr_assert(rd_light_lit_range(&s->lights[0], r, &a, &b), "the beam crosses the ray");
     rd_eq_flight ef;
     int region = rd_scene_region_at(s, r.o);
-    cr_expect(rd_eq_flight_init(s, r, region, INFINITY, 0.0, 0, &ef), "`true` samples the beam");
-    cr_expect(!rd_eq_flight_init(s, r, region, INFINITY, 0.0, 1, &ef), "\"auto\" leaves the beam to delta tracking");
+    cr_expect(rd_eq_flight_init(s, r, region, INFINITY, 0.0, RD_EQ_ALL, &ef), "`true` samples the beam");
+    cr_expect(!rd_eq_flight_init(s, r, region, INFINITY, 0.0, RD_EQ_AUTO, &ef), "\"auto\" leaves the beam to delta tracking");
+    cr_expect(!rd_eq_flight_init(s, r, region, INFINITY, 0.0, RD_EQ_POINTS, &ef),
+              "the automatic choices' tiles (RD_EQ_POINTS) leave the beam to delta tracking");
     ss_ctx k = {s, r, t0};
     double q = rt_simpson(beam_integrand, &k, a, b, 20000);
     const int modes[] = {RD_EQ_OFF, RD_EQ_ALL, RD_EQ_CAMERA, RD_EQ_AUTO};

@@ -32,11 +32,12 @@ static vec3 delta_method_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 
 
 /* ---- settings.equiangular "tiles" ------------------------------------------------------------ */
 
-/* The selection's "method": delta's path with the strategy on every flight. */
+/* The selection's "method": delta's path with the strategy on every flight, toward the point
+ * and spot lights (RD_EQ_POINTS: an automatic choice leaves directional beams out). */
 static vec3 delta_every_flight(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
 {
     pcg32 rng = rd_sampler_stream(smp);
-    return rd_delta_radiance_eq(ctx->scene, r, RD_EQ_ALL, &rng, &th->counters);
+    return rd_delta_radiance_eq(ctx->scene, r, RD_EQ_POINTS, &rng, &th->counters);
 }
 
 static void delta_release(rd_render_ctx *ctx)

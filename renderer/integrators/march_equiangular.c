@@ -1,7 +1,8 @@
 /* march_equiangular.c: the marchers' equiangular sample (march.equiangular; issue 21 item 3):
- * one distance per camera-ray segment drawn toward a point or spot light (Kulla & Fajardo 2012;
- * THEORY.md §8; the sampler of transport/equiangular.c), combined by multiple importance
- * sampling with the placement's own samples for the direct light of those lights.
+ * one distance per camera-ray segment drawn toward a point or spot light, or with `true` a
+ * directional beam (uniform on its chord; Kulla & Fajardo 2012; THEORY.md §8; the sampler of
+ * transport/equiangular.c), combined by multiple importance sampling with the placement's own
+ * samples for the direct light of those lights.
  *
  * Along a segment x(t) = o + t d over [t0, t1], the direct light of point or spot light j
  * scattered toward -d is
@@ -13,7 +14,7 @@
  *
  * The equiangular strategy draws one light j with probability Q_j (rd_nee's power pick P_j over
  * the sum of P over the lights this segment samples: rd_march_eq_begin) and one t from j's
- * equiangular pdf e_j over the segment's media cut to j's cone (rd_light_lit_range): the
+ * equiangular pdf e_j over the segment's media cut to j's cone or chord (rd_light_lit_range): the
  * density of its samples for light j is Q_j e_j(t). With the power heuristic (Veach 1997, §9.2,
  * beta = 2) over the two densities, both known exactly here (p is the placement's histogram,
  * not a collision density the way delta's is),
@@ -26,7 +27,7 @@
  * lights the strategy does not sample keep w_p = 1. N is fixed per ray by the guide before any
  * sample is drawn (eq. 17), so the weights are deterministic functions of (ray, t, j).
  *
- * Which lights: every point and spot light (true), or "auto": the lights whose lit span delta
+ * Which lights: every point and spot light and directional beam (true), or "auto": the point and spot lights whose lit span delta
  * tracking reaches but rarely collides in (rd_eq_flight_init's rule, `delta`'s, which looks
  * at the majorants and the cone only, not at the placement's pdf). At most RD_MARCH_EQ_LIGHTS
  * lights per segment, the first by index; the rest keep w_p = 1 (a deterministic choice:
@@ -39,8 +40,7 @@ int rd_march_eq_begin(const rd_scene *s, ray3 r, int region, double t_end, const
     eq->n = 0;
     if (s->march.equiangular == RD_EQ_OFF || s->march.ls == RD_LS_PHOTONS) return 0;
     rd_eq_flight ef;
-    int automatic = s->march.equiangular == RD_EQ_AUTO;
-    int ok = rd_eq_flight_init(s, r, region, t_end, 0.0, automatic, &ef);
+    int ok = rd_eq_flight_init(s, r, region, t_end, 0.0, s->march.equiangular, &ef);
     c->eq_flights += ef.n > 0; /* as the path loop counts its flights' set-ups */
     if (!ok) return 0;
     double a_all = ef.iv[0].t0, b_all = ef.iv[ef.n - 1].t1, sum = 0.0;

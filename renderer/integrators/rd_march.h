@@ -74,7 +74,7 @@ vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, v
 vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, ray3 r, int region,
                             double t0, double t1, pcg32 *rng, rd_track_counters *c, int *crossed);
 /* (*crossed: the balls the segment crossed, those beyond the reservoir's cap included.) */
-/* march.equiangular: one equiangular sample per segment toward a point or spot light, MIS with
+/* march.equiangular: one equiangular sample per segment toward a point or spot light (or a beam), MIS with
  * the placement's samples (march_equiangular.c says how). The lights a segment samples: */
 #define RD_MARCH_EQ_LIGHTS 8
 typedef struct {
@@ -89,7 +89,7 @@ typedef struct {
 } rd_march_eq;
 /* Set up the segment r in `region` up to t_end whose placement draws N samples of pdf; returns
  * the number of lights it samples (0: none, or march.equiangular off). A set-up over media with
- * a point or spot light to choose counts in c->eq_flights (the selection's cost, select.c). */
+ * a light of the set to choose counts in c->eq_flights (the selection's cost, select.c). */
 int rd_march_eq_begin(const rd_scene *s, ray3 r, int region, double t_end, const rd_guide_pdf *pdf,
                       int N, rd_march_eq *eq, rd_track_counters *c);
 /* The placement sample at t: light_w[j] = w_p(t, j) for the segment's lights (the others are

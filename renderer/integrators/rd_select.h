@@ -14,7 +14,8 @@
 
 /* The estimators a tile can be given (rd_select.choice): delta's path with settings.equiangular
  * ("tiles" read as off: rd_eq_path_mode),
- * the method, and delta's path with equiangular sampling on every flight, RD_EQ_ALL (only where
+ * the method, and delta's path with equiangular sampling on every flight toward the point and
+ * spot lights, RD_EQ_POINTS (only where
  * the method's own mode is not off, settings.equiangular is not RD_EQ_ALL, and a point or spot
  * light can be sampled: rd_select.n). */
 enum { RD_SEL_DELTA = 0, RD_SEL_METHOD = 1, RD_SEL_DELTA_EQ = 2, RD_SEL_MAX = 3 };

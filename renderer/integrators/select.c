@@ -517,7 +517,7 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, doubl
     int third = equiangular != RD_EQ_OFF && s->settings.equiangular != RD_EQ_ALL && rd_eq_has_lights(s, 0);
     rd_status st = rd_select_init(sel, cam->width, cam->height, cell_cost, third ? 3 : 2, err, errlen);
     if (st != RD_OK) return st;
-    sel->equiangular = RD_EQ_ALL;
+    sel->equiangular = RD_EQ_POINTS; /* as `true`, but not toward directional beams */
     sel->epochs = ctx->scene->settings.select != RD_SELECT_PILOT;
     int n = sel->tiles_x * sel->tiles_y;
     int threads = ctx->threads > 0 ? ctx->threads : 1;

@@ -24,7 +24,7 @@ typedef struct {
     uint64_t collisions, lookups;
     uint64_t shadow_rays;  /* next-event transmittance estimates */
     uint64_t eq_flights;   /* flights that set up the equiangular strategy over media with a
-                            * point or spot light to choose (transport/equiangular.c), which
+                            * light of its set to choose (transport/equiangular.c), which
                             * the tile selection's counted cost charges (integrators/select.c) */
     uint64_t eq_samples;   /* equiangular samples evaluated (rd_eq_estimate); reported only: no
                             * weight for them held across scenes (bench_cost_fit.sh FIT=eqs) */

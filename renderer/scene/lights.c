@@ -117,12 +117,6 @@ double rd_light_pdf(const rd_light *l, vec3 x, vec3 w)
     return 1.0 / (2.0 * M_PI * cone_one_minus_cos(r2, dc2, &sin2_max));
 }
 
-/* The spot's cone along a line: x(t) = o + t d is lit when f(t) = a.(x - p) > c |x - p|, a the
- * axis, p the apex, c = cos_outer >= 0. Squaring, f^2 - c^2 |x - p|^2 = A t^2 + B t + C with
- *   A = (a.d)^2 - c^2,  B = 2 ((a.d)(a.q) - c^2 (d.q)),  C = (a.q)^2 - c^2 q.q,  q = o - p,
- * whose roots and the root of f (the apex plane) split the line into pieces on which the
- * condition is constant: each piece is tested at its midpoint with the unsquared condition,
- * and the lit pieces (one interval: the cone is convex) are kept. */
 /* A directional beam's cylinder along a line: x(t) = o + t d is lit when its distance from the
  * axis (through c along a, |a| = 1) is at most the radius R. With the parts of d and q = o - c
  * across the axis, u = d - (d.a) a and w = q - (q.a) a, that is |w + t u|^2 <= R^2:
@@ -138,7 +132,7 @@ static int beam_chord(const rd_light *l, ray3 r, double *t0, double *t1)
     if (!(disc > 0.0)) return 0;
     /* the stable pair of roots (Numerical Recipes §5.6) of A t^2 + 2 B t + C */
     double k = -(B + (B >= 0.0 ? sqrt(disc) : -sqrt(disc)));
-    double lo = k / A, hi = k != 0.0 ? C / k : -lo;
+    double lo = k / A, hi = C / k; /* k != 0: disc > 0 */
     if (lo > hi) {
         double tmp = lo;
         lo = hi, hi = tmp;
@@ -150,6 +144,12 @@ static int beam_chord(const rd_light *l, ray3 r, double *t0, double *t1)
     return 1;
 }
 
+/* The spot's cone along a line: x(t) = o + t d is lit when f(t) = a.(x - p) > c |x - p|, a the
+ * axis, p the apex, c = cos_outer >= 0. Squaring, f^2 - c^2 |x - p|^2 = A t^2 + B t + C with
+ *   A = (a.d)^2 - c^2,  B = 2 ((a.d)(a.q) - c^2 (d.q)),  C = (a.q)^2 - c^2 q.q,  q = o - p,
+ * whose roots and the root of f (the apex plane) split the line into pieces on which the
+ * condition is constant: each piece is tested at its midpoint with the unsquared condition,
+ * and the lit pieces (one interval: the cone is convex) are kept. */
 int rd_light_lit_range(const rd_light *l, ray3 r, double *t0, double *t1)
 {
     if (!(*t1 > *t0)) return 0;

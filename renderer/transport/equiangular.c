@@ -1,5 +1,5 @@
 /* equiangular.c: `delta`'s equiangular strategy for single scattering from point and spot
- * lights (Kulla & Fajardo 2012, "Importance Sampling Techniques for Path Tracing in
+ * lights and directional beams (Kulla & Fajardo 2012, "Importance Sampling Techniques for Path Tracing in
  * Participating Media"; THEORY.md §8), combined with the next-event estimation at delta
  * tracking's collisions by multiple importance sampling, as Cycles and Arnold combine it with
  * their distance sampling. settings.equiangular; docs/free-path.md has the same derivation.
@@ -8,9 +8,12 @@
  * is the chord inside the beam's cylinder (rd_light_lit_range), and a light at infinity has no
  * 1 / r^2 along it, so e_j below is the uniform density 1 / (b - a) on the chord (the
  * equiangular family's limit as D grows). Everything else is the same. They are in the set of
- * `true` and "camera" only: "auto", and through it the guided methods' defaults, leave them to
- * delta tracking (with them, guided-unbiased lost 10% on the calibration scene beam-vdb and 4%
- * on smoke-vdb: docs/free-path.md "Directional beams").
+ * `true` and "camera" only (rd_eq_mode_beams): "auto" and RD_EQ_POINTS, the tiles of the
+ * automatic choices (the guided methods' third estimator, `delta`'s "tiles"), leave them to
+ * delta tracking, so no default image changes. A first build with beams in "auto" and in the
+ * third estimator together lost 10% for guided-unbiased on the calibration scene beam-vdb and
+ * 4% on smoke-vdb (docs/free-path.md "Directional beams"); "auto" with beams alone was not
+ * measured.
  *
  * The integrand. Along a flight x(t) = o + t d, t in [0, t_end] (one region, no surface in
  * between), the light of point or spot light j scattered once toward -d is
@@ -234,19 +237,21 @@ static double set_pmf(const rd_scene *s, int beams)
 
 int rd_eq_has_lights(const rd_scene *s, int beams) { return set_pmf(s, beams) > 0.0; }
 
-int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, double q,
-                      int automatic, rd_eq_flight *ef)
+int rd_eq_mode_beams(int mode) { return mode == RD_EQ_ALL || mode == RD_EQ_CAMERA; }
+
+int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, double q, int mode,
+                      rd_eq_flight *ef)
 {
     ef->n = 0;
-    if (rd_eq_has_lights(s, !automatic)) ef->n = rd_media_intervals(s, region, r, 0.0, t_light, ef->iv);
-    return rd_eq_flight_choose(s, r, region, q, automatic, ef);
+    if (rd_eq_has_lights(s, rd_eq_mode_beams(mode))) ef->n = rd_media_intervals(s, region, r, 0.0, t_light, ef->iv);
+    return rd_eq_flight_choose(s, r, region, q, mode, ef);
 }
 
-int rd_eq_flight_choose(const rd_scene *s, ray3 r, int region, double q, int automatic,
-                        rd_eq_flight *ef)
+int rd_eq_flight_choose(const rd_scene *s, ray3 r, int region, double q, int mode, rd_eq_flight *ef)
 {
+    int automatic = mode == RD_EQ_AUTO;
     ef->left = 0;
-    ef->beams = !automatic;
+    ef->beams = rd_eq_mode_beams(mode);
     ef->ps_pmf = set_pmf(s, ef->beams);
     ef->density = NULL;
     ef->density_user = NULL;
@@ -300,7 +305,7 @@ static double tracking_proxy(const rd_eq_flight *ef, double t)
 
 vec3 rd_eq_nee(const rd_scene *s, const rd_eq_flight *ef, pcg32 *rng, rd_track_counters *c)
 {
-    /* Light j with probability Q_j = P_j / sum over point and spot lights of P_k */
+    /* Light j with probability Q_j = P_j / sum over the set's lights of P_k */
     double u = pcg32_uniform(rng) * ef->ps_pmf, acc = 0.0;
     int j = -1;
     for (int i = 0; i < s->n_lights; i++) {

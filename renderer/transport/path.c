@@ -198,7 +198,8 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
         }
         /* The flights' equiangular mode (settings.equiangular for `delta`, march.equiangular for
          * the marchers' paths, guide.equiangular for guided-unbiased's): `delta`'s second
-         * strategy for the single scattering from point and spot lights along this flight
+         * strategy for the single scattering from the set's lights (point and spot lights; beams in
+         * `true` and "camera") along this flight
          * (transport/equiangular.c), with the throughput up to the flight; the collision's
          * next-event estimate below takes the other weight. Its set-up needs the flight's media
          * intervals, which delta tracking's flight needs too: found once, here, for both (on
@@ -209,7 +210,7 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
         int eq_here = !first && fs->equiangular != RD_EQ_OFF && depth + 1 <= s->settings.max_depth &&
                       (fs->equiangular != RD_EQ_CAMERA || depth == 0);
         ef.n = 0;
-        if (eq_here && rd_eq_has_lights(s, fs->equiangular != RD_EQ_AUTO)) {
+        if (eq_here && rd_eq_has_lights(s, rd_eq_mode_beams(fs->equiangular))) {
             ef.n = rd_media_intervals(s, region, r, 0.0, in.t_light, ef.iv);
             in.iv = ef.iv;
             in.n_iv = ef.n;
@@ -217,8 +218,8 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
         rd_flight f = fs->sample(fs, s, &in, rng, c);
         if (eq_here) {
             /* thin bias is `delta`'s own flights' (a sampler with a density has none) */
-            eq = rd_eq_flight_choose(s, r, region, fs->density ? 0.0 : rd_thin_bias_q(s, &in),
-                                     fs->equiangular == RD_EQ_AUTO, &ef);
+            eq = rd_eq_flight_choose(s, r, region, fs->density ? 0.0 : rd_thin_bias_q(s, &in), fs->equiangular,
+                                     &ef);
             c->eq_flights += ef.n > 0; /* a set-up that did the work: media, and a light to choose */
             if (eq && fs->density) {
                 ef.density = flight_density;

@@ -105,7 +105,8 @@ vec3 rd_nee_surface(const rd_scene *s, const rd_hit *h, vec3 d, pcg32 *rng,
 
 /* One sample of light i from medium point x (phase g toward it, unbiased shadow
  * transmittance), neither divided by a choice probability nor MIS-weighted: for a point or spot
- * light, the direct radiance p I f / r^2 T scattered toward -d. */
+ * light, the direct radiance p I f / r^2 T scattered toward -d; for a directional light,
+ * p E T (0 outside a beam's cylinder). */
 vec3 rd_nee_light(const rd_scene *s, int region, vec3 x, vec3 d, double g, int i, pcg32 *rng,
                   rd_track_counters *c);
 
@@ -134,18 +135,18 @@ double rd_equiangular_pdf(const rd_equiangular *eq, double t); /* 0 outside [a, 
 
 /* `delta`'s equiangular strategy for one flight (settings.equiangular; march.equiangular and
  * guide.equiangular on the other methods' flights): the flight's media
- * intervals, the choice probabilities of the point and spot lights, and the scale of the
+ * intervals, the choice probabilities of the set's lights, and the scale of the
  * majorant density standing for delta tracking's collision density in the MIS weights (the
  * derivation is in transport/equiangular.c and docs/free-path.md). */
 typedef struct {
     ray3 r;
     int region;
     rd_interval iv[RD_MAX_INTERVALS];
-    int n;           /* intervals; 0 when the set-up stopped before them (no point or spot light) */
+    int n;           /* intervals; 0 when the set-up stopped before them (no light of the set) */
     double ps_pmf;   /* sum of rd_nee's choice probabilities over the lights it samples */
     double dscale;   /* the tracking pdf's proxy is dscale sigma_maj(t) T_maj(0,t) */
     uint64_t left;   /* lights 0..63 left to delta tracking on this flight ("auto") */
-    int beams;       /* directional beams are in the set (every mode but "auto") */
+    int beams;       /* directional beams are in the set (rd_eq_mode_beams) */
     /* The flight sampler's own scattering density at t when it knows it exactly (a guided
      * flight), else NULL or a negative return: the stand-in above. Set by the caller after
      * rd_eq_flight_init (which sets it NULL). */
@@ -153,30 +154,33 @@ typedef struct {
     const void *density_user;
 } rd_eq_flight;
 /* Set up the flight along r in `region` over [0, t_light] whose delta tracking runs with thin
- * bias q (0: none; rd_sample_free_path_thin). `automatic` (the mode "auto"): only
- * the lights whose lit span delta tracking reaches (global-majorant T(0,a) >= 1/2) but
- * rarely collides in (equiangular.c), point and spot lights only; otherwise directional
- * beams too. Returns 0 when there is nothing to sample (no medium on the way, no light of the
- * set, or none left to sample). */
-int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, double q,
-                      int automatic, rd_eq_flight *ef);
+ * bias q (0: none; rd_sample_free_path_thin), in equiangular mode `mode` (rd_equiangular_mode,
+ * not OFF or TILES). The set of lights: point and spot lights, and directional beams in the
+ * modes of rd_eq_mode_beams (ALL, CAMERA); RD_EQ_AUTO keeps only the set's lights whose lit
+ * span delta tracking reaches (global-majorant T(0,a) >= 1/2) but rarely collides in
+ * (equiangular.c). Returns 0 when there is nothing to sample (no medium on the way, no light
+ * of the set, or none left to sample). */
+int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, double q, int mode,
+                      rd_eq_flight *ef);
+/* Does mode `mode` put directional beams in the set (RD_EQ_ALL, RD_EQ_CAMERA: the user's `true`
+ * and "camera"; not "auto" nor RD_EQ_POINTS, the automatic choices' tiles)? */
+int rd_eq_mode_beams(int mode);
 /* rd_eq_flight_init in two steps, for a caller that needs the flight's media intervals itself
  * (the path loop: its flight and the set-up share one rd_media_intervals). First: does the
  * scene have a light of the set that next-event estimation chooses, rd_eq_has_lights(s,
- * !automatic) (else the set-up stops before the intervals, n = 0)? Then, with ef->iv[0..ef->n)
- * filled by the caller from rd_media_intervals(s, region, r, 0, t_light) (n = 0 allowed): the
- * rest of the set-up, with the same result as rd_eq_flight_init.
+ * rd_eq_mode_beams(mode)) (else the set-up stops before the intervals, n = 0)? Then, with
+ * ef->iv[0..ef->n) filled by the caller from rd_media_intervals(s, region, r, 0, t_light)
+ * (n = 0 allowed): the rest of the set-up, with the same result as rd_eq_flight_init.
  * rd_eq_has_lights with beams = 0: a point or spot light (what "auto", `delta`'s "tiles", the
  * guided methods' third estimator and compare's reference look for); with beams = 1, a
- * directional beam also counts (the set of `true` and "camera"). */
+ * directional beam also counts. */
 int rd_eq_has_lights(const rd_scene *s, int beams);
-int rd_eq_flight_choose(const rd_scene *s, ray3 r, int region, double q, int automatic,
-                        rd_eq_flight *ef);
+int rd_eq_flight_choose(const rd_scene *s, ray3 r, int region, double q, int mode, rd_eq_flight *ef);
 /* Does the strategy sample light i on this flight (in its set and not left to delta tracking)? */
 int rd_eq_flight_samples(const rd_scene *s, const rd_eq_flight *ef, int i);
 /* The equiangular strategy's MIS-weighted estimate of the single scattering from the set's
- * lights (point and spot lights; directional beams too outside "auto") along the flight, for
- * unit throughput. */
+ * lights (point and spot lights; directional beams too in rd_eq_mode_beams' modes) along the
+ * flight, for unit throughput. */
 vec3 rd_eq_nee(const rd_scene *s, const rd_eq_flight *ef, pcg32 *rng, rd_track_counters *c);
 /* One equiangular sample's estimate at t along r (r.d unit) in medium m, for light `light`
  * drawn with density pe (its choice probability times the equiangular pdf) and MIS weight w:
