@@ -27,10 +27,10 @@
  * lights the strategy does not sample keep w_p = 1. N is fixed per ray by the guide before any
  * sample is drawn (eq. 17), so the weights are deterministic functions of (ray, t, j).
  *
- * Which lights: every point and spot light and directional beam (true), or "auto": the point and spot lights whose lit span delta
- * tracking reaches but rarely collides in (rd_eq_flight_init's rule, `delta`'s, which looks
- * at the majorants and the cone only, not at the placement's pdf). At most RD_MARCH_EQ_LIGHTS
- * lights per segment, the first by index; the rest keep w_p = 1 (a deterministic choice:
+ * Which lights: every point and spot light and directional beam (true), or "auto": the point
+ * and spot lights whose lit span delta tracking reaches but rarely collides in
+ * (rd_eq_flight_init's rule, `delta`'s, which looks at the majorants and the cone only, not at
+ * the placement's pdf). At most RD_MARCH_EQ_LIGHTS lights per segment, the first by index; the rest keep w_p = 1 (a deterministic choice:
  * variance, never bias). */
 #include "integrators/rd_march.h"
 

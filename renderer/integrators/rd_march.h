@@ -74,8 +74,9 @@ vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, v
 vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, ray3 r, int region,
                             double t0, double t1, pcg32 *rng, rd_track_counters *c, int *crossed);
 /* (*crossed: the balls the segment crossed, those beyond the reservoir's cap included.) */
-/* march.equiangular: one equiangular sample per segment toward a point or spot light (or a beam), MIS with
- * the placement's samples (march_equiangular.c says how). The lights a segment samples: */
+/* march.equiangular: one equiangular sample per segment toward a point or spot light (or a
+ * directional beam), MIS with the placement's samples (march_equiangular.c says how). The
+ * lights a segment samples: */
 #define RD_MARCH_EQ_LIGHTS 8
 typedef struct {
     int n;                              /* lights sampled on this segment (0: none) */

@@ -1,6 +1,6 @@
 /* equiangular.c: `delta`'s equiangular strategy for single scattering from point and spot
- * lights and directional beams (Kulla & Fajardo 2012, "Importance Sampling Techniques for Path Tracing in
- * Participating Media"; THEORY.md §8), combined with the next-event estimation at delta
+ * lights and directional beams (Kulla & Fajardo 2012, "Importance Sampling Techniques for Path
+ * Tracing in Participating Media"; THEORY.md §8), combined with the next-event estimation at delta
  * tracking's collisions by multiple importance sampling, as Cycles and Arnold combine it with
  * their distance sampling. settings.equiangular; docs/free-path.md has the same derivation.
  *
