@@ -207,6 +207,33 @@ Test(compare_rule, a_point_lit_scene_s_rendered_reference_is_delta_with_tiles, .
     rd_scene_free(s);
 }
 
+/* A directional beam is a light the strategy samples (since session 30), so a scene lit by one
+ * alone gets the reference with "tiles" too (reference.c); the mix's unbiasedness on a beam is
+ * tests/test_select.c's. Without the beam's radius (a plain sun) there is nothing to choose:
+ * plain `delta`. */
+Test(compare_rule, a_beam_lit_scene_s_rendered_reference_is_delta_with_tiles, .timeout = 60)
+{
+    static const char *fmt = "{\"camera\":{\"position\":[0,0,4],\"look_at\":[0,0,0],\"resolution\":[16,12]},"
+                             "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
+                             "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":0.3,\"albedo\":0.8}],"
+                             "\"lights\":[{\"type\":\"directional\",\"direction\":[1,-0.2,0.1],\"irradiance\":5%s}]}";
+    const char *radius[2] = {",\"radius\":0.1,\"center\":[0,0,0]", ""};
+    const char *want[2] = {"delta, settings.equiangular tiles", "delta"};
+    for (int i = 0; i < 2; i++) {
+        char json[1024], err[RD_ERRLEN];
+        snprintf(json, sizeof json, fmt, radius[i]);
+        rd_scene *s = rt_scene(i ? "sun.json" : "beamref.json", json);
+        rd_cmp_opts o = delta_opts(NULL, 4);
+        o.ref_spp = 16;
+        rd_comparison *c = NULL;
+        cr_assert(rd_compare_run(s, &o, &c, err, sizeof err) == RD_OK, "%s", err);
+        const char *got = rd_comparison_summary(c)->ref_method;
+        cr_expect(strcmp(got, want[i]) == 0, "%s: reference by %s", i ? "a sun" : "a beam", got);
+        rd_comparison_free(c);
+        rd_scene_free(s);
+    }
+}
+
 /* The cap: a reference that would need more than ref_max_seconds stops there, and is then too
  * noisy to rank (said, not hidden). A cap below the first part stops it right after. */
 Test(compare_rule, a_reference_at_its_cap_is_not_called_rankable, .timeout = 60)

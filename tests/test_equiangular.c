@@ -236,10 +236,10 @@ Test(equiangular, beam_sampler_chi_square)
     cr_expect(chi2 < crit, "chi2 %.1f >= %.1f (dof %d)", chi2, crit, dof);
 }
 
-/* Which modes put a beam in the strategy's set: `true` and "camera" (RD_EQ_ALL, RD_EQ_CAMERA);
- * not "auto", nor the automatic choices' tiles (RD_EQ_POINTS: the guided methods' third
- * estimator, `delta`'s "tiles"), so that on a scene with a spot and a beam those keep the images
- * they had before beams were sampled. A flight in thin fog crossing both. */
+/* Which modes put a beam in the strategy's set: `true` and "camera" (RD_EQ_ALL, RD_EQ_CAMERA,
+ * and so the tiles that take `true`: the guided methods' third estimator, `delta`'s "tiles");
+ * not "auto", which keeps the image it had before beams were sampled. A flight in thin fog
+ * crossing both. */
 Test(equiangular, only_true_and_camera_sample_a_beam_beside_a_spot)
 {
     rd_scene *s = rt_scene("spot_beam.json",
@@ -252,7 +252,7 @@ Test(equiangular, only_true_and_camera_sample_a_beam_beside_a_spot)
     ray3 r = {v3(-3, 0, 0), v3(1, 0, 0)};
     int region = rd_scene_region_at(s, r.o);
     const struct { int mode, spot, beam; const char *name; } want[] = {
-        {RD_EQ_ALL, 1, 1, "true"}, {RD_EQ_CAMERA, 1, 1, "camera"}, {RD_EQ_AUTO, 1, 0, "auto"}, {RD_EQ_POINTS, 1, 0, "points"}};
+        {RD_EQ_ALL, 1, 1, "true"}, {RD_EQ_CAMERA, 1, 1, "camera"}, {RD_EQ_AUTO, 1, 0, "auto"}};
     for (size_t i = 0; i < sizeof want / sizeof want[0]; i++) {
         rd_eq_flight ef;
         cr_assert(rd_eq_flight_init(s, r, region, INFINITY, 0.0, want[i].mode, &ef), "%s samples nothing", want[i].name);

@@ -341,8 +341,6 @@ Test(integrator, equiangular_samples_a_directional_beam_s_chord, .timeout = 120)
     int region = rd_scene_region_at(s, r.o);
     cr_expect(rd_eq_flight_init(s, r, region, INFINITY, 0.0, RD_EQ_ALL, &ef), "`true` samples the beam");
     cr_expect(!rd_eq_flight_init(s, r, region, INFINITY, 0.0, RD_EQ_AUTO, &ef), "\"auto\" leaves the beam to delta tracking");
-    cr_expect(!rd_eq_flight_init(s, r, region, INFINITY, 0.0, RD_EQ_POINTS, &ef),
-              "the automatic choices' tiles (RD_EQ_POINTS) leave the beam to delta tracking");
     ss_ctx k = {s, r, t0};
     double q = rt_simpson(beam_integrand, &k, a, b, 20000);
     const int modes[] = {RD_EQ_OFF, RD_EQ_ALL, RD_EQ_CAMERA, RD_EQ_AUTO};

@@ -23,12 +23,14 @@
  * `delta` and `guided-unbiased` 59x (docs/benchmarks.md "Session 26"), so a plain reference
  * stops at its cap too noisy to rank them, and its noise, which compare counts in every
  * method's MSE, makes the best look worse than they are. So when the scene does not name
- * settings.equiangular and has a point or spot light, the reference is `delta` with "tiles"
- * (its own choice per tile between the strategy and none: integrators/delta.c), unbiased for
- * the same image, and the report names it. Where the strategy does not pay it costs a little:
- * "tiles" is 0.85-0.97x plain `delta` on default, hard-dense-block, cloud and hetero-forward,
- * 1.59x on homogeneous. (glass-fog's light comes through glass: its reference is the photon
- * render above.) */
+ * settings.equiangular and has a point or spot light, or a directional beam (since session
+ * 30), the reference is `delta` with "tiles" (its own choice per tile between the strategy and
+ * none: integrators/delta.c), unbiased for the same image, and the report names it. Where the
+ * strategy does not pay it costs a little: "tiles" is 0.85-0.97x plain `delta` on default,
+ * hard-dense-block, cloud and hetero-forward, 1.59x on homogeneous; with a beam 0.90x on
+ * beam-vdb, 0.94x on smoke-vdb, 0.98x on beam, 1.53x on hard-window-beam and 4.96x on
+ * exp2-directional (docs/free-path.md "Directional beams"). (glass-fog's light comes through
+ * glass: its reference is the photon render above.) */
 #include "compare/rd_compare.h"
 #include "transport/rd_transport.h"
 
@@ -388,13 +390,14 @@ int rd_cmp_reference_is_auto(const rd_cmp_opts *o)
  * `guided` with the photon map as its whole source, fresh photons every pass with a shrinking
  * radius (consistent), and no tile selection (its `delta` tiles would lack that light again).
  * Else `delta`, with settings.equiangular "tiles" (and settings.select at its default) where
- * the scene leaves that key to its default and has a point or spot light. */
+ * the scene leaves that key to its default and has a point or spot light or a directional
+ * beam. */
 static void reference_scene(rd_comparison *c, const rd_scene *s)
 {
     double share = rd_scene_hidden_light(s); /* measured at load (load/load.c) */
     c->sum.hidden_share = share;
     c->photon_ref = share > RD_HIDDEN_SHARE && !c->opts.reference;
-    c->tiles_ref = !c->opts.reference && !c->photon_ref && !s->settings.equiangular_given && rd_eq_has_lights(s, 0);
+    c->tiles_ref = !c->opts.reference && !c->photon_ref && !s->settings.equiangular_given && rd_eq_has_lights(s, 1);
     snprintf(c->sum.ref_method, sizeof c->sum.ref_method, "%s",
              c->opts.reference ? "given"
              : c->photon_ref  ? "guided, march.ls photons, progressive passes"

@@ -13,8 +13,9 @@
  * it (docs/free-path.md); one image often holds both, and "auto"'s per-flight rule, made for a
  * whole image, gives up part of the gain to bound the loss. The guided methods' selection had
  * this mix as two of its three estimators (session 25: on homogeneous it beat either mode
- * alone); here `delta` has it without a bake. Without a point or spot light there is nothing to
- * choose: the path without the strategy, as "false". */
+ * alone); here `delta` has it without a bake. Without a light the strategy samples (a point or
+ * spot light, or a directional beam since session 30) there is nothing to choose: the path
+ * without the strategy, as "false". */
 #include "integrators/rd_method.h"
 #include "integrators/rd_select.h"
 #include "transport/rd_path.h"
@@ -32,12 +33,12 @@ static vec3 delta_method_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 
 
 /* ---- settings.equiangular "tiles" ------------------------------------------------------------ */
 
-/* The selection's "method": delta's path with the strategy on every flight, toward the point
- * and spot lights (RD_EQ_POINTS: an automatic choice leaves directional beams out). */
+/* The selection's "method": delta's path with the strategy on every flight (`true`: point and
+ * spot lights and directional beams). */
 static vec3 delta_every_flight(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
 {
     pcg32 rng = rd_sampler_stream(smp);
-    return rd_delta_radiance_eq(ctx->scene, r, RD_EQ_POINTS, &rng, &th->counters);
+    return rd_delta_radiance_eq(ctx->scene, r, RD_EQ_ALL, &rng, &th->counters);
 }
 
 static void delta_release(rd_render_ctx *ctx)
@@ -51,7 +52,7 @@ static rd_status delta_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
 {
     const rd_scene *s = ctx->scene;
     ctx->state = NULL;
-    if (s->settings.equiangular != RD_EQ_TILES || !rd_eq_has_lights(s, 0)) return RD_OK;
+    if (s->settings.equiangular != RD_EQ_TILES || !rd_eq_has_lights(s, 1)) return RD_OK;
     rd_select *sel = calloc(1, sizeof *sel);
     if (!sel) {
         snprintf(err, errlen, "out of memory for the tile selection");

@@ -13,11 +13,10 @@
 #define RD_SELECT_TILE 8
 
 /* The estimators a tile can be given (rd_select.choice): delta's path with settings.equiangular
- * ("tiles" read as off: rd_eq_path_mode),
- * the method, and delta's path with equiangular sampling on every flight toward the point and
- * spot lights, RD_EQ_POINTS (only where
- * the method's own mode is not off, settings.equiangular is not RD_EQ_ALL, and a point or spot
- * light can be sampled: rd_select.n). */
+ * ("tiles" read as off: rd_eq_path_mode), the method, and delta's path with equiangular
+ * sampling on every flight, RD_EQ_ALL (only where the method's own mode is not off,
+ * settings.equiangular is not RD_EQ_ALL, and the scene has a light the strategy samples: a
+ * point or spot light or a directional beam; rd_select.n). */
 enum { RD_SEL_DELTA = 0, RD_SEL_METHOD = 1, RD_SEL_DELTA_EQ = 2, RD_SEL_MAX = 3 };
 
 /* One estimator's samples in one half of one tile (rd_select.stats), from the pilot and the
@@ -48,7 +47,6 @@ typedef struct {
                                 two with the higher index, the others the lower (rd_select_uses) */
     int n;                   /* estimators compared: 2 (delta, the method) or 3 (RD_SEL_DELTA_EQ
                                 too) */
-    int equiangular;         /* RD_SEL_DELTA_EQ's equiangular mode (rd_scene.h RD_EQ_*) */
     int tiles_x, tiles_y, width, height;
     int epochs;              /* choose again at the epochs (settings.select "pilot": 0; every
                                 other value 1: the guided methods select only with "tiles" or
@@ -80,7 +78,7 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
  * per sample of `method` and of delta's path in every tile (and of delta's path with the
  * equiangular strategy on every flight, where the method's own mode `equiangular`, RD_EQ_*, is
  * not RD_EQ_OFF, settings.equiangular is not RD_EQ_ALL, and the scene has a point or spot
- * light to sample); keeps the choices
+ * light or a directional beam to sample); keeps the choices
  * that give the image the least error at equal time. The cost is counted work (select.c):
  * `cell_cost` is what one of the method's PDF segments (rd_thread.cells) costs, in density
  * lookups, fitted on the calibration scenes. Call at the end of the method's prepare

@@ -29,7 +29,8 @@
  * 34x plain `delta` and beat both methods (docs/benchmarks.md, session 23): what the methods
  * gained there came from the strategy, and their own estimators cost 3.5-11x a delta path for
  * the same variance. So where the method samples with the strategy (its mode not "false"), the
- * scene has a point or spot light and settings.equiangular is not "true", delta's path with
+ * scene has a light the strategy samples (a point or spot light; a directional beam too since
+ * session 30, below) and settings.equiangular is not "true", delta's path with
  * the strategy on every flight ("true") is a third estimator (RD_SEL_DELTA_EQ) with statistics
  * of its own, and every rule below runs over the three: each tile gets delta's path with or
  * without the strategy, or the method, whichever pays there. Why "true" and not the method's
@@ -268,12 +269,12 @@ static double sample_cost(const rd_select *sel, const rd_thread *th, work c0)
 }
 
 /* Camera sample `smp` of ray r with estimator e (RD_SEL_*). */
-static vec3 estimate(const rd_render_ctx *ctx, const rd_select *sel, rd_thread *th, int e, rd_select_fn method,
+static vec3 estimate(const rd_render_ctx *ctx, rd_thread *th, int e, rd_select_fn method,
                      ray3 r, rd_sampler *smp)
 {
     if (e == RD_SEL_METHOD) return method(ctx, th, r, smp);
     pcg32 rng = rd_sampler_stream(smp);
-    int mode = e == RD_SEL_DELTA_EQ ? sel->equiangular : rd_eq_path_mode(ctx->scene->settings.equiangular);
+    int mode = e == RD_SEL_DELTA_EQ ? RD_EQ_ALL : rd_eq_path_mode(ctx->scene->settings.equiangular);
     return rd_delta_radiance_eq(ctx->scene, r, mode, &rng, &th->counters);
 }
 
@@ -292,7 +293,7 @@ static void pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, const rd_select
         ray3 r = rd_camera_ray(cam, x + jx, y + jy);
         work c0 = work_now(th);
         th->pixel = pix;
-        vec3 L = estimate(ctx, sel, th, e, method, r, &smp);
+        vec3 L = estimate(ctx, th, e, method, r, &smp);
         if (v3_finite(L)) pixel_add(&px, L, sample_cost(sel, th, c0));
     }
     pixel_fold(st, &px);
@@ -514,10 +515,9 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, doubl
     const rd_scene *s = ctx->scene;
     const rd_camera *cam = &s->camera;
     /* the third estimator: delta's path with the strategy on every flight (the head) */
-    int third = equiangular != RD_EQ_OFF && s->settings.equiangular != RD_EQ_ALL && rd_eq_has_lights(s, 0);
+    int third = equiangular != RD_EQ_OFF && s->settings.equiangular != RD_EQ_ALL && rd_eq_has_lights(s, 1);
     rd_status st = rd_select_init(sel, cam->width, cam->height, cell_cost, third ? 3 : 2, err, errlen);
     if (st != RD_OK) return st;
-    sel->equiangular = RD_EQ_POINTS; /* as `true`, but not toward directional beams */
     sel->epochs = ctx->scene->settings.select != RD_SELECT_PILOT;
     int n = sel->tiles_x * sel->tiles_y;
     int threads = ctx->threads > 0 ? ctx->threads : 1;
@@ -618,7 +618,7 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
     work c0 = work_now(th);
     th->delta_samples += use != RD_SEL_METHOD;
     th->delta_eq_samples += use == RD_SEL_DELTA_EQ;
-    vec3 L = estimate(ctx, sel, th, use, method, r, smp);
+    vec3 L = estimate(ctx, th, use, method, r, smp);
     if (v3_finite(L)) rd_select_observe(sel, th->pixel, L, sample_cost(sel, th, c0));
     return L;
 }

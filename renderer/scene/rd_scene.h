@@ -51,13 +51,10 @@ enum { RD_SELECT_OFF, RD_SELECT_TILES, RD_SELECT_PILOT, RD_SELECT_AUTO };
  * lights whose lit span delta tracking reaches but mostly crosses without colliding
  * (transport/equiangular.c, "auto"); and for settings.equiangular only, RD_EQ_TILES ("tiles"):
  * `delta` chooses per tile of the image between off and every flight (integrators/delta.c). A
- * path's flights never see RD_EQ_TILES: rd_eq_path_mode maps it. RD_EQ_POINTS is no setting's
- * value: every flight, point and spot lights only (RD_EQ_ALL and RD_EQ_CAMERA sample directional
- * beams too), the mode of the automatic choices' tiles (the guided methods' third estimator,
- * `delta`'s "tiles"), which leave beams to delta tracking as "auto" does. */
-typedef enum { RD_EQ_OFF, RD_EQ_ALL, RD_EQ_CAMERA, RD_EQ_AUTO, RD_EQ_TILES, RD_EQ_POINTS } rd_equiangular_mode;
+ * path's flights never see RD_EQ_TILES: rd_eq_path_mode maps it. */
+typedef enum { RD_EQ_OFF, RD_EQ_ALL, RD_EQ_CAMERA, RD_EQ_AUTO, RD_EQ_TILES } rd_equiangular_mode;
 /* The mode a path's flights take for settings.equiangular `mode`: "tiles" is off where no tile
- * choice gives a path the strategy (the tile choice itself names RD_EQ_POINTS). */
+ * choice gives a path the strategy (the tile choice itself names RD_EQ_ALL). */
 static inline int rd_eq_path_mode(int mode) { return mode == RD_EQ_TILES ? RD_EQ_OFF : mode; }
 
 /* Photon tracing settings (scene key "photons", docs/scene-format.md). */

@@ -8,12 +8,12 @@
  * is the chord inside the beam's cylinder (rd_light_lit_range), and a light at infinity has no
  * 1 / r^2 along it, so e_j below is the uniform density 1 / (b - a) on the chord (the
  * equiangular family's limit as D grows). Everything else is the same. They are in the set of
- * `true` and "camera" only (rd_eq_mode_beams): "auto" and RD_EQ_POINTS, the tiles of the
- * automatic choices (the guided methods' third estimator, `delta`'s "tiles"), leave them to
- * delta tracking, so no default image changes. A first build with beams in "auto" and in the
- * third estimator together lost 10% for guided-unbiased on the calibration scene beam-vdb and
- * 4% on smoke-vdb (docs/free-path.md "Directional beams"); "auto" with beams alone was not
- * measured.
+ * `true` and "camera" (rd_eq_mode_beams), and so of the tiles that take `true` (the guided
+ * methods' third estimator and `delta`'s "tiles", since session 30); "auto" leaves them to
+ * delta tracking. A first build with beams in "auto" and in the third estimator together lost
+ * 10% for guided-unbiased on the calibration scene beam-vdb and 4% on smoke-vdb; the third
+ * estimator with beams alone tied there and won 1.6x on hard-window-beam (docs/free-path.md
+ * "Directional beams"); "auto" with beams alone was not measured.
  *
  * The integrand. Along a flight x(t) = o + t d, t in [0, t_end] (one region, no surface in
  * between), the light of point or spot light j scattered once toward -d is

@@ -162,8 +162,8 @@ typedef struct {
  * of the set, or none left to sample). */
 int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, double q, int mode,
                       rd_eq_flight *ef);
-/* Does mode `mode` put directional beams in the set (RD_EQ_ALL, RD_EQ_CAMERA: the user's `true`
- * and "camera"; not "auto" nor RD_EQ_POINTS, the automatic choices' tiles)? */
+/* Does mode `mode` put directional beams in the set (RD_EQ_ALL, RD_EQ_CAMERA: `true` and
+ * "camera"; not "auto")? */
 int rd_eq_mode_beams(int mode);
 /* rd_eq_flight_init in two steps, for a caller that needs the flight's media intervals itself
  * (the path loop: its flight and the set-up share one rd_media_intervals). First: does the
@@ -171,9 +171,9 @@ int rd_eq_mode_beams(int mode);
  * rd_eq_mode_beams(mode)) (else the set-up stops before the intervals, n = 0)? Then, with
  * ef->iv[0..ef->n) filled by the caller from rd_media_intervals(s, region, r, 0, t_light)
  * (n = 0 allowed): the rest of the set-up, with the same result as rd_eq_flight_init.
- * rd_eq_has_lights with beams = 0: a point or spot light (what "auto", `delta`'s "tiles", the
- * guided methods' third estimator and compare's reference look for); with beams = 1, a
- * directional beam also counts. */
+ * rd_eq_has_lights with beams = 0: a point or spot light (what "auto" looks for); with
+ * beams = 1, a directional beam also counts (`delta`'s "tiles", the guided methods' third
+ * estimator and compare's reference). */
 int rd_eq_has_lights(const rd_scene *s, int beams);
 int rd_eq_flight_choose(const rd_scene *s, ray3 r, int region, double q, int mode, rd_eq_flight *ef);
 /* Does the strategy sample light i on this flight (in its set and not left to delta tracking)? */
