@@ -708,8 +708,10 @@ Test(select, a_directional_beam_is_sampled_by_the_tiles_that_take_the_strategy, 
      * samples, delta with `true` 37% (z = -0.81 over the image, 2.05 in the worst of 12
      * regions); `delta` with "tiles" 56% without the strategy (z = 0.12, 1.51). Planted: the
      * third kind's samples scaled by 1.15 (in the pilot too) fail at z = -17.5 and -14.2; the
-     * samples of `delta`'s tiles with the strategy scaled by 1.1 or 1.15 fail the share check
-     * (the near tie tips: every tile goes without the strategy). */
+     * samples of `delta`'s tiles with the strategy scaled by 0.9 fail at z = 13.1 and 10.5 (by
+     * 1.1 or 1.15, the share check: the near tie tips, every tile goes without the strategy);
+     * the third kind in "auto"'s mode, which leaves the beam out, fails the check on its
+     * equiangular samples. */
     rd_scene *ref = rt_scene("selBr.json", beam_fog_scene("\"equiangular\":true"));
     rd_scene *s = rt_scene("selB.json", beam_fog_scene("\"select\":\"tiles\""));
     rd_render_result d = rt_render(ref, "delta", 4096, 41, NULL);
@@ -721,6 +723,9 @@ Test(select, a_directional_beam_is_sampled_by_the_tiles_that_take_the_strategy, 
                 100.0 * plain, 100.0 * eq, 100.0 * (1.0 - eq - plain));
     if (mixed) rt_expect_same(&d, &g, "guided-unbiased with a beam's third kind of tile");
     cr_expect(mixed, "shares: delta %g, delta with true %g: not both kinds of delta tile", plain, eq);
+    /* and the tiles with the strategy sample the beam (the light is a beam alone, which the
+     * method's own "auto" leaves out: every equiangular sample here is a tile's) */
+    cr_expect(g.stats.eq_samples > 0, "guided-unbiased's third kind of tile drew no equiangular sample");
     rd_scene *st = rt_scene("selBt.json", beam_fog_scene("\"equiangular\":\"tiles\""));
     rd_render_result t = rt_render(st, "delta", 1024, 43, NULL);
     double off = (double)t.stats.delta_samples / (double)t.stats.paths;
@@ -728,6 +733,7 @@ Test(select, a_directional_beam_is_sampled_by_the_tiles_that_take_the_strategy, 
     cr_log_info("delta with tiles on a beam: %.0f%% of the samples without the strategy", 100.0 * off);
     if (both) rt_expect_same(&d, &t, "delta with its own tiles on a beam");
     cr_expect(both, "%g of the samples without the strategy: not both kinds of tile", off);
+    cr_expect(t.stats.eq_samples > 0, "delta's tiles with the strategy drew no equiangular sample");
     rd_render_result_free(&t);
     rd_render_result_free(&g);
     rd_render_result_free(&d);
@@ -744,8 +750,8 @@ Test(select, delta_s_own_tiles_mix_its_two_modes_and_give_delta_s_image, .timeou
      * cube under a point light (scenes/homogeneous.json made small), where the test needs both
      * kinds of tile (on the fog-filled narrow spot every tile takes the strategy); one thread
      * and two give the same image bit for bit (the choice is counted work, not time); and
-     * without a point or spot light there is nothing to choose: the image of `false`, bit for
-     * bit. With this seed and gcc's rounding a third of the samples are without the strategy:
+     * without a point or spot light or a directional beam there is nothing to choose: the
+     * image of `false`, bit for bit. With this seed and gcc's rounding a third of the samples are without the strategy:
      * z = -0.64 over the image, -1.93 in the worst of 12 regions; the strategy's samples planted
      * 1.1x fail at z = -51.6 and -33.0. */
     const char *cube = "{\"camera\":{\"position\":[0,0,4],\"look_at\":[0,0,0],\"fov\":40,\"resolution\":[32,24]},"

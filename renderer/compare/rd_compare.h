@@ -101,8 +101,8 @@ static inline int cmp_double(const void *a, const void *b)
 
 /* The reference into c->ref (and c->ref_se when its error is known) and c->sum's ref_*:
  * opts.reference, else the cache (opts.cache_dir), else rendered and cached: by delta (with
- * settings.equiangular "tiles" where the scene has a point or spot light and does not name the
- * key), or by photons where delta cannot render part of the light (reference.c's head).
+ * settings.equiangular "tiles" where the scene has a point or spot light or a directional beam
+ * and does not name the key), or by photons where delta cannot render part of the light (reference.c's head).
  * Cancelled while rendering: RD_OK with c->sum.cancelled = 1 and no reference. */
 rd_status rd_cmp_reference_get(rd_comparison *c, const rd_scene *s, char *err, size_t errlen);
 /* Several ranks (comm; NULL or one rank: nothing to do): rank root's w x h image into img on

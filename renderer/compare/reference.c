@@ -28,9 +28,9 @@
  * none: integrators/delta.c), unbiased for the same image, and the report names it. Where the
  * strategy does not pay it costs a little: "tiles" is 0.85-0.97x plain `delta` on default,
  * hard-dense-block, cloud and hetero-forward, 1.59x on homogeneous; with a beam 0.90x on
- * beam-vdb, 0.94x on smoke-vdb, 0.98x on beam, 1.53x on hard-window-beam and 4.96x on
- * exp2-directional (docs/free-path.md "Directional beams"). (glass-fog's light comes through
- * glass: its reference is the photon render above.) */
+ * beam-vdb, 0.94x on smoke-vdb, 0.98x on beam and 1.53x on hard-window-beam
+ * (docs/free-path.md "Directional beams"). (glass-fog's and exp2-directional's light comes
+ * through glass: their reference is the photon render above.) */
 #include "compare/rd_compare.h"
 #include "transport/rd_transport.h"
 

@@ -31,8 +31,8 @@ typedef struct {
                           * or spot light (or with `true` a directional beam) per flight, MIS
                           * with delta tracking's collision */
     int equiangular_given; /* settings.equiangular was in the file (else compare's rendered
-                            * reference takes "tiles" where a point or spot light exists:
-                            * compare/reference.c) */
+                            * reference takes "tiles" where a point or spot light or a
+                            * directional beam exists: compare/reference.c) */
     double thin_bias;    /* 0: off; in (0, 1): the least probability that a flight of `delta`
                           * has a tentative collision (flights whose pass-through is worth
                           * exactly 0 are forced: 1) */
