@@ -42,20 +42,6 @@ static void expected(const rd_equiangular *eq, int nb, double *e)
     for (int i = 0; i < nb; i++) e[i] = rt_simpson(pdf_cb, eq, eq->a + i * h, eq->a + (i + 1) * h, 2000);
 }
 
-static double chi2_of(const double *obs, const double *frac, int nb, int n, int *dof)
-{
-    double chi2 = 0, pool_o = 0, pool_e = 0;
-    *dof = -1;
-    for (int i = 0; i < nb; i++) {
-        double e = n * frac[i];
-        if (e < 5) { pool_o += obs[i]; pool_e += e; continue; }
-        chi2 += (obs[i] - e) * (obs[i] - e) / e;
-        (*dof)++;
-    }
-    if (pool_e >= 5) { chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e; (*dof)++; }
-    return chi2;
-}
-
 enum { NB = 64 };
 
 static void sample_bins(const rd_equiangular *eq, int n, uint64_t seed, double *obs)
@@ -82,7 +68,7 @@ Test(equiangular, sampler_chi_square)
         cr_expect(fabs(total - 1.0) < 1e-6, "case %zu: the pdf integrates to %.9f", ci, total);
         int n = 200000, dof;
         sample_bins(&eq, n, 100 + ci, obs);
-        double chi2 = chi2_of(obs, frac, NB, n, &dof), crit = rt_chi2_quantile(dof, 3.719);
+        double chi2 = rt_chi2_pooled(obs, frac, NB, n, &dof), crit = rt_chi2_quantile(dof, 3.719);
         cr_expect(chi2 < crit, "case %zu: chi2 %.1f >= %.1f (dof %d)", ci, chi2, crit, dof);
     }
 }
@@ -99,7 +85,7 @@ Test(equiangular, chi_square_rejects_a_wrong_pdf)
     expected(&wrong, NB, frac);
     int n = 200000, dof;
     sample_bins(&eq, n, 5, obs);
-    double chi2 = chi2_of(obs, frac, NB, n, &dof);
+    double chi2 = rt_chi2_pooled(obs, frac, NB, n, &dof);
     cr_expect(chi2 > rt_chi2_quantile(dof, 3.719), "chi2 %.1f did not detect D x 1.05", chi2);
 }
 
@@ -232,7 +218,7 @@ Test(equiangular, beam_sampler_chi_square)
     expected(&eq, NB, frac);
     int n = 200000, dof;
     sample_bins(&eq, n, 41, obs);
-    double chi2 = chi2_of(obs, frac, NB, n, &dof), crit = rt_chi2_quantile(dof, 3.719);
+    double chi2 = rt_chi2_pooled(obs, frac, NB, n, &dof), crit = rt_chi2_quantile(dof, 3.719);
     cr_expect(chi2 < crit, "chi2 %.1f >= %.1f (dof %d)", chi2, crit, dof);
 }
 

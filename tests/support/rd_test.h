@@ -233,6 +233,23 @@ static inline double rt_inside_length(vec3 bmin, vec3 bmax, vec3 a, vec3 b)
     return t1 - t0;
 }
 
+/* Pearson's chi-square of nb bins' counts obs against n samples of the expected fractions
+ * frac, the bins with an expected count below 5 pooled into one (pbrt-v4 bsdfs_test); *dof its
+ * degrees of freedom (bins kept, the pool counting as one, less one). */
+static inline double rt_chi2_pooled(const double *obs, const double *frac, int nb, int n, int *dof)
+{
+    double chi2 = 0, pool_o = 0, pool_e = 0;
+    *dof = -1;
+    for (int i = 0; i < nb; i++) {
+        double e = n * frac[i];
+        if (e < 5) { pool_o += obs[i]; pool_e += e; continue; }
+        chi2 += (obs[i] - e) * (obs[i] - e) / e;
+        (*dof)++;
+    }
+    if (pool_e >= 5) { chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e; (*dof)++; }
+    return chi2;
+}
+
 /* Wilson-Hilferty approximation of the chi-square quantile for `dof` degrees of freedom at
  * standard-normal quantile z (z = 3.719 for an upper tail of 1e-4). */
 static inline double rt_chi2_quantile(int dof, double z)
