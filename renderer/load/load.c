@@ -10,6 +10,7 @@
  * docs/scene-format.md. */
 #include "scene/rd_geom.h"
 #include "load/rd_load.h"
+#include "transport/rd_transport.h"
 
 #include <cJSON.h>
 #include <errno.h>
@@ -120,6 +121,29 @@ static char *read_file(const char *path, char *err, size_t errlen, rd_status *st
     return buf;
 }
 
+/* settings.beam_connect (transport/beam_connect.c): what it needs of the scene, then its
+ * tables. The first version connects to one beam in one medium without shapes, and not with
+ * an equiangular mode that samples the beam's chord on the same flights (`true`, "tiles"): the
+ * two would be the same strategy counted twice. `true` where it cannot run is an error;
+ * "auto", the default, is then off. */
+static rd_status beam_connect_setup(ld_ctx *c, rd_scene *s)
+{
+    s->beam_connect.light = -1;
+    int mode = s->settings.beam_connect;
+    if (mode == RD_BC_OFF) return RD_OK;
+    const char *f = "settings.beam_connect", *why = NULL;
+    char buf[96];
+    if (s->settings.equiangular == RD_EQ_ALL || s->settings.equiangular == RD_EQ_TILES)
+        why = "not with settings.equiangular true or \"tiles\" (both sample the beam from the same flights)";
+    else if (s->n_shapes > 0) why = "not yet in a scene with shapes";
+    else if (s->n_media != 1) {
+        snprintf(buf, sizeof buf, "needs exactly one medium (the scene has %d)", s->n_media);
+        why = buf;
+    } else if (!rd_beam_connect_setup(s)) why = "needs a directional light with a radius whose axis crosses the medium";
+    if (why && mode == RD_BC_ON) return ld_fail(c, f, "%s", why);
+    return RD_OK;
+}
+
 static rd_status validate(ld_ctx *c, const cJSON *root, rd_scene *s)
 {
     if (!cJSON_IsObject(root)) return ld_fail(c, "(top level)", "expected an object, found %s", ld_type_name(root));
@@ -205,7 +229,7 @@ static rd_status validate(ld_ctx *c, const cJSON *root, rd_scene *s)
     if (!s->sphere_lights) return RD_ERR_NOMEM;
     for (int i = 0; i < s->n_lights; i++)
         if (s->lights[i].kind == RD_LIGHT_SPHERE) s->sphere_lights[s->n_sphere_lights++] = i;
-    return RD_OK;
+    return beam_connect_setup(c, s);
 }
 
 /* FNV-1a 64 over bytes, continuing from h. */

@@ -37,7 +37,8 @@ static rd_status parse_equiangular(ld_ctx *c, const cJSON *j, const char *path, 
 /* `delta`'s thin-media strategies (docs/free-path.md): settings.equiangular is true, false,
  * "camera", "auto" or "tiles"; settings.thin_bias is false or a number in (0, 1) (1 would never pass: biased wherever a
  * pass-through is worth something), and needs an analog delta tracker
- * (it replaces the tracker's flight: weighted trackers bring weights of their own). */
+ * (it replaces the tracker's flight: weighted trackers bring weights of their own);
+ * settings.beam_connect is true, false or "auto" (what it needs of the scene: load.c). */
 static rd_status parse_strategies(ld_ctx *c, const cJSON *j, rd_settings *s)
 {
     LD_TRY(parse_equiangular(c, j, "settings", 1, 1, &s->equiangular));
@@ -51,6 +52,13 @@ static rd_status parse_strategies(ld_ctx *c, const cJSON *j, rd_settings *s)
         else s->thin_bias = b->valuedouble;
         if (s->thin_bias > 0.0 && s->tracker != RD_FP_AUTO && s->tracker != RD_FP_SUPERVOXEL && s->tracker != RD_FP_WOODCOCK)
             return ld_fail(c, "settings.thin_bias", "only with \"tracker\": \"auto\", \"supervoxel\" or \"woodcock\" (it replaces the tracker's flight)");
+    }
+    const cJSON *bc = cJSON_GetObjectItemCaseSensitive(j, "beam_connect");
+    if (bc) {
+        if (cJSON_IsBool(bc)) s->beam_connect = cJSON_IsTrue(bc) ? RD_BC_ON : RD_BC_OFF;
+        else if (cJSON_IsString(bc) && strcmp(bc->valuestring, "auto") == 0) s->beam_connect = RD_BC_AUTO;
+        else if (cJSON_IsString(bc)) return ld_fail(c, "settings.beam_connect", "expected true, false or \"auto\", found \"%s\"", bc->valuestring);
+        else return ld_fail(c, "settings.beam_connect", "expected true, false or \"auto\", found %s", ld_type_name(bc));
     }
     return RD_OK;
 }
@@ -69,13 +77,14 @@ rd_status ld_parse_settings(ld_ctx *c, const cJSON *j, rd_settings *s)
     s->track_step = 0.0;
     s->equiangular = RD_EQ_OFF;
     s->thin_bias = 0.0;
+    s->beam_connect = RD_BC_AUTO;
     s->select = RD_SELECT_AUTO; /* integrators/select.c */
     if (!j) return RD_OK;
     const char *path = "settings";
     LD_TRY(ld_need_object(c, j, path));
     static const char *const keys[] = {"spp", "time", "seed", "max_depth", "rr_depth", "method",
                                        "tracker", "transmittance", "b", "m", "step", "equiangular", "thin_bias",
-                                       "select", NULL};
+                                       "beam_connect", "select", NULL};
     LD_TRY(ld_check_keys(c, j, path, keys));
     long long v;
     LD_TRY(ld_get_int(c, j, path, "spp", 0, 16, 1, 1 << 24, &v));

@@ -36,6 +36,9 @@ typedef struct {
     double thin_bias;    /* 0: off; in (0, 1): the least probability that a flight of `delta`
                           * has a tentative collision (flights whose pass-through is worth
                           * exactly 0 are forced: 1) */
+    int beam_connect;    /* RD_BC_ON: `delta`'s paths connect each scattering vertex to a point of
+                          * the scene's directional beam (transport/beam_connect.c); RD_BC_AUTO
+                          * (default): on where the scene allows it; RD_BC_OFF: off */
     int select;          /* the guided methods (guided with an unbiased march.ls, and
                           * guided-unbiased): RD_SELECT_TILES lets a pilot give each 8x8 tile
                           * to the method or to delta's path, whichever pays, and the image's
@@ -47,6 +50,7 @@ typedef struct {
                           * unbiased, with delta) */
 } rd_settings;
 enum { RD_SELECT_OFF, RD_SELECT_TILES, RD_SELECT_PILOT, RD_SELECT_AUTO };
+enum { RD_BC_OFF, RD_BC_ON, RD_BC_AUTO }; /* settings.beam_connect */
 /* settings.equiangular: off, every flight, the camera's flight only, or every flight for the
  * lights whose lit span delta tracking reaches but mostly crosses without colliding
  * (transport/equiangular.c, "auto"); and for settings.equiangular only, RD_EQ_TILES ("tiles"):
@@ -135,6 +139,17 @@ typedef struct {
                           * samples for the direct part (integrators/march_equiangular.c) */
 } rd_march_settings;
 
+/* What settings.beam_connect's sampling needs, set once when the scene is loaded
+ * (transport/beam_connect.c, rd_beam_connect_setup): the beam, its axis inside the medium,
+ * and a table over the angle at which a point on the axis is seen from a vertex. */
+#define RD_BC_BINS 256
+typedef struct {
+    int light;            /* the beam (a directional light with a radius); -1: none, off */
+    double s0, s1;        /* its axis, beam_center + s dir, inside the medium's bounds */
+    double sigma_bar;     /* the MIS stand-in's extinction: the medium's global majorant */
+    double cdf[RD_BC_BINS + 1]; /* unnormalised CDF over theta in [-pi/2, pi/2] of HG(g, -sin theta) */
+} rd_beam_connect;
+
 struct rd_scene {
     char path[1024];
     char *description;    /* the scene's "description" (what it shows, what to look at), or NULL */
@@ -150,6 +165,7 @@ struct rd_scene {
     rd_guide_settings guide;
     rd_march_settings march;
     rd_light_sampler light_sampler; /* lights by power, built by the loader */
+    rd_beam_connect beam_connect;   /* settings.beam_connect's tables (light -1 when off) */
     uint64_t bake_key;    /* hash of what a bake depends on (load/ bake key), for the cache */
     double hidden_share;  /* the media's light on L S+ paths, measured at load (rd_hidden_light:
                              renderer.h; 0 for a scene without glass and a delta light) */

@@ -6,8 +6,9 @@
  * scattering vertex next-event estimation (rd_nee: one light chosen by power, unbiased shadow
  * transmittance), Henyey-Greenstein phase sampling (or the sampler's vertex policy), Russian
  * roulette on the path weight, and multiple importance sampling (power heuristic) between light
- * sampling and phase sampling for the lights a path can hit (sphere, environment). Surfaces:
- * rd_surface_event (docs/surfaces.md). */
+ * sampling and phase sampling for the lights a path can hit (sphere, environment), and the
+ * beam connections of settings.beam_connect, weighted against the collisions that build the
+ * same vertices (beam_connect.c). Surfaces: rd_surface_event (docs/surfaces.md). */
 #include "scene/rd_geom.h"
 #include "transport/rd_path.h"
 
@@ -124,10 +125,11 @@ int rd_surface_event(const rd_scene *s, const rd_hit *h, int depth, rd_surface_s
  * sample, beta0 the throughput from the camera to r.o (the vertex policy weighs the whole
  * path's: in a split copy, beta0 holds the copy's share). With `scattered_only`, the first
  * flight's pass-through and its vertex's next-event estimate are left to the caller
- * (rd_delta_scattered). */
+ * (rd_delta_scattered). `from_vertex`: r.o is a scattering vertex of the calling loop, which
+ * connected to the beam (a split copy: continue_from). */
 static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int depth0,
                   int camera_chain, int scattered_only, const rd_flight_sampler *fs, pcg32 *rng,
-                  rd_track_counters *c, int *budget, vec3 beta0);
+                  rd_track_counters *c, int *budget, vec3 beta0, int from_vertex);
 
 /* The flight whose vertex a next-event estimate serves, when the flight had the equiangular
  * strategy: its set-up and the vertex's distance t and density pdf (rd_flight.pdf). */
@@ -139,12 +141,24 @@ typedef struct {
 /* Next-event estimation at a medium vertex against the direction mixture mx (NULL: phase
  * sampling), its light's share weighted against the flight's equiangular strategy when it had
  * one (v->ef; equiangular.c: w_d = 1 - w_e). */
-static vec3 vertex_nee(const rd_scene *s, int region, vec3 x, vec3 d, const rd_medium *m,
-                       const rd_dir_mix *mx, const vertex_eq *v, pcg32 *rng, rd_track_counters *c)
+static vec3 vertex_nee_light(const rd_scene *s, int region, vec3 x, vec3 d, const rd_medium *m,
+                             const rd_dir_mix *mx, const vertex_eq *v, pcg32 *rng, rd_track_counters *c,
+                             int *light)
 {
     int j = -1;
-    vec3 L = rd_nee_mix(s, region, x, d, m->g, mx, rng, c, v->ef ? &j : NULL);
+    vec3 L = rd_nee_mix(s, region, x, d, m->g, mx, rng, c, &j);
+    if (light) *light = j;
     return v->ef ? v3_scale(L, rd_eq_weight(s, v->ef, v->t, j, v->pdf)) : L;
+}
+/* The same, its share of the beam's light weighted by wa_beam: the vertex's weight w_A against
+ * the beam connection that could have built it (transport/beam_connect.c; 1 where none could). */
+static vec3 vertex_nee(const rd_scene *s, int region, vec3 x, vec3 d, const rd_medium *m,
+                       const rd_dir_mix *mx, const vertex_eq *v, double wa_beam, pcg32 *rng,
+                       rd_track_counters *c)
+{
+    int j = -1;
+    vec3 L = vertex_nee_light(s, region, x, d, m, mx, v, rng, c, &j);
+    return j >= 0 && j == s->beam_connect.light ? v3_scale(L, wa_beam) : L;
 }
 
 /* One copy of a continuation from vertex x (arrived along d) with the vertex policy's
@@ -152,18 +166,18 @@ static vec3 vertex_nee(const rd_scene *s, int region, vec3 x, vec3 d, const rd_m
  * (an estimate of L_s(x, -d)); beta0 is the copy's throughput from the camera, for the vertex
  * policies further on. */
 static vec3 continue_from(const rd_scene *s, vec3 x, vec3 d, int region, const rd_medium *m,
-                          const rd_dir_mix *mx, const vertex_eq *v, int depth,
+                          const rd_dir_mix *mx, const vertex_eq *v, double wa_beam, int depth,
                           const rd_flight_sampler *fs, pcg32 *rng, rd_track_counters *c, int *budget,
                           vec3 beta0)
 {
-    vec3 L = vertex_nee(s, region, x, d, m, mx, v, rng, c);
+    vec3 L = vertex_nee(s, region, x, d, m, mx, v, wa_beam, rng, c);
     double pdf;
     vec3 wo = rd_dir_mix_sample(mx, m->g, d, rng, &pdf);
     if (!(pdf > 0.0)) return L;
     /* Weight p / pdf: 1 for phase sampling alone, the mixture's ratio otherwise. */
     double w = rd_hg_eval(m->g, v3_dot(d, wo)) / pdf;
     ray3 next = {x, wo};
-    return v3_add(L, v3_scale(trace(s, next, region, pdf, depth, 0, 0, fs, rng, c, budget, v3_scale(beta0, w)), w));
+    return v3_add(L, v3_scale(trace(s, next, region, pdf, depth, 0, 0, fs, rng, c, budget, v3_scale(beta0, w), 1), w));
 }
 
 /* The sampler's density (rd_flight_sampler.density) in the form rd_eq_flight holds it. */
@@ -179,13 +193,20 @@ static double flight_density(const void *user, double t)
 
 static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int depth0,
                   int camera_chain, int scattered_only, const rd_flight_sampler *fs, pcg32 *rng,
-                  rd_track_counters *c, int *budget, vec3 beta0)
+                  rd_track_counters *c, int *budget, vec3 beta0, int from_vertex)
 {
     vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
     rd_hit hit, prev;
     const rd_hit *from = NULL; /* the surface the current ray leaves, if any */
     int crossings = 0;
     double eta_scale = 1.0; /* rd_surface_step */
+    /* settings.beam_connect (transport/beam_connect.c): every scattering vertex connects to the
+     * beam, but not where the flights after a scattering event sample the beam's chord
+     * themselves (the equiangular mode `true`, as the guided methods' third estimator has it).
+     * prev_scatter: the current flight starts at a scattering vertex (r.o) that connected, so
+     * the next-event estimate at its collision takes the weight w_A. */
+    const int connect = s->beam_connect.light >= 0 && fs->equiangular != RD_EQ_ALL;
+    int prev_scatter = from_vertex;
     for (int depth = depth0;; depth++) {
         /* What the ray meets first (a sphere light or a surface) ends the free flight. */
         rd_flight_in in = {.r = r, .depth = depth, .phase_pdf = phase_pdf, .region = region,
@@ -234,6 +255,7 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
             break;
         }
         if (f.kind == RD_FLIGHT_PASS) {
+            prev_scatter = 0;
             /* At a surface (docs/surfaces.md). An interface only changes the region: the same
              * ray goes on, no event counted, no random number drawn. */
             prev = hit;
@@ -260,6 +282,16 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
         const rd_medium *m = f.medium;
         vec3 x = ray_at(r, f.t);
         const vertex_eq ve = {.ef = eq ? &ef : NULL, .t = f.t, .pdf = f.pdf};
+        /* The beam's light at x: the connection from r.o could have built this vertex too;
+         * this side's balance weight w_A (beam_connect.c) */
+        double wa_beam = 1.0;
+        if (connect && prev_scatter) {
+            double pb = rd_beam_connect_pdf(s, r.o, x);
+            if (pb > 0.0) {
+                double pa = rd_beam_connect_path_pdf(s, phase_pdf, f.t);
+                wa_beam = pa / (pa + pb);
+            }
+        }
         from = NULL;
         camera_chain = 0;
         /* Scattering vertex: beta now carries T sigma_s / pdf (rd_flight), so what follows
@@ -277,21 +309,26 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
             if (n - 1 > *budget) n = 1 + *budget;
             *budget -= n - 1;
             beta = v3_scale(beta, vo.rr_scale / n);
+            /* One connection to the beam for the vertex (its weight the surviving path's, all
+             * copies together), against the mixture's directions that every copy draws. */
+            if (connect && depth + 2 <= s->settings.max_depth)
+                L = v3_add(L, v3_mul(v3_scale(beta, n), rd_beam_connect_estimate(s, region, x, r.d, m, &vo.mix, rng, c)));
             for (int k = 1; k < n; k++)
-                L = v3_add(L, v3_mul(beta, continue_from(s, x, r.d, region, m, &vo.mix, &ve, depth + 1,
+                L = v3_add(L, v3_mul(beta, continue_from(s, x, r.d, region, m, &vo.mix, &ve, wa_beam, depth + 1,
                                                          fs, rng, c, budget, v3_mul(beta0, beta))));
-            L = v3_add(L, v3_mul(beta, vertex_nee(s, region, x, r.d, m, &vo.mix, &ve, rng, c)));
+            L = v3_add(L, v3_mul(beta, vertex_nee(s, region, x, r.d, m, &vo.mix, &ve, wa_beam, rng, c)));
             double pdf;
             vec3 wo = rd_dir_mix_sample(&vo.mix, m->g, r.d, rng, &pdf);
             if (!(pdf > 0.0)) break;
             beta = v3_scale(beta, rd_hg_eval(m->g, v3_dot(r.d, wo)) / pdf);
             phase_pdf = pdf;
+            prev_scatter = 1;
             r.o = x;
             r.d = wo;
             continue;
         }
         if (!first) /* (else the caller estimated this vertex's direct light) */
-            L = v3_add(L, v3_mul(beta, vertex_nee(s, region, x, r.d, m, NULL, &ve, rng, c)));
+            L = v3_add(L, v3_mul(beta, vertex_nee(s, region, x, r.d, m, NULL, &ve, wa_beam, rng, c)));
 
         /* Russian roulette on the throughput. Weighted trackers with non-bounding majorants
          * can make weights negative: survive with the largest magnitude, not the largest value. */
@@ -301,9 +338,13 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
             beta = v3_scale(beta, 1.0 / q);
         }
 
+        /* The connection to the beam from x (its vertex y would be scattering event depth + 2). */
+        if (connect && depth + 2 <= s->settings.max_depth)
+            L = v3_add(L, v3_mul(beta, rd_beam_connect_estimate(s, region, x, r.d, m, NULL, rng, c)));
         /* Phase sampling: the weight p/pdf is 1 for HG importance sampling. */
         vec3 wo = rd_hg_sample(m->g, r.d, pcg32_uniform(rng), pcg32_uniform(rng));
         phase_pdf = rd_hg_eval(m->g, v3_dot(r.d, wo));
+        prev_scatter = 1;
         r.o = x;
         r.d = wo;
     }
@@ -315,7 +356,7 @@ vec3 rd_path_radiance(const rd_scene *s, ray3 r, const rd_flight_sampler *fs, pc
 {
     int budget = RD_SPLIT_BUDGET;
     /* The camera's region (rd_scene_camera_region: found once for a perspective camera). */
-    return trace(s, r, rd_scene_camera_region(s, r), 0.0, 0, 1, 0, fs, rng, c, &budget, v3(1, 1, 1));
+    return trace(s, r, rd_scene_camera_region(s, r), 0.0, 0, 1, 0, fs, rng, c, &budget, v3(1, 1, 1), 0);
 }
 
 vec3 rd_delta_continue(const rd_scene *s, ray3 r, int region, double pdf, int depth,
@@ -324,7 +365,7 @@ vec3 rd_delta_continue(const rd_scene *s, ray3 r, int region, double pdf, int de
     const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL,
                                   .equiangular = equiangular};
     int budget = 0;
-    return trace(s, r, region, pdf, depth, camera_chain, 0, &fs, rng, c, &budget, v3(1, 1, 1));
+    return trace(s, r, region, pdf, depth, camera_chain, 0, &fs, rng, c, &budget, v3(1, 1, 1), 0);
 }
 
 vec3 rd_delta_scattered(const rd_scene *s, ray3 r, int region, int depth, int equiangular,
@@ -333,7 +374,7 @@ vec3 rd_delta_scattered(const rd_scene *s, ray3 r, int region, int depth, int eq
     const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL,
                                   .equiangular = equiangular};
     int budget = 0;
-    return trace(s, r, region, 0.0, depth, 1, 1, &fs, rng, c, &budget, v3(1, 1, 1));
+    return trace(s, r, region, 0.0, depth, 1, 1, &fs, rng, c, &budget, v3(1, 1, 1), 0);
 }
 
 vec3 rd_delta_radiance_eq(const rd_scene *s, ray3 r, int equiangular, pcg32 *rng, rd_track_counters *c)

@@ -104,7 +104,8 @@ typedef struct rd_flight_sampler {
 /* Extra copies splitting may add to one camera sample's path tree (a bound on its cost). */
 #define RD_SPLIT_BUDGET 32
 /* The path loop: NEE at every scattering vertex, HG sampling with MIS, Russian roulette (or
- * the sampler's vertex policy, with splitting). */
+ * the sampler's vertex policy, with splitting), and where settings.beam_connect is on a
+ * connection to the scene's directional beam at every scattering vertex (beam_connect.c). */
 vec3 rd_path_radiance(const rd_scene *s, ray3 r, const rd_flight_sampler *fs, pcg32 *rng,
                       rd_track_counters *c);
 /* One scattering event at surface hit h (not an interface) of a path arriving along st->r.d

@@ -216,6 +216,27 @@ vec3 rd_nee_split(const rd_scene *s, int region, vec3 x, vec3 d, double g, const
 vec3 rd_nee_all(const rd_scene *s, int region, vec3 x, vec3 d, double g, const double *light_w,
                 pcg32 *rng, rd_track_counters *c);
 
+/* ---- settings.beam_connect: `delta`'s beam connections (transport/beam_connect.c) ---------- */
+/* Fill s->beam_connect for the scene's first directional beam whose axis crosses media[0]
+ * (light -1 and 0 when there is none). The loader calls it, once. */
+int rd_beam_connect_setup(rd_scene *s);
+/* The connection's point y seen from vertex x, from four uniforms, and its density per unit
+ * volume *pdf (rd_beam_connect_pdf); 0 when there is none. */
+int rd_beam_connect_sample(const rd_scene *s, vec3 x, double u_mix, double u_th, double u1, double u2,
+                           vec3 *y, double *pdf);
+/* The density per unit volume with which rd_beam_connect_sample draws y from x (0 outside the
+ * beam's cylinder within the medium). */
+double rd_beam_connect_pdf(const rd_scene *s, vec3 x, vec3 y);
+/* The MIS stand-in for the path's own way to y: direction density dir_pdf at x, then delta
+ * tracking's collision density over `dist` with the medium's global majorant, per unit volume. */
+double rd_beam_connect_path_pdf(const rd_scene *s, double dir_pdf, double dist);
+/* One connection from scattering vertex x (in medium m, arrived along d) to the beam, with its
+ * MIS weight against the path's own continuation (direction mixture mx, NULL: phase sampling)
+ * and its roulette: an estimate of the part of L_s(x, -d) that the beam's light scattered at a
+ * point of its cylinder gives, per unit throughput at x. */
+vec3 rd_beam_connect_estimate(const rd_scene *s, int region, vec3 x, vec3 d, const rd_medium *m,
+                              const rd_dir_mix *mx, pcg32 *rng, rd_track_counters *c);
+
 #ifdef __cplusplus
 }
 #endif

@@ -1,0 +1,228 @@
+/* `delta`'s beam connections (settings.beam_connect; transport/beam_connect.c):
+ *  - the sampler of the connection's point: chi-square of its axial coordinate against the
+ *    density rd_beam_connect_pdf integrated by Simpson's rule (not the sampler's inversion), and
+ *    of its offset across the axis against the uniform disc; cells with an expected count < 5
+ *    pooled, rejected at p = 1e-4 (z = 3.719), as tests/test_equiangular.c; the pdf integrates
+ *    to 1 and the sampler returns the pdf of the point it draws; the test has teeth: the same
+ *    samples judged against the pdf seen from another vertex fail;
+ *  - unbiased: `delta` with the connections gives `delta`'s image on a beam across fog, in a
+ *    homogeneous medium and in a forward-scattering noise medium (z bounds of 5 for the image
+ *    and 4.5 for the worst region, rt_expect_same; fixed seeds); guided-unbiased's own paths,
+ *    which connect too, give the same image;
+ *  - "auto" (the default) is on where the first version runs and off where it would refuse;
+ *  - what the first version refuses when asked for, each with a one-line error naming the
+ *    field. */
+#include "support/rd_test.h"
+
+/* A box of fog crossed by a beam; `medium` the medium's JSON body, `settings` extra settings. */
+static const char *beam_fog_json(const char *medium, const char *settings)
+{
+    static char buf[2048];
+    snprintf(buf, sizeof buf,
+             "{\"camera\":{\"position\":[0,0,3.2],\"look_at\":[0,0,0],\"fov\":40,\"resolution\":[32,24]},"
+             "\"media\":[{\"name\":\"fog\",\"bounds\":{\"min\":[-1,-0.8,-0.8],\"max\":[1,0.8,0.8]},%s}],"
+             "\"lights\":[{\"type\":\"directional\",\"direction\":[1,-0.2,0.3],\"irradiance\":[5,5,5],"
+             "\"radius\":0.2,\"center\":[0,0.1,0]}],\"background\":0,"
+             "\"settings\":{\"max_depth\":64,\"rr_depth\":3%s}}",
+             medium, settings);
+    return buf;
+}
+
+static const char *const homogeneous = "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1.5,\"albedo\":0.9,\"g\":0.6";
+
+typedef struct {
+    const rd_scene *s;
+    vec3 x;
+} pdf_ctx;
+
+/* The density of the axial coordinate s: the point's density is the same across the disc. */
+static double axial_pdf(double s, const void *ctx)
+{
+    const pdf_ctx *k = ctx;
+    const rd_light *l = &k->s->lights[k->s->beam_connect.light];
+    return rd_beam_connect_pdf(k->s, k->x, v3_madd(l->beam_center, l->dir, s)) * M_PI * l->radius * l->radius;
+}
+
+enum { NB = 64, NS = 200000 };
+
+/* Samples from x: the axial coordinate binned over [s0, s1], the squared offset across the
+ * axis over R^2 binned over [0, 1] (uniform for a uniform disc). */
+static void sample_bins(const rd_scene *s, vec3 x, uint64_t seed, double *axial, double *radial)
+{
+    const rd_beam_connect *bc = &s->beam_connect;
+    const rd_light *l = &s->lights[bc->light];
+    pcg32 rng = pcg32_seed(seed, 7, 13);
+    memset(axial, 0, NB * sizeof *axial);
+    memset(radial, 0, NB * sizeof *radial);
+    for (int i = 0; i < NS; i++) {
+        double u[4] = {pcg32_uniform(&rng), pcg32_uniform(&rng), pcg32_uniform(&rng), pcg32_uniform(&rng)};
+        vec3 y;
+        double pdf;
+        cr_assert(rd_beam_connect_sample(s, x, u[0], u[1], u[2], u[3], &y, &pdf));
+        cr_assert(pdf == rd_beam_connect_pdf(s, x, y), "the sampler's pdf differs from rd_beam_connect_pdf");
+        vec3 q = v3_sub(y, l->beam_center);
+        double sy = v3_dot(q, l->dir);
+        vec3 perp = v3_madd(q, l->dir, -sy);
+        int a = (int)((sy - bc->s0) / (bc->s1 - bc->s0) * NB), r = (int)(v3_dot(perp, perp) / (l->radius * l->radius) * NB);
+        axial[a < 0 ? 0 : a >= NB ? NB - 1 : a]++;
+        radial[r < 0 ? 0 : r >= NB ? NB - 1 : r]++;
+    }
+}
+
+static double axial_chi2(const rd_scene *s, vec3 x, const double *obs, int *dof)
+{
+    const rd_beam_connect *bc = &s->beam_connect;
+    pdf_ctx k = {s, x};
+    double frac[NB], h = (bc->s1 - bc->s0) / NB;
+    /* 4000 intervals a bin: the sharpest feature, the equiangular peak of a vertex at the beam's
+     * radius (0.2), spans several bins of 2.4/64 */
+    for (int i = 0; i < NB; i++) frac[i] = rt_simpson(axial_pdf, &k, bc->s0 + i * h, bc->s0 + (i + 1) * h, 4000);
+    return rt_chi2_pooled(obs, frac, NB, NS, dof);
+}
+
+Test(beam_connect, sampler_chi_square)
+{
+    rd_scene *s = rt_scene("bc.json", beam_fog_json(homogeneous, ",\"beam_connect\":true"));
+    const rd_beam_connect *bc = &s->beam_connect;
+    cr_assert(bc->light == 0 && bc->s1 > bc->s0);
+    const vec3 xs[] = {
+        {0.1, 0.5, 0.2},   /* beside the beam, upstream of its middle */
+        {0.6, 0.0, 0.4},   /* near the beam, downstream */
+        {-0.3, 0.16, -0.09}, /* inside the cylinder */
+        {-0.9, -0.7, 0.7}, /* a far corner */
+    };
+    double z = 3.719; /* p = 1e-4 */
+    for (size_t i = 0; i < sizeof xs / sizeof xs[0]; i++) {
+        pdf_ctx k = {s, xs[i]};
+        double total = rt_simpson(axial_pdf, &k, bc->s0, bc->s1, 64 * 4000);
+        cr_expect(fabs(total - 1.0) < 1e-3, "vertex %zu: the axial pdf integrates to %.6f", i, total);
+        double axial[NB], radial[NB], frac[NB];
+        sample_bins(s, xs[i], 100 + i, axial, radial);
+        int dof;
+        double chi2 = axial_chi2(s, xs[i], axial, &dof);
+        cr_expect(chi2 < rt_chi2_quantile(dof, z), "vertex %zu: axial chi2 %.1f, dof %d", i, chi2, dof);
+        for (int b = 0; b < NB; b++) frac[b] = 1.0 / NB;
+        chi2 = rt_chi2_pooled(radial, frac, NB, NS, &dof);
+        cr_expect(chi2 < rt_chi2_quantile(dof, z), "vertex %zu: radial chi2 %.1f, dof %d", i, chi2, dof);
+        cr_log_info("vertex %zu: pdf total %.6f", i, total);
+    }
+    rd_scene_free(s);
+}
+
+Test(beam_connect, chi_square_rejects_a_wrong_pdf)
+{
+    /* The samples drawn from one vertex, judged against the pdf seen from a vertex 0.1 away. */
+    rd_scene *s = rt_scene("bc.json", beam_fog_json(homogeneous, ",\"beam_connect\":true"));
+    vec3 x = {0.1, 0.5, 0.2}, x_moved = {0.1, 0.4, 0.2};
+    double axial[NB], radial[NB];
+    sample_bins(s, x, 100, axial, radial);
+    int dof;
+    double chi2 = axial_chi2(s, x_moved, axial, &dof);
+    cr_expect(chi2 > rt_chi2_quantile(dof, 3.719), "a wrong pdf passed: chi2 %.1f, dof %d", chi2, dof);
+    rd_scene_free(s);
+}
+
+/* `delta` with and without the connections, seeds apart. */
+static void expect_delta_s_image(const char *medium, int spp, const char *what)
+{
+    rd_scene *a = rt_scene("bc_off.json", beam_fog_json(medium, ",\"beam_connect\":false"));
+    rd_scene *b = rt_scene("bc_on.json", beam_fog_json(medium, ",\"beam_connect\":true"));
+    cr_assert(a->beam_connect.light == -1 && b->beam_connect.light == 0);
+    rd_render_result ra = rt_render(a, "delta", spp, 11, NULL), rb = rt_render(b, "delta", spp, 12, NULL);
+    rt_expect_same(&ra, &rb, what);
+    cr_log_info("%s: variance per pixel %.3g without, %.3g with the connections", what, rt_mean_pixel_var(&ra),
+                rt_mean_pixel_var(&rb));
+    rd_render_result_free(&ra);
+    rd_render_result_free(&rb);
+    rd_scene_free(a);
+    rd_scene_free(b);
+}
+
+Test(beam_connect, homogeneous_fog_gives_delta_s_image)
+{
+    expect_delta_s_image(homogeneous, 1024, "homogeneous, g 0.6");
+}
+
+Test(beam_connect, forward_scattering_noise_gives_delta_s_image)
+{
+    expect_delta_s_image("\"density\":{\"type\":\"noise\",\"octaves\":3,\"frequency\":2,\"gain\":0.5,\"lacunarity\":2,"
+                         "\"amplitude\":1.5,\"seed\":3},\"sigma_t\":1.2,\"albedo\":0.95,\"g\":0.85",
+                         1024, "noise, g 0.85");
+}
+
+/* guided-unbiased's own paths connect too (their guided directions and splitting: the
+ * connection's weight against the direction mixture, a split vertex's one connection for all
+ * its copies): the method alone (the selection off) gives `delta`'s image. */
+Test(beam_connect, guided_unbiased_s_paths_connect_and_keep_delta_s_image)
+{
+    rd_scene *a = rt_scene("bc_off.json", beam_fog_json(homogeneous, ",\"beam_connect\":false"));
+    rd_scene *b = rt_scene("bc_gu.json", beam_fog_json(homogeneous, ",\"beam_connect\":true"));
+    rd_render_result ra = rt_render(a, "delta", 1024, 15, NULL), rb = rt_render(b, "guided-unbiased", 512, 22, NULL);
+    rt_expect_same(&ra, &rb, "guided-unbiased with the connections");
+    rd_render_result_free(&ra);
+    rd_render_result_free(&rb);
+    rd_scene_free(a);
+    rd_scene_free(b);
+}
+
+/* "auto", the default, is on where the first version runs and off, without an error, where
+ * it would refuse. */
+Test(beam_connect, auto_is_on_where_it_can_run)
+{
+    rd_scene *s = rt_scene("bc_auto.json", beam_fog_json(homogeneous, ""));
+    cr_expect(s->settings.beam_connect == RD_BC_AUTO && s->beam_connect.light == 0, "the default is on in one medium");
+    rd_scene_free(s);
+    s = rt_scene("bc_auto_eq.json", beam_fog_json(homogeneous, ",\"equiangular\":true"));
+    cr_expect(s->beam_connect.light == -1, "auto connects where `true` samples the chord");
+    rd_scene_free(s);
+    s = rt_scene("bc_auto_sun.json",
+                 "{\"camera\":{\"position\":[0,0,3],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
+                 "\"media\":[{\"name\":\"fog\",\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
+                 "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1}],"
+                 "\"lights\":[{\"type\":\"directional\",\"direction\":[1,0,0],\"irradiance\":1}]}");
+    cr_expect(s->beam_connect.light == -1, "a sun without a radius is no beam");
+    rd_scene_free(s);
+}
+
+Test(beam_connect, what_the_first_version_refuses)
+{
+    static const char *const bad[][2] = {
+        {",\"beam_connect\":1", "expected true, false or \"auto\""},
+        {",\"beam_connect\":\"sometimes\"", "expected true, false or \"auto\""},
+        {",\"beam_connect\":true,\"equiangular\":true", "settings.equiangular"},
+        {",\"beam_connect\":true,\"equiangular\":\"tiles\"", "settings.equiangular"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        char path[256], err[RD_ERRLEN] = "";
+        snprintf(path, sizeof path, "%s/bc_bad.json", rt_tmpdir());
+        const char *json = beam_fog_json(homogeneous, bad[i][0]);
+        rt_write_file(path, json, strlen(json));
+        rd_scene *s = NULL;
+        cr_expect(rd_scene_load(&s, path, NULL, 0, err, sizeof err) != RD_OK, "%s accepted", bad[i][0]);
+        cr_expect(strstr(err, "settings.beam_connect") && strstr(err, bad[i][1]), "%s: message \"%s\"", bad[i][0], err);
+        cr_expect(strchr(err, '\n') == NULL, "one line: \"%s\"", err);
+        rd_scene_free(s);
+    }
+    /* no beam: a sun without a radius; two media */
+    const char *no_beam =
+        "{\"camera\":{\"position\":[0,0,3],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
+        "\"media\":[{\"name\":\"fog\",\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1}],"
+        "\"lights\":[{\"type\":\"directional\",\"direction\":[1,0,0],\"irradiance\":1}],"
+        "\"settings\":{\"beam_connect\":true}}";
+    const char *two_media =
+        "{\"camera\":{\"position\":[0,0,3],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
+        "\"media\":[{\"name\":\"a\",\"bounds\":{\"min\":[-1,-1,-1],\"max\":[0,1,1]},\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1},"
+        "{\"name\":\"b\",\"bounds\":{\"min\":[0,-1,-1],\"max\":[1,1,1]},\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1}],"
+        "\"lights\":[{\"type\":\"directional\",\"direction\":[1,0,0],\"irradiance\":1,\"radius\":0.2,\"center\":[0,0,0]}],"
+        "\"settings\":{\"beam_connect\":true}}";
+    const char *jsons[] = {no_beam, two_media}, *want[] = {"directional light with a radius", "exactly one medium"};
+    for (int i = 0; i < 2; i++) {
+        char path[256], err[RD_ERRLEN] = "";
+        snprintf(path, sizeof path, "%s/bc_bad2.json", rt_tmpdir());
+        rt_write_file(path, jsons[i], strlen(jsons[i]));
+        rd_scene *s = NULL;
+        cr_expect(rd_scene_load(&s, path, NULL, 0, err, sizeof err) != RD_OK, "case %d accepted", i);
+        cr_expect(strstr(err, "settings.beam_connect") && strstr(err, want[i]), "case %d: message \"%s\"", i, err);
+        rd_scene_free(s);
+    }
+}
