@@ -208,27 +208,33 @@ Test(compare_rule, a_point_lit_scene_s_rendered_reference_is_delta_with_tiles, .
 }
 
 /* A directional beam is a light the strategy samples (since session 30), so a scene lit by one
- * alone gets the reference with "tiles" too (reference.c); the mix's unbiasedness on a beam is
- * tests/test_select.c's. Without the beam's radius (a plain sun) there is nothing to choose:
- * plain `delta`. */
+ * alone gets the reference with "tiles" too (reference.c) when its beam connections are off;
+ * the mix's unbiasedness on a beam is tests/test_select.c's. Where the connections serve the
+ * beam (settings.beam_connect, on by default since session 31) and without the beam's radius
+ * (a plain sun), plain `delta`. */
 Test(compare_rule, a_beam_lit_scene_s_rendered_reference_is_delta_with_tiles, .timeout = 60)
 {
     static const char *fmt = "{\"camera\":{\"position\":[0,0,4],\"look_at\":[0,0,0],\"resolution\":[16,12]},"
                              "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
                              "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":0.3,\"albedo\":0.8}],"
-                             "\"lights\":[{\"type\":\"directional\",\"direction\":[1,-0.2,0.1],\"irradiance\":5%s}]}";
-    const char *radius[2] = {",\"radius\":0.1,\"center\":[0,0,0]", ""};
-    const char *want[2] = {"delta, settings.equiangular tiles", "delta"};
-    for (int i = 0; i < 2; i++) {
+                             "\"lights\":[{\"type\":\"directional\",\"direction\":[1,-0.2,0.1],\"irradiance\":5%s}]%s}";
+    /* a beam with its connections off; a sun without a radius; a beam that its connections
+     * serve (settings.beam_connect "auto", the default: docs/free-path.md "Beam connections") */
+    const char *beam = ",\"radius\":0.1,\"center\":[0,0,0]";
+    const char *light[3] = {beam, "", beam};
+    const char *settings[3] = {",\"settings\":{\"beam_connect\":false}", "", ""};
+    const char *want[3] = {"delta, settings.equiangular tiles", "delta", "delta"};
+    const char *name[3] = {"beamref.json", "sun.json", "beamconn.json"};
+    for (int i = 0; i < 3; i++) {
         char json[1024], err[RD_ERRLEN];
-        snprintf(json, sizeof json, fmt, radius[i]);
-        rd_scene *s = rt_scene(i ? "sun.json" : "beamref.json", json);
+        snprintf(json, sizeof json, fmt, light[i], settings[i]);
+        rd_scene *s = rt_scene(name[i], json);
         rd_cmp_opts o = delta_opts(NULL, 4);
         o.ref_spp = 16;
         rd_comparison *c = NULL;
         cr_assert(rd_compare_run(s, &o, &c, err, sizeof err) == RD_OK, "%s", err);
         const char *got = rd_comparison_summary(c)->ref_method;
-        cr_expect(strcmp(got, want[i]) == 0, "%s: reference by %s", i ? "a sun" : "a beam", got);
+        cr_expect(strcmp(got, want[i]) == 0, "%s: reference by %s", name[i], got);
         rd_comparison_free(c);
         rd_scene_free(s);
     }

@@ -391,13 +391,19 @@ int rd_cmp_reference_is_auto(const rd_cmp_opts *o)
  * radius (consistent), and no tile selection (its `delta` tiles would lack that light again).
  * Else `delta`, with settings.equiangular "tiles" (and settings.select at its default) where
  * the scene leaves that key to its default and has a point or spot light or a directional
- * beam. */
+ * beam that its beam connections (settings.beam_connect) do not serve. */
 static void reference_scene(rd_comparison *c, const rd_scene *s)
 {
     double share = rd_scene_hidden_light(s); /* measured at load (load/load.c) */
     c->sum.hidden_share = share;
     c->photon_ref = share > RD_HIDDEN_SHARE && !c->opts.reference;
-    c->tiles_ref = !c->opts.reference && !c->photon_ref && !s->settings.equiangular_given && rd_eq_has_lights(s, 1);
+    /* a beam that settings.beam_connect serves (on since session 31) needs no chord sample:
+     * `delta` with its connections makes 3.0x plain `delta` on beam.json against the chord
+     * sample's 1.2x, and 2.1x on beam-vdb against its 0.91x (docs/benchmarks.md "Session 31",
+     * docs/free-path.md "Directional beams"), so only point and spot lights call for "tiles"
+     * there */
+    int beams = s->beam_connect.light < 0;
+    c->tiles_ref = !c->opts.reference && !c->photon_ref && !s->settings.equiangular_given && rd_eq_has_lights(s, beams);
     snprintf(c->sum.ref_method, sizeof c->sum.ref_method, "%s",
              c->opts.reference ? "given"
              : c->photon_ref  ? "guided, march.ls photons, progressive passes"
