@@ -1,14 +1,18 @@
-/* `delta`'s beam connections (settings.beam_connect; transport/beam_connect.c):
+/* The path loops' beam connections (settings.beam_connect; transport/beam_connect.c):
  *  - the sampler of the connection's point: chi-square of its axial coordinate against the
  *    density rd_beam_connect_pdf integrated by Simpson's rule (not the sampler's inversion), and
  *    of its offset across the axis against the uniform disc; cells with an expected count < 5
  *    pooled, rejected at p = 1e-4 (z = 3.719), as tests/test_equiangular.c; the pdf integrates
  *    to 1 and the sampler returns the pdf of the point it draws; the test has teeth: the same
  *    samples judged against the pdf seen from another vertex fail;
- *  - unbiased: `delta` with the connections gives `delta`'s image on a beam across fog, in a
+ *  - unbiased (the sanitizer run keeps the first of these, the release run has them all:
+ *    Makefile ASAN_FILTER): `delta` with the connections gives `delta`'s image on a beam across fog, in a
  *    homogeneous medium and in a forward-scattering noise medium (z bounds of 5 for the image
- *    and 4.5 for the worst region, rt_expect_same; fixed seeds); guided-unbiased's own paths,
+ *    and 4.5 for the worst region, rt_expect_same; fixed seeds), also with a second light (a
+ *    bright sphere in the beam) and max_depth 2; guided-unbiased's own paths,
  *    which connect too, give the same image;
+ *  - max_depth 1 makes no connection (the image bit for bit); a sphere light blocks the
+ *    connections that cross it;
  *  - "auto" (the default) is on where the first version runs and off where it would refuse;
  *  - what the first version refuses when asked for, each with a one-line error naming the
  *    field. */
@@ -138,12 +142,98 @@ static void expect_delta_s_image(const char *medium, int spp, const char *what)
     rd_scene_free(b);
 }
 
-Test(beam_connect, homogeneous_fog_gives_delta_s_image)
+Test(beam_connect, homogeneous_fog_gives_delta_s_image, .timeout = 120)
 {
     expect_delta_s_image(homogeneous, 1024, "homogeneous, g 0.6");
 }
 
-Test(beam_connect, forward_scattering_noise_gives_delta_s_image)
+/* A second light, so that the beam's share of next-event estimation is below 1 and the
+ * collision's weight w_A must follow the light picked (applied to every pick it fails at z 10):
+ * a bright sphere light inside the beam, two scattering events at most. */
+Test(beam_connect, a_second_light_gives_delta_s_image, .timeout = 120)
+{
+    static const char *fmt =
+        "{\"camera\":{\"position\":[0,0,3.2],\"look_at\":[0,0,0],\"fov\":40,\"resolution\":[32,24]},"
+        "\"media\":[{\"name\":\"fog\",\"bounds\":{\"min\":[-1,-0.8,-0.8],\"max\":[1,0.8,0.8]},%s}],"
+        "\"lights\":[{\"type\":\"directional\",\"direction\":[1,-0.2,0.3],\"irradiance\":[5,5,5],"
+        "\"radius\":0.2,\"center\":[0,0.1,0]},{\"type\":\"sphere\",\"center\":[0.28,0.04,0.08],"
+        "\"radius\":0.15,\"radiance\":[10,10,10]}],\"background\":0,"
+        "\"settings\":{\"max_depth\":2,\"rr_depth\":3,\"beam_connect\":%s}}";
+    char a_json[2048], b_json[2048];
+    snprintf(a_json, sizeof a_json, fmt, homogeneous, "false");
+    snprintf(b_json, sizeof b_json, fmt, homogeneous, "true");
+    rd_scene *a = rt_scene("bc_sph_off.json", a_json), *b = rt_scene("bc_sph_on.json", b_json);
+    cr_assert(a->beam_connect.light == -1 && b->beam_connect.light == 0 && b->n_lights == 2);
+    rd_render_result ra = rt_render(a, "delta", 2048, 31, NULL), rb = rt_render(b, "delta", 2048, 32, NULL);
+    rt_expect_same(&ra, &rb, "a sphere light in the beam, max_depth 2");
+    rd_render_result_free(&ra);
+    rd_render_result_free(&rb);
+    rd_scene_free(a);
+    rd_scene_free(b);
+}
+
+/* With max_depth 1 a connection's vertex would be a second scattering event: none is made, no
+ * random number drawn, so the image is `delta`'s without the connections bit for bit. */
+Test(beam_connect, max_depth_1_makes_no_connection)
+{
+    rd_scene *a = rt_scene("bc_d1_off.json", beam_fog_json(homogeneous, ",\"beam_connect\":false"));
+    rd_scene *b = rt_scene("bc_d1_on.json", beam_fog_json(homogeneous, ",\"beam_connect\":true"));
+    a->settings.max_depth = b->settings.max_depth = 1;
+    rd_render_result ra = rt_render(a, "delta", 16, 41, NULL), rb = rt_render(b, "delta", 16, 41, NULL);
+    size_t n = (size_t)ra.image.w * ra.image.h * 3;
+    cr_assert(memcmp(ra.image.rgb, rb.image.rgb, n * sizeof *ra.image.rgb) == 0, "max_depth 1: the images differ");
+    rd_render_result_free(&ra);
+    rd_render_result_free(&rb);
+    rd_scene_free(a);
+    rd_scene_free(b);
+}
+
+/* A sphere light ends every flight that meets it, so it blocks every connection that crosses
+ * it: from a vertex beside a sphere light that hides part of the beam, each connection whose
+ * point y (drawn again from a copy of the random numbers) lies behind the sphere is 0, and some
+ * of the others are not. */
+Test(beam_connect, a_sphere_light_blocks_the_connections_that_cross_it)
+{
+    static const char *fmt =
+        "{\"camera\":{\"position\":[0,0,3.2],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
+        "\"media\":[{\"name\":\"fog\",\"bounds\":{\"min\":[-1,-0.8,-0.8],\"max\":[1,0.8,0.8]},%s}],"
+        "\"lights\":[{\"type\":\"directional\",\"direction\":[1,-0.2,0.3],\"irradiance\":[5,5,5],"
+        "\"radius\":0.2,\"center\":[0,0.1,0]},{\"type\":\"sphere\",\"center\":[0,-0.2,0.15],"
+        "\"radius\":0.12,\"radiance\":1}],\"settings\":{\"beam_connect\":true}}";
+    char json[2048];
+    snprintf(json, sizeof json, fmt, homogeneous);
+    rd_scene *s = rt_scene("bc_sph.json", json);
+    cr_assert(s->beam_connect.light == 0);
+    vec3 x = {0.0, -0.5, 0.3}, c = {0.0, -0.2, 0.15};
+    double R = 0.12;
+    pcg32 rng = pcg32_seed(51, 7, 13);
+    rd_track_counters k = {0};
+    int blocked = 0, blocked_lit = 0, open_lit = 0;
+    for (int i = 0; i < 20000; i++) {
+        pcg32 copy = rng; /* the connection's first four numbers draw its point */
+        double u[4] = {pcg32_uniform(&copy), pcg32_uniform(&copy), pcg32_uniform(&copy), pcg32_uniform(&copy)};
+        vec3 y;
+        double pdf;
+        int drawn = rd_beam_connect_sample(s, x, u[0], u[1], u[2], u[3], &y, &pdf);
+        vec3 L = rd_beam_connect_estimate(s, rd_scene_region_at(s, x), x, v3(0, 0, -1), &s->media[0], NULL, &rng, &k);
+        if (!drawn) continue;
+        /* does the segment x -> y pass within R of the sphere's centre? */
+        vec3 d = v3_sub(y, x), q = v3_sub(c, x);
+        double t = fmin(fmax(v3_dot(q, d) / v3_dot(d, d), 0.0), 1.0);
+        vec3 e = v3_sub(q, v3_scale(d, t));
+        int crosses = v3_dot(e, e) < R * R;
+        blocked += crosses;
+        blocked_lit += crosses && v3_lum(L) != 0.0;
+        open_lit += !crosses && v3_lum(L) != 0.0;
+    }
+    cr_expect(blocked > 200, "only %d connections cross the sphere: the test would prove little", blocked);
+    cr_expect(blocked_lit == 0, "%d connections through the sphere light carried light", blocked_lit);
+    cr_expect(open_lit > 100, "only %d open connections carried light", open_lit);
+    cr_log_info("sphere: %d of 20000 connections cross it, %d open ones carry light", blocked, open_lit);
+    rd_scene_free(s);
+}
+
+Test(beam_connect, forward_scattering_noise_gives_delta_s_image, .timeout = 120)
 {
     expect_delta_s_image("\"density\":{\"type\":\"noise\",\"octaves\":3,\"frequency\":2,\"gain\":0.5,\"lacunarity\":2,"
                          "\"amplitude\":1.5,\"seed\":3},\"sigma_t\":1.2,\"albedo\":0.95,\"g\":0.85",
@@ -153,7 +243,7 @@ Test(beam_connect, forward_scattering_noise_gives_delta_s_image)
 /* guided-unbiased's own paths connect too (their guided directions and splitting: the
  * connection's weight against the direction mixture, a split vertex's one connection for all
  * its copies): the method alone (the selection off) gives `delta`'s image. */
-Test(beam_connect, guided_unbiased_s_paths_connect_and_keep_delta_s_image)
+Test(beam_connect, guided_unbiased_s_paths_connect_and_keep_delta_s_image, .timeout = 120)
 {
     rd_scene *a = rt_scene("bc_off.json", beam_fog_json(homogeneous, ",\"beam_connect\":false"));
     rd_scene *b = rt_scene("bc_gu.json", beam_fog_json(homogeneous, ",\"beam_connect\":true"));

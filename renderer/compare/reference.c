@@ -399,7 +399,7 @@ static void reference_scene(rd_comparison *c, const rd_scene *s)
     c->photon_ref = share > RD_HIDDEN_SHARE && !c->opts.reference;
     /* a beam that settings.beam_connect serves (on since session 31) needs no chord sample:
      * `delta` with its connections makes 3.0x plain `delta` on beam.json against the chord
-     * sample's 1.2x, and 2.1x on beam-vdb against its 0.91x (docs/benchmarks.md "Session 31",
+     * sample's 1.2x, and 1.9-2.1x on beam-vdb against its 0.91x (docs/benchmarks.md "Session 31",
      * docs/free-path.md "Directional beams"), so only point and spot lights call for "tiles"
      * there */
     int beams = s->beam_connect.light < 0;

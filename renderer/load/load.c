@@ -128,19 +128,25 @@ static char *read_file(const char *path, char *err, size_t errlen, rd_status *st
  * "auto", the default, is then off. */
 static rd_status beam_connect_setup(ld_ctx *c, rd_scene *s)
 {
-    s->beam_connect.light = -1;
+    rd_beam_connect *bc = &s->beam_connect;
+    bc->light = -1;
     int mode = s->settings.beam_connect;
-    if (mode == RD_BC_OFF) return RD_OK;
-    const char *f = "settings.beam_connect", *why = NULL;
-    char buf[96];
+    if (mode == RD_BC_OFF) {
+        bc->off = "settings.beam_connect false";
+        return RD_OK;
+    }
+    const char *why = NULL; /* a literal: `photonmarch info` prints it too */
     if (s->settings.equiangular == RD_EQ_ALL || s->settings.equiangular == RD_EQ_TILES)
-        why = "not with settings.equiangular true or \"tiles\" (both sample the beam from the same flights)";
+        why = "not with settings.equiangular true or \"tiles\", which sample the beam from the same flights";
     else if (s->n_shapes > 0) why = "not yet in a scene with shapes";
-    else if (s->n_media != 1) {
-        snprintf(buf, sizeof buf, "needs exactly one medium (the scene has %d)", s->n_media);
-        why = buf;
-    } else if (!rd_beam_connect_setup(s)) why = "needs a directional light with a radius whose axis crosses the medium";
-    if (why && mode == RD_BC_ON) return ld_fail(c, f, "%s", why);
+    else if (s->n_media != 1) why = "needs exactly one medium";
+    else if (!rd_beam_connect_setup(s)) why = "no directional light with a radius whose axis crosses the medium";
+    bc->off = why;
+    if (why && mode == RD_BC_ON) {
+        if (s->n_media != 1 && !(s->settings.equiangular == RD_EQ_ALL || s->settings.equiangular == RD_EQ_TILES) && s->n_shapes == 0)
+            return ld_fail(c, "settings.beam_connect", "%s (the scene has %d)", why, s->n_media);
+        return ld_fail(c, "settings.beam_connect", "%s", why);
+    }
     return RD_OK;
 }
 

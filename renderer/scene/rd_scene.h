@@ -36,8 +36,9 @@ typedef struct {
     double thin_bias;    /* 0: off; in (0, 1): the least probability that a flight of `delta`
                           * has a tentative collision (flights whose pass-through is worth
                           * exactly 0 are forced: 1) */
-    int beam_connect;    /* RD_BC_ON: `delta`'s paths connect each scattering vertex to a point of
-                          * the scene's directional beam (transport/beam_connect.c); RD_BC_AUTO
+    int beam_connect;    /* RD_BC_ON: every path loop (`delta`'s, guided-unbiased's, the marchers'
+                          * continuations) connects each scattering vertex to a point of the
+                          * scene's directional beam (transport/beam_connect.c); RD_BC_AUTO
                           * (default): on where the scene allows it; RD_BC_OFF: off */
     int select;          /* the guided methods (guided with an unbiased march.ls, and
                           * guided-unbiased): RD_SELECT_TILES lets a pilot give each 8x8 tile
@@ -145,6 +146,7 @@ typedef struct {
 #define RD_BC_BINS 256
 typedef struct {
     int light;            /* the beam (a directional light with a radius); -1: none, off */
+    const char *off;      /* why it is off (a string literal, for `photonmarch info`), or NULL */
     double s0, s1;        /* its axis, beam_center + s dir, inside the medium's bounds */
     double sigma_bar;     /* the MIS stand-in's extinction: the medium's global majorant */
     double cdf[RD_BC_BINS + 1]; /* unnormalised CDF over theta in [-pi/2, pi/2] of HG(g, -sin theta) */

@@ -191,8 +191,15 @@ void rd_scene_info(const rd_scene *s, FILE *out)
                                            "tiles (off or every flight, chosen per tile)"};
     char thin[32] = "off";
     if (s->settings.thin_bias > 0.0) snprintf(thin, sizeof thin, "%g", s->settings.thin_bias);
-    fprintf(out, "delta      equiangular %s, thin_bias %s, beam_connect %s\n", eq_names[s->settings.equiangular], thin,
-            s->beam_connect.light >= 0 ? "on" : "off");
+    fprintf(out, "delta      equiangular %s, thin_bias %s\n", eq_names[s->settings.equiangular], thin);
+    static const char *const bc_names[] = {"false", "true", "auto"};
+    if (s->beam_connect.light >= 0)
+        fprintf(out, "beams      beam_connect %s: on, to light %d (every path loop but the flights that sample its chord)\n",
+                bc_names[s->settings.beam_connect], s->beam_connect.light);
+    else
+        fprintf(out, "beams      beam_connect %s: off%s%s%s\n", bc_names[s->settings.beam_connect],
+                s->beam_connect.off ? " (" : "", s->beam_connect.off ? s->beam_connect.off : "",
+                s->beam_connect.off ? ")" : "");
     static const char *const march_eq[] = {"off", "every segment and path flight", "", "auto (lit spans crossed)"};
     fprintf(out, "marchers   equiangular %s\n", march_eq[s->march.equiangular]);
     fprintf(out, "guided-unb equiangular %s\n", eq_names[s->guide.equiangular]);

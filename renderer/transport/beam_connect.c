@@ -7,8 +7,10 @@
  * the axis, and a phase-sampled flight from x finds them only when it happens to head up the
  * beam (docs/benchmarks.md, "Session 30": the tail of `true` on beam.json).
  *
- * The strategy. At every scattering vertex x of `delta`'s path (after its roulette), a point y
- * inside the cylinder is drawn and connected to x:
+ * The strategy. At every scattering vertex x of a path (after `delta`'s throughput roulette, or
+ * after guided-unbiased's vertex policy has decided the vertex's roulette and splitting: one
+ * connection for all its copies; transport/path.c), a point y inside the cylinder is drawn and
+ * connected to x:
  *     C_B = w_B f_p(d . w) T(x, y) sigma_s(y) L_nee(y, w) / (|y - x|^2 p_B(y)),  w = (y - x)/|y - x|,
  * with f_p the phase function at x (d the way the path arrived), T(x, y) a transmittance
  * estimate, L_nee(y, w) next-event estimation at y toward the beam for a path arriving along w
@@ -47,10 +49,13 @@
 
 #include <math.h>
 
-/* The roulette's threshold on P (above): calibrated on beam-vdb and smoke-vdb (docs/free-path.md,
- * "Beam connections"). */
+/* The roulette's threshold on P (above): chosen of 0.03, 0.1 and 0.3 on the calibration scenes
+ * beam-vdb and smoke-vdb, within the rounds' spread of each other (docs/free-path.md, "Beam
+ * connections"). */
 #define RD_BC_ROULETTE 0.1
-/* The share of the phase-shaped part of the angle's mixture (above). */
+/* The share of the phase-shaped part of the angle's mixture (above): an even split, not
+ * calibrated (the mixture was first tried on beam.json, a benchmark scene: docs/benchmarks.md
+ * "Session 31"). */
 #define RD_BC_PHASE_SHARE 0.5
 
 int rd_beam_connect_setup(rd_scene *s)
@@ -136,9 +141,10 @@ double rd_beam_connect_pdf(const rd_scene *s, vec3 x, vec3 y)
     double sx, h, th0, th1;
     if (!seen_from(s, x, &sx, &h, &th0, &th1)) return 0.0;
     double th = atan((sy - sx) / h);
-    double p = (1.0 - RD_BC_PHASE_SHARE) / (th1 - th0);
-    double Z = table_cdf(bc, th1) - table_cdf(bc, th0);
-    if (Z > 0.0) p += RD_BC_PHASE_SHARE * table_density(bc, th) / Z;
+    /* the sampler draws uniformly in theta alone where the table has no mass over the span */
+    double Z = table_cdf(bc, th1) - table_cdf(bc, th0), p;
+    if (Z > 0.0) p = (1.0 - RD_BC_PHASE_SHARE) / (th1 - th0) + RD_BC_PHASE_SHARE * table_density(bc, th) / Z;
+    else p = 1.0 / (th1 - th0);
     return p * h / (h * h + (sy - sx) * (sy - sx)) / (M_PI * l->radius * l->radius);
 }
 
@@ -189,7 +195,7 @@ vec3 rd_beam_connect_estimate(const rd_scene *s, int region, vec3 x, vec3 d, con
     if (!(sig > 0.0) || !(fx > 0.0)) return zero;
     /* the path's direction density at x: the phase function's, or guided-unbiased's mixture */
     double pdir = mx && mx->a > 0.0 ? rd_dir_mix_pdf(mx, m->g, d, w) : fx;
-    double pa = rd_beam_connect_path_pdf(s, pdir, dist), wb = pb / (pa + pb);
+    double pa = rd_beam_connect_path_pdf(s, pdir, dist), wb = 1.0 / (1.0 + pa / pb); /* pb > 0 */
     /* the light's direction is -D: the phase at y between D and -w (nee.c's convention) */
     double py = rd_hg_eval(m->g, -v3_dot(w, s->lights[bc->light].dir));
     double albedo = (m->albedo.x + m->albedo.y + m->albedo.z) / 3.0;
@@ -197,6 +203,9 @@ vec3 rd_beam_connect_estimate(const rd_scene *s, int region, vec3 x, vec3 d, con
     double q = fmin(1.0, P / RD_BC_ROULETTE);
     if (!(u_rr < q)) return zero;
     ray3 cr = {x, w};
+    /* a sphere light between x and y ends the path's flight there: the path cannot build this y
+     * (nee.c does the same for a shadow ray) */
+    if (rd_scene_hit_light(s, cr, dist, -1, NULL) >= 0) return zero;
     c->shadow_rays++;
     double T = rd_transmittance(s, region, cr, 0.0, dist, rng, c);
     if (!(T != 0.0)) return zero;

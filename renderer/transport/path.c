@@ -140,24 +140,16 @@ typedef struct {
 
 /* Next-event estimation at a medium vertex against the direction mixture mx (NULL: phase
  * sampling), its light's share weighted against the flight's equiangular strategy when it had
- * one (v->ef; equiangular.c: w_d = 1 - w_e). */
-static vec3 vertex_nee_light(const rd_scene *s, int region, vec3 x, vec3 d, const rd_medium *m,
-                             const rd_dir_mix *mx, const vertex_eq *v, pcg32 *rng, rd_track_counters *c,
-                             int *light)
-{
-    int j = -1;
-    vec3 L = rd_nee_mix(s, region, x, d, m->g, mx, rng, c, &j);
-    if (light) *light = j;
-    return v->ef ? v3_scale(L, rd_eq_weight(s, v->ef, v->t, j, v->pdf)) : L;
-}
-/* The same, its share of the beam's light weighted by wa_beam: the vertex's weight w_A against
- * the beam connection that could have built it (transport/beam_connect.c; 1 where none could). */
+ * one (v->ef; equiangular.c: w_d = 1 - w_e), and the beam's against its connection. */
 static vec3 vertex_nee(const rd_scene *s, int region, vec3 x, vec3 d, const rd_medium *m,
                        const rd_dir_mix *mx, const vertex_eq *v, double wa_beam, pcg32 *rng,
                        rd_track_counters *c)
 {
     int j = -1;
-    vec3 L = vertex_nee_light(s, region, x, d, m, mx, v, rng, c, &j);
+    vec3 L = rd_nee_mix(s, region, x, d, m->g, mx, rng, c, &j);
+    if (v->ef) L = v3_scale(L, rd_eq_weight(s, v->ef, v->t, j, v->pdf));
+    /* the beam's light: weighted by wa_beam, the vertex's weight w_A against the beam connection
+     * that could have built it (transport/beam_connect.c; 1 where none could) */
     return j >= 0 && j == s->beam_connect.light ? v3_scale(L, wa_beam) : L;
 }
 
@@ -289,7 +281,7 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
             double pb = rd_beam_connect_pdf(s, r.o, x);
             if (pb > 0.0) {
                 double pa = rd_beam_connect_path_pdf(s, phase_pdf, f.t);
-                wa_beam = pa / (pa + pb);
+                wa_beam = 1.0 / (1.0 + pb / pa); /* 1 where pa is infinite (f.t = 0) */
             }
         }
         from = NULL;

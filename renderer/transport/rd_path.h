@@ -131,7 +131,9 @@ int rd_surface_event(const rd_scene *s, const rd_hit *h, int depth, rd_surface_s
 /* `delta`'s path from a flight along r on (in `region`; r.d drawn with pdf `pdf`, 0 for none;
  * `depth` scattering events before it): the radiance estimate of L(r.o, -r.d). Its flights
  * take the equiangular strategy of mode `equiangular` (rd_equiangular_mode: `delta` itself
- * follows settings.equiangular, the marchers' paths march.equiangular). */
+ * follows settings.equiangular, the marchers' paths march.equiangular). Its scattering vertices
+ * connect to the beam where settings.beam_connect is on (beam_connect.c; not r.o's: the
+ * caller's vertex did not connect, so r's first collision takes no weight against it). */
 vec3 rd_delta_continue(const rd_scene *s, ray3 r, int region, double pdf, int depth,
                        int camera_chain, int equiangular, pcg32 *rng, rd_track_counters *c);
 /* `delta`'s path along r (in `region`, `depth` scattering events before it) less two parts
@@ -142,7 +144,9 @@ vec3 rd_delta_continue(const rd_scene *s, ray3 r, int region, double pdf, int de
  * the first vertex, with its MIS weight where it hits a light (rd_flight_behind), and all
  * later vertices as `delta` has them. The marchers' nee+delta source adds it to their own
  * estimate of the single scattering on r (integrators/march.c). Its flights after the first
- * take the equiangular strategy of mode `equiangular` (the marchers': march.equiangular). */
+ * take the equiangular strategy of mode `equiangular` (the marchers': march.equiangular), and
+ * its scattering vertices, the first too, connect to the beam where settings.beam_connect is
+ * on (beam_connect.c). */
 vec3 rd_delta_scattered(const rd_scene *s, ray3 r, int region, int depth, int equiangular,
                         pcg32 *rng, rd_track_counters *c);
 /* Delta tracking's flight (rd_sample_free_path with the scene's tracker). */

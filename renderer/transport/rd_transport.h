@@ -216,7 +216,7 @@ vec3 rd_nee_split(const rd_scene *s, int region, vec3 x, vec3 d, double g, const
 vec3 rd_nee_all(const rd_scene *s, int region, vec3 x, vec3 d, double g, const double *light_w,
                 pcg32 *rng, rd_track_counters *c);
 
-/* ---- settings.beam_connect: `delta`'s beam connections (transport/beam_connect.c) ---------- */
+/* ---- settings.beam_connect: the path loops' beam connections (transport/beam_connect.c) ----- */
 /* Fill s->beam_connect for the scene's first directional beam whose axis crosses media[0]
  * (light -1 and 0 when there is none). The loader calls it, once. */
 int rd_beam_connect_setup(rd_scene *s);
