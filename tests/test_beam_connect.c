@@ -127,12 +127,13 @@ Test(beam_connect, chi_square_rejects_a_wrong_pdf)
 }
 
 /* `delta` with and without the connections, seeds apart. */
-static void expect_delta_s_image(const char *medium, int spp, const char *what)
+/* `delta` on scene a (the connections off) against `method` on scene b (on): the same image.
+ * Frees both scenes. */
+static void expect_same_image(rd_scene *a, rd_scene *b, const char *method, int spp_a, int spp_b, uint64_t seed_a,
+                              uint64_t seed_b, const char *what)
 {
-    rd_scene *a = rt_scene("bc_off.json", beam_fog_json(medium, ",\"beam_connect\":false"));
-    rd_scene *b = rt_scene("bc_on.json", beam_fog_json(medium, ",\"beam_connect\":true"));
     cr_assert(a->beam_connect.light == -1 && b->beam_connect.light == 0);
-    rd_render_result ra = rt_render(a, "delta", spp, 11, NULL), rb = rt_render(b, "delta", spp, 12, NULL);
+    rd_render_result ra = rt_render(a, "delta", spp_a, seed_a, NULL), rb = rt_render(b, method, spp_b, seed_b, NULL);
     rt_expect_same(&ra, &rb, what);
     cr_log_info("%s: variance per pixel %.3g without, %.3g with the connections", what, rt_mean_pixel_var(&ra),
                 rt_mean_pixel_var(&rb));
@@ -140,6 +141,13 @@ static void expect_delta_s_image(const char *medium, int spp, const char *what)
     rd_render_result_free(&rb);
     rd_scene_free(a);
     rd_scene_free(b);
+}
+
+static void expect_delta_s_image(const char *medium, int spp, const char *what)
+{
+    rd_scene *a = rt_scene("bc_off.json", beam_fog_json(medium, ",\"beam_connect\":false"));
+    rd_scene *b = rt_scene("bc_on.json", beam_fog_json(medium, ",\"beam_connect\":true"));
+    expect_same_image(a, b, "delta", spp, spp, 11, 12, what);
 }
 
 Test(beam_connect, homogeneous_fog_gives_delta_s_image, .timeout = 120)
@@ -163,13 +171,8 @@ Test(beam_connect, a_second_light_gives_delta_s_image, .timeout = 120)
     snprintf(a_json, sizeof a_json, fmt, homogeneous, "false");
     snprintf(b_json, sizeof b_json, fmt, homogeneous, "true");
     rd_scene *a = rt_scene("bc_sph_off.json", a_json), *b = rt_scene("bc_sph_on.json", b_json);
-    cr_assert(a->beam_connect.light == -1 && b->beam_connect.light == 0 && b->n_lights == 2);
-    rd_render_result ra = rt_render(a, "delta", 2048, 31, NULL), rb = rt_render(b, "delta", 2048, 32, NULL);
-    rt_expect_same(&ra, &rb, "a sphere light in the beam, max_depth 2");
-    rd_render_result_free(&ra);
-    rd_render_result_free(&rb);
-    rd_scene_free(a);
-    rd_scene_free(b);
+    cr_assert(b->n_lights == 2);
+    expect_same_image(a, b, "delta", 2048, 2048, 31, 32, "a sphere light in the beam, max_depth 2");
 }
 
 /* With max_depth 1 a connection's vertex would be a second scattering event: none is made, no
@@ -247,12 +250,7 @@ Test(beam_connect, guided_unbiased_s_paths_connect_and_keep_delta_s_image, .time
 {
     rd_scene *a = rt_scene("bc_off.json", beam_fog_json(homogeneous, ",\"beam_connect\":false"));
     rd_scene *b = rt_scene("bc_gu.json", beam_fog_json(homogeneous, ",\"beam_connect\":true"));
-    rd_render_result ra = rt_render(a, "delta", 1024, 15, NULL), rb = rt_render(b, "guided-unbiased", 512, 22, NULL);
-    rt_expect_same(&ra, &rb, "guided-unbiased with the connections");
-    rd_render_result_free(&ra);
-    rd_render_result_free(&rb);
-    rd_scene_free(a);
-    rd_scene_free(b);
+    expect_same_image(a, b, "guided-unbiased", 1024, 512, 15, 22, "guided-unbiased with the connections");
 }
 
 /* "auto", the default, is on where the first version runs and off, without an error, where
