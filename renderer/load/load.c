@@ -135,19 +135,17 @@ static rd_status beam_connect_setup(ld_ctx *c, rd_scene *s)
         bc->off = "settings.beam_connect false";
         return RD_OK;
     }
+    static const char one_medium[] = "needs exactly one medium";
     const char *why = NULL; /* a literal: `photonmarch info` prints it too */
     if (s->settings.equiangular == RD_EQ_ALL || s->settings.equiangular == RD_EQ_TILES)
         why = "not with settings.equiangular true or \"tiles\", which sample the beam from the same flights";
     else if (s->n_shapes > 0) why = "not yet in a scene with shapes";
-    else if (s->n_media != 1) why = "needs exactly one medium";
+    else if (s->n_media != 1) why = one_medium;
     else if (!rd_beam_connect_setup(s)) why = "no directional light with a radius whose axis crosses the medium";
     bc->off = why;
-    if (why && mode == RD_BC_ON) {
-        if (s->n_media != 1 && !(s->settings.equiangular == RD_EQ_ALL || s->settings.equiangular == RD_EQ_TILES) && s->n_shapes == 0)
-            return ld_fail(c, "settings.beam_connect", "%s (the scene has %d)", why, s->n_media);
-        return ld_fail(c, "settings.beam_connect", "%s", why);
-    }
-    return RD_OK;
+    if (!why || mode != RD_BC_ON) return RD_OK;
+    if (why == one_medium) return ld_fail(c, "settings.beam_connect", "%s (the scene has %d)", why, s->n_media);
+    return ld_fail(c, "settings.beam_connect", "%s", why);
 }
 
 static rd_status validate(ld_ctx *c, const cJSON *root, rd_scene *s)

@@ -1,5 +1,5 @@
-/* beam_connect.c: `delta`'s beam connections (settings.beam_connect; docs/free-path.md "Beam
- * connections"). A directional beam (a directional light with a radius) lights only a thin
+/* beam_connect.c: the path loops' beam connections (settings.beam_connect; docs/free-path.md
+ * "Beam connections"). A directional beam (a directional light with a radius) lights only a thin
  * cylinder, so the light it scatters twice or more reaches a path only when one of the path's
  * collisions lands inside the cylinder and its next-event estimate finds the light. Where the
  * medium scatters forward (beam.json: g = 0.85) that is rare and bright: the light the beam
