@@ -246,7 +246,7 @@ test-tsan: deps
 # Together they would take the suite past 15 minutes.
 SAN_BUILD := build-fuzz
 SAN_MAKE  := $(MAKE) BUILD=$(SAN_BUILD) SAN=fuzz CC=clang-14 CXX=clang++-14
-ASAN_FILTER := '!(fuzz_regress/image|render/pixels_of_one_image_are_uncorrelated|guided_unbiased/each_part_alone_*|guided_unbiased/flight_sampler_chi_square_*|march/guided_and_transmittance_share_*|march/defensive_only_and_wrong_guides_*|photons/knn_radiance_converges_*|integrator/white_furnace_every_tracker|stress_big/*|cli/*|memory/*|compare/page_loads_*|compare/bad_reference_*|compare/ctrl_c_*|compare_cli/*|geom/cli_renders_shapes|structure/*|progressive/squared_gap_*|mpi/*|beam_connect/forward_scattering_*|beam_connect/guided_unbiased_s_*|beam_connect/a_second_light_*)'
+ASAN_FILTER := '!(fuzz_regress/image|render/pixels_of_one_image_are_uncorrelated|guided_unbiased/each_part_alone_*|guided_unbiased/flight_sampler_chi_square_*|march/guided_and_transmittance_share_*|march/defensive_only_and_wrong_guides_*|photons/knn_radiance_converges_*|integrator/white_furnace_every_tracker|stress_big/*|cli/*|memory/*|compare/page_loads_*|compare/bad_reference_*|compare/ctrl_c_*|compare_cli/*|geom/cli_renders_shapes|structure/*|progressive/squared_gap_*|mpi/*|beam_connect/forward_scattering_*|beam_connect/guided_unbiased_s_*|beam_connect/a_second_light_*|beam_connect/two_media_*)'
 SAN_LOG := $(SAN_BUILD)/sanitizer-reports
 SAN_ASAN := halt_on_error=1:detect_leaks=1:leak_check_at_exit=0:allocator_may_return_null=1:log_path=$(CURDIR)/$(SAN_LOG)/process
 SAN_ENV := ASAN_OPTIONS=$(SAN_ASAN) \

@@ -5,17 +5,19 @@
  *    pooled, rejected at p = 1e-4 (z = 3.719), as tests/test_equiangular.c; the pdf integrates
  *    to 1 and the sampler returns the pdf of the point it draws; the test has teeth: the same
  *    samples judged against the pdf seen from another vertex fail;
- *  - unbiased (the sanitizer run keeps the first of these, the release run has them all:
- *    Makefile ASAN_FILTER): `delta` with the connections gives `delta`'s image on a beam across fog, in a
- *    homogeneous medium and in a forward-scattering noise medium (z bounds of 5 for the image
- *    and 4.5 for the worst region, rt_expect_same; fixed seeds), also with a second light (a
- *    bright sphere in the beam) and max_depth 2; guided-unbiased's own paths,
+ *  - unbiased (the sanitizer run keeps the homogeneous one and the surfaces, the release run has
+ *    them all: Makefile ASAN_FILTER): `delta` with the connections gives `delta`'s image on a
+ *    beam across fog, in a homogeneous medium and in a forward-scattering noise medium (z bounds
+ *    of 5 for the image and 4.5 for the worst region, rt_expect_same; fixed seeds), also with a
+ *    second light (a bright sphere in the beam) and max_depth 2, with a glass ball holding a
+ *    denser medium and an opaque plate in the beam (a connection across a surface is blocked),
+ *    and across two media along the beam (y takes its own medium); guided-unbiased's own paths,
  *    which connect too, give the same image;
  *  - max_depth 1 makes no connection (the image bit for bit); a sphere light blocks the
  *    connections that cross it;
- *  - "auto" (the default) is on where the first version runs and off where it would refuse;
- *  - what the first version refuses when asked for, each with a one-line error naming the
- *    field. */
+ *  - "auto" (the default) is on for a narrow beam and off for a broad one (its breadth, load.c)
+ *    and where `true` would be refused;
+ *  - what `true` refuses, each with a one-line error naming the field. */
 #include "support/rd_test.h"
 
 /* A box of fog crossed by a beam; `medium` the medium's JSON body, `settings` extra settings. */
@@ -243,6 +245,56 @@ Test(beam_connect, forward_scattering_noise_gives_delta_s_image, .timeout = 120)
                          1024, "noise, g 0.85");
 }
 
+/* Surfaces: the beam crosses a glass ball holding a denser medium (a connection across its
+ * surface is blocked: the path reaches the inside only by refraction, and its collision there
+ * takes no weight w_A) and an opaque plate that shades part of it (a connection through the
+ * plate would bring the lit side's light to the shaded side). */
+Test(beam_connect, a_glass_ball_and_an_opaque_plate_give_delta_s_image, .timeout = 120)
+{
+    static const char *fmt =
+        "{\"camera\":{\"position\":[0,0,3.2],\"look_at\":[0,0,0],\"fov\":40,\"resolution\":[32,24]},"
+        "\"medium\":\"fog\",\"media\":[{\"name\":\"fog\",\"bounds\":{\"min\":[-1,-0.8,-0.8],\"max\":[1,0.8,0.8]},%s},"
+        "{\"name\":\"dense\",\"bounds\":{\"min\":[-0.1,-0.1,-0.15],\"max\":[0.3,0.3,0.2]},"
+        "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":4,\"albedo\":0.9,\"g\":0.3}],"
+        "\"shapes\":[{\"name\":\"ball\",\"file\":\"%s/scenes/data/icosphere-3.obj\","
+        "\"transform\":{\"scale\":0.15,\"translate\":[0.1,0.08,0.03]},"
+        "\"material\":{\"type\":\"dielectric\",\"ior\":1.5},\"inside\":\"dense\",\"outside\":\"fog\"},"
+        "{\"name\":\"plate\",\"file\":\"%s/scenes/data/box.obj\","
+        "\"transform\":{\"scale\":[0.05,0.2,0.35],\"translate\":[-0.4,0.35,-0.1]},"
+        "\"material\":{\"type\":\"diffuse\",\"albedo\":0.5},\"inside\":null,\"outside\":\"fog\"}],"
+        "\"lights\":[{\"type\":\"directional\",\"direction\":[1,-0.2,0.3],\"irradiance\":[5,5,5],"
+        "\"radius\":0.2,\"center\":[0,0.1,0]}],\"background\":0,"
+        "\"settings\":{\"max_depth\":64,\"rr_depth\":3,\"beam_connect\":%s}}";
+    char cwd[1024], a_json[4096], b_json[4096];
+    cr_assert(getcwd(cwd, sizeof cwd) != NULL);
+    snprintf(a_json, sizeof a_json, fmt, homogeneous, cwd, cwd, "false");
+    snprintf(b_json, sizeof b_json, fmt, homogeneous, cwd, cwd, "true");
+    rd_scene *a = rt_scene("bc_shapes_off.json", a_json), *b = rt_scene("bc_shapes_on.json", b_json);
+    cr_assert(b->n_shapes == 2 && b->n_media == 2);
+    expect_same_image(a, b, "delta", 2048, 2048, 61, 62, "a glass ball and an opaque plate");
+}
+
+/* Two box media side by side along the beam: forward-scattering haze where it enters, fog
+ * beyond. A connection from a vertex in one to a point in the other takes the point's medium
+ * (its sigma_s, albedo and phase), not the vertex's. */
+Test(beam_connect, two_media_along_the_beam_give_delta_s_image, .timeout = 120)
+{
+    static const char *fmt =
+        "{\"camera\":{\"position\":[0,0,3.2],\"look_at\":[0,0,0],\"fov\":40,\"resolution\":[32,24]},"
+        "\"media\":[{\"name\":\"haze\",\"bounds\":{\"min\":[-1,-0.8,-0.8],\"max\":[-0.2,0.8,0.8]},"
+        "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":2,\"albedo\":0.95,\"g\":0.85},"
+        "{\"name\":\"fog\",\"bounds\":{\"min\":[-0.2,-0.8,-0.8],\"max\":[1,0.8,0.8]},%s}],"
+        "\"lights\":[{\"type\":\"directional\",\"direction\":[1,-0.2,0.3],\"irradiance\":[5,5,5],"
+        "\"radius\":0.2,\"center\":[0,0.1,0]}],\"background\":0,"
+        "\"settings\":{\"max_depth\":64,\"rr_depth\":3,\"beam_connect\":%s}}";
+    char a_json[4096], b_json[4096];
+    snprintf(a_json, sizeof a_json, fmt, homogeneous, "false");
+    snprintf(b_json, sizeof b_json, fmt, homogeneous, "true");
+    rd_scene *a = rt_scene("bc_two_off.json", a_json), *b = rt_scene("bc_two_on.json", b_json);
+    cr_assert(b->n_media == 2);
+    expect_same_image(a, b, "delta", 4096, 4096, 71, 72, "two media along the beam");
+}
+
 /* guided-unbiased's own paths connect too (their guided directions and splitting: the
  * connection's weight against the direction mixture, a split vertex's one connection for all
  * its copies): the method alone (the selection off) gives `delta`'s image. */
@@ -253,12 +305,25 @@ Test(beam_connect, guided_unbiased_s_paths_connect_and_keep_delta_s_image, .time
     expect_same_image(a, b, "guided-unbiased", 1024, 512, 15, 22, "guided-unbiased with the connections");
 }
 
-/* "auto", the default, is on where the first version runs and off, without an error, where
+/* "auto", the default, is on where the connections can run and off, without an error, where
  * it would refuse. */
 Test(beam_connect, auto_is_on_where_it_can_run)
 {
     rd_scene *s = rt_scene("bc_auto.json", beam_fog_json(homogeneous, ""));
-    cr_expect(s->settings.beam_connect == RD_BC_AUTO && s->beam_connect.light == 0, "the default is on in one medium");
+    cr_expect(s->settings.beam_connect == RD_BC_AUTO && s->beam_connect.light == 0, "the default is on for a narrow beam");
+    /* the breadth (load.c): the cylinder fills 5.2% of the box; (1 - g)^2 0.16 for g 0.6 above,
+     * 2.25 for g -0.5 */
+    cr_expect(fabs(s->beam_connect.breadth - 0.0516 * 0.16) < 0.001, "breadth %g", s->beam_connect.breadth);
+    rd_scene_free(s);
+    s = rt_scene("bc_auto_broad.json",
+                 beam_fog_json("\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1.5,\"g\":-0.5", ""));
+    cr_expect(s->beam_connect.light == -1 && s->beam_connect.off && strstr(s->beam_connect.off, "broad"),
+              "auto connects to a broad beam (breadth %g)", s->beam_connect.breadth);
+    rd_scene_free(s);
+    s = rt_scene("bc_auto_broad_on.json",
+                 beam_fog_json("\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1.5,\"g\":-0.5",
+                               ",\"beam_connect\":true"));
+    cr_expect(s->beam_connect.light == 0, "true connects to a broad beam");
     rd_scene_free(s);
     s = rt_scene("bc_auto_eq.json", beam_fog_json(homogeneous, ",\"equiangular\":true"));
     cr_expect(s->beam_connect.light == -1, "auto connects where `true` samples the chord");
@@ -272,7 +337,7 @@ Test(beam_connect, auto_is_on_where_it_can_run)
     rd_scene_free(s);
 }
 
-Test(beam_connect, what_the_first_version_refuses)
+Test(beam_connect, what_it_refuses)
 {
     static const char *const bad[][2] = {
         {",\"beam_connect\":1", "expected true, false or \"auto\""},
@@ -291,19 +356,19 @@ Test(beam_connect, what_the_first_version_refuses)
         cr_expect(strchr(err, '\n') == NULL, "one line: \"%s\"", err);
         rd_scene_free(s);
     }
-    /* no beam: a sun without a radius; two media */
+    /* no beam: a sun without a radius; a beam that misses the media */
     const char *no_beam =
         "{\"camera\":{\"position\":[0,0,3],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
         "\"media\":[{\"name\":\"fog\",\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1}],"
         "\"lights\":[{\"type\":\"directional\",\"direction\":[1,0,0],\"irradiance\":1}],"
         "\"settings\":{\"beam_connect\":true}}";
-    const char *two_media =
+    const char *missing =
         "{\"camera\":{\"position\":[0,0,3],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
         "\"media\":[{\"name\":\"a\",\"bounds\":{\"min\":[-1,-1,-1],\"max\":[0,1,1]},\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1},"
         "{\"name\":\"b\",\"bounds\":{\"min\":[0,-1,-1],\"max\":[1,1,1]},\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1}],"
-        "\"lights\":[{\"type\":\"directional\",\"direction\":[1,0,0],\"irradiance\":1,\"radius\":0.2,\"center\":[0,0,0]}],"
+        "\"lights\":[{\"type\":\"directional\",\"direction\":[1,0,0],\"irradiance\":1,\"radius\":0.2,\"center\":[0,3,0]}],"
         "\"settings\":{\"beam_connect\":true}}";
-    const char *jsons[] = {no_beam, two_media}, *want[] = {"directional light with a radius", "exactly one medium"};
+    const char *jsons[] = {no_beam, missing}, *want[] = {"directional light with a radius", "crosses a medium"};
     for (int i = 0; i < 2; i++) {
         char path[256], err[RD_ERRLEN] = "";
         snprintf(path, sizeof path, "%s/bc_bad2.json", rt_tmpdir());

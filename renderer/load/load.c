@@ -121,11 +121,22 @@ static char *read_file(const char *path, char *err, size_t errlen, rd_status *st
     return buf;
 }
 
+/* settings.beam_connect's "auto": on where the beam's breadth, the share of its media's
+ * bounds that its cylinder fills times (1 - g)^2 (the solid angle of the phase function's
+ * forward lobe goes as (1 - g)^2 for g near 1), is below this. A path's own collisions find a
+ * wide beam in a broadly scattering medium unaided, and there the connections cost 15-60% of
+ * a sample's time for little (docs/free-path.md, "Where it runs"). Chosen on variants of the
+ * calibration scenes beam-vdb and smoke-vdb (their radius and g varied): the connections paid
+ * 1.3-3.9x where the breadth was 0.0047 or less, 1.03-1.09x at 0.042-0.053; 0.014 is the
+ * geometric mean of the two ends. */
+#define RD_BC_AUTO_BREADTH 0.014
+
 /* settings.beam_connect (transport/beam_connect.c): what it needs of the scene, then its
- * tables. The first version connects to one beam in one medium without shapes, and not with
- * an equiangular mode that samples the beam's chord on the same flights (`true`, "tiles"): the
- * two would be the same strategy counted twice. `true` where it cannot run is an error;
- * "auto", the default, is then off. */
+ * tables. It connects to one beam (the first directional light with a radius whose axis
+ * crosses a medium), and not with an equiangular mode that samples the beam's chord on the same
+ * flights (`true`, "tiles"): the two would be the same strategy counted twice. `true` where it
+ * cannot run is an error; "auto", the default, is then off, and off too for a broad beam
+ * (above). */
 static rd_status beam_connect_setup(ld_ctx *c, rd_scene *s)
 {
     rd_beam_connect *bc = &s->beam_connect;
@@ -135,16 +146,17 @@ static rd_status beam_connect_setup(ld_ctx *c, rd_scene *s)
         bc->off = "settings.beam_connect false";
         return RD_OK;
     }
-    static const char one_medium[] = "needs exactly one medium";
     const char *why = NULL; /* a literal: `photonmarch info` prints it too */
     if (s->settings.equiangular == RD_EQ_ALL || s->settings.equiangular == RD_EQ_TILES)
         why = "not with settings.equiangular true or \"tiles\", which sample the beam from the same flights";
-    else if (s->n_shapes > 0) why = "not yet in a scene with shapes";
-    else if (s->n_media != 1) why = one_medium;
-    else if (!rd_beam_connect_setup(s)) why = "no directional light with a radius whose axis crosses the medium";
+    else if (!rd_beam_connect_setup(s)) why = "no directional light with a radius whose axis crosses a medium";
+    if (!why && mode == RD_BC_AUTO && !(bc->breadth < RD_BC_AUTO_BREADTH)) {
+        bc->light = -1;
+        bc->off = "\"auto\": a broad beam, its breadth not below 0.014, which a path's own collisions find";
+        return RD_OK;
+    }
     bc->off = why;
     if (!why || mode != RD_BC_ON) return RD_OK;
-    if (why == one_medium) return ld_fail(c, "settings.beam_connect", "%s (the scene has %d)", why, s->n_media);
     return ld_fail(c, "settings.beam_connect", "%s", why);
 }
 

@@ -39,7 +39,8 @@ typedef struct {
     int beam_connect;    /* RD_BC_ON: every path loop (`delta`'s, guided-unbiased's, the marchers'
                           * continuations) connects each scattering vertex to a point of the
                           * scene's directional beam (transport/beam_connect.c); RD_BC_AUTO
-                          * (default): on where the scene allows it; RD_BC_OFF: off */
+                          * (default): on where the beam is narrow for its medium's phase
+                          * (load.c); RD_BC_OFF: off */
     int select;          /* the guided methods (guided with an unbiased march.ls, and
                           * guided-unbiased): RD_SELECT_TILES lets a pilot give each 8x8 tile
                           * to the method or to delta's path, whichever pays, and the image's
@@ -141,14 +142,20 @@ typedef struct {
 } rd_march_settings;
 
 /* What settings.beam_connect's sampling needs, set once when the scene is loaded
- * (transport/beam_connect.c, rd_beam_connect_setup): the beam, its axis inside the medium,
+ * (transport/beam_connect.c, rd_beam_connect_setup): the beam, its axis inside the media,
  * and a table over the angle at which a point on the axis is seen from a vertex. */
 #define RD_BC_BINS 256
 typedef struct {
     int light;            /* the beam (a directional light with a radius); -1: none, off */
     const char *off;      /* why it is off (a string literal, for `photonmarch info`), or NULL */
-    double s0, s1;        /* its axis, beam_center + s dir, inside the medium's bounds */
-    double sigma_bar;     /* the MIS stand-in's extinction: the medium's global majorant */
+    double s0, s1;        /* its axis, beam_center + s dir, from where it enters the first
+                             medium's bounds to where it leaves the last's */
+    int medium;           /* the medium with the longest stretch of the axis: its g shapes
+                             the table, its global majorant is sigma_bar */
+    double share;         /* the cylinder's volume over [s0, s1] over the volume of the
+                             bounds of the media its axis crosses */
+    double breadth;       /* share (1 - g)^2, g that of `medium`: "auto"'s test (load.c) */
+    double sigma_bar;     /* the MIS stand-in's extinction */
     double cdf[RD_BC_BINS + 1]; /* unnormalised CDF over theta in [-pi/2, pi/2] of HG(g, -sin theta) */
 } rd_beam_connect;
 

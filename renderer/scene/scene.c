@@ -193,13 +193,17 @@ void rd_scene_info(const rd_scene *s, FILE *out)
     if (s->settings.thin_bias > 0.0) snprintf(thin, sizeof thin, "%g", s->settings.thin_bias);
     fprintf(out, "delta      equiangular %s, thin_bias %s\n", eq_names[s->settings.equiangular], thin);
     static const char *const bc_names[] = {"false", "true", "auto"};
-    if (s->beam_connect.light >= 0)
-        fprintf(out, "beams      beam_connect %s: on, to light %d (every path loop but the flights that sample its chord)\n",
-                bc_names[s->settings.beam_connect], s->beam_connect.light);
+    const rd_beam_connect *bc = &s->beam_connect;
+    /* the breadth (load.c, "auto"'s test): the share of its media's bounds that the beam's
+     * cylinder fills x (1 - g)^2; 0 where no beam was set up */
+    char breadth[64] = "";
+    if (bc->breadth > 0.0) snprintf(breadth, sizeof breadth, ", breadth %.2g", bc->breadth);
+    if (bc->light >= 0)
+        fprintf(out, "beams      beam_connect %s: on, to light %d%s (every path loop but the flights that sample its chord)\n",
+                bc_names[s->settings.beam_connect], bc->light, breadth);
     else
-        fprintf(out, "beams      beam_connect %s: off%s%s%s\n", bc_names[s->settings.beam_connect],
-                s->beam_connect.off ? " (" : "", s->beam_connect.off ? s->beam_connect.off : "",
-                s->beam_connect.off ? ")" : "");
+        fprintf(out, "beams      beam_connect %s: off%s%s%s%s\n", bc_names[s->settings.beam_connect], bc->off ? " (" : "",
+                bc->off ? bc->off : "", bc->off ? ")" : "", breadth);
     static const char *const march_eq[] = {"off", "every segment and path flight", "", "auto (lit spans crossed)"};
     fprintf(out, "marchers   equiangular %s\n", march_eq[s->march.equiangular]);
     fprintf(out, "guided-unb equiangular %s\n", eq_names[s->guide.equiangular]);

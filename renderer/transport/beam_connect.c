@@ -21,9 +21,16 @@
  * at y:
  *     p_A(y) = p_dir(w) sigma~ exp(-sigma~ |y - x|) / |y - x|^2,   w_B = p_B / (p_A + p_B),
  * and the collision's next-event estimate toward the beam takes w_A = 1 - w_B. sigma~ is the
- * medium's global majorant: p_A stands in for delta tracking's collision density, exact in a
- * homogeneous medium, and the weights need only be the same function of (x, y) on both sides
- * to sum to one (as the equiangular strategy's stand-in: equiangular.c).
+ * global majorant of the beam's medium (the one its axis crosses longest): p_A stands in for
+ * delta tracking's collision density, exact in a homogeneous medium, and the weights need only
+ * be the same function of (x, y) on both sides to sum to one (as the equiangular strategy's
+ * stand-in: equiangular.c).
+ *
+ * Surfaces and media. The path builds y from x only by a straight flight in x's region: a
+ * surface on the way ends the flight, and the collision after it is not weighted (path.c clears
+ * `prev_scatter`). So the connection is blocked by any surface or sphere light between x and y,
+ * and y's medium (sigma_s, albedo, phase) is the one x's region holds at y, which may be
+ * another box medium than x's.
  *
  * p_B. The axis is a(s) = c + s D (D the light's direction), s in [s0, s1] inside the medium.
  * Seen from x, at axial coordinate s_x and distance h from the axis (at least the radius R:
@@ -45,6 +52,7 @@
  *     P = w_B f_p p_y sigma_s(y) / (|y - x|^2 p_B)   (times the irradiance; T <= 1),
  * decides: the connection goes on with probability q = min(1, P / RD_BC_ROULETTE), weighted
  * 1 / q (unbiased: the weights w_A, w_B do not change). */
+#include "scene/rd_geom.h"
 #include "transport/rd_transport.h"
 
 #include <math.h>
@@ -62,16 +70,33 @@ int rd_beam_connect_setup(rd_scene *s)
 {
     rd_beam_connect *bc = &s->beam_connect;
     bc->light = -1;
-    if (s->n_media < 1) return 0;
-    const rd_medium *m = &s->media[0];
     for (int i = 0; i < s->n_lights; i++) {
         const rd_light *l = &s->lights[i];
         if (l->kind != RD_LIGHT_DIRECTIONAL || !(l->radius > 0.0)) continue;
+        /* the axis from where it enters the first medium's bounds to where it leaves the
+         * last's; the medium it crosses longest gives the table its g, one that fills its
+         * bounds before one held inside a shape (whose bounds are the shape's box) */
         ray3 axis = {l->beam_center, l->dir};
-        double s0, s1;
-        if (!rd_box_intersect(m->bmin, m->bmax, axis, -1e30, 1e30, &s0, &s1) || !(s1 > s0)) continue;
+        double s0 = INFINITY, s1 = -INFINITY, longest = 0.0, volume = 0.0;
+        int best = -1, best_held = 1;
+        for (int k = 0; k < s->n_media; k++) {
+            const rd_medium *m = &s->media[k];
+            double a, b;
+            if (!rd_box_intersect(m->bmin, m->bmax, axis, -1e30, 1e30, &a, &b) || !(b > a)) continue;
+            s0 = fmin(s0, a), s1 = fmax(s1, b);
+            vec3 e = v3_sub(m->bmax, m->bmin);
+            volume += e.x * e.y * e.z;
+            int held = m->bound && k != s->fill_medium; /* inside a shape */
+            if (best < 0 || held < best_held || (held == best_held && b - a > longest))
+                best = k, best_held = held, longest = b - a;
+        }
+        if (best < 0) continue;
+        const rd_medium *m = &s->media[best];
         bc->light = i;
         bc->s0 = s0, bc->s1 = s1;
+        bc->medium = best;
+        bc->share = M_PI * l->radius * l->radius * (s1 - s0) / volume;
+        bc->breadth = bc->share * (1.0 - m->g) * (1.0 - m->g);
         bc->sigma_bar = m->sigma_maj;
         double acc = 0.0;
         bc->cdf[0] = 0.0;
@@ -190,25 +215,31 @@ vec3 rd_beam_connect_estimate(const rd_scene *s, int region, vec3 x, vec3 d, con
     if (!(dist > 0.0)) return zero;
     vec3 w = v3_scale(dv, 1.0 / dist);
     double fx = rd_hg_eval(m->g, v3_dot(d, w));
-    double sig = rd_medium_sigma_t(m, y);
+    /* y's medium: the path reaches y from x only by a straight flight in x's region (a surface
+     * on the way ends the flight, and the collision after it takes no weight w_A), so y is
+     * taken in that region, and a surface between the two blocks the connection (below) */
+    const rd_medium *my = rd_scene_medium_at(s, region, y);
+    if (!my) return zero;
+    double sig = rd_medium_sigma_t(my, y);
     c->lookups++;
     if (!(sig > 0.0) || !(fx > 0.0)) return zero;
     /* the path's direction density at x: the phase function's, or guided-unbiased's mixture */
     double pdir = mx && mx->a > 0.0 ? rd_dir_mix_pdf(mx, m->g, d, w) : fx;
     double pa = rd_beam_connect_path_pdf(s, pdir, dist), wb = 1.0 / (1.0 + pa / pb); /* pb > 0 */
     /* the light's direction is -D: the phase at y between D and -w (nee.c's convention) */
-    double py = rd_hg_eval(m->g, -v3_dot(w, s->lights[bc->light].dir));
-    double albedo = (m->albedo.x + m->albedo.y + m->albedo.z) / 3.0;
+    double py = rd_hg_eval(my->g, -v3_dot(w, s->lights[bc->light].dir));
+    double albedo = (my->albedo.x + my->albedo.y + my->albedo.z) / 3.0;
     double P = wb * fx * py * sig * albedo / (dist * dist * pb);
     double q = fmin(1.0, P / RD_BC_ROULETTE);
     if (!(u_rr < q)) return zero;
     ray3 cr = {x, w};
-    /* a sphere light between x and y ends the path's flight there: the path cannot build this y
-     * (nee.c does the same for a shadow ray) */
-    if (rd_scene_hit_light(s, cr, dist, -1, NULL) >= 0) return zero;
+    /* a surface or a sphere light between x and y ends the path's flight there: the path
+     * cannot build this y by a flight from x (nee.c stops a shadow ray at a sphere light too) */
+    rd_hit h;
+    if (rd_scene_intersect(s, cr, dist, NULL, &h)) return zero;
     c->shadow_rays++;
     double T = rd_transmittance(s, region, cr, 0.0, dist, rng, c);
     if (!(T != 0.0)) return zero;
-    vec3 Ly = rd_nee_light(s, region, y, w, m->g, bc->light, rng, c);
-    return v3_scale(v3_mul(m->albedo, Ly), wb * fx * T * sig / (dist * dist * pb * q));
+    vec3 Ly = rd_nee_light(s, region, y, w, my->g, bc->light, rng, c);
+    return v3_scale(v3_mul(my->albedo, Ly), wb * fx * T * sig / (dist * dist * pb * q));
 }
