@@ -398,10 +398,10 @@ static void reference_scene(rd_comparison *c, const rd_scene *s)
     c->sum.hidden_share = share;
     c->photon_ref = share > RD_HIDDEN_SHARE && !c->opts.reference;
     /* a beam that settings.beam_connect serves (on since session 31) needs no chord sample:
-     * `delta` with its connections makes 3.0x plain `delta` on beam.json against the chord
-     * sample's 1.2x, and 1.9-2.1x on beam-vdb against its 0.91x (docs/benchmarks.md "Session 31",
-     * docs/free-path.md "Directional beams"), so only point and spot lights call for "tiles"
-     * there */
+     * `delta` with its connections makes 2.8x plain `delta` on beam.json against the chord
+     * sample's 1.2x (a 200-s reference), and 1.9-2.1x on beam-vdb against its 0.91x
+     * (docs/benchmarks.md "Session 31", docs/free-path.md "Directional beams"), so only point
+     * and spot lights, and beams "auto" leaves unconnected, call for "tiles" there */
     int beams = s->beam_connect.light < 0;
     c->tiles_ref = !c->opts.reference && !c->photon_ref && !s->settings.equiangular_given && rd_eq_has_lights(s, beams);
     snprintf(c->sum.ref_method, sizeof c->sum.ref_method, "%s",
