@@ -234,7 +234,8 @@ test-tsan: deps
 # The sanitizer run skips (ASAN_FILTER):
 #  - the long statistical checks of estimators (each a convergence test whose value is its
 #    answer, checked in the release run); the code they run is exercised under ASan by the
-#    shorter tests of the same modules and by the fuzz targets (session 32 added the four that
+#    shorter tests of the same modules and by the fuzz targets (beam_connect/two_media_*, and,
+#    in session 32, the four that
 #    took 24-60 s each under the sanitizers, 160 s of the run's 686: a beam's equiangular
 #    sample in every marcher, covered by march/equiangular_sample_keeps_* and
 #    select/a_directional_beam_*; the strategies' mean on the default scene, by

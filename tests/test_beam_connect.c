@@ -299,6 +299,44 @@ Test(beam_connect, two_media_along_the_beam_give_delta_s_image, .timeout = 120)
     expect_delta_s_image_of(tmpl, 4096, 71, "two media along the beam");
 }
 
+/* An index-matched interface around a ball of a denser medium in the beam: the path crosses it
+ * without an event, but its collision beyond takes no weight w_A (the flight met a surface), so
+ * a connection across it must be blocked too, and one inside the ball takes the ball's medium. */
+Test(beam_connect, an_interface_ball_gives_delta_s_image, .timeout = 120)
+{
+    static const char *fmt =
+        BC_CAMERA
+        "\"medium\":\"fog\",\"media\":[{\"name\":\"fog\",\"bounds\":{\"min\":[-1,-0.8,-0.8],\"max\":[1,0.8,0.8]},%s},"
+        "{\"name\":\"dense\",\"bounds\":{\"min\":[-0.45,-0.45,-0.45],\"max\":[0.45,0.45,0.45]},"
+        "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":4,\"albedo\":0.9,\"g\":0.8}],"
+        "\"shapes\":[{\"name\":\"ball\",\"file\":\"%s/scenes/data/icosphere-3.obj\","
+        "\"transform\":{\"scale\":0.4,\"translate\":[0.0,0.05,0.0]},"
+        "\"material\":{\"type\":\"interface\"},\"inside\":\"dense\",\"outside\":\"fog\"}],"
+        BC_BEAM "],\"background\":0,"
+        "\"settings\":{\"max_depth\":64,\"rr_depth\":3,\"beam_connect\":%%s}}";
+    char cwd[1024], tmpl[4096];
+    cr_assert(getcwd(cwd, sizeof cwd) != NULL);
+    snprintf(tmpl, sizeof tmpl, fmt, homogeneous, cwd);
+    expect_delta_s_image_of(tmpl, 2048, 91, "an interface ball");
+}
+
+/* A box medium of density 0 inside the scene-wide fog, in the beam: a clear hole for delta
+ * tracking (transport/tracking.c rd_media_intervals) as for the connection's point
+ * (rd_scene_medium_at). */
+Test(beam_connect, a_clear_box_in_the_fog_gives_delta_s_image, .timeout = 120)
+{
+    static const char *fmt =
+        BC_CAMERA
+        "\"medium\":\"fog\",\"media\":[{\"name\":\"fog\",\"bounds\":{\"min\":[-1,-0.8,-0.8],\"max\":[1,0.8,0.8]},%s},"
+        "{\"name\":\"hole\",\"bounds\":{\"min\":[-0.35,-0.5,-0.5],\"max\":[0.35,0.6,0.6]},"
+        "\"density\":{\"type\":\"constant\",\"value\":0},\"sigma_t\":1}],"
+        BC_BEAM "],\"background\":0,"
+        "\"settings\":{\"max_depth\":64,\"rr_depth\":3,\"beam_connect\":%%s}}";
+    char tmpl[4096];
+    snprintf(tmpl, sizeof tmpl, fmt, homogeneous);
+    expect_delta_s_image_of(tmpl, 2048, 81, "a clear box in the fog");
+}
+
 /* guided-unbiased's own paths connect too (their guided directions and splitting: the
  * connection's weight against the direction mixture, a split vertex's one connection for all
  * its copies): the method alone (the selection off) gives `delta`'s image. */
@@ -315,17 +353,24 @@ Test(beam_connect, auto_is_on_where_it_can_run)
 {
     rd_scene *s = rt_scene("bc_auto.json", beam_fog_json(homogeneous, ""));
     cr_expect(s->settings.beam_connect == RD_BC_AUTO && s->beam_connect.light == 0, "the default is on for a narrow beam");
-    /* the breadth (load.c): the cylinder fills 5.2% of the box; (1 - g)^2 0.16 for g 0.6 above,
-     * 2.25 for g -0.5 */
+    /* the breadth (load.c): the cylinder fills 5.2% of the box; (1 - |g|)^2 is 0.16 for g 0.6
+     * above and for g -0.6, 1 for g 0 */
     cr_expect(fabs(s->beam_connect.breadth - 0.0516 * 0.16) < 0.001, "breadth %g", s->beam_connect.breadth);
     rd_scene_free(s);
+    s = rt_scene("bc_auto_back.json",
+                 beam_fog_json("\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1.5,\"g\":-0.6", ""));
+    cr_expect(s->beam_connect.light == 0 && fabs(s->beam_connect.breadth - 0.0516 * 0.16) < 0.001,
+              "a backward lobe as narrow: breadth %g", s->beam_connect.breadth);
+    rd_scene_free(s);
     s = rt_scene("bc_auto_broad.json",
-                 beam_fog_json("\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1.5,\"g\":-0.5", ""));
-    cr_expect(s->beam_connect.light == -1 && s->beam_connect.off && strstr(s->beam_connect.off, "broad"),
-              "auto connects to a broad beam (breadth %g)", s->beam_connect.breadth);
+                 beam_fog_json("\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1.5", ""));
+    cr_expect(s->beam_connect.light == -1 && s->beam_connect.off && strstr(s->beam_connect.off, "broad") &&
+                  strstr(s->beam_connect.off, "not below 0.014"),
+              "auto connects to a broad beam (breadth %g): %s", s->beam_connect.breadth,
+              s->beam_connect.off ? s->beam_connect.off : "(on)");
     rd_scene_free(s);
     s = rt_scene("bc_auto_broad_on.json",
-                 beam_fog_json("\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1.5,\"g\":-0.5",
+                 beam_fog_json("\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1.5",
                                ",\"beam_connect\":true"));
     cr_expect(s->beam_connect.light == 0, "true connects to a broad beam");
     rd_scene_free(s);

@@ -331,10 +331,11 @@ Test(surfaces, shadow_transmittance_ratio_estimator_unbiased, .timeout = 60)
 
 /* ---- 2. The open region: box media inside a scene-wide medium -------------------------------- */
 
-#define N_BOXMED 3
-static const vec3 BM_LO[N_BOXMED] = {{-2, -1, -1}, {0.5, -1, -1}, {3, 2, -1}};
-static const vec3 BM_HI[N_BOXMED] = {{-1, 1, 1}, {2, 1, 1}, {4, 3, 1}};
-static const double BM_SIG[N_BOXMED] = {1.2, 0.5, 2.0};
+/* The last box is clear (sigma_t 0): a hole in the scene-wide medium, not a part of it. */
+#define N_BOXMED 4
+static const vec3 BM_LO[N_BOXMED] = {{-2, -1, -1}, {0.5, -1, -1}, {3, 2, -1}, {-0.5, -1, -1}};
+static const vec3 BM_HI[N_BOXMED] = {{-1, 1, 1}, {2, 1, 1}, {4, 3, 1}, {0.2, 1, 1}};
+static const double BM_SIG[N_BOXMED] = {1.2, 0.5, 2.0, 0.0};
 #define SIG_WIDE 0.3
 static const vec3 WIDE_LO = {-6, -6, -6}, WIDE_HI = {6, 6, 6};
 
@@ -373,7 +374,7 @@ static int in_box3(vec3 lo, vec3 hi, vec3 x)
 Test(surfaces, open_region_intervals_and_exact_transmittance, .timeout = 60)
 {
     rd_scene *s = open_scene("open_exact.json", "exact");
-    cr_assert(s->fill_medium == N_BOXMED, "the scene-wide medium is media[3]");
+    cr_assert(s->fill_medium == N_BOXMED, "the scene-wide medium is media[%d]", N_BOXMED);
     cr_assert(rd_scene_region_at(s, v3(0, 0, 0)) == s->fill_medium);
     pcg32 pick = pcg32_seed(31, 0, 99), rng = pcg32_seed(32, 0, 1234);
     rd_track_counters c = {0};
@@ -405,12 +406,12 @@ Test(surfaces, open_region_intervals_and_exact_transmittance, .timeout = 60)
             cr_expect_eq(mi, expect, "ray %d interval %d: medium %d, expected %d", i, k, mi, expect);
             cr_expect(rd_scene_medium_at(s, s->fill_medium, mid) == &s->media[expect], "ray %d: medium at the midpoint", i);
         }
-        /* lengths per medium against the chords computed here */
+        /* lengths per medium against the chords computed here (none in the clear box) */
         double in_boxes = 0;
         for (int j = 0; j < N_BOXMED; j++) {
-            double cj = chord(BM_LO[j], BM_HI[j], a, b);
+            double cj = chord(BM_LO[j], BM_HI[j], a, b), want = BM_SIG[j] > 0.0 ? cj : 0.0;
             in_boxes += cj;
-            cr_expect(fabs(per[j] - cj) < 1e-9, "ray %d: box %d length %.12f vs %.12f", i, j, per[j], cj);
+            cr_expect(fabs(per[j] - want) < 1e-9, "ray %d: box %d length %.12f vs %.12f", i, j, per[j], want);
         }
         double cw = chord(WIDE_LO, WIDE_HI, a, b) - in_boxes;
         cr_expect(fabs(per[N_BOXMED] - cw) < 1e-9, "ray %d: scene-wide medium length %.12f vs %.12f", i, per[N_BOXMED], cw);
@@ -422,6 +423,7 @@ Test(surfaces, open_region_intervals_and_exact_transmittance, .timeout = 60)
     cr_expect(rd_scene_medium_at(s, s->fill_medium, v3(7, 0, 0)) == NULL);
     cr_expect(rd_scene_medium_at_point(s, v3(1, 0, 0)) == &s->media[1]);
     cr_expect(rd_scene_medium_at_point(s, v3(0, 4, 0)) == &s->media[N_BOXMED]);
+    cr_expect(rd_scene_medium_at_point(s, v3(-0.2, 0, 0)) == &s->media[N_BOXMED - 1], "the clear box is the medium there");
     rd_scene_free(s);
 }
 

@@ -122,14 +122,17 @@ static char *read_file(const char *path, char *err, size_t errlen, rd_status *st
 }
 
 /* settings.beam_connect's "auto": on where the beam's breadth, the share of its media's
- * bounds that its cylinder fills times (1 - g)^2 (the solid angle of the phase function's
- * forward lobe goes as (1 - g)^2 for g near 1), is below this. A path's own collisions find a
- * wide beam in a broadly scattering medium unaided, and there the connections cost 15-60% of
- * a sample's time for little (docs/free-path.md, "Where it runs"). Chosen on variants of the
- * calibration scenes beam-vdb and smoke-vdb (their radius and g varied): the connections paid
- * 1.3-3.9x where the breadth was 0.0047 or less, 1.03-1.09x at 0.042-0.053; 0.014 is the
- * geometric mean of the two ends. */
+ * bounds that its cylinder fills times (1 - |g|)^2 (the solid angle of the phase function's
+ * lobe, forward or backward, goes as (1 - |g|)^2 for |g| near 1; the connection's table samples
+ * either), is below this: a heuristic. A path's own collisions find a wide beam in a broadly
+ * scattering medium unaided, and there the connections cost 13-70% of a sample's time for
+ * little (docs/free-path.md, "Where it runs"). Chosen on variants of the calibration scenes
+ * beam-vdb and smoke-vdb (their radius and g varied, g >= 0): the connections paid 1.3-3.9x
+ * where the breadth was 0.0047 or less, 1.02-1.10x at 0.042-0.051; 0.014 is the geometric
+ * mean of the two ends. */
 #define RD_BC_AUTO_BREADTH 0.014
+#define RD_BC_STR_(x) #x
+#define RD_BC_STR(x) RD_BC_STR_(x) /* the limit in the message below, as written above */
 
 /* settings.beam_connect (transport/beam_connect.c): what it needs of the scene, then its
  * tables. It connects to one beam (the first directional light with a radius whose axis
@@ -152,7 +155,7 @@ static rd_status beam_connect_setup(ld_ctx *c, rd_scene *s)
     else if (!rd_beam_connect_setup(s)) why = "no directional light with a radius whose axis crosses a medium";
     if (!why && mode == RD_BC_AUTO && !(bc->breadth < RD_BC_AUTO_BREADTH)) {
         bc->light = -1;
-        bc->off = "\"auto\": a broad beam, its breadth not below 0.014, which a path's own collisions find";
+        bc->off = "\"auto\": a broad beam, its breadth not below " RD_BC_STR(RD_BC_AUTO_BREADTH) ", which a path's own collisions find";
         return RD_OK;
     }
     bc->off = why;

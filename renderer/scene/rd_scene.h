@@ -154,7 +154,7 @@ typedef struct {
                              the table, its global majorant is sigma_bar */
     double share;         /* the cylinder's volume over [s0, s1] over the volume of the
                              bounds of the media its axis crosses */
-    double breadth;       /* share (1 - g)^2, g that of `medium`: "auto"'s test (load.c) */
+    double breadth;       /* share (1 - |g|)^2, g that of `medium`: "auto"'s test (load.c) */
     double sigma_bar;     /* the MIS stand-in's extinction */
     double cdf[RD_BC_BINS + 1]; /* unnormalised CDF over theta in [-pi/2, pi/2] of HG(g, -sin theta) */
 } rd_beam_connect;

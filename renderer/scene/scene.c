@@ -195,12 +195,12 @@ void rd_scene_info(const rd_scene *s, FILE *out)
     static const char *const bc_names[] = {"false", "true", "auto"};
     const rd_beam_connect *bc = &s->beam_connect;
     /* the breadth (load.c, "auto"'s test): the share of its media's bounds that the beam's
-     * cylinder fills x (1 - g)^2; 0 where no beam was set up */
+     * cylinder fills x (1 - |g|)^2; 0 where no beam was set up */
     char breadth[64] = "";
     if (bc->breadth > 0.0) snprintf(breadth, sizeof breadth, ", breadth %.2g", bc->breadth);
     if (bc->light >= 0)
-        fprintf(out, "beams      beam_connect %s: on, to light %d%s (every path loop but the flights that sample its chord)\n",
-                bc_names[s->settings.beam_connect], bc->light, breadth);
+        fprintf(out, "beams      beam_connect %s: on, to light %d in medium \"%s\"%s (every path loop but the flights that sample its chord)\n",
+                bc_names[s->settings.beam_connect], bc->light, s->media[bc->medium].name, breadth);
     else
         fprintf(out, "beams      beam_connect %s: off%s%s%s%s\n", bc_names[s->settings.beam_connect], bc->off ? " (" : "",
                 bc->off ? bc->off : "", bc->off ? ")" : "", breadth);

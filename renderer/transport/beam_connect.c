@@ -32,7 +32,8 @@
  * and y's medium (sigma_s, albedo, phase) is the one x's region holds at y, which may be
  * another box medium than x's.
  *
- * p_B. The axis is a(s) = c + s D (D the light's direction), s in [s0, s1] inside the medium.
+ * p_B. The axis is a(s) = c + s D (D the light's direction), s in [s0, s1] within the media's
+ * bounds.
  * Seen from x, at axial coordinate s_x and distance h from the axis (at least the radius R:
  * the density stays bounded where x lies inside the beam), a point a(s) lies at the angle
  * theta = atan((s - s_x) / h), and ds = (h^2 + (s - s_x)^2) / h dtheta: the 1 / |y - x|^2 of
@@ -82,6 +83,7 @@ int rd_beam_connect_setup(rd_scene *s)
         for (int k = 0; k < s->n_media; k++) {
             const rd_medium *m = &s->media[k];
             double a, b;
+            if (!(m->sigma_maj > 0.0)) continue; /* a clear medium: nothing to scatter */
             if (!rd_box_intersect(m->bmin, m->bmax, axis, -1e30, 1e30, &a, &b) || !(b > a)) continue;
             s0 = fmin(s0, a), s1 = fmax(s1, b);
             vec3 e = v3_sub(m->bmax, m->bmin);
@@ -96,7 +98,7 @@ int rd_beam_connect_setup(rd_scene *s)
         bc->s0 = s0, bc->s1 = s1;
         bc->medium = best;
         bc->share = M_PI * l->radius * l->radius * (s1 - s0) / volume;
-        bc->breadth = bc->share * (1.0 - m->g) * (1.0 - m->g);
+        bc->breadth = bc->share * (1.0 - fabs(m->g)) * (1.0 - fabs(m->g)); /* load.c */
         bc->sigma_bar = m->sigma_maj;
         double acc = 0.0;
         bc->cdf[0] = 0.0;
@@ -235,8 +237,8 @@ vec3 rd_beam_connect_estimate(const rd_scene *s, int region, vec3 x, vec3 d, con
     ray3 cr = {x, w};
     /* a surface or a sphere light between x and y ends the path's flight there: the path
      * cannot build this y by a flight from x (nee.c stops a shadow ray at a sphere light too) */
-    rd_hit h;
-    if (rd_scene_intersect(s, cr, dist, NULL, &h)) return zero;
+    int blocked = s->geom ? rd_geom_occluded(s->geom, cr, 0.0, dist, NULL) : rd_scene_hit_light(s, cr, dist, -1, NULL) >= 0;
+    if (blocked) return zero;
     c->shadow_rays++;
     double T = rd_transmittance(s, region, cr, 0.0, dist, rng, c);
     if (!(T != 0.0)) return zero;

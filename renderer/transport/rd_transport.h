@@ -14,7 +14,8 @@ extern "C" {
 #endif
 
 /* The media of `region` r crosses within [tmin, tmax]: disjoint intervals sorted by entry
- * distance, each of one medium (media with sigma_maj = 0 left out). At most RD_MAX_INTERVALS
+ * distance, each of one medium (media with sigma_maj = 0 left out; such a box medium is a
+ * clear hole in the scene-wide medium, as rd_scene_medium_at has it). At most RD_MAX_INTERVALS
  * (64 box media and the scene-wide medium in the gaps between them). Returns their number. */
 typedef struct { double t0, t1; const rd_medium *m; } rd_interval;
 #define RD_MAX_INTERVALS 130
@@ -217,18 +218,19 @@ vec3 rd_nee_all(const rd_scene *s, int region, vec3 x, vec3 d, double g, const d
                 pcg32 *rng, rd_track_counters *c);
 
 /* ---- settings.beam_connect: the path loops' beam connections (transport/beam_connect.c) ----- */
-/* Fill s->beam_connect for the scene's first directional beam whose axis crosses media[0]
- * (light -1 and 0 when there is none). The loader calls it, once. */
+/* Fill s->beam_connect for the scene's first directional beam whose axis crosses a medium's
+ * bounds (light -1 and 0 when there is none). The loader calls it, once. */
 int rd_beam_connect_setup(rd_scene *s);
 /* The connection's point y seen from vertex x, from four uniforms, and its density per unit
  * volume *pdf (rd_beam_connect_pdf); 0 when there is none. */
 int rd_beam_connect_sample(const rd_scene *s, vec3 x, double u_mix, double u_th, double u1, double u2,
                            vec3 *y, double *pdf);
 /* The density per unit volume with which rd_beam_connect_sample draws y from x (0 outside the
- * beam's cylinder within the medium). */
+ * beam's cylinder over the axis' span [s0, s1] within the media). */
 double rd_beam_connect_pdf(const rd_scene *s, vec3 x, vec3 y);
 /* The MIS stand-in for the path's own way to y: direction density dir_pdf at x, then delta
- * tracking's collision density over `dist` with the medium's global majorant, per unit volume. */
+ * tracking's collision density over `dist` with the beam's medium's global majorant (sigma_bar),
+ * per unit volume. */
 double rd_beam_connect_path_pdf(const rd_scene *s, double dir_pdf, double dist);
 /* One connection from scattering vertex x (in medium m, arrived along d) to the beam, with its
  * MIS weight against the path's own continuation (direction mixture mx, NULL: phase sampling)

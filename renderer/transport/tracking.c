@@ -21,7 +21,9 @@ static void insert_sorted(interval *out, int *n, double t0, double t1, const rd_
 
 /* A bound region: its one medium, clipped to the medium's bounds. The open region: the box
  * media (they do not overlap: the loader checks), and the scene-wide medium in the gaps between
- * them, within its bounds. */
+ * them, within its bounds. A box medium with a zero majorant is a clear hole in the scene-wide
+ * medium (rd_scene_medium_at: box media fill their bounds): no interval of its own, and no
+ * scene-wide medium there either. */
 int rd_media_intervals(const rd_scene *s, int region, ray3 r, double tmin, double tmax,
                        rd_interval *out)
 {
@@ -36,29 +38,33 @@ int rd_media_intervals(const rd_scene *s, int region, ray3 r, double tmin, doubl
     }
     for (int i = 0; i < s->n_media && n < 64; i++) {
         const rd_medium *m = &s->media[i];
-        if (m->sigma_maj <= 0.0 || m->bound) continue;
+        if (m->bound) continue;
         if (!rd_box_intersect(m->bmin, m->bmax, r, tmin, tmax, &t0, &t1)) continue;
         insert_sorted(out, &n, t0, t1, m);
     }
     const rd_medium *f = s->fill_medium >= 0 ? &s->media[s->fill_medium] : NULL;
-    if (!f || !(f->sigma_maj > 0.0) || !rd_box_intersect(f->bmin, f->bmax, r, tmin, tmax, &t0, &t1))
-        return n;
-    /* The scene-wide medium over [t0, t1] minus the box intervals. */
-    int nb = n;
-    double a = t0;
-    for (int k = 0; k <= nb; k++) {
-        double b = k < nb ? fmin(out[k].t0, t1) : t1;
-        if (b > a) out[n++] = (interval){a, b, f};
-        if (k < nb) a = fmax(a, out[k].t1);
+    if (f && f->sigma_maj > 0.0 && rd_box_intersect(f->bmin, f->bmax, r, tmin, tmax, &t0, &t1)) {
+        /* The scene-wide medium over [t0, t1] minus the box intervals. */
+        int nb = n;
+        double a = t0;
+        for (int k = 0; k <= nb; k++) {
+            double b = k < nb ? fmin(out[k].t0, t1) : t1;
+            if (b > a) out[n++] = (interval){a, b, f};
+            if (k < nb) a = fmax(a, out[k].t1);
+        }
+        /* re-sort the appended gaps into place (insertion sort: few elements) */
+        for (int i = 1; i < n; i++) {
+            interval v = out[i];
+            int k = i;
+            while (k > 0 && out[k - 1].t0 > v.t0) { out[k] = out[k - 1]; k--; }
+            out[k] = v;
+        }
     }
-    /* re-sort the appended gaps into place (insertion sort: few elements) */
-    for (int i = 1; i < n; i++) {
-        interval v = out[i];
-        int k = i;
-        while (k > 0 && out[k - 1].t0 > v.t0) { out[k] = out[k - 1]; k--; }
-        out[k] = v;
-    }
-    return n;
+    /* the clear holes (above) only cut the gaps */
+    int kept = 0;
+    for (int i = 0; i < n; i++)
+        if (out[i].m->sigma_maj > 0.0) out[kept++] = out[i];
+    return kept;
 }
 
 static rd_fp_params params_of(const rd_scene *s)
