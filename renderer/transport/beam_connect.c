@@ -62,9 +62,10 @@
  * beam-vdb and smoke-vdb, within the rounds' spread of each other (docs/free-path.md, "Beam
  * connections"). */
 #define RD_BC_ROULETTE 0.1
-/* The share of the phase-shaped part of the angle's mixture (above): an even split, not
- * calibrated (the mixture was first tried on beam.json, a benchmark scene: docs/benchmarks.md
- * "Session 31"). */
+/* The share of the phase-shaped part of the angle's mixture (above): an even split (first
+ * tried on beam.json, a benchmark scene: docs/benchmarks.md "Session 31"). A screen of 0.1, 0.25,
+ * 0.5 and 0.75 on the calibration scenes beam-vdb and smoke-vdb (its beam narrowed) found no
+ * share clear of the seeds' spread (docs/benchmarks.md "Session 32"), so it stays. */
 #define RD_BC_PHASE_SHARE 0.5
 
 int rd_beam_connect_setup(rd_scene *s)
