@@ -20,12 +20,20 @@
  *  - what `true` refuses, each with a one-line error naming the field. */
 #include "support/rd_test.h"
 
+#include <stdarg.h>
+
 /* The camera of the image tests, and their beam (a directional light of radius 0.2), opening
  * the "lights" list. */
 #define BC_CAMERA "{\"camera\":{\"position\":[0,0,3.2],\"look_at\":[0,0,0],\"fov\":40,\"resolution\":[32,24]},"
 #define BC_BEAM \
     "\"lights\":[{\"type\":\"directional\",\"direction\":[1,-0.2,0.3],\"irradiance\":[5,5,5],\"radius\":0.2," \
     "\"center\":[0,0.1,0]}"
+/* The scene-wide fog (its body a %s slot) opening the "media" list; and the end of a scene
+ * with the beam alone, deep paths and settings.beam_connect left a %%s slot (for
+ * expect_delta_s_image_of). */
+#define BC_FOG_FILL \
+    "\"medium\":\"fog\",\"media\":[{\"name\":\"fog\",\"bounds\":{\"min\":[-1,-0.8,-0.8],\"max\":[1,0.8,0.8]},%s},"
+#define BC_TAIL BC_BEAM "],\"background\":0,\"settings\":{\"max_depth\":64,\"rr_depth\":3,\"beam_connect\":%%s}}"
 
 /* A box of fog crossed by a beam; `medium` the medium's JSON body, `settings` extra settings. */
 static const char *beam_fog_json(const char *medium, const char *settings)
@@ -158,11 +166,15 @@ static void expect_delta_s_image(const char *medium, int spp, const char *what)
     expect_same_image(a, b, "delta", spp, spp, 11, 12, what);
 }
 
-/* The same with a scene of the caller's: `tmpl` is its JSON with every slot filled but the last,
- * written %%s, the value of settings.beam_connect. */
-static void expect_delta_s_image_of(const char *tmpl, int spp, uint64_t seed, const char *what)
+/* The same with a scene of the caller's: `fmt` is its JSON, its slots filled from the
+ * arguments but the last, written %%s, the value of settings.beam_connect. */
+static void expect_delta_s_image_of(int spp, uint64_t seed, const char *what, const char *fmt, ...)
 {
-    char a_json[4096], b_json[4096];
+    char tmpl[4096], a_json[4096], b_json[4096];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(tmpl, sizeof tmpl, fmt, ap);
+    va_end(ap);
     snprintf(a_json, sizeof a_json, tmpl, "false");
     snprintf(b_json, sizeof b_json, tmpl, "true");
     rd_scene *a = rt_scene("bc_of_off.json", a_json), *b = rt_scene("bc_of_on.json", b_json);
@@ -185,9 +197,7 @@ Test(beam_connect, a_second_light_gives_delta_s_image, .timeout = 120)
         BC_BEAM ",{\"type\":\"sphere\",\"center\":[0.28,0.04,0.08],"
         "\"radius\":0.15,\"radiance\":[10,10,10]}],\"background\":0,"
         "\"settings\":{\"max_depth\":2,\"rr_depth\":3,\"beam_connect\":%%s}}";
-    char tmpl[2048];
-    snprintf(tmpl, sizeof tmpl, fmt, homogeneous);
-    expect_delta_s_image_of(tmpl, 2048, 31, "a sphere light in the beam, max_depth 2");
+    expect_delta_s_image_of(2048, 31, "a sphere light in the beam, max_depth 2", fmt, homogeneous);
 }
 
 /* With max_depth 1 a connection's vertex would be a second scattering event: none is made, no
@@ -265,7 +275,7 @@ Test(beam_connect, a_glass_ball_and_an_opaque_plate_give_delta_s_image, .timeout
 {
     static const char *fmt =
         BC_CAMERA
-        "\"medium\":\"fog\",\"media\":[{\"name\":\"fog\",\"bounds\":{\"min\":[-1,-0.8,-0.8],\"max\":[1,0.8,0.8]},%s},"
+        BC_FOG_FILL
         "{\"name\":\"dense\",\"bounds\":{\"min\":[-0.1,-0.1,-0.15],\"max\":[0.3,0.3,0.2]},"
         "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":4,\"albedo\":0.9,\"g\":0.3}],"
         "\"shapes\":[{\"name\":\"ball\",\"file\":\"%s/scenes/data/icosphere-3.obj\","
@@ -274,12 +284,10 @@ Test(beam_connect, a_glass_ball_and_an_opaque_plate_give_delta_s_image, .timeout
         "{\"name\":\"plate\",\"file\":\"%s/scenes/data/box.obj\","
         "\"transform\":{\"scale\":[0.05,0.2,0.35],\"translate\":[-0.4,0.35,-0.1]},"
         "\"material\":{\"type\":\"diffuse\",\"albedo\":0.5},\"inside\":null,\"outside\":\"fog\"}],"
-        BC_BEAM "],\"background\":0,"
-        "\"settings\":{\"max_depth\":64,\"rr_depth\":3,\"beam_connect\":%%s}}";
-    char cwd[1024], tmpl[4096];
+        BC_TAIL;
+    char cwd[1024];
     cr_assert(getcwd(cwd, sizeof cwd) != NULL);
-    snprintf(tmpl, sizeof tmpl, fmt, homogeneous, cwd, cwd);
-    expect_delta_s_image_of(tmpl, 2048, 61, "a glass ball and an opaque plate");
+    expect_delta_s_image_of(2048, 61, "a glass ball and an opaque plate", fmt, homogeneous, cwd, cwd);
 }
 
 /* Two box media side by side along the beam: forward-scattering haze where it enters, fog
@@ -292,11 +300,8 @@ Test(beam_connect, two_media_along_the_beam_give_delta_s_image, .timeout = 120)
         "\"media\":[{\"name\":\"haze\",\"bounds\":{\"min\":[-1,-0.8,-0.8],\"max\":[-0.2,0.8,0.8]},"
         "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":2,\"albedo\":0.95,\"g\":0.85},"
         "{\"name\":\"fog\",\"bounds\":{\"min\":[-0.2,-0.8,-0.8],\"max\":[1,0.8,0.8]},%s}],"
-        BC_BEAM "],\"background\":0,"
-        "\"settings\":{\"max_depth\":64,\"rr_depth\":3,\"beam_connect\":%%s}}";
-    char tmpl[4096];
-    snprintf(tmpl, sizeof tmpl, fmt, homogeneous);
-    expect_delta_s_image_of(tmpl, 4096, 71, "two media along the beam");
+        BC_TAIL;
+    expect_delta_s_image_of(4096, 71, "two media along the beam", fmt, homogeneous);
 }
 
 /* An index-matched interface around a ball of a denser medium in the beam: the path crosses it
@@ -306,18 +311,16 @@ Test(beam_connect, an_interface_ball_gives_delta_s_image, .timeout = 120)
 {
     static const char *fmt =
         BC_CAMERA
-        "\"medium\":\"fog\",\"media\":[{\"name\":\"fog\",\"bounds\":{\"min\":[-1,-0.8,-0.8],\"max\":[1,0.8,0.8]},%s},"
+        BC_FOG_FILL
         "{\"name\":\"dense\",\"bounds\":{\"min\":[-0.45,-0.45,-0.45],\"max\":[0.45,0.45,0.45]},"
         "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":4,\"albedo\":0.9,\"g\":0.8}],"
         "\"shapes\":[{\"name\":\"ball\",\"file\":\"%s/scenes/data/icosphere-3.obj\","
         "\"transform\":{\"scale\":0.4,\"translate\":[0.0,0.05,0.0]},"
         "\"material\":{\"type\":\"interface\"},\"inside\":\"dense\",\"outside\":\"fog\"}],"
-        BC_BEAM "],\"background\":0,"
-        "\"settings\":{\"max_depth\":64,\"rr_depth\":3,\"beam_connect\":%%s}}";
-    char cwd[1024], tmpl[4096];
+        BC_TAIL;
+    char cwd[1024];
     cr_assert(getcwd(cwd, sizeof cwd) != NULL);
-    snprintf(tmpl, sizeof tmpl, fmt, homogeneous, cwd);
-    expect_delta_s_image_of(tmpl, 2048, 91, "an interface ball");
+    expect_delta_s_image_of(2048, 91, "an interface ball", fmt, homogeneous, cwd);
 }
 
 /* A box medium of density 0 inside the scene-wide fog, in the beam: a clear hole for delta
@@ -327,14 +330,11 @@ Test(beam_connect, a_clear_box_in_the_fog_gives_delta_s_image, .timeout = 120)
 {
     static const char *fmt =
         BC_CAMERA
-        "\"medium\":\"fog\",\"media\":[{\"name\":\"fog\",\"bounds\":{\"min\":[-1,-0.8,-0.8],\"max\":[1,0.8,0.8]},%s},"
+        BC_FOG_FILL
         "{\"name\":\"hole\",\"bounds\":{\"min\":[-0.35,-0.5,-0.5],\"max\":[0.35,0.6,0.6]},"
         "\"density\":{\"type\":\"constant\",\"value\":0},\"sigma_t\":1}],"
-        BC_BEAM "],\"background\":0,"
-        "\"settings\":{\"max_depth\":64,\"rr_depth\":3,\"beam_connect\":%%s}}";
-    char tmpl[4096];
-    snprintf(tmpl, sizeof tmpl, fmt, homogeneous);
-    expect_delta_s_image_of(tmpl, 2048, 81, "a clear box in the fog");
+        BC_TAIL;
+    expect_delta_s_image_of(2048, 81, "a clear box in the fog", fmt, homogeneous);
 }
 
 /* guided-unbiased's own paths connect too (their guided directions and splitting: the
