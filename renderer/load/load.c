@@ -183,8 +183,9 @@ static rd_status validate(ld_ctx *c, const cJSON *root, rd_scene *s)
     if (nm > MAX_MEDIA) return ld_fail(c, "media", "at most %d media", MAX_MEDIA);
     s->media = calloc(nm > 0 ? nm : 1, sizeof *s->media);
     if (!s->media) return RD_ERR_NOMEM;
+    rd_majorant_opts mo[MAX_MEDIA];
     for (int i = 0; i < nm; i++) {
-        rd_status st = ld_parse_medium(c, cJSON_GetArrayItem(media, i), i, &s->media[i]);
+        rd_status st = ld_parse_medium(c, cJSON_GetArrayItem(media, i), i, &s->media[i], &mo[i]);
         s->n_media = i + 1; /* so rd_scene_free releases a partly loaded medium */
         if (st) return st;
     }
@@ -242,6 +243,9 @@ static rd_status validate(ld_ctx *c, const cJSON *root, rd_scene *s)
     LD_TRY(ld_parse_march(c, cJSON_GetObjectItemCaseSensitive(root, "march"), &s->march));
     if (s->guide.track && !s->photons.segments)
         s->photons.segments = 1; /* the track-length bake needs the segments */
+    /* Every key is read: now the media's majorant structures (for a noise medium the loader's
+     * longest step, which also tightens its majorant: nothing above reads it). */
+    for (int i = 0; i < nm; i++) LD_TRY(ld_build_majorant(c, i, &s->media[i], &mo[i]));
     /* Lights by power for next-event estimation, and the lights a path can hit. */
     LD_TRY(rd_light_sampler_build(&s->light_sampler, s->lights, s->n_lights, rd_scene_radius(s)));
     s->sphere_lights = calloc(s->n_lights > 0 ? s->n_lights : 1, sizeof *s->sphere_lights);

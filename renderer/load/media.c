@@ -159,7 +159,7 @@ static rd_status parse_density(ld_ctx *c, const cJSON *m, const char *mpath, rd_
     return RD_OK;
 }
 
-rd_status ld_parse_medium(ld_ctx *c, const cJSON *m, int idx, rd_medium *med)
+rd_status ld_parse_medium(ld_ctx *c, const cJSON *m, int idx, rd_medium *med, rd_majorant_opts *mo_out)
 {
     char path[64];
     snprintf(path, sizeof path, "media[%d]", idx);
@@ -258,9 +258,16 @@ rd_status ld_parse_medium(ld_ctx *c, const cJSON *m, int idx, rd_medium *med)
         mo.max_level = 1;
         while ((2 << mo.max_level) <= lim && mo.max_level < 8) mo.max_level++;
     }
-    char msg[RD_ERRLEN];
+    *mo_out = mo;
+    return RD_OK;
+}
+
+rd_status ld_build_majorant(ld_ctx *c, int idx, rd_medium *med, const rd_majorant_opts *mo)
+{
+    char mpath[64], msg[RD_ERRLEN];
+    snprintf(mpath, sizeof mpath, "media[%d].majorant", idx);
     med->majorant = rd_majorant_build(med->bmin, med->bmax, med->sigma_t_scale, med->sigma_maj,
-                                      rd_medium_box_bound, med, &mo, msg, sizeof msg);
+                                      rd_medium_box_bound, med, mo, msg, sizeof msg);
     if (!med->majorant) {
         ld_fail(c, mpath, "%s", msg);
         return RD_ERR_NOMEM;

@@ -10,6 +10,7 @@
 #ifndef RD_LOAD_H
 #define RD_LOAD_H
 
+#include "media/rd_freepath.h"
 #include "scene/rd_scene.h"
 
 #include <cJSON.h>
@@ -68,9 +69,13 @@ const char *ld_missing_hint(const char *file, const char *made_by, char *buf, si
 rd_status ld_parse_camera(ld_ctx *c, const cJSON *j, rd_camera *cam);
 /* lights[idx] (camera_lights.c). */
 rd_status ld_parse_light(ld_ctx *c, const cJSON *j, int idx, rd_light *l);
-/* media[idx] with its density, bounds and majorant structure (media.c). On an error the
- * medium may hold a grid or majorant: rd_scene_free releases it. */
-rd_status ld_parse_medium(ld_ctx *c, const cJSON *m, int idx, rd_medium *med);
+/* media[idx] with its density and bounds (media.c), and in *mo the options of its majorant
+ * structure. On an error the medium may hold a grid: rd_scene_free releases it. */
+rd_status ld_parse_medium(ld_ctx *c, const cJSON *m, int idx, rd_medium *med, rd_majorant_opts *mo);
+/* Build media[idx]'s majorant structure with the options ld_parse_medium gave (media.c); the
+ * loader calls it once every key of the scene is read, so a mistake anywhere is reported
+ * before this, the loader's longest step, runs. */
+rd_status ld_build_majorant(ld_ctx *c, int idx, rd_medium *med, const rd_majorant_opts *mo);
 /* "settings", "photons", "guide", "march" (settings.c): defaults first, then the section's
  * fields; j may be NULL (the section is absent: defaults only). */
 rd_status ld_parse_settings(ld_ctx *c, const cJSON *j, rd_settings *s);
