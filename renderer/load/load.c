@@ -128,8 +128,8 @@ static char *read_file(const char *path, char *err, size_t errlen, rd_status *st
  * scattering medium unaided, and there the connections cost 13-70% of a sample's time for
  * little (docs/free-path.md, "Where it runs"). Chosen on variants of the calibration scenes
  * beam-vdb and smoke-vdb (their radius and g varied, g >= 0): the connections paid 1.3-3.9x
- * where the breadth was 0.0047 or less, 1.02-1.10x at 0.042-0.051; 0.014 is the geometric
- * mean of the two ends. */
+ * where the breadth was 0.0046 or less, 1.02-1.10x at 0.041-0.051; 0.014 is about the
+ * geometric mean of the two ends (0.0137). */
 #define RD_BC_AUTO_BREADTH 0.014
 #define RD_BC_STR_(x) #x
 #define RD_BC_STR(x) RD_BC_STR_(x) /* the limit in the message below, as written above */
