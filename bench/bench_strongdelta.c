@@ -4,7 +4,7 @@
  *
  *   bench_strongdelta SCENE --reference REF.exr [--set KEY=VAL]...
  *                     --variant LABEL [--set KEY=VAL]... [--variant LABEL ...]...
- *                     [--seconds S] [--runs K] [--threads N] [--seed N]
+ *                     [--seconds S] [--runs K] [--threads N] [--seed N] [--mask-outliers]
  *
  * Each variant is the scene with its own --set overrides (those before the first --variant
  * apply to all, e.g. camera.resolution), rendered by its settings.method (`delta` unless a
@@ -16,7 +16,11 @@
  * pixels and channels of (x - r)^2, less the reference's own variance (mean of REF-stderr.exr
  * squared, when that file is beside it: E[(x - r)^2] = MSE_true + var_r for an independent r),
  * and its efficiency 1 / (MSE x seconds)
- * (THEORY.md §7, Veach 1997 §2.4). Printed per variant: the medians over the K rounds with
+ * (THEORY.md §7, Veach 1997 §2.4). --mask-outliers leaves out, in every render alike, the pixels
+ * where the reference's variance is over 1000x its median: a few pixels that one camera chain,
+ * common to every method, makes far noisier than the rest (hard-lens-caustic's image of the
+ * small light through the ball, a specular chain every method follows alike), which would
+ * otherwise be the whole MSE. Printed per variant: the medians over the K rounds with
  * min-max of seconds, samples per pixel, MSE and efficiency, and of the efficiency ratio to the
  * first variant within the same round (the figure to quote: one round's variants share one
  * load). The reference is yours to render, 20x longer or more, by the strongest `delta` for the
@@ -71,7 +75,7 @@ int main(int argc, char **argv)
 {
     const char *scene = NULL, *ref_path = NULL;
     double seconds = 10.0;
-    int runs = 4, threads = 2;
+    int runs = 4, threads = 2, mask_outliers = 0;
     uint64_t seed = 1000;
     rd_override common[MAXSET];
     int n_common = 0, nv = 0;
@@ -79,6 +83,10 @@ int main(int argc, char **argv)
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         const char *next = i + 1 < argc ? argv[i + 1] : NULL;
+        if (!strcmp(a, "--mask-outliers")) {
+            mask_outliers = 1;
+            continue;
+        }
         if (!strcmp(a, "--json") || !strcmp(a, "--quick")) {
             if (!strcmp(a, "--json")) i++;
             continue;
@@ -115,11 +123,33 @@ int main(int argc, char **argv)
     snprintf(se_path, sizeof se_path, "%.*s-stderr.exr", (int)(strlen(ref_path) - 4), ref_path);
     double ref_var = 0.0;
     int have_se = rd_image_read(se_path, &ref_se, err, sizeof err) == RD_OK && ref_se.w == ref.w && ref_se.h == ref.h;
-    size_t nvals = (size_t)ref.w * ref.h * 3;
-    if (have_se) {
-        for (size_t q = 0; q < nvals; q++) ref_var += (double)ref_se.rgb[q] * ref_se.rgb[q];
-        ref_var /= nvals;
+    size_t npx = (size_t)ref.w * ref.h, nvals = 0;
+    /* keep[p]: pixel p counts (all of them unless --mask-outliers) */
+    unsigned char *keep = malloc(npx);
+    double *pv = malloc(npx * sizeof *pv);
+    if (!keep || !pv) { fprintf(stderr, "bench_strongdelta: out of memory\n"); return 1; }
+    for (size_t p = 0; p < npx; p++) {
+        pv[p] = 0.0;
+        for (int c = 0; c < 3 && have_se; c++) pv[p] += (double)ref_se.rgb[3 * p + c] * ref_se.rgb[3 * p + c];
+        keep[p] = 1;
     }
+    if (mask_outliers && have_se) {
+        double *sorted = malloc(npx * sizeof *sorted);
+        if (!sorted) { fprintf(stderr, "bench_strongdelta: out of memory\n"); return 1; }
+        memcpy(sorted, pv, npx * sizeof *sorted);
+        qsort(sorted, npx, sizeof *sorted, cmp_d);
+        double median = sorted[npx / 2];
+        for (size_t p = 0; p < npx; p++) keep[p] = pv[p] <= 1000.0 * median;
+        free(sorted);
+    }
+    size_t masked = 0;
+    for (size_t p = 0; p < npx; p++) {
+        if (!keep[p]) { masked++; continue; }
+        ref_var += pv[p];
+        nvals += 3;
+    }
+    ref_var /= (double)nvals;
+    free(pv);
     for (int k = 0; k < nv; k++) {
         rd_override ov[2 * MAXSET];
         int n = 0;
@@ -130,8 +160,10 @@ int main(int argc, char **argv)
             return 1;
         }
     }
-    printf("bench_strongdelta %s: %d variants, %d rounds of %g s each, %d threads, reference %s (variance %.3g%s)\n",
+    printf("bench_strongdelta %s: %d variants, %d rounds of %g s each, %d threads, reference %s (variance %.3g%s)",
            scene, nv, runs, seconds, threads, ref_path, ref_var, have_se ? "" : ", unknown: no stderr image");
+    if (mask_outliers) printf(", %zu pixels left out (--mask-outliers)", masked);
+    printf("\n");
     fflush(stdout);
     for (int r = 0; r < runs; r++) {
         for (int k = 0; k < nv; k++) {
@@ -148,9 +180,9 @@ int main(int argc, char **argv)
                 return 1;
             }
             double se2 = 0.0;
-            for (size_t q = 0; q < nvals; q++) {
+            for (size_t q = 0; q < 3 * npx; q++) {
                 double d = (double)res.image.rgb[q] - ref.rgb[q];
-                se2 += d * d;
+                if (keep[q / 3]) se2 += d * d;
             }
             double mse = se2 / nvals - ref_var;
             v[k].seconds[r] = res.stats.seconds;
@@ -181,5 +213,6 @@ int main(int argc, char **argv)
     for (int i = 0; i < n_common; i++) free((char *)common[i].key);
     rd_image_free_pixels(&ref);
     rd_image_free_pixels(&ref_se);
+    free(keep);
     return 0;
 }
