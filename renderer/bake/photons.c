@@ -82,29 +82,106 @@ static void push_segment(block_out *b, const rd_scene *s, ray3 r, double tmax, v
 
 static void acc(double a[3], vec3 v) { a[0] += v.x; a[1] += v.y; a[2] += v.z; }
 
-/* Emission sampling (rd_photons.h documents each light's distribution). */
-int rd_light_sample_emission(const rd_scene *s, const rd_light *l, pcg32 *rng, ray3 *r,
-                             vec3 *power)
+/* ---- Photons aimed at the glass (photons.aim; Jensen's projection maps, simplified) ------- */
+
+rd_emission_aim rd_emission_aim_of(const rd_scene *s)
+{
+    rd_emission_aim a = {0, {0, 0, 0}, 0.0, 0.0};
+    if (!(s->photons.aim > 0.0)) return a;
+    vec3 lo = v3(INFINITY, INFINITY, INFINITY), hi = v3(-INFINITY, -INFINITY, -INFINITY);
+    for (int i = 0; i < s->n_shapes; i++) {
+        if (s->shapes[i].material.kind != RD_MAT_DIELECTRIC) continue;
+        lo = v3(fmin(lo.x, s->shapes[i].mesh.bmin.x), fmin(lo.y, s->shapes[i].mesh.bmin.y), fmin(lo.z, s->shapes[i].mesh.bmin.z));
+        hi = v3(fmax(hi.x, s->shapes[i].mesh.bmax.x), fmax(hi.y, s->shapes[i].mesh.bmax.y), fmax(hi.z, s->shapes[i].mesh.bmax.z));
+    }
+    if (!(lo.x <= hi.x)) return a; /* no glass: nothing to aim at */
+    a.on = 1;
+    a.centre = v3_scale(v3_add(lo, hi), 0.5);
+    a.radius = 0.5 * v3_len(v3_sub(hi, lo)) * (1.0 + 1e-6) + 1e-9; /* the box's bounding sphere */
+    a.share = s->photons.aim;
+    return a;
+}
+
+/* The cone of directions from p that meet the aim's sphere: axis w, cos of its half-angle, and
+ * 1 - that cos (computed without cancellation). 0 when p is inside the sphere. */
+typedef struct { vec3 w; double cos_max, one_minus; } aim_cone;
+static int cone_from(const rd_emission_aim *aim, vec3 p, aim_cone *k)
+{
+    vec3 to = v3_sub(aim->centre, p);
+    double d2 = v3_dot(to, to), s2 = aim->radius * aim->radius / d2;
+    if (!(s2 < 1.0)) return 0;
+    k->w = v3_scale(to, 1.0 / sqrt(d2));
+    k->cos_max = sqrt(1.0 - s2);
+    k->one_minus = s2 / (1.0 + k->cos_max);
+    return 1;
+}
+/* Uniform in the cone's solid angle (pdf 1 / (2 pi (1 - cos_max))). */
+static vec3 cone_sample(const aim_cone *k, double u1, double u2)
+{
+    double c = 1.0 - u1 * k->one_minus, sn = sqrt(fmax(0.0, 1.0 - c * c)), phi = 2.0 * M_PI * u2;
+    vec3 a, b;
+    v3_basis(k->w, &a, &b);
+    return v3_norm(v3_add(v3_scale(k->w, c), v3_add(v3_scale(a, sn * cos(phi)), v3_scale(b, sn * sin(phi)))));
+}
+static double cone_pdf(const aim_cone *k, vec3 d)
+{
+    return v3_dot(d, k->w) >= k->cos_max ? 1.0 / (2.0 * M_PI * k->one_minus) : 0.0;
+}
+
+/* Emission sampling (rd_photons.h documents each light's distribution). With an aim (a scene
+ * with glass and photons.aim > 0), a share of each point, spot, sphere and directional light's
+ * photons leaves toward the bounding sphere of the glass: a one-sample mixture of the light's
+ * own distribution and a uniform one over the directions (the disc, for a directional light)
+ * that meet the sphere, each photon's power its emitted radiance over the mixture's density
+ * (Veach 1997 §9.2.2), so the map's expected power in any region is the same as without; what
+ * changes is that light the glass concentrates (a volume caustic) is carried by many photons of
+ * lower power instead of a few. */
+int rd_light_sample_emission(const rd_scene *s, const rd_light *l, const rd_emission_aim *aim,
+                             pcg32 *rng, ray3 *r, vec3 *power)
 {
     double u1 = pcg32_uniform(rng), u2 = pcg32_uniform(rng);
     vec3 centre = v3_scale(v3_add(s->bmin, s->bmax), 0.5);
     double R = rd_scene_radius(s);
+    const int aimed = aim && aim->on && aim->share > 0.0;
+    aim_cone k;
     switch (l->kind) {
     case RD_LIGHT_POINT:
         r->o = l->pos;
+        if (aimed && cone_from(aim, l->pos, &k)) {
+            double a = aim->share;
+            r->d = pcg32_uniform(rng) < a ? cone_sample(&k, u1, u2) : rd_sample_sphere(u1, u2);
+            *power = v3_scale(l->value, 1.0 / ((1.0 - a) / (4.0 * M_PI) + a * cone_pdf(&k, r->d)));
+            return 1;
+        }
         r->d = rd_sample_sphere(u1, u2);
         *power = v3_scale(l->value, 4.0 * M_PI); /* I / pdf, pdf = 1/(4 pi) */
         return 1;
     case RD_LIGHT_SPOT: {
-        /* Uniform in the cone's solid angle; weight by the smooth falloff. */
-        double c = 1.0 - u1 * (1.0 - l->cos_outer);
-        double sn = sqrt(fmax(0.0, 1.0 - c * c)), phi = 2.0 * M_PI * u2;
-        vec3 a, b;
-        v3_basis(l->dir, &a, &b);
+        /* Uniform in the cone's solid angle; weight by the smooth falloff. Aimed: only where
+         * the aim's cone overlaps the spot's (else the aimed photons would carry nothing). */
         r->o = l->pos;
-        r->d = v3_norm(v3_add(v3_scale(l->dir, c), v3_add(v3_scale(a, sn * cos(phi)), v3_scale(b, sn * sin(phi)))));
-        double falloff = rd_spot_falloff(l, c);
-        *power = v3_scale(l->value, falloff * 2.0 * M_PI * (1.0 - l->cos_outer));
+        double a = 0.0;
+        if (aimed && cone_from(aim, l->pos, &k) &&
+            acos(fmin(1.0, v3_dot(k.w, l->dir))) < acos(l->cos_outer) + acos(k.cos_max))
+            a = aim->share;
+        if (a > 0.0 && pcg32_uniform(rng) < a) {
+            r->d = cone_sample(&k, u1, u2);
+        } else {
+            double c = 1.0 - u1 * (1.0 - l->cos_outer);
+            double sn = sqrt(fmax(0.0, 1.0 - c * c)), phi = 2.0 * M_PI * u2;
+            vec3 a1, b1;
+            v3_basis(l->dir, &a1, &b1);
+            r->d = v3_norm(v3_add(v3_scale(l->dir, c), v3_add(v3_scale(a1, sn * cos(phi)), v3_scale(b1, sn * sin(phi)))));
+            if (a == 0.0) {
+                double falloff = rd_spot_falloff(l, c);
+                *power = v3_scale(l->value, falloff * 2.0 * M_PI * (1.0 - l->cos_outer));
+                return 1;
+            }
+        }
+        double cs = v3_dot(r->d, l->dir);
+        if (cs < l->cos_outer) return 0; /* outside the spot: no light */
+        double pdf = (1.0 - a) / (2.0 * M_PI * (1.0 - l->cos_outer)) + a * cone_pdf(&k, r->d);
+        *power = v3_scale(l->value, rd_spot_falloff(l, cs) / pdf);
         return 1;
     }
     case RD_LIGHT_DIRECTIONAL: {
@@ -113,24 +190,56 @@ int rd_light_sample_emission(const rd_scene *s, const rd_light *l, pcg32 *rng, r
         vec3 c0 = l->radius > 0 ? l->beam_center : centre;
         /* move the disc centre to the plane through the scene centre, then 2R upstream */
         c0 = v3_madd(c0, l->dir, v3_dot(v3_sub(centre, c0), l->dir) - 2.0 * R);
-        double rr = rad * sqrt(u1), phi = 2.0 * M_PI * u2;
-        vec3 a, b;
-        v3_basis(l->dir, &a, &b);
-        r->o = v3_add(c0, v3_add(v3_scale(a, rr * cos(phi)), v3_scale(b, rr * sin(phi))));
+        vec3 a1, b1;
+        v3_basis(l->dir, &a1, &b1);
+        /* Aimed: a disc of the aim's radius around the aim's centre, in the same plane, where
+         * it overlaps the beam's. */
+        vec3 ca = aimed ? v3_madd(aim->centre, l->dir, v3_dot(v3_sub(c0, aim->centre), l->dir)) : c0;
+        double a = aimed && v3_len(v3_sub(ca, c0)) < rad + aim->radius ? aim->share : 0.0;
+        int pick_aim = a > 0.0 && pcg32_uniform(rng) < a;
+        double disc = pick_aim ? aim->radius : rad;
+        double rr = disc * sqrt(u1), phi = 2.0 * M_PI * u2;
+        r->o = v3_add(pick_aim ? ca : c0, v3_add(v3_scale(a1, rr * cos(phi)), v3_scale(b1, rr * sin(phi))));
         r->d = l->dir;
-        *power = v3_scale(l->value, M_PI * rad * rad); /* E times the disc area */
+        if (a == 0.0) {
+            *power = v3_scale(l->value, M_PI * rad * rad); /* E times the disc area */
+            return 1;
+        }
+        vec3 off = v3_sub(r->o, c0), offa = v3_sub(r->o, ca);
+        if (v3_dot(off, off) > rad * rad) return 0; /* outside the beam's disc */
+        double pdf = (1.0 - a) / (M_PI * rad * rad) +
+                     (v3_dot(offa, offa) <= aim->radius * aim->radius ? a / (M_PI * aim->radius * aim->radius) : 0.0);
+        *power = v3_scale(l->value, 1.0 / pdf);
         return 1;
     }
     case RD_LIGHT_SPHERE: {
         /* Uniform point on the sphere, cosine-weighted outward direction. */
         vec3 n = rd_sample_sphere(u1, u2);
         double v1 = pcg32_uniform(rng), v2 = pcg32_uniform(rng);
-        double rr = sqrt(v1), phi = 2.0 * M_PI * v2;
-        vec3 a, b;
-        v3_basis(n, &a, &b);
         r->o = v3_madd(l->pos, n, l->radius * (1.0 + 1e-9));
-        r->d = v3_norm(v3_add(v3_scale(n, sqrt(fmax(0.0, 1.0 - v1))), v3_add(v3_scale(a, rr * cos(phi)), v3_scale(b, rr * sin(phi)))));
-        *power = v3_scale(l->value, M_PI * 4.0 * M_PI * l->radius * l->radius); /* L pi A */
+        double area = 4.0 * M_PI * l->radius * l->radius;
+        if (aimed && cone_from(aim, r->o, &k)) {
+            /* Aimed: the cone from this point; the mixture's density is this point's. */
+            double a = aim->share;
+            if (pcg32_uniform(rng) < a) {
+                r->d = cone_sample(&k, v1, v2);
+            } else {
+                double rr = sqrt(v1), phi = 2.0 * M_PI * v2;
+                vec3 a1, b1;
+                v3_basis(n, &a1, &b1);
+                r->d = v3_norm(v3_add(v3_scale(n, sqrt(fmax(0.0, 1.0 - v1))), v3_add(v3_scale(a1, rr * cos(phi)), v3_scale(b1, rr * sin(phi)))));
+            }
+            double cs = v3_dot(r->d, n);
+            if (!(cs > 0.0)) return 0; /* into the light itself: no light */
+            double pdf = (1.0 - a) * cs / M_PI + a * cone_pdf(&k, r->d);
+            *power = v3_scale(l->value, cs * area / pdf); /* L cos A / pdf */
+            return 1;
+        }
+        double rr = sqrt(v1), phi = 2.0 * M_PI * v2;
+        vec3 a1, b1;
+        v3_basis(n, &a1, &b1);
+        r->d = v3_norm(v3_add(v3_scale(n, sqrt(fmax(0.0, 1.0 - v1))), v3_add(v3_scale(a1, rr * cos(phi)), v3_scale(b1, rr * sin(phi)))));
+        *power = v3_scale(l->value, M_PI * area); /* L pi A */
         return 1;
     }
     case RD_LIGHT_ENVIRONMENT: {
@@ -149,8 +258,9 @@ int rd_light_sample_emission(const rd_scene *s, const rd_light *l, pcg32 *rng, r
     return 0;
 }
 
-static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double *cdf, size_t first,
-                        size_t count, block_out *b, rd_track_counters *tc)
+static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double *cdf,
+                        const rd_emission_aim *aim, size_t first, size_t count, block_out *b,
+                        rd_track_counters *tc)
 {
     const double inv_n = 1.0 / (double)o->count;
     for (size_t i = first; i < first + count; i++) {
@@ -165,7 +275,7 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
         double p_light = cdf[lo + 1] - cdf[lo];
         ray3 r;
         vec3 beta;
-        if (!rd_light_sample_emission(s, &s->lights[lo], &rng, &r, &beta)) continue;
+        if (!rd_light_sample_emission(s, &s->lights[lo], aim, &rng, &r, &beta)) continue;
         beta = v3_scale(beta, inv_n / p_light); /* photon power: Phi_l / (N p_l) */
         acc(b->emitted, beta);
         /* rd_photon_stats.power_hidden: a photon from a point, spot or directional light whose
@@ -431,6 +541,7 @@ rd_status rd_trace_photons_split(const rd_scene *s, const rd_photon_opts *o, pm_
         blocks[bi].split = indirect != NULL;
     }
     int nthreads = o->threads > 0 ? o->threads : omp_get_max_threads();
+    const rd_emission_aim aim = rd_emission_aim_of(s);
     struct timespec t0, t1;
     clock_gettime(CLOCK_MONOTONIC, &t0);
     uint64_t coll = 0, look = 0;
@@ -439,7 +550,7 @@ rd_status rd_trace_photons_split(const rd_scene *s, const rd_photon_opts *o, pm_
         if (o->cancel && *o->cancel) continue; /* cancelled: skip the blocks not begun */
         size_t first = bi * BLOCK, cnt = first + BLOCK <= o->count ? BLOCK : o->count - first;
         rd_track_counters tc = {0};
-        trace_block(s, o, cdf, first, cnt, &blocks[bi], &tc);
+        trace_block(s, o, cdf, &aim, first, cnt, &blocks[bi], &tc);
         coll += tc.collisions;
         look += tc.lookups;
     }

@@ -51,6 +51,18 @@ typedef struct {
     size_t gather_bytes;
 } rd_photon_stats;
 
+/* Photons aimed at the scene's glass (scene key photons.aim, docs/scene-format.md): the sphere
+ * bounding every dielectric shape, and the share of each light's photons sent toward it. */
+typedef struct {
+    int on;          /* 0: no glass or photons.aim 0 */
+    vec3 centre;
+    double radius;
+    double share;    /* photons.aim, in [0, 1) */
+} rd_emission_aim;
+rd_emission_aim rd_emission_aim_of(const rd_scene *s);
+/* photons.aim when the scene does not set it (docs/scene-format.md). */
+#define RD_PHOTON_AIM 0.5
+
 /* Sample one photon leaving light l (THEORY.md §3): its ray r (origin, unit direction) and
  * power, RGB watts divided by the sample's pdf, so that the mean over photons is the light's
  * power. Draws from rng. The distributions, which tests/test_photons.c checks by chi-square:
@@ -62,9 +74,17 @@ typedef struct {
  *   sphere       o uniform on the sphere (just outside it), d cosine-weighted about the normal
  *   environment  d uniform on the sphere; o uniform on a disc of radius R across d, 2R upstream
  *                of the media centre (R = rd_scene_radius)
- * Returns 0 (no photon) for an unknown light kind. */
-int rd_light_sample_emission(const rd_scene *s, const rd_light *l, pcg32 *rng, ray3 *r,
-                             vec3 *power);
+ * With an aim (non-NULL, on), a point, spot, sphere or directional light sends aim->share of its
+ * photons uniformly over the directions from the emission point that meet the aim's sphere (a
+ * directional light: uniformly over the disc of the sphere's radius around its centre,
+ * projected into the beam's disc plane), as a one-sample mixture with its own distribution;
+ * the power is then the emitted radiance (intensity, irradiance) over the mixture's density, so
+ * that the mean power in any set of directions is the light's there. An aimed photon that the
+ * light does not emit (outside a spot's cone or a beam's disc, into a sphere light) is none.
+ * A spot or beam that cannot reach the sphere, and a point light inside it, are not aimed.
+ * Returns 0 (no photon) for an unknown light kind and for such a photon. */
+int rd_light_sample_emission(const rd_scene *s, const rd_light *l, const rd_emission_aim *aim,
+                             pcg32 *rng, ray3 *r, vec3 *power);
 
 /* Trace o->count photons and add the stored photons (scattered power, THEORY §3) and, when
  * asked, the segments to `map` (not built: the caller calls pm_map_build). An empty map gets

@@ -105,7 +105,7 @@ static uint64_t reference_key(const rd_scene *s, int auto_ref, int photons, int 
         h = fnv1a(h, "photons", 7);
         int mi[7] = {(int)m->ls, m->samples, m->min_samples, m->max_samples, m->detail, p->pass_spp, m->equiangular};
         h = fnv1a(h, mi, sizeof mi);
-        h = hash_d(hash_d(hash_d(h, m->alpha), m->paths), p->alpha);
+        h = hash_d(hash_d(hash_d(hash_d(h, m->alpha), m->paths), p->alpha), p->aim);
         uint64_t pu[4] = {p->count, p->pass_count, (uint64_t)p->max_depth, p->seed};
         h = fnv1a(h, pu, sizeof pu);
     }

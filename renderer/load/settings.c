@@ -139,11 +139,12 @@ rd_status ld_parse_photons(ld_ctx *c, const cJSON *j, rd_photon_settings *p)
     p->pass_count = 0;
     p->pass_spp = 1;
     p->alpha = RD_PPM_ALPHA;
+    p->aim = RD_PHOTON_AIM;
     if (!j) return RD_OK;
     const char *path = "photons";
     LD_TRY(ld_need_object(c, j, path));
     static const char *const keys[] = {"count", "store_direct", "segments", "max_depth", "seed",
-                                       "progressive", "pass_count", "pass_spp", "alpha", NULL};
+                                       "progressive", "pass_count", "pass_spp", "alpha", "aim", NULL};
     LD_TRY(ld_check_keys(c, j, path, keys));
     long long v;
     LD_TRY(ld_get_int(c, j, path, "count", 0, 200000, 1, 1000000000LL, &v));
@@ -160,6 +161,7 @@ rd_status ld_parse_photons(ld_ctx *c, const cJSON *j, rd_photon_settings *p)
     LD_TRY(ld_get_int(c, j, path, "pass_spp", 0, 1, 1, 1 << 20, &v));
     p->pass_spp = (int)v;
     LD_TRY(ld_get_num(c, j, path, "alpha", 0, RD_PPM_ALPHA, 0, 1, 1, 1, &p->alpha));
+    LD_TRY(ld_get_num(c, j, path, "aim", 0, RD_PHOTON_AIM, 0, 0, 1, 1, &p->aim));
     return RD_OK;
 }
 

@@ -82,6 +82,8 @@ typedef struct {
                           * marched pixel takes more: rd_method.marched_pixels) */
     double alpha;        /* the schedule's alpha in (0, 1); 4/7 minimises the asymptotic MSE of
                           * a 3-D kernel (bake/passes.c derives it) */
+    double aim;          /* the share of each light's photons sent toward the glass, in [0, 1)
+                          * (rd_emission_aim; only where the scene has a dielectric shape) */
 } rd_photon_settings;
 
 /* Guide-grid settings (scene key "guide"). */
