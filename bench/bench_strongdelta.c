@@ -17,15 +17,16 @@
  * squared, when that file is beside it: E[(x - r)^2] = MSE_true + var_r for an independent r),
  * and its efficiency 1 / (MSE x seconds)
  * (THEORY.md §7, Veach 1997 §2.4). --mask-outliers leaves out, in every render alike, the pixels
- * where the reference's variance is over 1000x its median: a few pixels that one camera chain,
- * common to every method, makes far noisier than the rest (hard-lens-caustic's image of the
- * small light through the ball, a specular chain every method follows alike), which would
- * otherwise be the whole MSE. Printed per variant: the medians over the K rounds with
- * min-max of seconds, samples per pixel, MSE and efficiency, and of the efficiency ratio to the
- * first variant within the same round (the figure to quote: one round's variants share one
- * load). The reference is yours to render, 20x longer or more, by the strongest `delta` for the
- * scene (with a point or spot light, settings.equiangular true or "tiles": a plain reference's
- * own noise can be as large as the best variant's error, docs/benchmarks.md "Session 26"):
+ * where the reference's variance is over 1000x its median over the pixels with any variance: a
+ * few pixels that one camera chain, common to every method, makes far noisier than the rest
+ * (hard-lens-caustic's image of the small light through the ball, a specular chain every method
+ * follows alike), which would otherwise be the whole MSE. Printed per variant: the medians over
+ * the K rounds with min-max of seconds, samples per pixel, MSE and efficiency, and of the
+ * efficiency ratio to the first variant within the same round (the figure to quote: one round's
+ * variants share one load). The reference is yours to render, 20x longer or more, by the
+ * strongest `delta` for the scene (with a point or spot light, settings.equiangular true or
+ * "tiles": a plain reference's own noise can be as large as the best variant's error,
+ * docs/benchmarks.md "Session 26"):
  *     build/photonmarch render SCENE --set ... --time 600 --seed 99 -o REF.exr
  * Without arguments (as `make bench` runs every tool) it says so and exits 0. */
 #include "renderer.h"
@@ -133,13 +134,19 @@ int main(int argc, char **argv)
         for (int c = 0; c < 3 && have_se; c++) pv[p] += (double)ref_se.rgb[3 * p + c] * ref_se.rgb[3 * p + c];
         keep[p] = 1;
     }
+    if (mask_outliers && !have_se)
+        fprintf(stderr, "bench_strongdelta: --mask-outliers needs %s; every pixel counts\n", se_path);
     if (mask_outliers && have_se) {
+        /* the median over the pixels with some variance (a background that sees no medium has
+         * none, and would put the median at 0) */
         double *sorted = malloc(npx * sizeof *sorted);
         if (!sorted) { fprintf(stderr, "bench_strongdelta: out of memory\n"); return 1; }
-        memcpy(sorted, pv, npx * sizeof *sorted);
-        qsort(sorted, npx, sizeof *sorted, cmp_d);
-        double median = sorted[npx / 2];
-        for (size_t p = 0; p < npx; p++) keep[p] = pv[p] <= 1000.0 * median;
+        size_t np = 0;
+        for (size_t p = 0; p < npx; p++)
+            if (pv[p] > 0.0) sorted[np++] = pv[p];
+        qsort(sorted, np, sizeof *sorted, cmp_d);
+        double median = np ? sorted[np / 2] : 0.0;
+        for (size_t p = 0; p < npx; p++) keep[p] = !(np > 0) || pv[p] <= 1000.0 * median;
         free(sorted);
     }
     size_t masked = 0;
@@ -148,8 +155,9 @@ int main(int argc, char **argv)
         ref_var += pv[p];
         nvals += 3;
     }
-    ref_var /= (double)nvals;
     free(pv);
+    if (nvals == 0) { fprintf(stderr, "bench_strongdelta: every pixel left out\n"); return 1; }
+    ref_var /= (double)nvals;
     for (int k = 0; k < nv; k++) {
         rd_override ov[2 * MAXSET];
         int n = 0;

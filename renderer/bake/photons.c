@@ -95,9 +95,20 @@ rd_emission_aim rd_emission_aim_of(const rd_scene *s)
         hi = v3(fmax(hi.x, s->shapes[i].mesh.bmax.x), fmax(hi.y, s->shapes[i].mesh.bmax.y), fmax(hi.z, s->shapes[i].mesh.bmax.z));
     }
     if (!(lo.x <= hi.x)) return a; /* no glass: nothing to aim at */
-    a.on = 1;
+    /* The sphere around the box's centre through the farthest vertex (for a ball, the ball
+     * itself: the box's own bounding sphere is sqrt(3) times too wide) */
     a.centre = v3_scale(v3_add(lo, hi), 0.5);
-    a.radius = 0.5 * v3_len(v3_sub(hi, lo)) * (1.0 + 1e-6) + 1e-9; /* the box's bounding sphere */
+    double r2 = 0.0;
+    for (int i = 0; i < s->n_shapes; i++) {
+        const rd_mesh *m = &s->shapes[i].mesh;
+        if (s->shapes[i].material.kind != RD_MAT_DIELECTRIC) continue;
+        for (size_t v = 0; v < m->n_vertices; v++) {
+            vec3 d = v3_sub(v3(m->positions[3 * v], m->positions[3 * v + 1], m->positions[3 * v + 2]), a.centre);
+            r2 = fmax(r2, v3_dot(d, d));
+        }
+    }
+    a.on = 1;
+    a.radius = sqrt(r2) * (1.0 + 1e-6) + 1e-9;
     a.share = s->photons.aim;
     return a;
 }
@@ -125,7 +136,9 @@ static vec3 cone_sample(const aim_cone *k, double u1, double u2)
 }
 static double cone_pdf(const aim_cone *k, vec3 d)
 {
-    return v3_dot(d, k->w) >= k->cos_max ? 1.0 / (2.0 * M_PI * k->one_minus) : 0.0;
+    /* 1 - cos(d, w) = |d - w|^2 / 2 for unit vectors, without the cancellation of 1 - dot */
+    vec3 e = v3_sub(d, k->w);
+    return 0.5 * v3_dot(e, e) <= k->one_minus ? 1.0 / (2.0 * M_PI * k->one_minus) : 0.0;
 }
 
 /* Emission sampling (rd_photons.h documents each light's distribution). With an aim (a scene
@@ -161,9 +174,13 @@ int rd_light_sample_emission(const rd_scene *s, const rd_light *l, const rd_emis
          * the aim's cone overlaps the spot's (else the aimed photons would carry nothing). */
         r->o = l->pos;
         double a = 0.0;
-        if (aimed && cone_from(aim, l->pos, &k) &&
-            acos(fmin(1.0, v3_dot(k.w, l->dir))) < acos(l->cos_outer) + acos(k.cos_max))
-            a = aim->share;
+        if (aimed && cone_from(aim, l->pos, &k)) {
+            /* only where the cones overlap, and the spot's is not inside the aim's (then every
+             * photon of the spot already meets the sphere) */
+            double between = acos(fmax(-1.0, fmin(1.0, v3_dot(k.w, l->dir))));
+            double spot = acos(l->cos_outer), cone = acos(k.cos_max);
+            if (between < spot + cone && between + spot > cone) a = aim->share;
+        }
         if (a > 0.0 && pcg32_uniform(rng) < a) {
             r->d = cone_sample(&k, u1, u2);
         } else {
@@ -195,7 +212,8 @@ int rd_light_sample_emission(const rd_scene *s, const rd_light *l, const rd_emis
         /* Aimed: a disc of the aim's radius around the aim's centre, in the same plane, where
          * it overlaps the beam's. */
         vec3 ca = aimed ? v3_madd(aim->centre, l->dir, v3_dot(v3_sub(c0, aim->centre), l->dir)) : c0;
-        double a = aimed && v3_len(v3_sub(ca, c0)) < rad + aim->radius ? aim->share : 0.0;
+        double apart = v3_len(v3_sub(ca, c0));
+        double a = aimed && apart < rad + aim->radius && apart + rad > aim->radius ? aim->share : 0.0;
         int pick_aim = a > 0.0 && pcg32_uniform(rng) < a;
         double disc = pick_aim ? aim->radius : rad;
         double rr = disc * sqrt(u1), phi = 2.0 * M_PI * u2;
@@ -217,8 +235,9 @@ int rd_light_sample_emission(const rd_scene *s, const rd_light *l, const rd_emis
         vec3 n = rd_sample_sphere(u1, u2);
         double v1 = pcg32_uniform(rng), v2 = pcg32_uniform(rng);
         r->o = v3_madd(l->pos, n, l->radius * (1.0 + 1e-9));
-        double area = 4.0 * M_PI * l->radius * l->radius;
-        if (aimed && cone_from(aim, r->o, &k)) {
+        /* aimed where some of the cone lies in front of this point's tangent plane */
+        if (aimed && cone_from(aim, r->o, &k) && v3_dot(k.w, n) > -sqrt(fmax(0.0, 1.0 - k.cos_max * k.cos_max))) {
+            double area = 4.0 * M_PI * l->radius * l->radius;
             /* Aimed: the cone from this point; the mixture's density is this point's. */
             double a = aim->share;
             if (pcg32_uniform(rng) < a) {
@@ -239,7 +258,7 @@ int rd_light_sample_emission(const rd_scene *s, const rd_light *l, const rd_emis
         vec3 a1, b1;
         v3_basis(n, &a1, &b1);
         r->d = v3_norm(v3_add(v3_scale(n, sqrt(fmax(0.0, 1.0 - v1))), v3_add(v3_scale(a1, rr * cos(phi)), v3_scale(b1, rr * sin(phi)))));
-        *power = v3_scale(l->value, M_PI * area); /* L pi A */
+        *power = v3_scale(l->value, M_PI * 4.0 * M_PI * l->radius * l->radius); /* L pi A */
         return 1;
     }
     case RD_LIGHT_ENVIRONMENT: {

@@ -61,7 +61,7 @@ typedef struct {
 } rd_emission_aim;
 rd_emission_aim rd_emission_aim_of(const rd_scene *s);
 /* photons.aim when the scene does not set it (docs/scene-format.md). */
-#define RD_PHOTON_AIM 0.5
+#define RD_PHOTON_AIM 0.0
 
 /* Sample one photon leaving light l (THEORY.md §3): its ray r (origin, unit direction) and
  * power, RGB watts divided by the sample's pdf, so that the mean over photons is the light's

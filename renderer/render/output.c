@@ -2,6 +2,7 @@
  * error, a preview, and the JSON report. Every file is written under a temporary name and
  * renamed (core/files.c, and image_io.cpp for the images), so a failed or interrupted run never
  * leaves a partial file where a good one was. */
+#include "bake/rd_photons.h"
 #include "core/rd_core.h"
 #include "integrators/rd_method.h"
 #include "transport/rd_transport.h"
@@ -61,6 +62,8 @@ static char *report_json(const rd_scene *s, const rd_render_opts *o, const rd_re
             cJSON_AddNumberToObject(pp, "radius_scale", st->radius_scale);
             cJSON_AddNumberToObject(pp, "alpha", s->photons.alpha);
             cJSON_AddNumberToObject(pp, "spp_per_pass", s->photons.pass_spp);
+            /* the share aimed at the glass, where the scene has glass (rd_emission_aim) */
+            cJSON_AddNumberToObject(pp, "aim", rd_emission_aim_of(s).on ? s->photons.aim : 0.0);
         }
     }
     /* settings.select: the share of camera samples the tile selection gave to delta's path, and
