@@ -238,10 +238,18 @@ test-tsan: deps
 #    an_interface_* and a_clear_box_*, whose code beam_connect/a_glass_ball_* and
 #    surfaces/open_region_* run under ASan, and, in session 32, the four that
 #    took 24-60 s each under the sanitizers, 160 s of the run's 686: a beam's equiangular
-#    sample in every marcher, covered by march/equiangular_sample_keeps_* and
-#    select/a_directional_beam_*; the strategies' mean on the default scene, by
-#    integrator/single_scattering_strategies_* and white_furnace; nee+paths against delta, by
-#    march/nee_paths_counts_*; delta's two-mode tiles, by select/delta_with_equiangular_*);
+#    sample in every marcher, whose marcher side (integrators/march_equiangular.c) runs under
+#    ASan in march/single_scattering_agrees_with_delta and march/guided_continues_half_* and
+#    whose chord sampler (transport/equiangular.c) in
+#    integrator/equiangular_samples_a_directional_beam_s_chord and select/a_directional_beam_*;
+#    the strategies' mean on the default scene, by integrator/single_scattering_strategies_* and
+#    white_furnace; nee+paths against delta, by march/nee_paths_counts_*; delta's two-mode
+#    tiles, by select/delta_with_equiangular_*; and, in session 33, the two narrow-spot checks
+#    of the equiangular sample, 42 and 22 s: the marchers', by the two march tests just named
+#    (counted with uprobes: 164 and 18 equiangular samples), guided-unbiased's, by
+#    guided_unbiased/equals_delta_forward_scattering_*, wrong_and_empty_guides_* and
+#    select/delta_with_equiangular_* (its flights' equiangular density 1204, 668 and 266
+#    times));
 #  - the tests that only spawn the command line (cli/*, memory/*, stress_big/*, and compare's
 #    page, error and Ctrl-C tests, compare_cli/*): in this run they would spawn the release binary again
 #    (PHOTONMARCH_BIN), so under ASan they only repeat the release run; the command line itself
@@ -253,7 +261,7 @@ test-tsan: deps
 # Together they would take the suite past 15 minutes.
 SAN_BUILD := build-fuzz
 SAN_MAKE  := $(MAKE) BUILD=$(SAN_BUILD) SAN=fuzz CC=clang-14 CXX=clang++-14
-ASAN_FILTER := '!(fuzz_regress/image|render/pixels_of_one_image_are_uncorrelated|guided_unbiased/each_part_alone_*|guided_unbiased/flight_sampler_chi_square_*|march/guided_and_transmittance_share_*|march/defensive_only_and_wrong_guides_*|photons/knn_radiance_converges_*|integrator/white_furnace_every_tracker|stress_big/*|cli/*|memory/*|compare/page_loads_*|compare/bad_reference_*|compare/ctrl_c_*|compare_cli/*|geom/cli_renders_shapes|structure/*|progressive/squared_gap_*|mpi/*|beam_connect/forward_scattering_*|beam_connect/guided_unbiased_s_*|beam_connect/a_second_light_*|beam_connect/two_media_*|beam_connect/an_interface_*|beam_connect/a_clear_box_*|march/a_directional_beam_s_equiangular_*|integrator/strategies_keep_the_mean_on_the_default_scene|march/nee_paths_marchers_equal_delta_*|select/delta_s_own_tiles_mix_*)'
+ASAN_FILTER := '!(fuzz_regress/image|render/pixels_of_one_image_are_uncorrelated|guided_unbiased/each_part_alone_*|guided_unbiased/flight_sampler_chi_square_*|march/guided_and_transmittance_share_*|march/defensive_only_and_wrong_guides_*|photons/knn_radiance_converges_*|integrator/white_furnace_every_tracker|stress_big/*|cli/*|memory/*|compare/page_loads_*|compare/bad_reference_*|compare/ctrl_c_*|compare_cli/*|geom/cli_renders_shapes|structure/*|progressive/squared_gap_*|mpi/*|beam_connect/forward_scattering_*|beam_connect/guided_unbiased_s_*|beam_connect/a_second_light_*|beam_connect/two_media_*|beam_connect/an_interface_*|beam_connect/a_clear_box_*|march/a_directional_beam_s_equiangular_*|integrator/strategies_keep_the_mean_on_the_default_scene|march/nee_paths_marchers_equal_delta_*|select/delta_s_own_tiles_mix_*|march/equiangular_sample_keeps_*|guided_unbiased/equiangular_strategy_keeps_*)'
 SAN_LOG := $(SAN_BUILD)/sanitizer-reports
 SAN_ASAN := halt_on_error=1:detect_leaks=1:leak_check_at_exit=0:allocator_may_return_null=1:log_path=$(CURDIR)/$(SAN_LOG)/process
 SAN_ENV := ASAN_OPTIONS=$(SAN_ASAN) \
