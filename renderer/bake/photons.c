@@ -170,8 +170,7 @@ int rd_light_sample_emission(const rd_scene *s, const rd_light *l, const rd_emis
         *power = v3_scale(l->value, 4.0 * M_PI); /* I / pdf, pdf = 1/(4 pi) */
         return 1;
     case RD_LIGHT_SPOT: {
-        /* Uniform in the cone's solid angle; weight by the smooth falloff. Aimed: only where
-         * the aim's cone overlaps the spot's (else the aimed photons would carry nothing). */
+        /* Uniform in the cone's solid angle; weight by the smooth falloff. Aimed as below. */
         r->o = l->pos;
         double a = 0.0;
         if (aimed && cone_from(aim, l->pos, &k)) {

@@ -51,8 +51,9 @@ typedef struct {
     size_t gather_bytes;
 } rd_photon_stats;
 
-/* Photons aimed at the scene's glass (scene key photons.aim, docs/scene-format.md): the sphere
- * bounding every dielectric shape, and the share of each light's photons sent toward it. */
+/* Photons aimed at the scene's glass (scene key photons.aim, docs/scene-format.md): a sphere
+ * bounding every dielectric shape (about their bounding box's centre, through the farthest
+ * vertex), and the share of each light's photons sent toward it. */
 typedef struct {
     int on;          /* 0: no glass or photons.aim 0 */
     vec3 centre;
@@ -81,7 +82,9 @@ rd_emission_aim rd_emission_aim_of(const rd_scene *s);
  * the power is then the emitted radiance (intensity, irradiance) over the mixture's density, so
  * that the mean power in any set of directions is the light's there. An aimed photon that the
  * light does not emit (outside a spot's cone or a beam's disc, into a sphere light) is none.
- * A spot or beam that cannot reach the sphere, and a point light inside it, are not aimed.
+ * Not aimed, where aiming cannot gain: a spot whose cone misses the sphere's cone or lies inside
+ * it, a beam whose disc misses the sphere's disc or lies inside it, a point of a sphere light
+ * whose tangent plane hides the whole cone, a point light inside the sphere.
  * Returns 0 (no photon) for an unknown light kind and for such a photon. */
 int rd_light_sample_emission(const rd_scene *s, const rd_light *l, const rd_emission_aim *aim,
                              pcg32 *rng, ray3 *r, vec3 *power);
