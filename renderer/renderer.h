@@ -61,9 +61,14 @@ void rd_scene_info(const rd_scene *scene, FILE *out);
  * so that `delta`, `guided-unbiased` and `guided` with an unbiased march.ls render none of it
  * (bake/photons.c: a trace of `count` photons with a seed of its own, the power the photons
  * scatter in the media after such a first event over all they scatter there). 0 without a
- * trace when the scene has no glass shape, no point, spot or directional light, or no medium. */
-rd_status rd_hidden_light(const rd_scene *s, size_t count, int threads, double *share, char *err,
-                          size_t errlen);
+ * trace when the scene has no glass shape, no point, spot or directional light, or no medium.
+ * *caustic (NULL: not wanted; then the trace runs as said): the share on L S+ paths from any
+ * light, sphere and environment lights too, which a path finds only by hitting the light
+ * through the glass and next-event estimation never (`info` prints it; docs/guided-marching.md,
+ * "Light through glass from a sphere light"); with it the trace runs for any light of positive
+ * power. */
+rd_status rd_hidden_light(const rd_scene *s, size_t count, int threads, double *share, double *caustic,
+                          char *err, size_t errlen);
 /* Light only photons find, as the loader measures it (RD_HIDDEN_PHOTONS photons) and acts on it
  * above RD_HIDDEN_SHARE of the media's light: march.ls defaults to nee+beams (load/load.c),
  * `compare` renders its reference with progressive photons, `info` and `render` say so

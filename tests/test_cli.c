@@ -246,9 +246,17 @@ Test(cli, info_names_the_light_only_photons_find, .timeout = 120)
     char *glass[] = {(char *)bin, "info", "scenes/glass-fog.json", NULL};
     cr_assert(rt_run(glass, out, sizeof out, err, sizeof err, NULL) == 0, "%s", err);
     cr_expect(strstr(out, "\nhidden ") != NULL && strstr(out, "by way of glass first") != NULL, "%s", out);
+    cr_expect(strstr(out, "\ncaustic ") == NULL, "a spot light's caustic is hidden light, said once: %s", out);
     char *plain[] = {(char *)bin, "info", "scenes/default.json", NULL};
     cr_assert(rt_run(plain, out, sizeof out, err, sizeof err, NULL) == 0, "%s", err);
-    cr_expect(strstr(out, "\nhidden ") == NULL, "%s", out);
+    cr_expect(strstr(out, "\nhidden ") == NULL && strstr(out, "\ncaustic ") == NULL, "%s", out);
+    /* scenes/hard-lens-caustic.json: a sphere light above a ball lens: nothing hidden (a path can
+     * hit the light), but 4% of the haze's light comes through the glass (the caustic line) */
+    char *lens[] = {(char *)bin, "info", "scenes/hard-lens-caustic.json", NULL};
+    cr_assert(rt_run(lens, out, sizeof out, err, sizeof err, NULL) == 0, "%s", err);
+    cr_expect(strstr(out, "\nhidden ") == NULL && strstr(out, "\ncaustic ") != NULL &&
+                  strstr(out, "leaves a sphere or environment light by way of glass first") != NULL,
+              "%s", out);
     char exr[256];
     snprintf(exr, sizeof exr, "%s/hidden/a.exr", rt_tmpdir());
     char *blind[] = {(char *)bin, "render", "scenes/glass-fog.json", "--method", "delta", "--spp", "1",

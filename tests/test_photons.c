@@ -776,13 +776,33 @@ Test(photons, hidden_light_is_what_leaves_a_delta_light_through_glass_first, .ti
     /* A point light inside the ball: every photon meets the glass before any fog, so all of the
      * light scattered in the fog is on L S+ paths: the share is 1 (to rounding). */
     rd_scene *s = rt_glass_ball_in_fog("hidden_inside.json", "{\"type\":\"point\",\"position\":[0,0,0],\"intensity\":1}", 4);
-    cr_assert(rd_hidden_light(s, 20000, 1, &share, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_hidden_light(s, 20000, 1, &share, NULL, err, sizeof err) == RD_OK, "%s", err);
     cr_expect(fabs(share - 1.0) < 1e-9, "point light inside the glass ball: share %.12f, expected 1", share);
     rd_scene_free(s);
-    /* A sphere light there instead: paths can hit it, so nothing is hidden (no trace). */
+    /* A sphere light there instead: paths can hit it, so nothing is hidden, but all of its light
+     * in the fog is on L S+ paths, as above: the caustic share is 1. Whether a trace runs is
+     * told by a count of 0, which the trace refuses: without *caustic there is none (no delta
+     * light), with it there is. */
+    double caustic;
     s = rt_glass_ball_in_fog("hidden_sphere.json", "{\"type\":\"sphere\",\"center\":[0,0,0],\"radius\":0.05,\"radiance\":1}", 4);
-    cr_assert(rd_hidden_light(s, 20000, 1, &share, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_hidden_light(s, 20000, 1, &share, &caustic, err, sizeof err) == RD_OK, "%s", err);
     cr_expect(share == 0.0, "sphere light inside the ball: share %g, expected 0", share);
+    cr_expect(fabs(caustic - 1.0) < 1e-9, "sphere light inside the ball: caustic share %.12f, expected 1", caustic);
+    cr_expect(rd_hidden_light(s, 0, 1, &share, NULL, err, sizeof err) == RD_OK && share == 0.0,
+              "a sphere light, no caustic asked: no trace");
+    cr_expect(rd_hidden_light(s, 0, 1, &share, &caustic, err, sizeof err) != RD_OK, "caustic asked: a trace");
+    rd_scene_free(s);
+    /* With *caustic too, no trace without power or without glass. */
+    s = rt_glass_ball_in_fog("caustic_dark.json", "{\"type\":\"sphere\",\"center\":[0,0,0],\"radius\":0.05,\"radiance\":0}", 4);
+    cr_expect(rd_hidden_light(s, 0, 1, &share, &caustic, err, sizeof err) == RD_OK && caustic == 0.0,
+              "a sphere light of no power: no trace (%s)", err);
+    rd_scene_free(s);
+    const rd_override no_glass[] = {{"shapes", "[]"}};
+    char sphere_path[512];
+    snprintf(sphere_path, sizeof sphere_path, "%s/hidden_sphere.json", rt_tmpdir());
+    cr_assert(rd_scene_load(&s, sphere_path, no_glass, 1, err, sizeof err) == RD_OK, "%s", err);
+    cr_expect(rd_hidden_light(s, 0, 1, &share, &caustic, err, sizeof err) == RD_OK && caustic == 0.0,
+              "no glass: no trace (%s)", err);
     rd_scene_free(s);
     /* A point light in the fog 0.7 m from the ball's centre: the photons aimed at the ball
      * (its solid angle, (1 - cos 25.4 deg) / 2 = 0.048 of them) reach the glass first with
@@ -791,8 +811,20 @@ Test(photons, hidden_light_is_what_leaves_a_delta_light_through_glass_first, .ti
      * is the share. It is asserted within a factor of two of that (measured: 0.0296; a flag
      * set at any specular event, or never, gives 0.064 or 0). */
     s = rt_glass_ball_in_fog("hidden_beside.json", "{\"type\":\"point\",\"position\":[0.7,0,0],\"intensity\":1}", 4);
-    cr_assert(rd_hidden_light(s, 20000, 1, &share, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_hidden_light(s, 20000, 1, &share, &caustic, err, sizeof err) == RD_OK, "%s", err);
     cr_expect(share > 0.0145 && share < 0.045, "point light beside the ball: share %g, expected about 0.029", share);
+    cr_expect(caustic == share, "a delta light alone: caustic share %g, hidden %g, expected the same", caustic, share);
+    rd_scene_free(s);
+    /* A small sphere light in its place (radius 0.005): nothing hidden, and its caustic share is
+     * the point light's (the same photons but for where on the sphere they start; within the
+     * same bounds: a flag set at any specular event would give about 0.064, as above). Its L S+
+     * light reaches the marchers only from photons, but the loader's defaults stay nee+paths:
+     * docs/guided-marching.md, "Light through glass from a sphere light". */
+    s = rt_glass_ball_in_fog("caustic_beside.json", "{\"type\":\"sphere\",\"center\":[0.7,0,0],\"radius\":0.005,\"radiance\":1}", 4);
+    cr_assert(rd_hidden_light(s, 20000, 1, &share, &caustic, err, sizeof err) == RD_OK, "%s", err);
+    cr_expect(share == 0.0 && caustic > 0.0145 && caustic < 0.045,
+              "small sphere light beside the ball: hidden %g (expected 0), caustic %g (expected about 0.029)", share, caustic);
+    cr_expect(s->march.ls == RD_LS_NEE_PATHS && s->photons.progressive == 0, "a sphere light: the default nee+paths");
     rd_scene_free(s);
     /* A sphere light inside the ball and that point light beside it: the sphere light's photons
      * all meet the glass first but are seen (paths hit it), so only the point light's hidden
@@ -803,15 +835,21 @@ Test(photons, hidden_light_is_what_leaves_a_delta_light_through_glass_first, .ti
     s = rt_glass_ball_in_fog("hidden_both.json",
                              "{\"type\":\"sphere\",\"center\":[0,0,0],\"radius\":0.05,\"radiance\":20},"
                              "{\"type\":\"point\",\"position\":[0.7,0,0],\"intensity\":1}", 4);
-    cr_assert(rd_hidden_light(s, 20000, 1, &share, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_hidden_light(s, 20000, 1, &share, &caustic, err, sizeof err) == RD_OK, "%s", err);
     cr_expect(share > 0.0 && share < 0.0296, "sphere light inside, point light beside: share %g", share);
+    /* The caustic share counts the sphere light's photons too: its power is 0.136 of the two
+     * (1.97 W against the point light's 12.57), so about 0.136 + 0.864 x 0.0296 = 0.161 if
+     * each watt scatters as much in the fog (measured 0.156); a count of the delta light's
+     * alone gives the hidden share, 0.0245. */
+    cr_expect(caustic > 0.12 && caustic < 0.20, "sphere light inside, point light beside: caustic share %g, expected "
+              "about 0.161", caustic);
     rd_scene_free(s);
     /* The marchers' default source on such a scene (load/load.c): nee+beams with progressive
      * passes where more than 0.1% of the light is hidden, each unless the scene names it; the
      * unbiased nee+paths elsewhere. */
     s = rt_glass_ball_in_fog("hidden_default.json", "{\"type\":\"point\",\"position\":[0,0,0],\"intensity\":1}", 4);
     double direct;
-    cr_assert(rd_hidden_light(s, RD_HIDDEN_PHOTONS, 1, &direct, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_hidden_light(s, RD_HIDDEN_PHOTONS, 1, &direct, NULL, err, sizeof err) == RD_OK, "%s", err);
     cr_expect(s->march.ls == RD_LS_NEE_BEAMS && s->photons.progressive == 1 && rd_scene_hidden_light(s) == direct,
               "hidden light: march.ls %d, progressive %d, share at load %g, measured again %g", (int)s->march.ls,
               s->photons.progressive, rd_scene_hidden_light(s), direct);
@@ -847,7 +885,7 @@ Test(photons, hidden_light_is_what_leaves_a_delta_light_through_glass_first, .ti
     /* A point light that emits nothing: no light to hide, and no trace (which would refuse a
      * scene whose lights emit nothing). */
     s = rt_glass_ball_in_fog("hidden_dark.json", "{\"type\":\"point\",\"position\":[0,0,0],\"intensity\":0}", 4);
-    cr_assert(rd_hidden_light(s, 20000, 1, &share, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_hidden_light(s, 20000, 1, &share, NULL, err, sizeof err) == RD_OK, "%s", err);
     cr_expect(share == 0.0, "a light of no power: share %g", share);
     rd_scene_free(s);
 }

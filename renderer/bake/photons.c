@@ -36,7 +36,7 @@ typedef struct {
     pm_photon *ind;
     size_t n_ind, cap_ind;
     double emitted[3], absorbed[3], escaped[3], carried[3], absorbed_surf[3];
-    double scattered[3], hidden[3]; /* rd_photon_stats.power_scattered, power_hidden */
+    double scattered[3], hidden[3], caustic[3]; /* rd_photon_stats.power_scattered, _hidden, _caustic */
     int oom;
 } block_out;
 
@@ -296,11 +296,11 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
         if (!rd_light_sample_emission(s, &s->lights[lo], aim, &rng, &r, &beta)) continue;
         beta = v3_scale(beta, inv_n / p_light); /* photon power: Phi_l / (N p_l) */
         acc(b->emitted, beta);
-        /* rd_photon_stats.power_hidden: a photon from a point, spot or directional light whose
-         * first event (an interface is none) is a specular surface is on an L S+ path, and so
-         * is every collision it makes later. */
+        /* rd_photon_stats.power_caustic: a photon whose first event (an interface is none) is a
+         * specular surface is on an L S+ path, and so is every collision it makes later;
+         * power_hidden: such a photon from a point, spot or directional light. */
         const int delta_light = rd_light_is_delta(&s->lights[lo]);
-        int events = 0, hidden = 0;
+        int events = 0, caustic = 0;
         /* The region the photon starts in (rd_scene.h "Surfaces in the transport"). */
         int region = rd_scene_region_at(s, r.o), crossings = 0;
         rd_hit h, prev;
@@ -342,7 +342,7 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
                     acc(b->absorbed_surf, beta); /* nothing leaves: the surface keeps it */
                     break;
                 }
-                if (events++ == 0 && delta_light && ss.specular) hidden = 1;
+                if (events++ == 0 && ss.specular) caustic = 1;
                 vec3 out = v3_mul(beta, ss.weight);
                 acc(b->absorbed_surf, v3_sub(beta, out)); /* diffuse: (1 - albedo) x incident */
                 /* Russian roulette on the weight (the albedo at a diffuse surface; 1 for glass) */
@@ -364,7 +364,8 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
             vec3 scattered = v3_mul(beta, m->albedo);
             events++;
             acc(b->scattered, scattered);
-            if (hidden) acc(b->hidden, scattered);
+            if (caustic) acc(b->caustic, scattered);
+            if (caustic && delta_light) acc(b->hidden, scattered);
             /* Store the scattered power; skip first collisions when NEE supplies direct light. */
             if (!o->count_only && (depth > 1 || o->store_direct)) push_to(b, &b->ph, &b->n_ph, &b->cap_ph, x, r.d, scattered);
             if (!o->count_only && depth > 1 && b->split) push_to(b, &b->ind, &b->n_ind, &b->cap_ind, x, r.d, scattered);
@@ -382,16 +383,16 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
 }
 
 /* The power sums a block keeps, in the order gather_blocks sends them. */
-enum { BLOCK_SUMS = 21 };
+enum { BLOCK_SUMS = 24 };
 static void block_sums_get(const block_out *b, double *v)
 {
-    const double *src[7] = {b->emitted, b->absorbed, b->escaped, b->carried, b->absorbed_surf, b->scattered, b->hidden};
-    for (int k = 0; k < 7; k++) memcpy(v + 3 * k, src[k], 3 * sizeof(double));
+    const double *src[8] = {b->emitted, b->absorbed, b->escaped, b->carried, b->absorbed_surf, b->scattered, b->hidden, b->caustic};
+    for (int k = 0; k < 8; k++) memcpy(v + 3 * k, src[k], 3 * sizeof(double));
 }
 static void block_sums_set(block_out *b, const double *v)
 {
-    double *dst[7] = {b->emitted, b->absorbed, b->escaped, b->carried, b->absorbed_surf, b->scattered, b->hidden};
-    for (int k = 0; k < 7; k++) memcpy(dst[k], v + 3 * k, 3 * sizeof(double));
+    double *dst[8] = {b->emitted, b->absorbed, b->escaped, b->carried, b->absorbed_surf, b->scattered, b->hidden, b->caustic};
+    for (int k = 0; k < 8; k++) memcpy(dst[k], v + 3 * k, 3 * sizeof(double));
 }
 
 /* Copy the records of blocks [b0, b1) into one array (NULL when there are none), freeing each
@@ -620,6 +621,7 @@ rd_status rd_trace_photons_split(const rd_scene *s, const rd_photon_opts *o, pm_
             st->power_absorbed_surfaces[c] += b->absorbed_surf[c];
             st->power_scattered[c] += b->scattered[c];
             st->power_hidden[c] += b->hidden[c];
+            st->power_caustic[c] += b->caustic[c];
         }
         st->stored += b->n_ph;
         st->segments += b->n_seg;
@@ -639,19 +641,22 @@ double rd_phase_hg_cb(double cos_theta, void *user)
 
 /* ---- Light that only L S+ paths carry ------------------------------------------------------ */
 
-rd_status rd_hidden_light(const rd_scene *s, size_t count, int threads, double *share, char *err, size_t errlen)
+rd_status rd_hidden_light(const rd_scene *s, size_t count, int threads, double *share, double *caustic, char *err,
+                          size_t errlen)
 {
     *share = 0.0;
+    if (caustic) *caustic = 0.0;
     int glass = 0;
-    double delta_power = 0.0, R = rd_scene_radius(s);
+    double power = 0.0, R = rd_scene_radius(s);
     for (int i = 0; i < s->n_shapes; i++) glass |= s->shapes[i].material.kind == RD_MAT_DIELECTRIC;
+    /* the lights whose L S+ light is asked for: the delta lights, and with *caustic every light */
     for (int i = 0; i < s->n_lights; i++)
-        if (rd_light_is_delta(&s->lights[i])) delta_power += rd_light_power(&s->lights[i], R);
+        if (caustic || rd_light_is_delta(&s->lights[i])) power += rd_light_power(&s->lights[i], R);
     /* no L S+ path into a medium (and no trace: one whose lights emit nothing would fail) */
-    if (!glass || !(delta_power > 0.0) || s->n_media == 0) return RD_OK;
+    if (!glass || !(power > 0.0) || s->n_media == 0) return RD_OK;
     pm_map *map = pm_map_new();
     if (!map) {
-        snprintf(err, errlen, "%s: out of memory for the photon map of the hidden-light check", s->path);
+        snprintf(err, errlen, "%s: out of memory for the photon map of the check for light by way of glass", s->path);
         return RD_ERR_NOMEM;
     }
     /* Its own seed (the check must not depend on the bake's photons.seed); nothing stored (the
@@ -670,6 +675,8 @@ rd_status rd_hidden_light(const rd_scene *s, size_t count, int threads, double *
     }
     double all = v3_lum(v3(st.power_scattered[0], st.power_scattered[1], st.power_scattered[2]));
     double hid = v3_lum(v3(st.power_hidden[0], st.power_hidden[1], st.power_hidden[2]));
+    double cau = v3_lum(v3(st.power_caustic[0], st.power_caustic[1], st.power_caustic[2]));
     *share = all > 0.0 ? hid / all : 0.0;
+    if (caustic) *caustic = all > 0.0 ? cau / all : 0.0;
     return RD_OK;
 }

@@ -40,11 +40,13 @@ typedef struct {
     double power_emitted[3], power_absorbed[3], power_escaped[3], power_carried[3];
     double power_absorbed_surfaces[3];
     /* Power scattered in the media (albedo x incident, at every collision, stored or not), and
-     * the part of it on L S+ paths: photons from a point, spot or directional light whose first
-     * event was a specular surface (glass). Next-event estimation cannot reach such a light
-     * (a shadow ray stops at glass) and a path cannot hit it (a delta light), so `delta` and
-     * `guided-unbiased` render none of it, nor anything it lights further on (rd_hidden_light). */
-    double power_scattered[3], power_hidden[3];
+     * the part of it on L S+ paths: photons whose first event was a specular surface (glass).
+     * Next-event estimation cannot reach that light (a shadow ray stops at glass); a path finds
+     * it only by hitting the light through the glass. power_hidden: the part from a point, spot
+     * or directional light, which no path can hit, so that `delta` and `guided-unbiased` render
+     * none of it, nor anything it lights further on; power_caustic: the part from any light,
+     * sphere and environment lights too (rd_hidden_light). */
+    double power_scattered[3], power_hidden[3], power_caustic[3];
     /* Several ranks: the gather's wall time (the counts' reduce, the agreement and the gathers)
      * and the bytes each rank received in it (every rank's records, its own included). */
     double gather_seconds;
@@ -103,7 +105,8 @@ rd_status rd_trace_photons(const rd_scene *s, const rd_photon_opts *o, pm_map *m
 rd_status rd_trace_photons_split(const rd_scene *s, const rd_photon_opts *o, pm_map *map,
                                  pm_map *indirect, rd_photon_stats *st, char *err, size_t errlen);
 
-/* rd_hidden_light (renderer.h, bake/photons.c) reads power_hidden and power_scattered. */
+/* rd_hidden_light (renderer.h, bake/photons.c) reads power_hidden, power_caustic and
+ * power_scattered. */
 /* Bake the scene's SH guide grid (scene key "guide") from a built photon map over the media
  * bounds, with the media's extinction (cell means), scattering (track-length bake) and HG
  * phase coefficients. */

@@ -10,7 +10,8 @@ static const char *const usage_info =
     "Loads and validates SCENE and describes it: camera, media (kind, bounds, density range,\n"
     "sigma_t scale, albedo, g, majorant), lights (kind, parameters, power), settings, memory,\n"
     "and the share of the media's light that leaves a point, spot or directional light through\n"
-    "glass first (which delta cannot render), when there is any.\n";
+    "glass first (which delta cannot render), then the share that leaves a sphere or environment\n"
+    "light through glass first, each when there is any (a trace of 50000 photons for the second).\n";
 
 int cli_cmd_info(int argc, char **argv)
 {
@@ -36,6 +37,21 @@ int cli_cmd_info(int argc, char **argv)
                "(march.ls %s here, its default on such a scene nee+beams with progressive passes; compare "
                "renders its reference with photons)\n",
                100.0 * share, rd_scene_march_uses_photons(scene) ? "takes photons" : "takes no photons");
+    /* Light by way of glass from a sphere or environment light (rd_hidden_light's caustic share,
+     * less the hidden share above; a trace of its own: the loader measures the hidden share
+     * alone). */
+    double hidden, caustic;
+    st = rd_hidden_light(scene, RD_HIDDEN_PHOTONS, 0, &hidden, &caustic, err, sizeof err);
+    if (st) {
+        rd_scene_free(scene);
+        return cli_report_error(st, err);
+    }
+    if (caustic - hidden > RD_HIDDEN_SHARE)
+        printf("caustic    %.3g%% of the light scattered in the media leaves a sphere or environment light by way of "
+               "glass first: a path finds it only by hitting the light through the glass, next-event estimation "
+               "never (the photon sources of march.ls, nee+beams among them, render it from photons: "
+               "docs/guided-marching.md, \"Light through glass from a sphere light\")\n",
+               100.0 * (caustic - hidden));
     rd_scene_free(scene);
     return 0;
 }

@@ -272,7 +272,7 @@ static uint64_t fnv1a(uint64_t h, const void *data, size_t n)
  * "Session 21"; docs/scene-format.md, march.ls). */
 static rd_status hidden_light_default(const cJSON *root, rd_scene *s, char *err, size_t errlen)
 {
-    rd_status st = rd_hidden_light(s, RD_HIDDEN_PHOTONS, 0, &s->hidden_share, err, errlen);
+    rd_status st = rd_hidden_light(s, RD_HIDDEN_PHOTONS, 0, &s->hidden_share, NULL, err, errlen);
     if (st || !(s->hidden_share > RD_HIDDEN_SHARE)) return st;
     const cJSON *march = cJSON_GetObjectItemCaseSensitive(root, "march");
     const cJSON *photons = cJSON_GetObjectItemCaseSensitive(root, "photons");
