@@ -5,6 +5,7 @@
  *   bench_strongdelta SCENE --reference REF.exr [--set KEY=VAL]...
  *                     --variant LABEL [--set KEY=VAL]... [--variant LABEL ...]...
  *                     [--seconds S] [--runs K] [--threads N] [--seed N] [--mask-outliers]
+ *                     [--save DIR]
  *
  * Each variant is the scene with its own --set overrides (those before the first --variant
  * apply to all, e.g. camera.resolution), rendered by its settings.method (`delta` unless a
@@ -23,7 +24,9 @@
  * follows alike), which would otherwise be the whole MSE. Printed per variant: the medians over
  * the K rounds with min-max of seconds, samples per pixel, MSE and efficiency, and of the
  * efficiency ratio to the first variant within the same round (the figure to quote: one round's
- * variants share one load). The reference is yours to render, 20x longer or more, by the
+ * variants share one load). --save DIR writes every render as DIR/LABEL-rK.exr (K = 1..runs), to
+ * measure the same renders against another reference afterwards (DIR must exist; a label is
+ * one file name, no '/'). The reference is yours to render, 20x longer or more, by the
  * strongest `delta` for the scene (with a point or spot light, settings.equiangular true or
  * "tiles": a plain reference's own noise can be as large as the best variant's error,
  * docs/benchmarks.md "Session 26"):
@@ -35,6 +38,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 enum { MAXV = 8, MAXSET = 16, MAXK = 64 };
 
@@ -74,7 +78,7 @@ static int split_set(const char *arg, rd_override *o)
 
 int main(int argc, char **argv)
 {
-    const char *scene = NULL, *ref_path = NULL;
+    const char *scene = NULL, *ref_path = NULL, *save_dir = NULL;
     double seconds = 10.0;
     int runs = 4, threads = 2, mask_outliers = 0;
     uint64_t seed = 1000;
@@ -94,6 +98,7 @@ int main(int argc, char **argv)
         }
         if (!next && a[0] == '-') { fprintf(stderr, "bench_strongdelta: %s needs a value\n", a); return 1; }
         if (!strcmp(a, "--reference")) ref_path = argv[++i];
+        else if (!strcmp(a, "--save")) save_dir = argv[++i];
         else if (!strcmp(a, "--seconds")) seconds = atof(argv[++i]);
         else if (!strcmp(a, "--runs")) runs = atoi(argv[++i]);
         else if (!strcmp(a, "--threads")) threads = atoi(argv[++i]);
@@ -116,6 +121,18 @@ int main(int argc, char **argv)
     if (!ref_path || nv < 1 || runs < 1 || runs > MAXK || !(seconds > 0)) {
         fprintf(stderr, "usage: bench_strongdelta SCENE --reference REF.exr --variant LABEL [--set K=V]... [--seconds S] [--runs K]\n");
         return 1;
+    }
+    if (save_dir) {
+        struct stat sb;
+        if (stat(save_dir, &sb) != 0 || !S_ISDIR(sb.st_mode)) {
+            fprintf(stderr, "bench_strongdelta: --save %s: not a folder\n", save_dir);
+            return 1;
+        }
+        for (int k = 0; k < nv; k++)
+            if (strchr(v[k].label, '/')) {
+                fprintf(stderr, "bench_strongdelta: --save: the label %s has a '/'\n", v[k].label);
+                return 1;
+            }
     }
     char err[RD_ERRLEN];
     rd_image ref, ref_se = {0};
@@ -200,6 +217,15 @@ int main(int argc, char **argv)
             v[k].ratio[r] = v[k].eff[r] / v[0].eff[r];
             fprintf(stderr, "round %d %-28s %6.2f s %8.1f spp  MSE %.4g  eff %.4g  x%.3f\n", r + 1, v[k].label,
                     res.stats.seconds, res.stats.spp_mean, mse, v[k].eff[r], v[k].ratio[r]);
+            if (save_dir) {
+                char out[1400];
+                snprintf(out, sizeof out, "%s/%s-r%d.exr", save_dir, v[k].label, r + 1);
+                if (rd_image_write_exr(out, &res.image, err, sizeof err) != RD_OK) {
+                    fprintf(stderr, "bench_strongdelta: %s\n", err);
+                    rd_render_result_free(&res);
+                    return 1;
+                }
+            }
             rd_render_result_free(&res);
         }
     }
