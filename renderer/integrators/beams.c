@@ -1,18 +1,26 @@
-/* beams.c: photon balls crossed by a ray segment (rd_beams.h), on Embree's point spheres.
+/* beams.c: photon balls crossed by a ray segment (rd_beams.h), on Embree's ray-facing disc
+ * points.
  *
  * The balls are held in the map's own frame (positions relative to its origin, float), so a
- * query ray is moved into that frame in double first. Embree reports a sphere at its entry
- * point and, when a filter rejects that, again at its exit; the filter here rejects every hit
- * (so traversal goes on through all of them) and records a ball at its entry only. For every
- * ball that meets [t0, t1] to have an entry inside the query, the query ray starts 2 r_max
- * before t0 (a ball meeting [t0, t1] is entered at t >= t0 - 2 r); the chord is then clipped
- * to [t0, t1] here. */
+ * query ray is moved into that frame in double first. Each ball is a disc of its radius that
+ * faces the ray, through its centre: the ray meets the disc exactly when it crosses the ball,
+ * once, at the centre's projection (a sphere point would be reported twice, at its entry and,
+ * when a filter rejects that, at its exit). The filter here rejects every hit, so traversal
+ * goes on through all of them, and records each ball's chord, computed in double. Each disc is
+ * DISC_PAD wider than its ball, so that Embree's test in float drops no crossing that the
+ * chord in double keeps (a grazing one). A ball that meets [t0, t1] has its centre's projection in
+ * [t0 - r, t1 + r]; Embree ignores a disc whose centre projects less than twice its radius
+ * past the ray's origin (its curve self-intersection avoidance, factor 2 in this build), so
+ * the query ray runs from t0 - 3 r_max to t1 + r_max (r_max with the pad); the chord is then
+ * clipped to [t0, t1] here. */
 #include "integrators/rd_beams.h"
 
 #include <embree3/rtcore.h>
 #include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
+
+#define DISC_PAD (1.0 + 1.0 / 256.0) /* a disc's radius over its ball's (the head comment) */
 
 struct rd_beams {
     RTCDevice device;
@@ -39,16 +47,14 @@ typedef struct {
 
 /* Embree's RTCRayN / RTCHitN are structures of arrays of N lanes: field k of lane i at k N + i
  * (rtcore_ray.h's accessors are C++ only). */
-#define RAYN_TFAR(ray, N, i) (((float *)(ray))[8 * (N) + (i)])
 #define HITN_PRIM(hit, N, i) (((unsigned *)(hit))[5 * (N) + (i)])
 
-static void record(cross_ctx *q, unsigned prim, float s_hit)
+static void record(cross_ctx *q, unsigned prim)
 {
     const float *v = q->ball + 4 * (size_t)prim;
     double oc[3] = {v[0] - q->o[0], v[1] - q->o[1], v[2] - q->o[2]};
     double sc = oc[0] * q->d[0] + oc[1] * q->d[1] + oc[2] * q->d[2]; /* the ball's centre, projected */
-    if ((double)s_hit > sc) return; /* the exit: the entry was (or will be) recorded */
-    double r = v[3], perp2 = oc[0] * oc[0] + oc[1] * oc[1] + oc[2] * oc[2] - sc * sc;
+    double r = v[3] / DISC_PAD, perp2 = oc[0] * oc[0] + oc[1] * oc[1] + oc[2] * oc[2] - sc * sc;
     double h2 = r * r - perp2;
     if (!(h2 > 0.0)) return;
     double h = sqrt(h2), ta = q->s0 + sc - h, tb = q->s0 + sc + h;
@@ -73,7 +79,7 @@ static void cross_filter(const struct RTCFilterFunctionNArguments *args)
     cross_ctx *q = (cross_ctx *)args->context;
     for (unsigned i = 0; i < args->N; i++) {
         if (args->valid[i] == 0) continue;
-        record(q, HITN_PRIM(args->hit, args->N, i), RAYN_TFAR(args->ray, args->N, i));
+        record(q, HITN_PRIM(args->hit, args->N, i));
         args->valid[i] = 0; /* go on to the next ball */
     }
 }
@@ -136,7 +142,7 @@ rd_status rd_beams_build(rd_beams *b, const pm_map *map, const float *radius, ch
     }
     b->index = malloc(used * sizeof *b->index);
     RTCScene scene = b->index ? rtcNewScene(b->device) : NULL;
-    RTCGeometry geo = scene ? rtcNewGeometry(b->device, RTC_GEOMETRY_TYPE_SPHERE_POINT) : NULL;
+    RTCGeometry geo = scene ? rtcNewGeometry(b->device, RTC_GEOMETRY_TYPE_DISC_POINT) : NULL;
     float *v = geo ? rtcSetNewGeometryBuffer(geo, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4,
                                              4 * sizeof(float), used)
                    : NULL;
@@ -153,8 +159,8 @@ rd_status rd_beams_build(rd_beams *b, const pm_map *map, const float *radius, ch
         v[4 * j + 0] = ph[k].pos[0];
         v[4 * j + 1] = ph[k].pos[1];
         v[4 * j + 2] = ph[k].pos[2];
-        v[4 * j + 3] = radius[k];
-        if (radius[k] > b->r_max) b->r_max = radius[k];
+        v[4 * j + 3] = (float)(radius[k] * DISC_PAD);
+        if (v[4 * j + 3] > b->r_max) b->r_max = v[4 * j + 3];
         b->index[j++] = (int)k;
     }
     rtcSetGeometryIntersectFilterFunction(geo, cross_filter);
@@ -184,10 +190,10 @@ int rd_beams_cross(const rd_beams *b, ray3 r, double t0, double t1, rd_beam_hit 
     q.index = b->index;
     q.t0 = t0, q.t1 = t1;
     q.hits = hits, q.cap = cap, q.kept = 0, q.seen = 0, q.rng = rng;
-    /* The ray in the map's frame, starting 2 r_max before t0 (see the head comment). */
+    /* The ray in the map's frame, from 3 r_max before t0 to r_max past t1 (the head comment). */
     double org[3];
     pm_map_origin(b->map, org);
-    q.s0 = t0 - 2.0 * b->r_max;
+    q.s0 = t0 - 3.0 * b->r_max;
     vec3 o = ray_at(r, q.s0);
     struct RTCRayHit rh;
     rh.ray.org_x = (float)(o.x - org[0]), rh.ray.org_y = (float)(o.y - org[1]), rh.ray.org_z = (float)(o.z - org[2]);
@@ -195,7 +201,7 @@ int rd_beams_cross(const rd_beams *b, ray3 r, double t0, double t1, rd_beam_hit 
     q.o[0] = rh.ray.org_x, q.o[1] = rh.ray.org_y, q.o[2] = rh.ray.org_z;
     q.d[0] = r.d.x, q.d[1] = r.d.y, q.d[2] = r.d.z;
     rh.ray.tnear = 0.0f;
-    rh.ray.tfar = (float)(t1 - q.s0);
+    rh.ray.tfar = (float)(t1 + b->r_max - q.s0);
     rh.ray.time = 0.0f;
     rh.ray.mask = 0xffffffffu;
     rh.ray.id = 0;

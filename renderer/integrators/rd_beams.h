@@ -2,8 +2,8 @@
  * estimate (Jarosz, Zwicker & Jensen 2008; THEORY.md §6, march.ls = nee+beams): photon k is a
  * ball of radius r_k about its position, and one query per camera-ray segment returns every
  * ball the segment passes through, with the chord [ta, tb] it runs inside it. The balls live in
- * Embree's point-sphere geometry (one BVH per map); FLANN stays the k-NN index that sets the
- * radii. Internal to integrators/ (march.c and its tests). */
+ * Embree's ray-facing disc points (one BVH per map; beams.c says why discs); FLANN stays the
+ * k-NN index that sets the radii. Internal to integrators/ (march.c and its tests). */
 #ifndef RD_BEAMS_H
 #define RD_BEAMS_H
 
