@@ -28,7 +28,7 @@ struct rd_beams {
     const pm_map *map;
     int *index;     /* Embree's primitive id -> the map's photon (balls with no radius are left out) */
     const float *ball; /* Embree's vertex buffer: (x, y, z, r) per primitive */
-    double r_max;   /* the largest radius */
+    double r_max;   /* the largest disc's radius (a ball's, DISC_PAD wider) */
 };
 
 /* The per-query state, Embree's context first (the filter casts the context back). */
