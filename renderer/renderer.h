@@ -191,8 +191,9 @@ typedef struct {
      * with first_sample = N and the same seed are together the render of N + M samples (the
      * random numbers are keyed by the sample index). compare extends its reference this way.
      * Not so for the guided methods with a tile selection (settings.select "auto", "tiles",
-     * "pilot"): each render runs its own pilot and epochs, so the continuation is another
-     * render (unbiased, or consistent with nee+beams), not the same one. */
+     * "pilot"), nor with march.probes or settings.probes "auto": each render runs its own pilot
+     * and epochs, so the continuation is another render (unbiased, or consistent with
+     * nee+beams), not the same one. */
     int first_sample;
     /* Several ranks render one image (NULL: this process alone; borrowed): rank r renders the
      * 16x16 tiles whose index is r modulo size, the ranks agree after every pass whether to stop
@@ -239,6 +240,9 @@ typedef struct {
     /* march.ls nee+beams: camera-ray segments whose balls were gathered, and the balls they
      * crossed (what the beam estimate costs; the selection counts the balls). */
     uint64_t beam_queries, beam_hits;
+    /* march.probes and settings.probes: the camera chains the samples added for the light at a
+     * chain's end (integrators/probes.c). */
+    uint64_t probes;
     /* Progressive photon passes (photons.progressive; 0 passes with one fixed map): passes
      * traced, photons emitted over them, seconds spent tracing and indexing them (part of
      * `seconds`), and the last pass's gather radius relative to the first pass's. */

@@ -26,6 +26,7 @@
  * 4b. the same at max_depth 2, where neither may scatter behind the glass (the marchers once
  *     counted a segment's in-scattering as no event: z -122 before the fix). */
 #include "support/rd_test.h"
+#include "integrators/rd_probes.h"
 #include "bake/rd_photons.h"
 
 #include "photonmap.h"
@@ -528,4 +529,165 @@ Test(surface_images, diffuse_floor_under_a_point_light_matches_quadrature, .time
         rd_render_result_free(&r);
         rd_scene_free(s);
     }
+}
+
+/* ---- 6. march.probes: the light at the end of the camera chain ------------------------------ */
+
+/* A small sphere light (radius 0.04) seen through a glass ball (radius 0.5, index 1.5) in haze,
+ * and directly past it: the pixels that see the light through the ball do so with a part of
+ * their area only, so whether a jittered camera chain ends on the light is the noisiest part
+ * of their samples (integrators/probes.c). With nee+paths the marcher is unbiased, so
+ * each probe setting must equal delta. `probes` is the scene's march.probes, `delta_probes`
+ * its settings.probes (delta's). */
+static const char *t6_json(const char *probes, int shapes, const char *delta_probes)
+{
+    static char buf[4096];
+    char shp[1200] = "";
+    if (shapes)
+        snprintf(shp, sizeof shp,
+                 "\"shapes\":[{\"name\":\"ball\",\"file\":\"%s\",\"transform\":{\"scale\":0.5},"
+                 "\"material\":{\"type\":\"dielectric\",\"ior\":1.5},\"inside\":null,\"outside\":\"haze\"}],",
+                 icosphere());
+    snprintf(buf, sizeof buf,
+             "{\"camera\":{\"position\":[0.1,0.05,3],\"look_at\":[0,0,0],\"fov\":24,\"resolution\":[24,18]},"
+             "\"medium\":\"haze\","
+             "\"media\":[{\"name\":\"haze\",\"bounds\":{\"min\":[-1.5,-1.2,-2.2],\"max\":[1.5,1.2,3.5]},"
+             "\"density\":1,\"sigma_t\":0.25,\"albedo\":0.8,\"g\":0.3}],%s"
+             "\"lights\":[{\"type\":\"sphere\",\"center\":[0.35,0.1,-1.5],\"radius\":0.1,\"radiance\":[100,90,80]}],"
+             "\"photons\":{\"count\":10000},\"march\":{\"ls\":\"nee+paths\",\"probes\":%s},"
+             "\"settings\":{\"max_depth\":8,\"select\":\"off\",\"probes\":%s}}",
+             shp, probes, delta_probes);
+    return buf;
+}
+
+/* Unbiased for a fixed M and for "auto": each E_j has E_0's mean, and M is chosen before the
+ * sample. The bounds are rt_expect_same's (5 and 4.5 standard errors). A planted fault, the
+ * probes' sum weighted 1/(M-1) instead of 1/M, fails the fixed M's comparisons (image z -7.5
+ * without shapes, -6.3 through the ball; "auto", whose M is mostly 1 or 2 here, -1.3 and
+ * -1.4). */
+Test(surface_images, probes_keep_the_marcher_equal_to_delta, .timeout = 600)
+{
+    for (int shapes = 0; shapes < 2; shapes++) {
+        rd_scene *s = rt_scene("t6.json", t6_json("1", shapes, "1"));
+        rd_render_result d = rt_render(s, "delta", 4096, 601 + 10 * shapes, NULL);
+        rd_scene_free(s);
+        const char *settings[] = {"8", "\"auto\""};
+        for (int i = 0; i < 2; i++) {
+            s = rt_scene("t6p.json", t6_json(settings[i], shapes, "1"));
+            rd_render_result m = rt_render(s, "guided", 512, 602 + 10 * shapes + i, NULL);
+            char what[128];
+            snprintf(what, sizeof what, "guided with march.probes %s vs delta, %s", settings[i],
+                     shapes ? "through a glass ball" : "no shapes");
+            rt_expect_same(&d, &m, what);
+            cr_expect(m.stats.probes > 0, "%s: no probe was taken", what);
+            rd_render_result_free(&m);
+            rd_scene_free(s);
+        }
+        rd_render_result_free(&d);
+    }
+}
+
+/* "auto" probes where the chain's end is noisy: the pixels that see the light through the
+ * ball take more than their first samples' probes (2 samples x 1 each), which is all that a
+ * pixel whose chains never end on a light takes. A scene whose chains can see no light (a spot,
+ * a black background) takes none. And the choice of M is counted, not timed: the same seed
+ * gives the same image on one thread and on two, for `guided` and for `delta`. */
+Test(surface_images, auto_probes_where_the_light_is_seen, .timeout = 300)
+{
+    rd_scene *s = rt_scene("t6a.json", t6_json("\"auto\"", 1, "1"));
+    rd_render_result m = rt_render(s, "guided", 64, 621, NULL);
+    uint64_t first = 2 * 1 * (uint64_t)(m.image.w * m.image.h);
+    cr_expect(m.stats.probes > first + 1000, "auto took %llu probes: no more than the first samples' %llu",
+              (unsigned long long)m.stats.probes, (unsigned long long)first);
+    rd_render_opts o = {.method = "guided", .spp = 64, .seed = 621, .threads = 1};
+    rd_render_result one;
+    char err[RD_ERRLEN];
+    cr_assert(rd_render(s, &o, &one, err, sizeof err) == RD_OK, "%s", err);
+    cr_expect(one.stats.probes == m.stats.probes && !memcmp(one.image.rgb, m.image.rgb, sizeof(float) * 3 * (size_t)m.image.w * m.image.h),
+              "one thread and two differ (%llu and %llu probes)", (unsigned long long)one.stats.probes,
+              (unsigned long long)m.stats.probes);
+    release(&m, &one);
+    rd_scene_free(s);
+    /* delta's probes alike (settings.probes "auto") */
+    s = rt_scene("t6ad.json", t6_json("1", 1, "\"auto\""));
+    o = (rd_render_opts){.method = "delta", .spp = 64, .seed = 623, .threads = 1};
+    cr_assert(rd_render(s, &o, &one, err, sizeof err) == RD_OK, "%s", err);
+    m = rt_render(s, "delta", 64, 623, NULL);
+    cr_expect(m.stats.probes > first, "delta took %llu probes", (unsigned long long)m.stats.probes);
+    cr_expect(one.stats.probes == m.stats.probes && !memcmp(one.image.rgb, m.image.rgb, sizeof(float) * 3 * (size_t)m.image.w * m.image.h),
+              "delta: one thread and two differ (%llu and %llu probes)", (unsigned long long)one.stats.probes,
+              (unsigned long long)m.stats.probes);
+    release(&m, &one);
+    rd_scene_free(s);
+    s = rt_scene("t6s.json",
+                 "{\"camera\":{\"position\":[0,0,3],\"look_at\":[0,0,0],\"resolution\":[12,9]},"
+                 "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},\"density\":1,\"sigma_t\":1}],"
+                 "\"lights\":[{\"type\":\"spot\",\"position\":[0,2,0],\"look_at\":[0,0,0],\"angle\":30,\"intensity\":5}],"
+                 "\"photons\":{\"count\":2000},\"settings\":{\"select\":\"off\"}}");
+    m = rt_render(s, "guided", 16, 622, NULL);
+    cr_expect(m.stats.probes == 0, "%llu probes where no chain can end on a light", (unsigned long long)m.stats.probes);
+    rd_render_result_free(&m);
+    rd_scene_free(s);
+}
+
+/* `delta` with settings.probes: its path less the camera chain's end, and that end from M
+ * chains (transport/path.c rd_delta_radiance_split, integrators/probes.c), against plain
+ * `delta` on the scenes above; the bounds are rt_expect_same's (5 and 4.5 standard errors). A
+ * planted fault, the chain's end left in the path as well (counted twice), fails every
+ * comparison (image z -30 to -39). */
+Test(surface_images, delta_probes_keep_delta_s_image, .timeout = 600)
+{
+    for (int shapes = 0; shapes < 2; shapes++) {
+        rd_scene *s = rt_scene("t7.json", t6_json("1", shapes, "1"));
+        rd_render_result d = rt_render(s, "delta", 4096, 701 + 10 * shapes, NULL);
+        cr_expect(d.stats.probes == 0, "settings.probes 1 took probes");
+        rd_scene_free(s);
+        const char *settings[] = {"8", "\"auto\""};
+        for (int i = 0; i < 2; i++) {
+            s = rt_scene("t7p.json", t6_json("1", shapes, settings[i]));
+            rd_render_result m = rt_render(s, "delta", 2048, 702 + 10 * shapes + i, NULL);
+            char what[128];
+            snprintf(what, sizeof what, "delta with settings.probes %s vs without, %s", settings[i],
+                     shapes ? "through a glass ball" : "no shapes");
+            rt_expect_same(&d, &m, what);
+            cr_expect(m.stats.probes > 0, "%s: no probe was taken", what);
+            rd_render_result_free(&m);
+            rd_scene_free(s);
+        }
+        rd_render_result_free(&d);
+    }
+}
+
+/* The selection's pilot samples the method without probes under "auto" (it learns the method
+ * as it comes; the per-pixel statistics learn from the image's samples only). Before this was
+ * kept, M was "auto"'s 0 there and the pilot's samples came out as NaN (E / 0), which the
+ * pilot drops: the method's tiles had no statistics. */
+Test(surface_images, the_selection_s_pilot_takes_no_probes)
+{
+    rd_scene *s = rt_scene("t8.json", t6_json("\"auto\"", 0, "1"));
+    rd_render_ctx ctx = {.scene = s};
+    rd_probes p;
+    char err[RD_ERRLEN];
+    cr_assert(rd_probes_init(&p, s, 0, 0.0, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_probes_on(&p), "a sphere light in view and no probes");
+    rd_thread th = {0};
+    th.pilot = 1;
+    th.pixel = 5;
+    pcg32 rng = pcg32_seed(8, 7, 13);
+    vec3 L = rd_probes_add(&ctx, &p, &th, v3(1, 2, 3), v3(4, 5, 6), 10.0, &rng);
+    cr_expect(L.x == 5.0 && L.y == 7.0 && L.z == 9.0 && th.probes == 0, "the pilot's sample is %g %g %g with %llu probes",
+              L.x, L.y, L.z, (unsigned long long)th.probes);
+    rd_probes_free(&p);
+    rd_scene_free(s);
+    /* and a guided render with the selection on keeps delta's image (whichever tiles it gives
+     * the method: here it may give them all to delta) */
+    s = rt_scene("t8d.json", t6_json("1", 1, "1"));
+    rd_render_result d = rt_render(s, "delta", 2048, 801, NULL);
+    rd_scene_free(s);
+    s = rt_scene("t8g.json", t6_json("\"auto\"", 1, "1"));
+    s->settings.select = RD_SELECT_TILES;
+    rd_render_result g = rt_render(s, "guided", 256, 802, NULL);
+    rt_expect_same(&d, &g, "guided with the selection and march.probes \"auto\" vs delta, through a glass ball");
+    release(&d, &g);
+    rd_scene_free(s);
 }

@@ -122,6 +122,8 @@ static uint64_t reference_key(const rd_scene *s, int auto_ref, int photons, int 
     /* delta's strategies change the reference's noise, not its expectation; keyed all the same */
     h = fnv1a(h, &s->settings.equiangular, sizeof s->settings.equiangular);
     h = hash_d(h, s->settings.thin_bias);
+    /* (settings.probes alike; 1, the default, leaves the key as it was) */
+    if (s->settings.probes != 1) h = fnv1a(h, &s->settings.probes, sizeof s->settings.probes);
     return h;
 }
 

@@ -15,8 +15,13 @@
  * this mix as two of its three estimators (session 25: on homogeneous it beat either mode
  * alone); here `delta` has it without a bake. Without a light the strategy samples (a point or
  * spot light, or a directional beam since session 30) there is nothing to choose: the path
- * without the strategy, as "false". */
+ * without the strategy, as "false".
+ *
+ * settings.probes: more camera chains for the light a sample's camera chain sees at its end
+ * (integrators/probes.c), on `delta`'s own path (not on the tiles of "tiles", whose two
+ * estimators are the selection's). */
 #include "integrators/rd_method.h"
+#include "integrators/rd_probes.h"
 #include "integrators/rd_select.h"
 #include "transport/rd_path.h"
 
@@ -24,11 +29,25 @@
 #include <stdio.h>
 #include <stdlib.h>
 
+/* What `delta` keeps for a render: the tile selection of settings.equiangular "tiles" (NULL:
+ * none) and settings.probes. */
+typedef struct {
+    rd_select *sel;
+    rd_probes probes;
+} delta_state;
+
 /* The method-table entry: the path's random numbers are one keyed stream (rd_sampler_stream). */
 static vec3 delta_method_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
 {
     pcg32 rng = rd_sampler_stream(smp);
-    return rd_delta_radiance(ctx->scene, r, &rng, &th->counters);
+    delta_state *ds = ctx->state;
+    if (!ds || !rd_probes_on(&ds->probes)) return rd_delta_radiance(ctx->scene, r, &rng, &th->counters);
+    /* settings.probes: the path less its camera chain's end, E, which the probes estimate again */
+    vec3 E;
+    rd_select_work w0 = rd_select_work_now(th);
+    vec3 I = rd_delta_radiance_split(ctx->scene, r, rd_eq_path_mode(ctx->scene->settings.equiangular), &rng,
+                                     &th->counters, &E);
+    return rd_probes_add(ctx, &ds->probes, th, I, E, rd_probes_cost(&ds->probes, &w0, th), &rng);
 }
 
 /* ---- settings.equiangular "tiles" ------------------------------------------------------------ */
@@ -43,46 +62,66 @@ static vec3 delta_every_flight(const rd_render_ctx *ctx, rd_thread *th, ray3 r, 
 
 static void delta_release(rd_render_ctx *ctx)
 {
-    if (ctx->state) rd_select_free(ctx->state);
-    free(ctx->state);
+    delta_state *ds = ctx->state;
+    if (ds) {
+        if (ds->sel) rd_select_free(ds->sel);
+        free(ds->sel);
+        rd_probes_free(&ds->probes);
+    }
+    free(ds);
     ctx->state = NULL;
 }
 
 static rd_status delta_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
 {
     const rd_scene *s = ctx->scene;
+    int tiles = s->settings.equiangular == RD_EQ_TILES && rd_eq_has_lights(s, 1);
     ctx->state = NULL;
-    if (s->settings.equiangular != RD_EQ_TILES || !rd_eq_has_lights(s, 1)) return RD_OK;
-    rd_select *sel = calloc(1, sizeof *sel);
-    if (!sel) {
-        snprintf(err, errlen, "out of memory for the tile selection");
+    if (!tiles && s->settings.probes == 1) return RD_OK; /* plain delta: no state */
+    delta_state *ds = calloc(1, sizeof *ds);
+    if (!ds) {
+        snprintf(err, errlen, "out of memory for delta's state");
         return RD_ERR_NOMEM;
     }
-    ctx->state = sel;
-    /* two estimators: the method's own mode off means no third (rd_select_prepare); no PDF
-     * segments to count (cell cost 0) */
-    rd_status st = rd_select_prepare(ctx, delta_every_flight, 0.0, RD_EQ_OFF, sel, err, errlen);
+    ctx->state = ds;
+    /* no PDF segments to count (cell cost 0); with "tiles", no probes (see the head) */
+    rd_status st = rd_probes_init(&ds->probes, s, tiles ? 1 : s->settings.probes, 0.0, err, errlen);
+    if (st == RD_OK && tiles) {
+        ds->sel = calloc(1, sizeof *ds->sel);
+        if (!ds->sel) {
+            snprintf(err, errlen, "out of memory for the tile selection");
+            st = RD_ERR_NOMEM;
+        } else {
+            /* two estimators: the method's own mode off means no third (rd_select_prepare) */
+            st = rd_select_prepare(ctx, delta_every_flight, 0.0, RD_EQ_OFF, ds->sel, err, errlen);
+        }
+    }
     if (st != RD_OK) delta_release(ctx);
     return st;
 }
 
 static vec3 delta_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
 {
-    rd_select *sel = ctx->state;
-    if (!sel) return delta_method_radiance(ctx, th, r, smp);
-    return rd_select_radiance(ctx, sel, delta_every_flight, th, r, smp);
+    const delta_state *ds = ctx->state;
+    if (!ds || !ds->sel) return delta_method_radiance(ctx, th, r, smp);
+    return rd_select_radiance(ctx, ds->sel, delta_every_flight, th, r, smp);
 }
 
+/* The epochs: the selection's, or settings.probes "auto"'s (never both: see the head). */
 static int delta_epoch_next(const rd_render_ctx *ctx, int sample)
 {
-    const rd_select *sel = ctx->state;
-    return sel ? rd_select_epoch_next(sel, sample) : INT_MAX;
+    const delta_state *ds = ctx->state;
+    if (!ds) return INT_MAX;
+    return ds->sel ? rd_select_epoch_next(ds->sel, sample) : rd_probes_epoch_next(&ds->probes, sample);
 }
 
 static void delta_epoch(rd_render_ctx *ctx, int sample)
 {
+    delta_state *ds = ctx->state;
     (void)sample;
-    if (ctx->state) rd_select_epoch(ctx->state, ctx->comm);
+    if (!ds) return;
+    if (ds->sel) rd_select_epoch(ds->sel, ctx->comm);
+    else rd_probes_epoch(ctx, &ds->probes);
 }
 
 const rd_method rd_method_delta = {

@@ -61,8 +61,7 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
                 (s->march.ls == RD_LS_NEE_BEAMS && (sel == RD_SELECT_TILES || sel == RD_SELECT_PILOT) &&
                  !(s->hidden_share > RD_HIDDEN_SHARE));
     if (sel != RD_SELECT_OFF && mixes) {
-        /* 1.52 lookups: the time of one of the marcher's PDF segments (select.c, the fit) */
-        st = rd_select_prepare(ctx, march_guided, 1.52, s->march.equiangular, &mst->sel, err, errlen);
+        st = rd_select_prepare(ctx, march_guided, RD_MARCH_CELL_COST, s->march.equiangular, &mst->sel, err, errlen);
         if (st != RD_OK) rd_march_release(ctx);
     }
     return st;
@@ -75,18 +74,20 @@ static vec3 radiance_guided(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_
     return rd_select_radiance(ctx, &mst->sel, march_guided, th, r, smp);
 }
 
-/* The selection's epochs (select.c): the tiles chosen again from the image's samples. */
+/* The epochs: the selection's (select.c: the tiles chosen again from the image's samples) and
+ * march.probes "auto"'s (probes.c: its lambda), each on its own schedule. */
 static int epoch_next_guided(const rd_render_ctx *ctx, int sample)
 {
     const march_state *mst = ctx->state;
-    return rd_select_epoch_next(&mst->sel, sample);
+    int a = rd_select_epoch_next(&mst->sel, sample), b = rd_probes_epoch_next(&mst->probes, sample);
+    return a < b ? a : b;
 }
 
 static void epoch_guided(rd_render_ctx *ctx, int sample)
 {
     march_state *mst = ctx->state;
-    (void)sample;
-    rd_select_epoch(&mst->sel, ctx->comm);
+    if (rd_select_epoch_next(&mst->sel, sample - 1) == sample) rd_select_epoch(&mst->sel, ctx->comm);
+    if (rd_probes_epoch_next(&mst->probes, sample - 1) == sample) rd_probes_epoch(ctx, &mst->probes);
 }
 
 /* The pixels the marcher renders (the rest are delta's): they pace the photon passes. */

@@ -101,16 +101,6 @@ size_t rd_march_scratch_layout(const march_state *st, march_scratch *ms, void *b
 
 /* ---- Where the ray is, and what lies behind the media ------------------------------------- */
 
-/* What a camera ray sees beyond [t0, t1]: the sphere light it hits, or the environment and the
- * background (camera rays: no MIS, full weight). */
-static vec3 behind(const rd_scene *s, int hit_light)
-{
-    if (hit_light >= 0) return s->lights[hit_light].value;
-    vec3 L = s->background;
-    for (int i = 0; i < s->n_lights; i++)
-        if (s->lights[i].kind == RD_LIGHT_ENVIRONMENT) L = v3_add(L, s->lights[i].value);
-    return L;
-}
 
 /* The part of the ray inside the scene bounds before t_end (the nearest light or surface):
  * [t0, t1]. */
@@ -441,20 +431,23 @@ static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int r
 /* Surface crossings of one camera chain that are not events (index-matched interfaces). */
 #define MAX_CROSSINGS 4096
 
-vec3 rd_march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp,
-                           placement place)
+/* One camera sample's chain: returns I, what the chain's media segments and a diffuse surface
+ * at its end give, and *E, the light the chain sees at its end (probes.c). */
+static vec3 march_chain(const rd_render_ctx *ctx, rd_thread *th, ray3 r, double u, pcg32 *rng,
+                        placement place, vec3 *E)
 {
     const rd_scene *s = ctx->scene;
     rd_track_counters *c = &th->counters;
-    double u = rd_sampler_1d(smp), T;
-    pcg32 rng = rd_sampler_stream(smp);
+    double T;
+    *E = v3(0, 0, 0);
     if (!s->geom) {
         /* No shapes: one segment, up to the nearest sphere light. */
         double t_light;
         int hit_light = rd_scene_hit_light(s, r, INFINITY, -1, &t_light);
-        vec3 Lb = behind(s, hit_light);
-        vec3 L = march_segment(ctx, th, r, s->fill_medium, t_light, place, u, 1, v3_maxc(Lb) > 0.0, &rng, &T);
-        return v3_madd(L, Lb, T);
+        vec3 Lb = rd_scene_behind(s, hit_light);
+        vec3 L = march_segment(ctx, th, r, s->fill_medium, t_light, place, u, 1, v3_maxc(Lb) > 0.0, rng, &T);
+        *E = v3_scale(Lb, T);
+        return L;
     }
     /* With shapes: each straight segment of the camera's specular chain is marched in its
      * region (docs/surfaces.md). At a dielectric one branch is followed, chosen with its
@@ -471,16 +464,16 @@ vec3 rd_march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampl
         /* In-scattering on a segment behind `depth` surface events is event depth + 1, as in
          * delta's path loop (settings.max_depth bounds both alike). */
         /* T of the segment matters when a surface follows it or something bright lies behind. */
-        int need_T = (got && h.light < 0) || v3_maxc(behind(s, got ? h.light : -1)) > 0.0;
-        vec3 Ls = march_segment(ctx, th, r, region, got ? h.t : INFINITY, place, u, depth + 1, need_T, &rng, &T);
+        int need_T = (got && h.light < 0) || v3_maxc(rd_scene_behind(s, got ? h.light : -1)) > 0.0;
+        vec3 Ls = march_segment(ctx, th, r, region, got ? h.t : INFINITY, place, u, depth + 1, need_T, rng, &T);
         L = v3_add(L, v3_mul(beta, Ls));
         beta = v3_scale(beta, T);
         if (!got || h.light >= 0) {
-            L = v3_add(L, v3_mul(beta, behind(s, got ? h.light : -1)));
+            *E = v3_mul(beta, rd_scene_behind(s, got ? h.light : -1));
             break;
         }
         if (!(T != 0.0)) break;
-        u = pcg32_uniform(&rng); /* the next segment's stratification offset */
+        u = pcg32_uniform(rng); /* the next segment's stratification offset */
         prev = h;
         from = &prev;
         if (s->shapes[h.shape].material.kind == RD_MAT_INTERFACE) {
@@ -491,18 +484,47 @@ vec3 rd_march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampl
         }
         if (++depth > s->settings.max_depth) break;
         rd_surface_step st = {.r = r, .beta = beta, .region = region, .camera_chain = 1, .eta_scale = eta_scale};
-        int go = rd_surface_event(s, &prev, depth, &st, &rng, c);
+        int go = rd_surface_event(s, &prev, depth, &st, rng, c);
         L = v3_add(L, st.L);
         if (!go) break;
         if (!st.camera_chain) {
             /* diffuse: the rest of the path is delta's */
-            vec3 Lc = rd_delta_continue(s, st.r, st.region, st.pdf, depth, 0, s->march.equiangular, &rng, c);
+            vec3 Lc = rd_delta_continue(s, st.r, st.region, st.pdf, depth, 0, s->march.equiangular, rng, c);
             L = v3_add(L, v3_mul(st.beta, Lc));
             break;
         }
         r = st.r, beta = st.beta, region = st.region, eta_scale = st.eta_scale;
     }
     return L;
+}
+
+vec3 rd_march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp,
+                       placement place)
+{
+    march_state *st = ctx->state;
+    double u = rd_sampler_1d(smp);
+    pcg32 rng = rd_sampler_stream(smp);
+    vec3 E;
+    if (!rd_probes_on(&st->probes)) { /* no probes: the chain's own E */
+        vec3 I = march_chain(ctx, th, r, u, &rng, place, &E);
+        return v3_add(I, E);
+    }
+    rd_select_work w0 = rd_select_work_now(th);
+    vec3 I = march_chain(ctx, th, r, u, &rng, place, &E);
+    return rd_probes_add(ctx, &st->probes, th, I, E, rd_probes_cost(&st->probes, &w0, th), &rng);
+}
+
+int rd_march_epoch_next(const rd_render_ctx *ctx, int sample)
+{
+    const march_state *st = ctx->state;
+    return rd_probes_epoch_next(&st->probes, sample);
+}
+
+void rd_march_epoch(rd_render_ctx *ctx, int sample)
+{
+    march_state *st = ctx->state;
+    (void)sample;
+    rd_probes_epoch(ctx, &st->probes);
 }
 
 /* ---- Set-up: scratch sizes and the pilot pass ---------------------------------------------- */
@@ -552,7 +574,8 @@ rd_status rd_march_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
     ms->beam_cap = ctx->scene->march.ls == RD_LS_NEE_BEAMS ? RD_BEAM_CAP : 0;
     ms->n_lights = ctx->scene->march.equiangular != RD_EQ_OFF ? ctx->scene->n_lights : 0;
     ctx->state = ms;
-    rd_status bs = rd_march_photons_changed(ctx, err, errlen);
+    rd_status bs = rd_probes_init(&ms->probes, ctx->scene, m->probes, RD_MARCH_CELL_COST, err, errlen);
+    if (bs == RD_OK) bs = rd_march_photons_changed(ctx, err, errlen);
     if (bs != RD_OK) rd_march_release(ctx);
     return bs;
 }
@@ -563,6 +586,7 @@ void rd_march_release(rd_render_ctx *ctx)
     if (ms) {
         rd_select_free(&ms->sel);
         rd_march_beams_free(ms);
+        rd_probes_free(&ms->probes);
     }
     free(ctx->state);
     ctx->state = NULL;

@@ -8,6 +8,7 @@
 #include "integrators/rd_beams.h"
 #include "integrators/rd_guide_pdf.h"
 #include "integrators/rd_method.h"
+#include "integrators/rd_probes.h"
 #include "integrators/rd_select.h"
 
 /* Where the samples along a camera ray go (one method each). */
@@ -34,6 +35,7 @@ typedef struct {
     int beam_cap;
     int n_lights;    /* entries of the scratch's lw (march.equiangular) */
     double beam_weight; /* 1 / the share of the photons kept as balls */
+    rd_probes probes; /* march.probes (probes.c) */
     size_t beam_r1_queries; /* balls of the last build whose r_1 took a query of its own */
 } march_state;
 
@@ -100,6 +102,12 @@ void rd_march_eq_weights(const rd_march_eq *eq, double t, double *light_w);
  * the segment's start in the scene bounds). */
 vec3 rd_march_eq_sample(const rd_scene *s, const rd_march_eq *eq, double t0, pcg32 *rng,
                         rd_track_counters *c);
+/* The time of one of the marcher's PDF segments, in density lookups (select.c, the fit): the
+ * selection's cell_cost for a marcher. */
+#define RD_MARCH_CELL_COST 1.52
+/* The method table's epoch hooks for a marcher without a selection (uniform, transmittance). */
+int rd_march_epoch_next(const rd_render_ctx *ctx, int sample);
+void rd_march_epoch(rd_render_ctx *ctx, int sample);
 /* Radiance along camera ray r with the samples of `place` (the estimator of THEORY.md §6). */
 vec3 rd_march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp,
                        placement place);

@@ -29,6 +29,7 @@ struct sh_guide;
 typedef struct rd_thread {
     _Alignas(RD_CACHE_LINE) int index;
     uint64_t pixel;         /* the pixel being rendered (y * width + x), set before radiance() */
+    int pilot;              /* 1 while the selection's pilot samples the pixel (select.c) */
     rd_track_counters counters;
     /* Per-ray statistics of the marching methods (zero for the others). */
     uint64_t rays;          /* camera rays that entered the media */
@@ -37,6 +38,7 @@ typedef struct rd_thread {
                              * its flights' distance-pdf segments */
     uint64_t guide_vertices; /* guided-unbiased: path vertices whose policy read the guide */
     uint64_t beam_queries, beam_hits; /* march.ls nee+beams: segments queried, balls they crossed */
+    uint64_t probes;        /* march.probes, settings.probes: the probes' camera chains (probes.c) */
     uint32_t samples_min, samples_max;
     uint64_t delta_samples; /* settings.select: camera samples given to delta's path (for
                              * delta with settings.equiangular "tiles": to its path without
@@ -95,7 +97,8 @@ typedef struct rd_method {
     /* Optional: once per render, after the bake, before the passes (e.g. a pilot pass). */
     rd_status (*prepare)(rd_render_ctx *ctx, char *err, size_t errlen);
     /* Optional, both or neither: epochs, at which the method learns from the image's samples
-     * so far (settings.select's tiles, integrators/select.c). epoch_next gives the first sample
+     * so far (settings.select's tiles, integrators/select.c; the probes' lambda,
+     * integrators/probes.c). epoch_next gives the first sample
      * index after `sample` at which an epoch ends (INT_MAX: none); the render cuts its passes
      * there and, when every pixel has rendered exactly that many samples, calls epoch() from
      * the calling thread, no pass running. */

@@ -66,6 +66,17 @@ int rd_select_uses(const rd_select *sel, int x, int y);
  * `all`). */
 uint64_t rd_select_method_pixels(const rd_select *sel, uint64_t all);
 
+/* The counted cost (select.c's head): a camera sample's own rays, shapes and set-up, in density
+ * lookups; th's work counters now; and what the work since reading c0 cost, weighted (a PDF
+ * segment weighs cell_cost), the camera sample's own left out. Counts are subtracted before
+ * they are weighted, so the cost does not depend on what the thread did before. */
+#define RD_SELECT_COST_SAMPLE 2.18
+typedef struct {
+    uint64_t lookups, shadow_rays, cells, vertices, beam_hits, eq_flights;
+} rd_select_work;
+rd_select_work rd_select_work_now(const rd_thread *th);
+double rd_select_work_cost(const rd_select_work *c0, const rd_thread *th, double cell_cost);
+
 /* A method's own estimate of the radiance along camera ray r (what its radiance() does
  * where the selection gives it the pixel). */
 typedef vec3 (*rd_select_fn)(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp);

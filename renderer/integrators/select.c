@@ -199,7 +199,7 @@
 #define SEL_SPP 8           /* pilot samples per pixel and estimator */
 /* The cost weights, in density lookups (see the head): */
 #define SEL_COST_SHADOW 1.96   /* a shadow ray (its own lookups are counted as lookups) */
-#define SEL_COST_SAMPLE 2.18   /* a camera sample: its rays, shapes and set-up */
+#define SEL_COST_SAMPLE RD_SELECT_COST_SAMPLE /* a camera sample: its rays, shapes and set-up */
 #define SEL_COST_VERTEX 3.91   /* a guided-unbiased vertex that read the guide */
 #define SEL_COST_BEAM_HIT 0.60 /* a ball a segment's query crossed (march.ls nee+beams) */
 #define SEL_COST_EQ_FLIGHT 0.40 /* a flight's equiangular set-up (its choice of lights) */
@@ -248,24 +248,25 @@ static rd_select_stats *half_stats(rd_select *sel, int x, int y)
     return sel->stats + (size_t)h * sel->n * sel->tiles_x * sel->tiles_y;
 }
 
-/* The counted cost of one sample, from th's counters before it (c0) and after (see the head). */
-typedef struct {
-    uint64_t lookups, shadow_rays, cells, vertices, beam_hits, eq_flights;
-} work;
-
-static work work_now(const rd_thread *th)
+rd_select_work rd_select_work_now(const rd_thread *th)
 {
-    return (work){th->counters.lookups, th->counters.shadow_rays, th->cells, th->guide_vertices, th->beam_hits,
-                  th->counters.eq_flights};
+    return (rd_select_work){th->counters.lookups, th->counters.shadow_rays, th->cells, th->guide_vertices,
+                            th->beam_hits, th->counters.eq_flights};
 }
 
-static double sample_cost(const rd_select *sel, const rd_thread *th, work c0)
+double rd_select_work_cost(const rd_select_work *c0, const rd_thread *th, double cell_cost)
 {
-    work c1 = work_now(th);
-    return (double)(c1.lookups - c0.lookups) + SEL_COST_SHADOW * (double)(c1.shadow_rays - c0.shadow_rays) +
-           sel->cell_cost * (double)(c1.cells - c0.cells) + SEL_COST_VERTEX * (double)(c1.vertices - c0.vertices) +
-           SEL_COST_BEAM_HIT * (double)(c1.beam_hits - c0.beam_hits) +
-           SEL_COST_EQ_FLIGHT * (double)(c1.eq_flights - c0.eq_flights) + SEL_COST_SAMPLE;
+    rd_select_work c1 = rd_select_work_now(th);
+    return (double)(c1.lookups - c0->lookups) + SEL_COST_SHADOW * (double)(c1.shadow_rays - c0->shadow_rays) +
+           cell_cost * (double)(c1.cells - c0->cells) + SEL_COST_VERTEX * (double)(c1.vertices - c0->vertices) +
+           SEL_COST_BEAM_HIT * (double)(c1.beam_hits - c0->beam_hits) +
+           SEL_COST_EQ_FLIGHT * (double)(c1.eq_flights - c0->eq_flights);
+}
+
+/* The counted cost of one sample, from th's counters before it (c0) and after (see the head). */
+static double sample_cost(const rd_select *sel, const rd_thread *th, rd_select_work c0)
+{
+    return rd_select_work_cost(&c0, th, sel->cell_cost) + SEL_COST_SAMPLE;
 }
 
 /* Camera sample `smp` of ray r with estimator e (RD_SEL_*). */
@@ -291,9 +292,11 @@ static void pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, const rd_select
         double jx = rd_sampler_1d(&smp), jy = rd_sampler_1d(&smp);
         if (!cam->jitter) jx = jy = 0.5;
         ray3 r = rd_camera_ray(cam, x + jx, y + jy);
-        work c0 = work_now(th);
+        rd_select_work c0 = rd_select_work_now(th);
         th->pixel = pix;
+        th->pilot = 1; /* (not an image sample: march.probes "auto" learns from those only) */
         vec3 L = estimate(ctx, th, e, method, r, &smp);
+        th->pilot = 0;
         if (v3_finite(L)) pixel_add(&px, L, sample_cost(sel, th, c0));
     }
     pixel_fold(st, &px);
@@ -615,7 +618,7 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
     int w = ctx->scene->camera.width;
     int x = (int)(th->pixel % (uint64_t)w), y = (int)(th->pixel / (uint64_t)w);
     int use = rd_select_uses(sel, x, y);
-    work c0 = work_now(th);
+    rd_select_work c0 = rd_select_work_now(th);
     th->delta_samples += use != RD_SEL_METHOD;
     th->delta_eq_samples += use == RD_SEL_DELTA_EQ;
     vec3 L = estimate(ctx, th, use, method, r, smp);

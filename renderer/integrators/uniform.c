@@ -16,6 +16,8 @@ const rd_method rd_method_uniform = {
     .photons_changed = rd_march_photons_changed,
     .scratch_bytes = rd_march_scratch_bytes,
     .prepare = rd_march_prepare,
+    .epoch_next = rd_march_epoch_next,
+    .epoch = rd_march_epoch,
     .release = rd_march_release,
     .radiance = radiance_uniform,
 };

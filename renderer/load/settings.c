@@ -34,6 +34,30 @@ static rd_status parse_equiangular(ld_ctx *c, const cJSON *j, const char *path, 
     return RD_OK;
 }
 
+/* settings.probes and march.probes (integrators/probes.c): "auto" (0) or a whole number of
+ * camera chains per sample, 1 to 256; absent: *out unchanged. */
+static rd_status parse_probes(ld_ctx *c, const cJSON *j, const char *path, int *out)
+{
+    const cJSON *e = cJSON_GetObjectItemCaseSensitive(j, "probes");
+    if (!e) return RD_OK;
+    char field[64];
+    snprintf(field, sizeof field, "%s.probes", path);
+    if (cJSON_IsString(e) && strcmp(e->valuestring, "auto") == 0) {
+        *out = 0;
+        return RD_OK;
+    }
+    double v = cJSON_IsNumber(e) ? e->valuedouble : 0.0;
+    if (!cJSON_IsNumber(e) || v != floor(v) || v < 1.0 || v > 256.0) {
+        char found[64];
+        if (cJSON_IsString(e)) snprintf(found, sizeof found, "\"%.40s\"", e->valuestring);
+        else if (cJSON_IsNumber(e)) snprintf(found, sizeof found, "%g", v);
+        else snprintf(found, sizeof found, "%s", ld_type_name(e));
+        return ld_fail(c, field, "expected \"auto\" or an integer in [1, 256], found %s", found);
+    }
+    *out = (int)v;
+    return RD_OK;
+}
+
 /* `delta`'s thin-media strategies (docs/free-path.md): settings.equiangular is true, false,
  * "camera", "auto" or "tiles"; settings.thin_bias is false or a number in (0, 1) (1 would never pass: biased wherever a
  * pass-through is worth something), and needs an analog delta tracker
@@ -79,12 +103,13 @@ rd_status ld_parse_settings(ld_ctx *c, const cJSON *j, rd_settings *s)
     s->thin_bias = 0.0;
     s->beam_connect = RD_BC_AUTO;
     s->select = RD_SELECT_AUTO; /* integrators/select.c */
+    s->probes = 1; /* measured in docs/guided-marching.md "Probes" */
     if (!j) return RD_OK;
     const char *path = "settings";
     LD_TRY(ld_need_object(c, j, path));
     static const char *const keys[] = {"spp", "time", "seed", "max_depth", "rr_depth", "method",
                                        "tracker", "transmittance", "b", "m", "step", "equiangular", "thin_bias",
-                                       "beam_connect", "select", NULL};
+                                       "beam_connect", "select", "probes", NULL};
     LD_TRY(ld_check_keys(c, j, path, keys));
     long long v;
     LD_TRY(ld_get_int(c, j, path, "spp", 0, 16, 1, 1 << 24, &v));
@@ -124,6 +149,11 @@ rd_status ld_parse_settings(ld_ctx *c, const cJSON *j, rd_settings *s)
     LD_TRY(parse_strategies(c, j, s));
     static const char *const select[] = {"off", "tiles", "pilot", "auto", NULL}; /* RD_SELECT_* order */
     LD_TRY(ld_get_enum(c, j, path, "select", 0, select, RD_SELECT_AUTO, &s->select));
+    LD_TRY(parse_probes(c, j, path, &s->probes));
+    /* The probes' transmittance estimate and the path's own pass or stop must be unbiased alike
+     * (integrators/probes.c): not with a ray-marched one. */
+    if (s->probes != 1 && (s->tracker == RD_FP_RAYMARCH || s->transmittance == RD_TR_RAYMARCH))
+        return ld_fail(c, "settings.probes", "needs an unbiased tracker and transmittance, not \"raymarch\"");
     return RD_OK;
 }
 
@@ -258,10 +288,11 @@ rd_status ld_parse_march(ld_ctx *c, const cJSON *j, rd_march_settings *m)
     /* "auto": the lit spans the camera rays and the samples' paths cross but rarely collide in
      * (integrators/march_equiangular.c); measured in docs/guided-marching.md */
     m->equiangular = RD_EQ_AUTO;
+    m->probes = 0; /* "auto": measured in docs/guided-marching.md "Probes" */
     if (!j) return RD_OK;
     const char *path = "march";
     LD_TRY(ld_need_object(c, j, path));
-    static const char *const keys[] = {"samples", "min_samples", "max_samples", "alpha", "ls", "detail", "paths", "equiangular", NULL};
+    static const char *const keys[] = {"samples", "min_samples", "max_samples", "alpha", "ls", "detail", "paths", "equiangular", "probes", NULL};
     LD_TRY(ld_check_keys(c, j, path, keys));
     long long v;
     LD_TRY(ld_get_int(c, j, path, "samples", 0, 0, 1, 4096, &v));
@@ -280,5 +311,6 @@ rd_status ld_parse_march(ld_ctx *c, const cJSON *j, rd_march_settings *m)
     LD_TRY(ld_get_num(c, j, path, "paths", 0, 0.0, 0, 1, 1, 0, &m->paths));
     static const char *const detail[] = {"cells", "lookups", NULL};
     LD_TRY(ld_get_enum(c, j, path, "detail", 0, detail, 0, &m->detail));
+    LD_TRY(parse_probes(c, j, path, &m->probes));
     return parse_equiangular(c, j, path, 0, 0, &m->equiangular);
 }

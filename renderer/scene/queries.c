@@ -105,3 +105,12 @@ int rd_scene_hit_light(const rd_scene *s, ray3 r, double tmax, int skip, double 
     return hit;
 }
 
+
+vec3 rd_scene_behind(const rd_scene *s, int hit_light)
+{
+    if (hit_light >= 0) return s->lights[hit_light].value;
+    vec3 L = s->background;
+    for (int i = 0; i < s->n_lights; i++)
+        if (s->lights[i].kind == RD_LIGHT_ENVIRONMENT) L = v3_add(L, s->lights[i].value);
+    return L;
+}

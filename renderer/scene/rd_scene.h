@@ -50,6 +50,9 @@ typedef struct {
                           * guided with march.ls nee+beams marches every pixel (only an explicit
                           * "tiles" or "pilot" mixes the beams, which are consistent, not
                           * unbiased, with delta) */
+    int probes;          /* `delta`: camera chains a sample takes for the light at the chain's
+                          * end: M >= 1 (1, the default: the path's own only), or 0, "auto": M per
+                          * pixel from its samples (integrators/probes.c) */
 } rd_settings;
 enum { RD_SELECT_OFF, RD_SELECT_TILES, RD_SELECT_PILOT, RD_SELECT_AUTO };
 enum { RD_BC_OFF, RD_BC_ON, RD_BC_AUTO }; /* settings.beam_connect */
@@ -141,6 +144,9 @@ typedef struct {
     int equiangular;     /* rd_equiangular_mode OFF, ALL or AUTO: one equiangular sample per
                           * segment toward a point or spot light, MIS with the placement's
                           * samples for the direct part (integrators/march_equiangular.c) */
+    int probes;          /* camera chains a sample takes for the light at the chain's end:
+                          * M >= 1 (1: the sample's own only), or 0, "auto" (default): M per
+                          * pixel from its samples (integrators/probes.c) */
 } rd_march_settings;
 
 /* What settings.beam_connect's sampling needs, set once when the scene is loaded
@@ -220,6 +226,9 @@ int rd_scene_intersect(const rd_scene *s, ray3 r, double tmax, const rd_hit *fro
 /* The nearest sphere light that r hits before tmax (skipping light `skip`, -1 for none), or -1;
  * *t_hit (may be NULL) gets its distance. The one answer to "does this ray meet a light". */
 int rd_scene_hit_light(const rd_scene *s, ray3 r, double tmax, int skip, double *t_hit);
+/* What a camera chain sees at its end: the sphere light it hits (hit_light >= 0), or the
+ * environment and the background (full weight: a camera chain has no MIS). */
+vec3 rd_scene_behind(const rd_scene *s, int hit_light);
 
 /* The medium of `region` at x (the bound medium, or in the open region the box medium whose
  * bounds contain x, else the scene-wide medium), or NULL where there is none. */

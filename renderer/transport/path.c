@@ -129,7 +129,7 @@ int rd_surface_event(const rd_scene *s, const rd_hit *h, int depth, rd_surface_s
  * connected to the beam (a split copy: continue_from). */
 static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int depth0,
                   int camera_chain, int scattered_only, const rd_flight_sampler *fs, pcg32 *rng,
-                  rd_track_counters *c, int *budget, vec3 beta0, int from_vertex);
+                  rd_track_counters *c, int *budget, vec3 beta0, int from_vertex, vec3 *E_chain);
 
 /* The flight whose vertex a next-event estimate serves, when the flight had the equiangular
  * strategy: its set-up and the vertex's distance t and density pdf (rd_flight.pdf). */
@@ -169,7 +169,7 @@ static vec3 continue_from(const rd_scene *s, vec3 x, vec3 d, int region, const r
     /* Weight p / pdf: 1 for phase sampling alone, the mixture's ratio otherwise. */
     double w = rd_hg_eval(m->g, v3_dot(d, wo)) / pdf;
     ray3 next = {x, wo};
-    return v3_add(L, v3_scale(trace(s, next, region, pdf, depth, 0, 0, fs, rng, c, budget, v3_scale(beta0, w), 1), w));
+    return v3_add(L, v3_scale(trace(s, next, region, pdf, depth, 0, 0, fs, rng, c, budget, v3_scale(beta0, w), 1, NULL), w));
 }
 
 /* The sampler's density (rd_flight_sampler.density) in the form rd_eq_flight holds it. */
@@ -185,7 +185,7 @@ static double flight_density(const void *user, double t)
 
 static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int depth0,
                   int camera_chain, int scattered_only, const rd_flight_sampler *fs, pcg32 *rng,
-                  rd_track_counters *c, int *budget, vec3 beta0, int from_vertex)
+                  rd_track_counters *c, int *budget, vec3 beta0, int from_vertex, vec3 *E_chain)
 {
     vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
     rd_hit hit, prev;
@@ -243,7 +243,9 @@ static vec3 trace(const rd_scene *s, ray3 r, int region, double phase_pdf, int d
         if (f.kind == RD_FLIGHT_END || (first && f.kind == RD_FLIGHT_PASS)) break;
         beta = v3_mul(beta, f.weight);
         if (f.kind == RD_FLIGHT_PASS && in.hit_shape < 0) {
-            L = v3_add(L, v3_mul(beta, rd_flight_behind(s, &in)));
+            vec3 Lb = v3_mul(beta, rd_flight_behind(s, &in));
+            if (E_chain && camera_chain) *E_chain = Lb; /* the camera chain's end (probes.c) */
+            else L = v3_add(L, Lb);
             break;
         }
         if (f.kind == RD_FLIGHT_PASS) {
@@ -348,7 +350,7 @@ vec3 rd_path_radiance(const rd_scene *s, ray3 r, const rd_flight_sampler *fs, pc
 {
     int budget = RD_SPLIT_BUDGET;
     /* The camera's region (rd_scene_camera_region: found once for a perspective camera). */
-    return trace(s, r, rd_scene_camera_region(s, r), 0.0, 0, 1, 0, fs, rng, c, &budget, v3(1, 1, 1), 0);
+    return trace(s, r, rd_scene_camera_region(s, r), 0.0, 0, 1, 0, fs, rng, c, &budget, v3(1, 1, 1), 0, NULL);
 }
 
 vec3 rd_delta_continue(const rd_scene *s, ray3 r, int region, double pdf, int depth,
@@ -357,7 +359,7 @@ vec3 rd_delta_continue(const rd_scene *s, ray3 r, int region, double pdf, int de
     const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL,
                                   .equiangular = equiangular};
     int budget = 0;
-    return trace(s, r, region, pdf, depth, camera_chain, 0, &fs, rng, c, &budget, v3(1, 1, 1), 0);
+    return trace(s, r, region, pdf, depth, camera_chain, 0, &fs, rng, c, &budget, v3(1, 1, 1), 0, NULL);
 }
 
 vec3 rd_delta_scattered(const rd_scene *s, ray3 r, int region, int depth, int equiangular,
@@ -366,7 +368,7 @@ vec3 rd_delta_scattered(const rd_scene *s, ray3 r, int region, int depth, int eq
     const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL,
                                   .equiangular = equiangular};
     int budget = 0;
-    return trace(s, r, region, 0.0, depth, 1, 1, &fs, rng, c, &budget, v3(1, 1, 1), 0);
+    return trace(s, r, region, 0.0, depth, 1, 1, &fs, rng, c, &budget, v3(1, 1, 1), 0, NULL);
 }
 
 vec3 rd_delta_radiance_eq(const rd_scene *s, ray3 r, int equiangular, pcg32 *rng, rd_track_counters *c)
@@ -374,6 +376,16 @@ vec3 rd_delta_radiance_eq(const rd_scene *s, ray3 r, int equiangular, pcg32 *rng
     const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL,
                                   .equiangular = equiangular};
     return rd_path_radiance(s, r, &fs, rng, c);
+}
+
+vec3 rd_delta_radiance_split(const rd_scene *s, ray3 r, int equiangular, pcg32 *rng, rd_track_counters *c,
+                             vec3 *E)
+{
+    const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL,
+                                  .equiangular = equiangular};
+    int budget = RD_SPLIT_BUDGET;
+    *E = v3(0, 0, 0);
+    return trace(s, r, rd_scene_camera_region(s, r), 0.0, 0, 1, 0, &fs, rng, c, &budget, v3(1, 1, 1), 0, E);
 }
 
 vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c)

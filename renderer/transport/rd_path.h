@@ -20,6 +20,13 @@ vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters 
 /* The same with the equiangular mode `equiangular` (RD_EQ_*, not RD_EQ_TILES) in place of
  * settings.equiangular (the tile selections' estimators: integrators/select.c, delta.c). */
 vec3 rd_delta_radiance_eq(const rd_scene *s, ray3 r, int equiangular, pcg32 *rng, rd_track_counters *c);
+/* rd_delta_radiance_eq's estimate split in two: returns all of it but *E, the light the camera's
+ * chain (its first flight and the specular surfaces after it) meets at its end, a sphere
+ * light, the environment or the background, when the flight passes through (the probes of
+ * integrators/probes.c estimate that part again). The sum is rd_delta_radiance_eq's, on the
+ * same random numbers. */
+vec3 rd_delta_radiance_split(const rd_scene *s, ray3 r, int equiangular, pcg32 *rng, rd_track_counters *c,
+                             vec3 *E);
 
 /* ---- The unbiased path loop and its free-flight samplers (transport/path.c) ------------- *
  * One path tracer serves `delta` and `guided-unbiased`; they differ only in how a free flight
