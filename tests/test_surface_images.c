@@ -560,24 +560,25 @@ static const char *t6_json(const char *probes, int shapes, const char *delta_pro
     return buf;
 }
 
-/* Unbiased for a fixed M and for "auto": each E_j has E_0's mean, and M is chosen before the
- * sample. The bounds are rt_expect_same's (5 and 4.5 standard errors). A planted fault, the
- * probes' sum weighted 1/(M-1) instead of 1/M, fails the fixed M's comparisons (image z -7.5
- * without shapes, -6.3 through the ball; "auto", whose M is mostly 1 or 2 here, -1.3 and
- * -1.4). */
-Test(surface_images, probes_keep_the_marcher_equal_to_delta, .timeout = 600)
+/* Plain `delta` (4096 spp, seed `seed`) against `method` (spp a render) with each probe
+ * setting, 8 and "auto", on the scenes above without and with the ball: march.probes for
+ * `guided`, settings.probes for `delta`. The bounds are rt_expect_same's (5 and 4.5 standard
+ * errors). */
+static void probes_against_plain_delta(const char *method, int spp, uint64_t seed)
 {
+    int on_delta = !strcmp(method, "delta");
     for (int shapes = 0; shapes < 2; shapes++) {
         rd_scene *s = rt_scene("t6.json", t6_json("1", shapes, "1"));
-        rd_render_result d = rt_render(s, "delta", 4096, 601 + 10 * shapes, NULL);
+        rd_render_result d = rt_render(s, "delta", 4096, seed + 10 * shapes, NULL);
+        cr_expect(d.stats.probes == 0, "settings.probes 1 took probes");
         rd_scene_free(s);
         const char *settings[] = {"8", "\"auto\""};
         for (int i = 0; i < 2; i++) {
-            s = rt_scene("t6p.json", t6_json(settings[i], shapes, "1"));
-            rd_render_result m = rt_render(s, "guided", 512, 602 + 10 * shapes + i, NULL);
+            s = rt_scene("t6p.json", t6_json(on_delta ? "1" : settings[i], shapes, on_delta ? settings[i] : "1"));
+            rd_render_result m = rt_render(s, method, spp, seed + 1 + 10 * shapes + i, NULL);
             char what[128];
-            snprintf(what, sizeof what, "guided with march.probes %s vs delta, %s", settings[i],
-                     shapes ? "through a glass ball" : "no shapes");
+            snprintf(what, sizeof what, "%s with %s.probes %s vs delta without, %s", method,
+                     on_delta ? "settings" : "march", settings[i], shapes ? "through a glass ball" : "no shapes");
             rt_expect_same(&d, &m, what);
             cr_expect(m.stats.probes > 0, "%s: no probe was taken", what);
             rd_render_result_free(&m);
@@ -585,6 +586,15 @@ Test(surface_images, probes_keep_the_marcher_equal_to_delta, .timeout = 600)
         }
         rd_render_result_free(&d);
     }
+}
+
+/* Unbiased for a fixed M and for "auto": each E_j has E_0's mean, and M is chosen before the
+ * sample. A planted fault, the probes' sum weighted 1/(M-1) instead of 1/M, fails the fixed M's
+ * comparisons (image z -7.5 without shapes, -6.3 through the ball; "auto", whose M is mostly 1
+ * or 2 here, -1.3 and -1.4). */
+Test(surface_images, probes_keep_the_marcher_equal_to_delta, .timeout = 600)
+{
+    probes_against_plain_delta("guided", 512, 601);
 }
 
 /* "auto" probes where the chain's end is noisy: the pixels that see the light through the
@@ -632,30 +642,11 @@ Test(surface_images, auto_probes_where_the_light_is_seen, .timeout = 300)
 
 /* `delta` with settings.probes: its path less the camera chain's end, and that end from M
  * chains (transport/path.c rd_delta_radiance_split, integrators/probes.c), against plain
- * `delta` on the scenes above; the bounds are rt_expect_same's (5 and 4.5 standard errors). A
- * planted fault, the chain's end left in the path as well (counted twice), fails every
- * comparison (image z -30 to -39). */
+ * `delta`. A planted fault, the chain's end left in the path as well (counted twice), fails
+ * every comparison (image z -30 to -39). */
 Test(surface_images, delta_probes_keep_delta_s_image, .timeout = 600)
 {
-    for (int shapes = 0; shapes < 2; shapes++) {
-        rd_scene *s = rt_scene("t7.json", t6_json("1", shapes, "1"));
-        rd_render_result d = rt_render(s, "delta", 4096, 701 + 10 * shapes, NULL);
-        cr_expect(d.stats.probes == 0, "settings.probes 1 took probes");
-        rd_scene_free(s);
-        const char *settings[] = {"8", "\"auto\""};
-        for (int i = 0; i < 2; i++) {
-            s = rt_scene("t7p.json", t6_json("1", shapes, settings[i]));
-            rd_render_result m = rt_render(s, "delta", 2048, 702 + 10 * shapes + i, NULL);
-            char what[128];
-            snprintf(what, sizeof what, "delta with settings.probes %s vs without, %s", settings[i],
-                     shapes ? "through a glass ball" : "no shapes");
-            rt_expect_same(&d, &m, what);
-            cr_expect(m.stats.probes > 0, "%s: no probe was taken", what);
-            rd_render_result_free(&m);
-            rd_scene_free(s);
-        }
-        rd_render_result_free(&d);
-    }
+    probes_against_plain_delta("delta", 2048, 701);
 }
 
 /* The selection's pilot samples the method without probes under "auto" (it learns the method
