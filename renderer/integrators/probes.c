@@ -10,7 +10,8 @@
  *                    and what a diffuse surface the chain ends on gives;
  *                E = beta T L_e, the light the chain sees at its end (a sphere light, the
  *                    environment, the background) through the media and the chain's glass
- *                    (a marcher: T estimated by ratio tracking; delta: T's pass or stop).
+ *                    (a marcher: T by settings.transmittance's estimator; delta: its
+ *                    flight's pass or stop).
  *
  * I costs many lookups (a marcher's samples, a path's collisions); E costs one chain of rays and
  * the transmittance along them. Where E is noisy (a small light seen through a glass ball: whether
@@ -31,8 +32,9 @@
  *
  *   M_p = the M minimising V_p(M) + lambda C_p(M),   lambda = V / C_img
  *
- * (a marcher with C = 0: M_p = sqrt((V_E + 2 C) / (lambda c_p)); M_p = 1 where the probes would
- * undo a covariance that cancels noise). "auto" takes each pixel's model from its own image
+ * (for a marcher, whose own chain and probes are alike, V_0 = V_p = V_E, this is about
+ * M_p = sqrt((V_E + 2 C) / (lambda c_p)); M_p = 1 where the probes would undo a covariance that
+ * cancels noise). "auto" takes each pixel's model from its own image
  * samples so far (not the selection's pilot), and lambda from the whole image at the epochs,
  * samples 4, 16, 64, ... of every pixel (the selection's): V and C_img are those its M_p would
  * make, so lambda is a fixed point found from M_p = 1 (rd_probes_epoch). M_p is kept in
@@ -51,10 +53,10 @@
 #include <math.h>
 #include <stdlib.h>
 
-/* Probes a sample takes at most under "auto" (M <= PROBE_MAX) */
+/* Chains a sample takes at most under "auto" (M <= PROBE_MAX: PROBE_MAX - 1 probes) */
 #define PROBE_MAX 32
-/* Under "auto", a pixel's first PROBE_FIRST_SAMPLES samples take M = PROBE_FIRST (one probe each): what
- * the rule needs to know of E and of a probe's cost, at a small price once per pixel */
+/* Under "auto", a pixel's first PROBE_FIRST_SAMPLES samples take M = PROBE_FIRST (one probe
+ * each): what its model needs to know of E and of a probe's cost, once per pixel */
 #define PROBE_FIRST_SAMPLES 2
 #define PROBE_FIRST 2
 

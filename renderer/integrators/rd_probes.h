@@ -26,8 +26,9 @@ static inline int rd_probes_on(const rd_probes *p) { return p->M != 1; }
 /* The counted cost of a camera sample whose work began at w0 (rd_select_work_now), with p's
  * cell cost (rd_select.h). */
 double rd_probes_cost(const rd_probes *p, const rd_select_work *w0, const rd_thread *th);
-/* One probe: the light camera chain r sees at its end through the media's transmittance (ratio
- * tracking) and the chain's glass; 0 where it ends on a diffuse surface. */
+/* One probe: the light camera chain r sees at its end through the media's transmittance
+ * (settings.transmittance's estimator) and the chain's glass; 0 where it ends on a diffuse
+ * surface. */
 vec3 rd_probes_chain(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c);
 /* A sample's estimate of pixel th->pixel from its I and its own chain's E0 (probes.c's head),
  * with M - 1 probes averaged into E0; cost: the sample's counted cost (rd_probes_cost). Learns
