@@ -682,3 +682,67 @@ Test(surface_images, the_selection_s_pilot_takes_no_probes)
     release(&d, &g);
     rd_scene_free(s);
 }
+
+/* "auto"'s per-pixel search (rd_probes_best_m) stops early, at the first M whose lower bound is
+ * above the best so far; it must still return the full search's M: the first least of the
+ * model's V(M) + lambda C(M) over M in [1, RD_PROBES_MAX]. Checked against this test's own full
+ * search of the head's formula (the same expression, so the same rounding: exact equality) on
+ * 200000 random models (fixed seed): covariances of either sign up to the Cauchy-Schwarz bound,
+ * the probe's variance from 1e-4 to 1e4 times the sample's own, costs and lambda over eight
+ * decades each; the draws must reach M = 1, the cap, and M > 1 with a negative covariance. Then
+ * three models by hand: a pixel that never sees light, a covariance past the Cauchy-Schwarz
+ * bound (a noisy estimate: V(1) < 0) and a probe far noisier than the sample's own chain. A
+ * floor that leaves out the negative covariance (stopping where a later M is still better)
+ * fails it (6848 of the 200000). */
+static double t9_objective(const rd_probes_model *m, double lambda, int M)
+{
+    return m->vI + 2.0 * m->cov / M + (m->v0 + (M - 1) * m->vp) / ((double)M * M) +
+           lambda * (m->c + (M - 1) * m->cp);
+}
+
+static int t9_full_search(const rd_probes_model *m, double lambda)
+{
+    if (!(lambda > 0.0)) return 1;
+    int best = 1;
+    for (int M = 2; M <= RD_PROBES_MAX; M++)
+        if (t9_objective(m, lambda, M) < t9_objective(m, lambda, best)) best = M;
+    return best;
+}
+
+Test(surface_images, auto_probes_search_finds_the_model_s_least)
+{
+    pcg32 rng = pcg32_seed(36, 1, 99);
+    int wrong = 0, one = 0, cap = 0, negative = 0;
+    for (int k = 0; k < 200000; k++) {
+        double u[7];
+        for (int i = 0; i < 7; i++) u[i] = pcg32_uniform(&rng);
+        rd_probes_model m;
+        m.vI = pow(10.0, -4.0 + 8.0 * u[0]);
+        m.v0 = pow(10.0, -4.0 + 8.0 * u[1]);
+        m.vp = m.v0 * pow(10.0, -4.0 + 8.0 * u[2]);
+        m.cov = (2.0 * u[3] - 1.0) * sqrt(m.vI * m.v0); /* |cov| <= sqrt(vI v0) */
+        m.c = pow(10.0, 4.0 * u[4]);
+        m.cp = m.c * pow(10.0, -4.0 + 4.0 * u[5]);
+        double lambda = pow(10.0, -6.0 + 8.0 * u[6]);
+        int M = rd_probes_best_m(&m, lambda);
+        wrong += M != t9_full_search(&m, lambda);
+        one += M == 1;
+        cap += M == RD_PROBES_MAX;
+        negative += M > 1 && m.cov < 0.0;
+    }
+    cr_expect(wrong == 0, "%d of 200000 models: the search's M is not the full search's", wrong);
+    cr_expect(one > 0 && cap > 0 && negative > 0, "regimes not reached: M = 1 %d, M = %d %d, M > 1 with cov < 0 %d",
+              one, RD_PROBES_MAX, cap, negative);
+    const rd_probes_model by_hand[] = {
+        {0.5, 0.0, 0.0, 0.0, 10.0, 1.0},      /* no light at the chain's end: M = 1 */
+        {0.0, -3.0, 1.0, 0.01, 10.0, 0.001},  /* cov past sqrt(vI v0): V(1) = -5 */
+        {1.0, -0.2, 0.01, 100.0, 10.0, 0.01}, /* a probe 1e4 x noisier than the own chain */
+    };
+    for (size_t i = 0; i < sizeof by_hand / sizeof by_hand[0]; i++)
+        for (double lambda = 1e-6; lambda < 1e3; lambda *= 3.0) {
+            int M = rd_probes_best_m(&by_hand[i], lambda), full = t9_full_search(&by_hand[i], lambda);
+            cr_expect(M == full, "model %zu, lambda %g: M %d, the full search's %d", i, lambda, M, full);
+        }
+    rd_probes_model m = {1.0, -0.5, 1.0, 1.0, 1.0, 1.0};
+    cr_expect(rd_probes_best_m(&m, 0.0) == 1, "lambda 0: no probes");
+}

@@ -34,14 +34,16 @@
  *
  * (for a marcher, whose own chain and probes are alike, V_0 = V_p = V_E, this is about
  * M_p = sqrt((V_E + 2 C) / (lambda c_p)); M_p = 1 where the probes would undo a covariance that
- * cancels noise). "auto" takes each pixel's model from its own image
- * samples so far (not the selection's pilot), and lambda from the whole image at the epochs,
- * samples 4, 16, 64, ... of every pixel (the selection's): V and C_img are those its M_p would
- * make, so lambda is a fixed point found from M_p = 1 (rd_probes_epoch). M_p is kept in
- * [1, PROBE_MAX]; a pixel's first samples take one probe each (what its model needs), and
- * before the first epoch none more. The costs are the selection's counted costs (select.c), so
- * the choice, and the image, are the same for a seed on any machine, thread count and number
- * of ranks. A fixed integer M probes every sample alike. */
+ * cancels noise). "auto" chooses at the epochs, samples 4, 16, 64, ... of every pixel (the
+ * selection's): each pixel's model from its own image samples so far (not the selection's
+ * pilot), lambda from the whole image (V and C_img are those its M_p would make, so lambda is a
+ * fixed point found from M_p = 1), and each pixel's M_p, which its samples take until the next
+ * epoch (rd_probes_epoch; chosen once there, not at every sample, because a `delta` sample is
+ * cheap). M_p is kept in [1, RD_PROBES_MAX]; a pixel's first samples take one probe each (what
+ * its model needs), and none more until the first epoch at which it has a model (a guided
+ * method's tile that moves to the method between epochs: until the next). The costs are the
+ * selection's counted costs (select.c), so the choice, and the image, are the same for a seed on
+ * any machine, thread count and number of ranks. A fixed integer M probes every sample alike. */
 #include "integrators/rd_probes.h"
 #include "integrators/rd_select.h"
 #include "scene/rd_camera.h"
@@ -53,8 +55,6 @@
 #include <math.h>
 #include <stdlib.h>
 
-/* Chains a sample takes at most under "auto" (M <= PROBE_MAX: PROBE_MAX - 1 probes) */
-#define PROBE_MAX 32
 /* Under "auto", a pixel's first PROBE_FIRST_SAMPLES samples take M = PROBE_FIRST (one probe
  * each): what its model needs to know of E and of a probe's cost, once per pixel */
 #define PROBE_FIRST_SAMPLES 2
@@ -67,6 +67,7 @@ struct rd_probe_px {
     float e1, e2, ie;     /* sum and sum of squares of the samples' own E_0, and sum of I E_0 */
     float np, p1, p2;     /* probes taken, and the sum and sum of squares of their E */
     float cost, cost_p;   /* the samples' counted cost (probes left out), and the probes' */
+    int M;                /* the chains its samples take until the next epoch (0: none chosen) */
 };
 
 /* The epochs: samples 4, 16, 64, ... of every pixel (select.c's). */
@@ -138,7 +139,6 @@ rd_status rd_probes_init(rd_probes *p, const rd_scene *s, int setting, double ce
 {
     p->M = setting;
     p->px = NULL;
-    p->lambda = 0.0;
     p->cell_cost = cell_cost;
     if (!scene_shows_light(s)) {
         p->M = 1; /* E is 0 on every chain: nothing to probe */
@@ -168,18 +168,9 @@ static double variance(double n, double s1, double s2)
     return n > 1.0 ? fmax(0.0, (s2 - s1 * s1 / n) / (n - 1.0)) : 0.0;
 }
 
-/* Pixel px's model (the head). A sample with M - 1 probes, I + (E_0 + E_1 + ... + E_{M-1}) / M,
- * has the variance
- *   V(M) = V_I + 2 C / M + (V_0 + (M - 1) V_p) / M^2
- * (V_0, V_p: the variances of the sample's own E_0 and of a probe's E, equal for a marcher, and
- * for `delta` its pass-or-stop E_0 against the probes' transmittance estimate; C the covariance
- * of I and E_0, the probes being independent of both) at the cost c + (M - 1) c_p. Returns 0
- * while there is none (the first samples, or fewer than two probes to price and measure one). */
-typedef struct {
-    double vI, cov, v0, vp, c, cp;
-} px_model;
-
-static int model_of(const struct rd_probe_px *px, px_model *m)
+/* Pixel px's model (rd_probes_model, rd_probes.h). Returns 0 while there is none (the first
+ * samples, or fewer than two probes to price and measure one). */
+static int model_of(const struct rd_probe_px *px, rd_probes_model *m)
 {
     if (px->n < PROBE_FIRST_SAMPLES || px->np < 2.0f) return 0;
     double n = px->n;
@@ -192,32 +183,43 @@ static int model_of(const struct rd_probe_px *px, px_model *m)
     return m->cp > 0.0 && isfinite(m->vI + m->cov + m->v0 + m->vp + m->c);
 }
 
-static double model_V(const px_model *m, int M)
+static double model_V(const rd_probes_model *m, int M)
 {
     return m->vI + 2.0 * m->cov / M + (m->v0 + (M - 1) * m->vp) / ((double)M * M);
 }
-static double model_C(const px_model *m, int M) { return m->c + (M - 1) * m->cp; }
+static double model_C(const rd_probes_model *m, int M) { return m->c + (M - 1) * m->cp; }
 
-/* The M in [1, PROBE_MAX] that minimises V(M) + lambda C(M): each pixel's part of the least
- * V C_img (the head). */
-static int model_M(const px_model *m, double lambda)
+/* A lower bound of V(M') + lambda C(M') over every M' >= M: (v0 + (M' - 1) vp) / M'^2 >= 0 (v0,
+ * vp >= 0: variance()), a negative covariance's 2 C / M' is >= 2 C / M, and the cost grows with
+ * M' (cp > 0: model_of). It grows with M. */
+static double model_floor(const rd_probes_model *m, double lambda, int M)
+{
+    return m->vI + fmin(0.0, 2.0 * m->cov / M) + lambda * model_C(m, M);
+}
+
+/* The M in [1, RD_PROBES_MAX] that minimises V(M) + lambda C(M): each pixel's part of the least
+ * V C_img (the head). It runs for every pixel in each of an epoch's fixed-point rounds, so the
+ * search stops at the first M whose floor (model_floor) is clearly above the best so far (by
+ * more than rounding): no later M can be better, and the M found is the full search's. */
+int rd_probes_best_m(const rd_probes_model *m, double lambda)
 {
     if (!(lambda > 0.0)) return 1;
     int best = 1;
     double fbest = model_V(m, 1) + lambda * model_C(m, 1);
-    for (int M = 2; M <= PROBE_MAX; M++) {
+    double slack = 1e-9 * (fabs(fbest) + m->vI + fabs(m->cov) + m->v0 + m->vp); /* rounding */
+    for (int M = 2; M <= RD_PROBES_MAX; M++) {
+        if (model_floor(m, lambda, M) > fbest + slack) break;
         double f = model_V(m, M) + lambda * model_C(m, M);
         if (f < fbest) best = M, fbest = f;
     }
     return best;
 }
 
-/* M for pixel px under "auto" (the head). */
-static int probes_auto(const struct rd_probe_px *px, double lambda)
+/* M for pixel px under "auto" (the head): what the last epoch chose for it. */
+static int probes_auto(const struct rd_probe_px *px)
 {
     if (px->n < PROBE_FIRST_SAMPLES) return PROBE_FIRST;
-    px_model m;
-    return model_of(px, &m) ? model_M(&m, lambda) : 1;
+    return px->M > 0 ? px->M : 1;
 }
 
 int rd_probes_epoch_next(const rd_probes *p, int sample)
@@ -233,7 +235,7 @@ int rd_probes_epoch_next(const rd_probes *p, int sample)
 
 /* Fixed-point rounds for lambda at an epoch. */
 #define PROBE_ROUNDS 16
-/* The doubles of one pixel's model as ranks exchange them: a flag, then px_model's fields. */
+/* The doubles of one pixel's model as ranks exchange them: a flag, then rd_probes_model's fields. */
 #define PROBE_MODEL_DOUBLES 7
 
 /* lambda is V / C_img at the M_p it chooses (the head): from the pixels' models, starting at
@@ -253,7 +255,7 @@ void rd_probes_epoch(const rd_render_ctx *ctx, rd_probes *p)
     if (comm && comm->size > 1) {
         all = calloc(n * PROBE_MODEL_DOUBLES, sizeof *all);
         for (size_t i = 0; all && i < n; i++) {
-            px_model m;
+            rd_probes_model m;
             if (!model_of(&p->px[i], &m)) continue;
             double *a = all + i * PROBE_MODEL_DOUBLES;
             a[0] = 1.0, a[1] = m.vI, a[2] = m.cov, a[3] = m.v0, a[4] = m.vp, a[5] = m.c, a[6] = m.cp;
@@ -267,13 +269,13 @@ void rd_probes_epoch(const rd_render_ctx *ctx, rd_probes *p)
     for (int round = 0; round < PROBE_ROUNDS; round++) {
         double V = 0.0, C = 0.0;
         for (size_t i = 0; i < n; i++) {
-            px_model m;
+            rd_probes_model m;
             if (all) {
                 const double *a = all + i * PROBE_MODEL_DOUBLES;
                 if (!(a[0] > 0.0)) continue;
-                m = (px_model){a[1], a[2], a[3], a[4], a[5], a[6]};
+                m = (rd_probes_model){a[1], a[2], a[3], a[4], a[5], a[6]};
             } else if (!model_of(&p->px[i], &m)) continue;
-            int M = round == 0 ? 1 : model_M(&m, lambda);
+            int M = round == 0 ? 1 : rd_probes_best_m(&m, lambda);
             V += model_V(&m, M);
             C += model_C(&m, M);
         }
@@ -282,8 +284,20 @@ void rd_probes_epoch(const rd_render_ctx *ctx, rd_probes *p)
         lambda = next;
         if (settled) break;
     }
+    /* Each pixel's M until the next epoch: chosen here once, not at every sample (the search
+     * and the model's divisions there made a `delta` sample a fifth slower on smoke-vdb, where
+     * almost no pixel takes probes: docs/guided-marching.md "The search's cost"). */
+    for (size_t i = 0; i < n; i++) {
+        rd_probes_model m;
+        int has;
+        if (all) {
+            const double *a = all + i * PROBE_MODEL_DOUBLES;
+            has = a[0] > 0.0;
+            if (has) m = (rd_probes_model){a[1], a[2], a[3], a[4], a[5], a[6]};
+        } else has = model_of(&p->px[i], &m);
+        p->px[i].M = has ? rd_probes_best_m(&m, lambda) : 1;
+    }
     free(all);
-    p->lambda = lambda;
 }
 
 double rd_probes_cost(const rd_probes *p, const rd_select_work *w0, const rd_thread *th)
@@ -297,7 +311,7 @@ vec3 rd_probes_add(const rd_render_ctx *ctx, rd_probes *p, rd_thread *th, vec3 I
     const rd_scene *s = ctx->scene;
     struct rd_probe_px *px = p->px && !th->pilot ? &p->px[th->pixel] : NULL;
     /* (the selection's pilot takes none under "auto": it learns the method without them) */
-    int M = px ? probes_auto(px, p->lambda) : (p->M > 0 ? p->M : 1);
+    int M = px ? probes_auto(px) : (p->M > 0 ? p->M : 1);
     vec3 E = E0;
     double cost_p = 0.0, p1 = 0.0, p2 = 0.0;
     if (M > 1) {
@@ -315,7 +329,7 @@ vec3 rd_probes_add(const rd_render_ctx *ctx, rd_probes *p, rd_thread *th, vec3 I
         cost_p = rd_select_work_cost(&w0, th, p->cell_cost) + (M - 1) * RD_SELECT_COST_SAMPLE;
         th->probes += (uint64_t)(M - 1);
     }
-    vec3 L = v3_add(I, v3_scale(E, 1.0 / M));
+    vec3 L = v3_add(I, M > 1 ? v3_scale(E, 1.0 / M) : E); /* (E x 1.0 is E: no division) */
     /* (a sample the film drops, not finite, is not learnt from either) */
     if (px && v3_finite(L)) {
         double i = mean3(I), e0 = mean3(E0);

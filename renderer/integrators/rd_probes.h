@@ -10,9 +10,7 @@
 /* One method's probes for one render. */
 typedef struct {
     int M;                  /* 0: "auto" (px), else M >= 1 chains on every sample (1: none) */
-    struct rd_probe_px *px; /* "auto": per pixel, what chooses M */
-    double lambda;          /* "auto": the image's variance over its cost per sample at the last
-                               epoch (0: none yet) */
+    struct rd_probe_px *px; /* "auto": per pixel, what chooses M, and the M chosen */
     double cell_cost;       /* the method's PDF segment in the counted cost (rd_select.h) */
 } rd_probes;
 
@@ -35,8 +33,24 @@ vec3 rd_probes_chain(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c
  * from the sample under "auto" (p's per-pixel statistics). */
 vec3 rd_probes_add(const rd_render_ctx *ctx, rd_probes *p, rd_thread *th, vec3 I, vec3 E0, double cost,
                    pcg32 *rng);
+/* One pixel's model under "auto" (probes.c's head): a sample with M - 1 probes,
+ * I + (E_0 + E_1 + ... + E_{M-1}) / M, has the variance
+ *   V(M) = vI + 2 cov / M + (v0 + (M - 1) vp) / M^2
+ * (v0, vp: the variances of the sample's own E_0 and of a probe's E, equal for a marcher, and
+ * for `delta` its pass-or-stop E_0 against the probes' transmittance estimate; cov the
+ * covariance of I and E_0, the probes being independent of both) at the cost c + (M - 1) cp. */
+typedef struct {
+    double vI, cov, v0, vp, c, cp;
+} rd_probes_model;
+/* Chains a sample takes at most under "auto" (M <= RD_PROBES_MAX) */
+#define RD_PROBES_MAX 32
+/* The M in [1, RD_PROBES_MAX] that minimises V(M) + lambda C(M), the first if several do (1 when
+ * lambda <= 0). Needs v0, vp >= 0 and cp >= 0, as every model from a pixel's samples has (its
+ * search stops early on a bound that holds only then). */
+int rd_probes_best_m(const rd_probes_model *m, double lambda);
 /* "auto"'s epochs, for the method's epoch hooks: the next after `sample` (INT_MAX: none), and
- * lambda from every pixel's samples so far (every rank's, through ctx->comm). */
+ * the epoch itself: lambda from every pixel's samples so far (every rank's, through ctx->comm),
+ * then each pixel's M, which its samples take until the next epoch. */
 int rd_probes_epoch_next(const rd_probes *p, int sample);
 void rd_probes_epoch(const rd_render_ctx *ctx, rd_probes *p);
 
