@@ -233,7 +233,7 @@ Test(guided_unbiased, wrong_and_empty_guides_keep_the_expectation, .timeout = 60
 Test(guided_unbiased, every_part_off_is_delta_bit_for_bit, .timeout = 120)
 {
     rd_scene *s = rt_scene("gu_off.json", scene_json(0.9, -2.5, ENV,
-                           ",\"distances\":false,\"directions\":false,\"roulette\":false,\"equiangular\":false"));
+                           ",\"distances\":false,\"directions\":false,\"roulette\":false,\"equiangular\":false,\"probes\":1"));
     cr_assert_eq(rd_method_needs_for("guided-unbiased", s), 0u, "nothing to bake with every part off");
     rd_render_result d = rt_render(s, "delta", 4, 41, NULL);
     rd_render_result g = rt_render(s, "guided-unbiased", 4, 41, NULL);

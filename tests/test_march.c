@@ -451,29 +451,44 @@ Test(march, a_directional_beam_s_equiangular_sample_keeps_every_method_s_image, 
     rd_scene_free(sd);
 }
 
-/* march.probes and settings.probes (delta's) are "auto" or a whole number of camera chains in
+/* march.probes, settings.probes (delta's) and guide.probes (guided-unbiased's) are "auto" or a
+ * whole number of camera chains in
  * [1, 256]; anything else is refused with one line naming the field (integrators/probes.c;
  * docs/scene-format.md). */
+/* The scene of scene_json_photons with `key`.probes = value (guide's in its own section,
+ * which that scene already has). */
+static const char *probes_json(const char *key, const char *value)
+{
+    static char buf[2300];
+    char extra[128];
+    if (strcmp(key, "guide") != 0) {
+        snprintf(extra, sizeof extra, "\"%s\":{\"probes\":%s}", key, value);
+        return scene_json_photons(extra, -2.5, 1000);
+    }
+    const char *base = scene_json_photons("\"settings\":{}", -2.5, 1000), *at = strstr(base, "\"guide\":{");
+    cr_assert(at != NULL, "the scene has no guide section");
+    size_t head = (size_t)(at - base) + strlen("\"guide\":{");
+    snprintf(buf, sizeof buf, "%.*s\"probes\":%s,%s", (int)head, base, value, base + head);
+    return buf;
+}
+
 Test(march, probes_setting_is_checked)
 {
-    static const char *const where[] = {"march", "settings"};
-    for (int w = 0; w < 2; w++) {
+    static const char *const where[] = {"march", "settings", "guide"};
+    for (int w = 0; w < 3; w++) {
         static const char *const good[] = {"\"auto\"", "1", "256"};
         for (size_t i = 0; i < sizeof good / sizeof good[0]; i++) {
-            char extra[128];
-            snprintf(extra, sizeof extra, "\"%s\":{\"probes\":%s}", where[w], good[i]);
-            rd_scene *s = rt_scene("probes_ok.json", scene_json_photons(extra, -2.5, 1000));
-            int got = w ? s->settings.probes : s->march.probes;
+            rd_scene *s = rt_scene("probes_ok.json", probes_json(where[w], good[i]));
+            int got = w == 2 ? s->guide.probes : w ? s->settings.probes : s->march.probes;
             cr_expect(got == (i == 0 ? 0 : atoi(good[i])), "%s.probes %s read as %d", where[w], good[i], got);
             rd_scene_free(s);
         }
         static const char *const bad[] = {"\"sometimes\"", "0", "257", "1.5", "true"};
         for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
-            char extra[128], path[256], err[RD_ERRLEN] = "", field[32];
-            snprintf(extra, sizeof extra, "\"%s\":{\"probes\":%s}", where[w], bad[i]);
+            char path[256], err[RD_ERRLEN] = "", field[32];
             snprintf(field, sizeof field, "%s.probes", where[w]);
             snprintf(path, sizeof path, "%s/probes_bad.json", rt_tmpdir());
-            const char *json = scene_json_photons(extra, -2.5, 1000);
+            const char *json = probes_json(where[w], bad[i]);
             rt_write_file(path, json, strlen(json));
             rd_scene *s = NULL;
             cr_expect(rd_scene_load(&s, path, NULL, 0, err, sizeof err) != RD_OK, "%s %s accepted", field, bad[i]);
@@ -481,8 +496,9 @@ Test(march, probes_setting_is_checked)
             rd_scene_free(s);
         }
     }
-    /* the defaults: "auto" for the marchers, 1 (none) for delta */
+    /* the defaults: "auto" for the marchers and guided-unbiased, 1 (none) for delta */
     rd_scene *s = rt_scene("probes_default.json", scene_json_photons("\"settings\":{}", -2.5, 1000));
-    cr_expect(s->march.probes == 0 && s->settings.probes == 1, "defaults %d and %d", s->march.probes, s->settings.probes);
+    cr_expect(s->march.probes == 0 && s->settings.probes == 1 && s->guide.probes == 0, "defaults %d, %d and %d",
+              s->march.probes, s->settings.probes, s->guide.probes);
     rd_scene_free(s);
 }

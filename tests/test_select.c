@@ -439,7 +439,7 @@ Test(select, the_pilot_puts_half_of_each_tile_s_pixels_in_each_half)
     rd_render_ctx ctx = {.scene = s, .method = rd_method_find("delta"), .threads = 2};
     rd_select sel;
     char err[RD_ERRLEN];
-    cr_assert(rd_select_prepare(&ctx, unit_method, 1.0, RD_EQ_OFF, &sel, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_select_prepare(&ctx, unit_method, NULL, 1.0, RD_EQ_OFF, &sel, err, sizeof err) == RD_OK, "%s", err);
     cr_assert(sel.n == 2 && sel.tiles_x == 4 && sel.tiles_y == 3);
     size_t mn = (size_t)sel.n * sel.tiles_x * sel.tiles_y;
     for (size_t i = 0; i < mn; i++)

@@ -538,8 +538,8 @@ Test(surface_images, diffuse_floor_under_a_point_light_matches_quadrature, .time
  * their area only, so whether a jittered camera chain ends on the light is the noisiest part
  * of their samples (integrators/probes.c). With nee+paths the marcher is unbiased, so
  * each probe setting must equal delta. `probes` is the scene's march.probes, `delta_probes`
- * its settings.probes (delta's). */
-static const char *t6_json(const char *probes, int shapes, const char *delta_probes)
+ * its settings.probes (delta's), `gu_probes` its guide.probes (guided-unbiased's). */
+static const char *t6_json_gu(const char *probes, int shapes, const char *delta_probes, const char *gu_probes)
 {
     static char buf[4096];
     char shp[1200] = "";
@@ -555,18 +555,24 @@ static const char *t6_json(const char *probes, int shapes, const char *delta_pro
              "\"density\":1,\"sigma_t\":0.25,\"albedo\":0.8,\"g\":0.3}],%s"
              "\"lights\":[{\"type\":\"sphere\",\"center\":[0.35,0.1,-1.5],\"radius\":0.1,\"radiance\":[100,90,80]}],"
              "\"photons\":{\"count\":10000},\"march\":{\"ls\":\"nee+paths\",\"probes\":%s},"
-             "\"settings\":{\"max_depth\":8,\"select\":\"off\",\"probes\":%s}}",
-             shp, probes, delta_probes);
+             "\"guide\":{\"probes\":%s},\"settings\":{\"max_depth\":8,\"select\":\"off\",\"probes\":%s}}",
+             shp, probes, gu_probes, delta_probes);
     return buf;
+}
+
+static const char *t6_json(const char *probes, int shapes, const char *delta_probes)
+{
+    return t6_json_gu(probes, shapes, delta_probes, "1");
 }
 
 /* Plain `delta` (4096 spp, seed `seed`) against `method` (spp a render) with each probe
  * setting, 8 and "auto", on the scenes above without and with the ball: march.probes for
- * `guided`, settings.probes for `delta`. The bounds are rt_expect_same's (5 and 4.5 standard
- * errors). */
+ * `guided`, settings.probes for `delta`, guide.probes for `guided-unbiased`. The bounds are
+ * rt_expect_same's (5 and 4.5 standard errors). */
 static void probes_against_plain_delta(const char *method, int spp, uint64_t seed)
 {
-    int on_delta = !strcmp(method, "delta");
+    int on_delta = !strcmp(method, "delta"), on_gu = !strcmp(method, "guided-unbiased");
+    const char *key = on_delta ? "settings" : on_gu ? "guide" : "march";
     for (int shapes = 0; shapes < 2; shapes++) {
         rd_scene *s = rt_scene("t6.json", t6_json("1", shapes, "1"));
         rd_render_result d = rt_render(s, "delta", 4096, seed + 10 * shapes, NULL);
@@ -574,11 +580,12 @@ static void probes_against_plain_delta(const char *method, int spp, uint64_t see
         rd_scene_free(s);
         const char *settings[] = {"8", "\"auto\""};
         for (int i = 0; i < 2; i++) {
-            s = rt_scene("t6p.json", t6_json(on_delta ? "1" : settings[i], shapes, on_delta ? settings[i] : "1"));
+            s = rt_scene("t6p.json", t6_json_gu(on_delta || on_gu ? "1" : settings[i], shapes, on_delta ? settings[i] : "1",
+                                                on_gu ? settings[i] : "1"));
             rd_render_result m = rt_render(s, method, spp, seed + 1 + 10 * shapes + i, NULL);
             char what[128];
-            snprintf(what, sizeof what, "%s with %s.probes %s vs delta without, %s", method,
-                     on_delta ? "settings" : "march", settings[i], shapes ? "through a glass ball" : "no shapes");
+            snprintf(what, sizeof what, "%s with %s.probes %s vs delta without, %s", method, key, settings[i],
+                     shapes ? "through a glass ball" : "no shapes");
             rt_expect_same(&d, &m, what);
             cr_expect(m.stats.probes > 0, "%s: no probe was taken", what);
             rd_render_result_free(&m);
@@ -597,6 +604,22 @@ Test(surface_images, probes_keep_the_marcher_equal_to_delta, .timeout = 600)
     probes_against_plain_delta("guided", 512, 601);
 }
 
+/* `method` on scene s with one thread (spp, seed) gives the image and the probe count `two`
+ * got with two: the choice of M is counted, not timed. */
+static void expect_one_thread_as_two(rd_scene *s, const char *method, int spp, uint64_t seed,
+                                     const rd_render_result *two)
+{
+    rd_render_opts o = {.method = method, .spp = spp, .seed = seed, .threads = 1};
+    rd_render_result one;
+    char err[RD_ERRLEN];
+    cr_assert(rd_render(s, &o, &one, err, sizeof err) == RD_OK, "%s", err);
+    cr_expect(one.stats.probes == two->stats.probes &&
+                  !memcmp(one.image.rgb, two->image.rgb, sizeof(float) * 3 * (size_t)two->image.w * two->image.h),
+              "%s: one thread and two differ (%llu and %llu probes)", method, (unsigned long long)one.stats.probes,
+              (unsigned long long)two->stats.probes);
+    rd_render_result_free(&one);
+}
+
 /* "auto" probes where the chain's end is noisy: the pixels that see the light through the
  * ball take more than their first samples' probes (2 samples x 1 each), which is all that a
  * pixel whose chains never end on a light takes. A scene whose chains can see no light (a spot,
@@ -609,25 +632,15 @@ Test(surface_images, auto_probes_where_the_light_is_seen, .timeout = 300)
     uint64_t first = 2 * 1 * (uint64_t)(m.image.w * m.image.h);
     cr_expect(m.stats.probes > first + 1000, "auto took %llu probes: no more than the first samples' %llu",
               (unsigned long long)m.stats.probes, (unsigned long long)first);
-    rd_render_opts o = {.method = "guided", .spp = 64, .seed = 621, .threads = 1};
-    rd_render_result one;
-    char err[RD_ERRLEN];
-    cr_assert(rd_render(s, &o, &one, err, sizeof err) == RD_OK, "%s", err);
-    cr_expect(one.stats.probes == m.stats.probes && !memcmp(one.image.rgb, m.image.rgb, sizeof(float) * 3 * (size_t)m.image.w * m.image.h),
-              "one thread and two differ (%llu and %llu probes)", (unsigned long long)one.stats.probes,
-              (unsigned long long)m.stats.probes);
-    release(&m, &one);
+    expect_one_thread_as_two(s, "guided", 64, 621, &m);
+    rd_render_result_free(&m);
     rd_scene_free(s);
     /* delta's probes alike (settings.probes "auto") */
     s = rt_scene("t6ad.json", t6_json("1", 1, "\"auto\""));
-    o = (rd_render_opts){.method = "delta", .spp = 64, .seed = 623, .threads = 1};
-    cr_assert(rd_render(s, &o, &one, err, sizeof err) == RD_OK, "%s", err);
     m = rt_render(s, "delta", 64, 623, NULL);
     cr_expect(m.stats.probes > first, "delta took %llu probes", (unsigned long long)m.stats.probes);
-    cr_expect(one.stats.probes == m.stats.probes && !memcmp(one.image.rgb, m.image.rgb, sizeof(float) * 3 * (size_t)m.image.w * m.image.h),
-              "delta: one thread and two differ (%llu and %llu probes)", (unsigned long long)one.stats.probes,
-              (unsigned long long)m.stats.probes);
-    release(&m, &one);
+    expect_one_thread_as_two(s, "delta", 64, 623, &m);
+    rd_render_result_free(&m);
     rd_scene_free(s);
     s = rt_scene("t6s.json",
                  "{\"camera\":{\"position\":[0,0,3],\"look_at\":[0,0,0],\"resolution\":[12,9]},"
@@ -647,6 +660,27 @@ Test(surface_images, auto_probes_where_the_light_is_seen, .timeout = 300)
 Test(surface_images, delta_probes_keep_delta_s_image, .timeout = 600)
 {
     probes_against_plain_delta("delta", 2048, 701);
+}
+
+/* `guided-unbiased` with guide.probes: its path less the camera chain's end (transport/path.c
+ * rd_path_radiance_split) and that end from M chains, against plain `delta`; and with the
+ * selection on, its delta tiles take the method's probes (rd_probes_delta through the
+ * selection's delta hook) and keep delta's image. */
+Test(surface_images, guided_unbiased_probes_keep_delta_s_image, .timeout = 600)
+{
+    probes_against_plain_delta("guided-unbiased", 1024, 711);
+    rd_scene *s = rt_scene("t10d.json", t6_json("1", 1, "1"));
+    rd_render_result d = rt_render(s, "delta", 2048, 721, NULL);
+    rd_scene_free(s);
+    s = rt_scene("t10g.json", t6_json_gu("1", 1, "1", "\"auto\""));
+    s->settings.select = RD_SELECT_TILES;
+    rd_render_result g = rt_render(s, "guided-unbiased", 512, 722, NULL);
+    rt_expect_same(&d, &g, "guided-unbiased with the selection and guide.probes \"auto\" vs delta, through a glass ball");
+    cr_expect(g.stats.probes > 0 && g.stats.delta_samples > 0, "%llu probes, %llu delta samples",
+              (unsigned long long)g.stats.probes, (unsigned long long)g.stats.delta_samples);
+    expect_one_thread_as_two(s, "guided-unbiased", 512, 722, &g);
+    release(&d, &g);
+    rd_scene_free(s);
 }
 
 /* The selection's pilot samples the method without probes under "auto" (it learns the method

@@ -39,15 +39,13 @@ typedef struct {
 /* The method-table entry: the path's random numbers are one keyed stream (rd_sampler_stream). */
 static vec3 delta_method_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
 {
-    pcg32 rng = rd_sampler_stream(smp);
     delta_state *ds = ctx->state;
-    if (!ds || !rd_probes_on(&ds->probes)) return rd_delta_radiance(ctx->scene, r, &rng, &th->counters);
-    /* settings.probes: the path less its camera chain's end, E, which the probes estimate again */
-    vec3 E;
-    rd_select_work w0 = rd_select_work_now(th);
-    vec3 I = rd_delta_radiance_split(ctx->scene, r, rd_eq_path_mode(ctx->scene->settings.equiangular), &rng,
-                                     &th->counters, &E);
-    return rd_probes_add(ctx, &ds->probes, th, I, E, rd_probes_cost(&ds->probes, &w0, th), &rng);
+    if (!ds) {
+        pcg32 rng = rd_sampler_stream(smp);
+        return rd_delta_radiance(ctx->scene, r, &rng, &th->counters);
+    }
+    /* settings.probes (probes.c; none: the plain path) */
+    return rd_probes_delta(ctx, &ds->probes, th, r, smp, rd_eq_path_mode(ctx->scene->settings.equiangular));
 }
 
 /* ---- settings.equiangular "tiles" ------------------------------------------------------------ */
@@ -93,7 +91,7 @@ static rd_status delta_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
             st = RD_ERR_NOMEM;
         } else {
             /* two estimators: the method's own mode off means no third (rd_select_prepare) */
-            st = rd_select_prepare(ctx, delta_every_flight, 0.0, RD_EQ_OFF, ds->sel, err, errlen);
+            st = rd_select_prepare(ctx, delta_every_flight, NULL, 0.0, RD_EQ_OFF, ds->sel, err, errlen);
         }
     }
     if (st != RD_OK) delta_release(ctx);

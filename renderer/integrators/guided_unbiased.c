@@ -44,6 +44,7 @@
 #include "integrators/rd_guide_pdf.h"
 #include "transport/rd_path.h"
 #include "integrators/rd_method.h"
+#include "integrators/rd_probes.h"
 #include "integrators/rd_select.h"
 #include "sh.h"
 
@@ -62,6 +63,8 @@ typedef struct {
      * on hard-dense-block (perf; docs/guided-unbiased.md "A copy of the guide with only the
      * bands it reads"). */
     sh_guide *fast, *fast_indirect;
+    rd_probes probes; /* guide.probes: more camera chains for the light at the camera chain's
+                         end (integrators/probes.c) */
 } gu_state;
 
 /* The guide the method reads (its truncated copy when there is one), and the indirect one. */
@@ -476,7 +479,8 @@ static vec3 gu_path(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler 
     gu_user u = {.ctx = ctx, .scratch = th->scratch};
     /* With directions and roulette off the vertex is `delta`'s (the loop's own roulette and
      * phase sampling); with every part off (guide.equiangular too, or the same as `delta`'s
-     * settings.equiangular) the method is `delta`, bit for bit. */
+     * settings.equiangular, and guide.probes 1) the method is
+     * `delta`, bit for bit. */
     const rd_guide_settings *gs = &ctx->scene->guide;
     /* The flights take `delta`'s equiangular strategy in guide.equiangular's mode, weighted by
      * their own density where they are guided (guided_density). */
@@ -486,10 +490,28 @@ static vec3 gu_path(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler 
                                   .user = &u,
                                   .equiangular = gs->equiangular};
     pcg32 rng = rd_sampler_stream(smp);
-    vec3 L = rd_path_radiance(ctx->scene, r, &fs, &rng, &th->counters);
+    gu_state *st = ctx->state;
+    if (!rd_probes_on(&st->probes)) {
+        vec3 L = rd_path_radiance(ctx->scene, r, &fs, &rng, &th->counters);
+        th->cells += u.segments;
+        th->guide_vertices += u.vertices;
+        return L;
+    }
+    /* guide.probes: the path less its camera chain's end, E, which the probes estimate again
+     * (as `delta`'s settings.probes: integrators/delta.c) */
+    rd_select_work w0 = rd_select_work_now(th);
+    vec3 E, I = rd_path_radiance_split(ctx->scene, r, &fs, &rng, &th->counters, &E);
     th->cells += u.segments;
     th->guide_vertices += u.vertices;
-    return L;
+    return rd_probes_add(ctx, &st->probes, th, I, E, rd_probes_cost(&st->probes, &w0, th), &rng);
+}
+
+/* delta's path on the selection's delta tiles, with the method's probes (guide.probes), so that
+ * a tile's choice weighs the two with the same probes. */
+static vec3 gu_delta(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp, int equiangular)
+{
+    gu_state *st = ctx->state;
+    return rd_probes_delta(ctx, &st->probes, th, r, smp, equiangular);
 }
 
 /* The guided path, or delta's where settings.select gave the pixel's tile to it (select.c). */
@@ -499,18 +521,20 @@ static vec3 gu_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_samp
     return rd_select_radiance(ctx, &st->sel, gu_path, th, r, smp);
 }
 
-/* The selection's epochs (select.c): the tiles chosen again from the image's samples. */
+/* The epochs: the selection's (select.c: the tiles chosen again from the image's samples) and
+ * guide.probes "auto"'s (probes.c), each on its own schedule. */
 static int gu_epoch_next(const rd_render_ctx *ctx, int sample)
 {
     const gu_state *st = ctx->state;
-    return rd_select_epoch_next(&st->sel, sample);
+    int a = rd_select_epoch_next(&st->sel, sample), b = rd_probes_epoch_next(&st->probes, sample);
+    return a < b ? a : b;
 }
 
 static void gu_epoch(rd_render_ctx *ctx, int sample)
 {
     gu_state *st = ctx->state;
-    (void)sample;
-    rd_select_epoch(&st->sel, ctx->comm);
+    if (rd_select_epoch_next(&st->sel, sample - 1) == sample) rd_select_epoch(&st->sel, ctx->comm);
+    if (rd_probes_epoch_next(&st->probes, sample - 1) == sample) rd_probes_epoch(ctx, &st->probes);
 }
 
 rd_flight rd_gu_flight(const rd_render_ctx *ctx, void *scratch, const rd_flight_in *in,
@@ -563,6 +587,10 @@ static int majorant_crossings(const rd_medium *m)
 
 static void gu_release(rd_render_ctx *ctx);
 
+/* The counted cost of one of its flights' pdf segments, in lookups (select.c, the fit): the
+ * selection's and the probes' */
+#define GU_CELL_COST 0.41
+
 static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
 {
     const rd_scene *s = ctx->scene;
@@ -613,10 +641,19 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
     st->cap_m = 1 + 2 * s->n_media;
     for (int i = 0; i < s->n_media; i++) st->cap_m += majorant_crossings(&s->media[i]) + 1;
     ctx->state = st;
+    /* guide.probes, with the selection's cell cost below; none with a ray-marched tracker or
+     * transmittance (the probes' estimate and the path's own must be unbiased alike, as
+     * settings.probes requires of `delta`) */
+    int raymarch = s->settings.tracker == RD_FP_RAYMARCH || s->settings.transmittance == RD_TR_RAYMARCH;
+    rd_status ps = rd_probes_init(&st->probes, s, raymarch ? 1 : g->probes, GU_CELL_COST, err, errlen);
+    if (ps != RD_OK) {
+        gu_release(ctx);
+        return ps;
+    }
     /* With a guide (else the method is delta's path already), the tiles where it pays. */
     if (s->settings.select != RD_SELECT_OFF && ctx->guide) {
-        /* 0.41 lookups: the time of one of its flights' pdf segments (select.c, the fit) */
-        rd_status rs = rd_select_prepare(ctx, gu_path, 0.41, s->guide.equiangular, &st->sel, err, errlen);
+        rd_status rs = rd_select_prepare(ctx, gu_path, gu_delta, GU_CELL_COST, s->guide.equiangular, &st->sel, err,
+                                         errlen);
         if (rs != RD_OK) {
             gu_release(ctx);
             return rs;
@@ -630,6 +667,7 @@ static void gu_release(rd_render_ctx *ctx)
     gu_state *st = ctx->state;
     if (st) {
         rd_select_free(&st->sel);
+        rd_probes_free(&st->probes);
         sh_guide_free(st->fast);
         sh_guide_free(st->fast_indirect);
     }

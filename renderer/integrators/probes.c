@@ -341,3 +341,15 @@ vec3 rd_probes_add(const rd_render_ctx *ctx, rd_probes *p, rd_thread *th, vec3 I
     }
     return L;
 }
+
+vec3 rd_probes_delta(const rd_render_ctx *ctx, rd_probes *p, rd_thread *th, ray3 r, rd_sampler *smp,
+                     int equiangular)
+{
+    pcg32 rng = rd_sampler_stream(smp);
+    if (!rd_probes_on(p)) return rd_delta_radiance_eq(ctx->scene, r, equiangular, &rng, &th->counters);
+    /* the path less its camera chain's end, E, which the probes estimate again */
+    vec3 E;
+    rd_select_work w0 = rd_select_work_now(th);
+    vec3 I = rd_delta_radiance_split(ctx->scene, r, equiangular, &rng, &th->counters, &E);
+    return rd_probes_add(ctx, p, th, I, E, rd_probes_cost(p, &w0, th), &rng);
+}

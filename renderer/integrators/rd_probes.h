@@ -48,6 +48,12 @@ typedef struct {
  * lambda <= 0). Needs v0, vp >= 0 and cp >= 0, as every model from a pixel's samples has (its
  * search stops early on a bound that holds only then). */
 int rd_probes_best_m(const rd_probes_model *m, double lambda);
+/* delta's path along camera ray r, its flights in equiangular mode `equiangular`, with p's
+ * probes (rd_probes_add; without probes rd_delta_radiance_eq's sample, bit for bit): `delta`'s
+ * own sample under settings.probes, and the guided methods' delta tiles under theirs
+ * (rd_select_delta_fn). */
+vec3 rd_probes_delta(const rd_render_ctx *ctx, rd_probes *p, rd_thread *th, ray3 r, rd_sampler *smp,
+                     int equiangular);
 /* "auto"'s epochs, for the method's epoch hooks: the next after `sample` (INT_MAX: none), and
  * the epoch itself: lambda from every pixel's samples so far (every rank's, through ctx->comm),
  * then each pixel's M, which its samples take until the next epoch. */

@@ -39,6 +39,12 @@ typedef struct {
 } rd_select_pixel;
 #define RD_SELECT_PIXEL_DOUBLES 9
 
+/* delta's path along camera ray r with its flights in equiangular mode `equiangular`
+ * (RD_EQ_*), as a method gives it to its delta tiles: with the method's probes (rd_probes.h),
+ * so that a tile's choice weighs the method and delta with the same probes. */
+typedef vec3 (*rd_select_delta_fn)(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp,
+                                   int equiangular);
+
 typedef struct {
     uint8_t *choice;         /* per tile, the estimator that renders it (RD_SEL_*);
                                 NULL: the method everywhere (selection off, or not run) */
@@ -57,6 +63,8 @@ typedef struct {
                                 and estimator e, [n (tiles h + k) + e], tiles = tiles_x
                                 tiles_y: a tile's samples are the sum of its two halves' */
     rd_select_pixel *pixels; /* per pixel, the current epoch's samples */
+    rd_select_delta_fn delta; /* delta's path as the method gives it (with its probes), NULL:
+                                 rd_delta_radiance_eq (rd_select_prepare) */
 } rd_select;
 
 /* The estimator (RD_SEL_*) the selection gives pixel (x, y): its tile's choice, or on a tile on
@@ -81,6 +89,7 @@ double rd_select_work_cost(const rd_select_work *c0, const rd_thread *th, double
  * where the selection gives it the pixel). */
 typedef vec3 (*rd_select_fn)(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp);
 
+
 /* An empty selection among `estimators` (2 or 3) for a width x height image (no tile's
  * statistics yet, every tile to delta). */
 rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost, int estimators,
@@ -92,10 +101,11 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
  * light or a directional beam to sample); keeps the choices
  * that give the image the least error at equal time. The cost is counted work (select.c):
  * `cell_cost` is what one of the method's PDF segments (rd_thread.cells) costs, in density
- * lookups, fitted on the calibration scenes. Call at the end of the method's prepare
+ * lookups, fitted on the calibration scenes. delta's path is `delta` where the method gives
+ * one (its probes), else rd_delta_radiance_eq. Call at the end of the method's prepare
  * (ctx->state set: the pilot renders with the method's scratch, ctx->method->scratch_bytes). */
-rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, double cell_cost,
-                            int equiangular, rd_select *sel, char *err, size_t errlen);
+rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_select_delta_fn delta,
+                            double cell_cost, int equiangular, rd_select *sel, char *err, size_t errlen);
 void rd_select_free(rd_select *sel);
 /* The camera sample of `th->pixel`: `method` where the selection gives it the pixel's tile,
  * else delta's path in the estimator's equiangular mode (counted in th->delta_samples, and

@@ -270,12 +270,13 @@ static double sample_cost(const rd_select *sel, const rd_thread *th, rd_select_w
 }
 
 /* Camera sample `smp` of ray r with estimator e (RD_SEL_*). */
-static vec3 estimate(const rd_render_ctx *ctx, rd_thread *th, int e, rd_select_fn method,
-                     ray3 r, rd_sampler *smp)
+static vec3 estimate(const rd_render_ctx *ctx, const rd_select *sel, rd_thread *th, int e,
+                     rd_select_fn method, ray3 r, rd_sampler *smp)
 {
     if (e == RD_SEL_METHOD) return method(ctx, th, r, smp);
-    pcg32 rng = rd_sampler_stream(smp);
     int mode = e == RD_SEL_DELTA_EQ ? RD_EQ_ALL : rd_eq_path_mode(ctx->scene->settings.equiangular);
+    if (sel->delta) return sel->delta(ctx, th, r, smp, mode); /* the method's (its probes) */
+    pcg32 rng = rd_sampler_stream(smp);
     return rd_delta_radiance_eq(ctx->scene, r, mode, &rng, &th->counters);
 }
 
@@ -295,7 +296,7 @@ static void pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, const rd_select
         rd_select_work c0 = rd_select_work_now(th);
         th->pixel = pix;
         th->pilot = 1; /* (not an image sample: march.probes "auto" learns from those only) */
-        vec3 L = estimate(ctx, th, e, method, r, &smp);
+        vec3 L = estimate(ctx, sel, th, e, method, r, &smp);
         th->pilot = 0;
         if (v3_finite(L)) pixel_add(&px, L, sample_cost(sel, th, c0));
     }
@@ -512,8 +513,8 @@ static void choose_tiles(rd_select *sel)
     free(all), free(buf), free(want);
 }
 
-rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, double cell_cost,
-                            int equiangular, rd_select *sel, char *err, size_t errlen)
+rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_select_delta_fn delta,
+                            double cell_cost, int equiangular, rd_select *sel, char *err, size_t errlen)
 {
     const rd_scene *s = ctx->scene;
     const rd_camera *cam = &s->camera;
@@ -521,6 +522,7 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, doubl
     int third = equiangular != RD_EQ_OFF && s->settings.equiangular != RD_EQ_ALL && rd_eq_has_lights(s, 1);
     rd_status st = rd_select_init(sel, cam->width, cam->height, cell_cost, third ? 3 : 2, err, errlen);
     if (st != RD_OK) return st;
+    sel->delta = delta;
     sel->epochs = ctx->scene->settings.select != RD_SELECT_PILOT;
     int n = sel->tiles_x * sel->tiles_y;
     int threads = ctx->threads > 0 ? ctx->threads : 1;
@@ -621,7 +623,7 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
     rd_select_work c0 = rd_select_work_now(th);
     th->delta_samples += use != RD_SEL_METHOD;
     th->delta_eq_samples += use == RD_SEL_DELTA_EQ;
-    vec3 L = estimate(ctx, th, use, method, r, smp);
+    vec3 L = estimate(ctx, sel, th, use, method, r, smp);
     if (v3_finite(L)) rd_select_observe(sel, th->pixel, L, sample_cost(sel, th, c0));
     return L;
 }

@@ -216,13 +216,14 @@ rd_status ld_parse_guide(ld_ctx *c, const cJSON *j, rd_guide_settings *g)
     g->eval_bands = 2; /* calibrated on the six calibration scenes and beam-vdb (docs/guided-unbiased.md) */
     g->photon_share = 0.25; /* the same seven scenes (docs/guided-unbiased.md) */
     g->equiangular = RD_EQ_AUTO; /* docs/guided-unbiased.md, "The equiangular strategy" */
+    g->probes = 0; /* "auto": docs/guided-unbiased.md, "Probes" */
     if (!j) return RD_OK;
     const char *path = "guide";
     LD_TRY(ld_need_object(c, j, path));
     static const char *const keys[] = {"grid", "bake", "bands", "k", "lambda", "resolution", "min_cell", "max_depth", "window",
                                        "distances", "distance_alpha", "pass_floor", "majorant_weight", "secondary",
                                        "directions", "direction_weight", "roulette", "split_max", "distance_tau_max",
-                                       "eval_bands", "photon_share", "equiangular", NULL};
+                                       "eval_bands", "photon_share", "equiangular", "probes", NULL};
     LD_TRY(ld_check_keys(c, j, path, keys));
     static const char *const grids[] = {"uniform", "adaptive", NULL};
     static const char *const bakes[] = {"knn", "track", NULL};
@@ -259,6 +260,7 @@ rd_status ld_parse_guide(ld_ctx *c, const cJSON *j, rd_guide_settings *g)
     g->eval_bands = (int)v;
     LD_TRY(ld_get_num(c, j, path, "photon_share", 0, 0.25, 0, 1, 1, 0, &g->photon_share));
     LD_TRY(parse_equiangular(c, j, path, 1, 0, &g->equiangular));
+    LD_TRY(parse_probes(c, j, path, &g->probes));
     const cJSON *res = cJSON_GetObjectItemCaseSensitive(j, "resolution");
     if (res) {
         if (!cJSON_IsArray(res) || cJSON_GetArraySize(res) != 3)

@@ -52,7 +52,7 @@ static char *report_json(const rd_scene *s, const rd_render_opts *o, const rd_re
     cJSON_AddNumberToObject(j, "lookups_per_path", st->lookups / paths);
     cJSON_AddNumberToObject(j, "paths_per_second", st->seconds > 0 ? st->paths / st->seconds : 0.0);
     cJSON_AddNumberToObject(j, "invalid_samples", (double)st->invalid);
-    if (st->probes) /* march.probes, settings.probes: probe chains a camera sample took */
+    if (st->probes) /* march.probes, settings.probes, guide.probes: probe chains a camera sample took */
         cJSON_AddNumberToObject(j, "probes_per_sample", (double)st->probes / (double)(st->paths ? st->paths : 1));
     if (st->photon_passes > 0) {
         /* Progressive photon passes (docs/guided-marching.md "Progressive photon passes"). */

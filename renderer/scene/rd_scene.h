@@ -123,6 +123,8 @@ typedef struct {
     int equiangular;     /* rd_equiangular_mode of guided-unbiased's flights (`delta`'s strategy,
                           * its MIS weights taken with a guided flight's own density;
                           * transport/equiangular.c) */
+    int probes;          /* guide.probes: guided-unbiased's probes, 0 "auto" or M in [1, 256]
+                          * (integrators/probes.c) */
 } rd_guide_settings;
 
 /* Ray-marching settings of the guided methods (scene key "march", docs/scene-format.md). */

@@ -378,14 +378,20 @@ vec3 rd_delta_radiance_eq(const rd_scene *s, ray3 r, int equiangular, pcg32 *rng
     return rd_path_radiance(s, r, &fs, rng, c);
 }
 
+vec3 rd_path_radiance_split(const rd_scene *s, ray3 r, const rd_flight_sampler *fs, pcg32 *rng,
+                            rd_track_counters *c, vec3 *E)
+{
+    int budget = RD_SPLIT_BUDGET;
+    *E = v3(0, 0, 0);
+    return trace(s, r, rd_scene_camera_region(s, r), 0.0, 0, 1, 0, fs, rng, c, &budget, v3(1, 1, 1), 0, E);
+}
+
 vec3 rd_delta_radiance_split(const rd_scene *s, ray3 r, int equiangular, pcg32 *rng, rd_track_counters *c,
                              vec3 *E)
 {
     const rd_flight_sampler fs = {.sample = delta_flight, .vertex = NULL, .user = NULL,
                                   .equiangular = equiangular};
-    int budget = RD_SPLIT_BUDGET;
-    *E = v3(0, 0, 0);
-    return trace(s, r, rd_scene_camera_region(s, r), 0.0, 0, 1, 0, &fs, rng, c, &budget, v3(1, 1, 1), 0, E);
+    return rd_path_radiance_split(s, r, &fs, rng, c, E);
 }
 
 vec3 rd_delta_radiance(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c)

@@ -115,6 +115,11 @@ typedef struct rd_flight_sampler {
  * connection to the scene's directional beam at every scattering vertex (beam_connect.c). */
 vec3 rd_path_radiance(const rd_scene *s, ray3 r, const rd_flight_sampler *fs, pcg32 *rng,
                       rd_track_counters *c);
+/* The same path less the light its camera chain sees at its end, which goes to *E (a sphere
+ * light, the environment, the background through the chain's media and glass; 0 where there is
+ * none): returns I, and I + *E is rd_path_radiance's estimate (integrators/probes.c). */
+vec3 rd_path_radiance_split(const rd_scene *s, ray3 r, const rd_flight_sampler *fs, pcg32 *rng,
+                            rd_track_counters *c, vec3 *E);
 /* One scattering event at surface hit h (not an interface) of a path arriving along st->r.d
  * with throughput st->beta in region st->region, at scattering event `depth` (for the
  * roulette): next-event estimation at a diffuse surface (into st->L, throughput included),
