@@ -4,7 +4,8 @@
  *    scenes (g = 0.9 and g = -0.5; spot, environment, sphere and directional lights), with the
  *    scene's own guide, with a guide baked with the light elsewhere, and with an empty guide
  *    (no photon reached the medium);
- *  - every part off (distances, directions, roulette, equiangular) makes it `delta`, bit for bit;
+ *  - every part off (distances, directions, roulette, equiangular, probes) makes it `delta`, bit
+ *    for bit;
  *  - the free flight as the tracer draws it (scatter or pass, then the distance) passes a
  *    chi-square test against P_s and the guide pdf;
  *  - a white furnace (albedo 1, environment of radiance 1) gives 1;

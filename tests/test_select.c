@@ -449,6 +449,66 @@ Test(select, the_pilot_puts_half_of_each_tile_s_pixels_in_each_half)
     rd_scene_free(s);
 }
 
+/* What a delta hook saw (through ctx->state): calls per equiangular mode, pilot or not. */
+typedef struct {
+    long calls[2][RD_EQ_TILES + 1]; /* [th->pilot][mode] */
+} hook_log;
+
+/* A method's delta hook that records its call and returns 3 (the stand-in method returns 1). */
+static vec3 recording_hook(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp, int equiangular)
+{
+    (void)r, (void)smp;
+    hook_log *log = ctx->state;
+    if (equiangular >= 0 && equiangular <= RD_EQ_TILES) log->calls[th->pilot ? 1 : 0][equiangular]++;
+    return v3(3, 3, 3);
+}
+
+/* rd_select_prepare's delta hook (a method's own delta path, with its probes: guided-unbiased's
+ * guide.probes) renders both delta estimators, in the pilot and in the image: plain delta in
+ * its path mode (settings.equiangular false: RD_EQ_OFF) and the third, delta with the strategy
+ * on every flight, in RD_EQ_ALL; and never the method's own tiles. A selection without the
+ * hook never calls it. One thread: the log is not shared. */
+Test(select, the_delta_hook_renders_both_delta_estimators)
+{
+    rd_scene *s = rt_scene("selhook.json", select_scene("{\"select\":\"tiles\"}"));
+    hook_log log = {0};
+    rd_render_ctx ctx = {.scene = s, .method = rd_method_find("delta"), .threads = 1, .state = &log};
+    rd_select sel;
+    char err[RD_ERRLEN];
+    cr_assert(rd_select_prepare(&ctx, unit_method, recording_hook, 1.0, RD_EQ_ALL, &sel, err, sizeof err) == RD_OK, "%s",
+              err);
+    cr_assert(sel.n == 3, "a spot light and the method's own mode on: three estimators, got %d", sel.n);
+    /* the pilot: 16 pixels a tile x 8 samples, each delta estimator, 12 tiles */
+    cr_expect(log.calls[1][RD_EQ_OFF] == 12 * 16 * 8 && log.calls[1][RD_EQ_ALL] == 12 * 16 * 8,
+              "pilot: %ld plain and %ld every-flight calls (1536 each)", log.calls[1][RD_EQ_OFF], log.calls[1][RD_EQ_ALL]);
+    /* the image: every pixel once; the hook where a delta estimator has it, its value returned */
+    rd_thread th = {0};
+    long delta_px = 0, eq_px = 0;
+    for (int y = 0; y < 24; y++)
+        for (int x = 0; x < 32; x++) {
+            th.pixel = (uint64_t)y * 32 + x;
+            rd_sampler smp = rd_sampler_start(th.pixel, 0, 7);
+            vec3 L = rd_select_radiance(&ctx, &sel, unit_method, &th, (ray3){v3(0, 0, 3), v3(0, 0, -1)}, &smp);
+            int use = rd_select_uses(&sel, x, y);
+            delta_px += use == RD_SEL_DELTA, eq_px += use == RD_SEL_DELTA_EQ;
+            cr_expect(L.x == (use == RD_SEL_METHOD ? 1.0 : 3.0), "pixel (%d, %d), estimator %d: %g", x, y, use, L.x);
+        }
+    cr_expect(log.calls[0][RD_EQ_OFF] == delta_px && log.calls[0][RD_EQ_ALL] == eq_px,
+              "image: %ld and %ld calls for %ld and %ld pixels", log.calls[0][RD_EQ_OFF], log.calls[0][RD_EQ_ALL],
+              delta_px, eq_px);
+    rd_select_free(&sel);
+    /* without the hook: never called */
+    hook_log none = {0};
+    ctx.state = &none;
+    cr_assert(rd_select_prepare(&ctx, unit_method, NULL, 1.0, RD_EQ_ALL, &sel, err, sizeof err) == RD_OK, "%s", err);
+    long total = 0;
+    for (int p = 0; p < 2; p++)
+        for (int m = 0; m <= RD_EQ_TILES; m++) total += none.calls[p][m];
+    cr_expect(total == 0, "a selection without the hook called it %ld times", total);
+    rd_select_free(&sel);
+    rd_scene_free(s);
+}
+
 Test(select, a_tile_of_2x2_pixels_at_the_edge_takes_the_choice_of_its_one_half)
 {
     /* 26x26 pixels: the last row and column of tiles are 2 pixels wide, and the corner tile

@@ -1,9 +1,11 @@
 /* probes.c: more camera chains for the light a camera sample sees at the end of its camera
- * chain (march.probes for the marchers, settings.probes for `delta`; docs/guided-marching.md
- * "Probes").
+ * chain (march.probes for the marchers, settings.probes for `delta`, guide.probes for
+ * `guided-unbiased` and its delta tiles; docs/guided-marching.md "Probes",
+ * docs/guided-unbiased.md "Probes").
  *
- * A camera sample of a marcher (march.c, rd_march_radiance) or of `delta`
- * (transport/path.c, rd_delta_radiance_split) is the sum of two parts:
+ * A camera sample of a marcher (march.c, rd_march_radiance), of `delta` (transport/path.c,
+ * rd_delta_radiance_split) or of `guided-unbiased` (rd_path_radiance_split) is the sum of two
+ * parts:
  *
  *   L = I + E,   I = everything the camera chain's media and surfaces scatter toward the
  *                    camera: the marched in-scattering, or delta's paths from its collisions,
@@ -240,8 +242,8 @@ int rd_probes_epoch_next(const rd_probes *p, int sample)
 
 /* lambda is V / C_img at the M_p it chooses (the head): from the pixels' models, starting at
  * M_p = 1, lambda <- V(M(lambda)) / C(M(lambda)) until it settles (each round's map is
- * increasing in lambda, so the rounds move one way). Pixels without a model (not rendered by
- * this method yet: a guided method's delta tiles) are left out. With several ranks the models
+ * increasing in lambda, so the rounds move one way). Pixels without a model (not rendered with
+ * these probes yet: `guided`'s delta tiles, which take none) are left out. With several ranks the models
  * of every pixel are summed into one array first (each pixel is one rank's; the others add
  * exact zeros) and every rank runs the same rounds over it in pixel order, so lambda, and the
  * image, are those of one process. */

@@ -1,6 +1,6 @@
 /* rd_probes.h: more camera chains for the light a camera sample sees at the end of its camera
- * chain: march.probes for the marchers, settings.probes for `delta` (integrators/probes.c says
- * how and why). Internal to integrators/ (tests include it). */
+ * chain: march.probes for the marchers, settings.probes for `delta`, guide.probes for
+ * `guided-unbiased` (integrators/probes.c says how and why). Internal to integrators/ (tests include it). */
 #ifndef RD_PROBES_H
 #define RD_PROBES_H
 
