@@ -479,8 +479,7 @@ static vec3 gu_path(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler 
     gu_user u = {.ctx = ctx, .scratch = th->scratch};
     /* With directions and roulette off the vertex is `delta`'s (the loop's own roulette and
      * phase sampling); with every part off (guide.equiangular too, or the same as `delta`'s
-     * settings.equiangular, and guide.probes 1) the method is
-     * `delta`, bit for bit. */
+     * settings.equiangular, and guide.probes 1) the method is `delta`, bit for bit. */
     const rd_guide_settings *gs = &ctx->scene->guide;
     /* The flights take `delta`'s equiangular strategy in guide.equiangular's mode, weighted by
      * their own density where they are guided (guided_density). */

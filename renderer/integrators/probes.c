@@ -237,16 +237,28 @@ int rd_probes_epoch_next(const rd_probes *p, int sample)
 
 /* Fixed-point rounds for lambda at an epoch. */
 #define PROBE_ROUNDS 16
-/* The doubles of one pixel's model as ranks exchange them: a flag, then rd_probes_model's fields. */
+/* The doubles of one pixel's model as ranks exchange them: a flag, then rd_probes_model's
+ * fields. */
 #define PROBE_MODEL_DOUBLES 7
+
+/* Pixel i's model at an epoch: from the ranks' summed array `all` when there is one, else from
+ * its own statistics. Returns 0 where it has none. */
+static int epoch_model(const rd_probes *p, const double *all, size_t i, rd_probes_model *m)
+{
+    if (!all) return model_of(&p->px[i], m);
+    const double *a = all + i * PROBE_MODEL_DOUBLES;
+    if (!(a[0] > 0.0)) return 0;
+    *m = (rd_probes_model){a[1], a[2], a[3], a[4], a[5], a[6]};
+    return 1;
+}
 
 /* lambda is V / C_img at the M_p it chooses (the head): from the pixels' models, starting at
  * M_p = 1, lambda <- V(M(lambda)) / C(M(lambda)) until it settles (each round's map is
  * increasing in lambda, so the rounds move one way). Pixels without a model (not rendered with
- * these probes yet: `guided`'s delta tiles, which take none) are left out. With several ranks the models
- * of every pixel are summed into one array first (each pixel is one rank's; the others add
- * exact zeros) and every rank runs the same rounds over it in pixel order, so lambda, and the
- * image, are those of one process. */
+ * these probes yet: `guided`'s delta tiles, which take none) are left out. With several ranks
+ * the models of every pixel are summed into one array first (each pixel is one rank's; the
+ * others add exact zeros) and every rank runs the same rounds over it in pixel order, so
+ * lambda, and the image, are those of one process. */
 void rd_probes_epoch(const rd_render_ctx *ctx, rd_probes *p)
 {
     if (!p->px) return;
@@ -272,11 +284,7 @@ void rd_probes_epoch(const rd_render_ctx *ctx, rd_probes *p)
         double V = 0.0, C = 0.0;
         for (size_t i = 0; i < n; i++) {
             rd_probes_model m;
-            if (all) {
-                const double *a = all + i * PROBE_MODEL_DOUBLES;
-                if (!(a[0] > 0.0)) continue;
-                m = (rd_probes_model){a[1], a[2], a[3], a[4], a[5], a[6]};
-            } else if (!model_of(&p->px[i], &m)) continue;
+            if (!epoch_model(p, all, i, &m)) continue;
             int M = round == 0 ? 1 : rd_probes_best_m(&m, lambda);
             V += model_V(&m, M);
             C += model_C(&m, M);
@@ -291,13 +299,7 @@ void rd_probes_epoch(const rd_render_ctx *ctx, rd_probes *p)
      * almost no pixel takes probes: docs/guided-marching.md "The search's cost"). */
     for (size_t i = 0; i < n; i++) {
         rd_probes_model m;
-        int has;
-        if (all) {
-            const double *a = all + i * PROBE_MODEL_DOUBLES;
-            has = a[0] > 0.0;
-            if (has) m = (rd_probes_model){a[1], a[2], a[3], a[4], a[5], a[6]};
-        } else has = model_of(&p->px[i], &m);
-        p->px[i].M = has ? rd_probes_best_m(&m, lambda) : 1;
+        p->px[i].M = epoch_model(p, all, i, &m) ? rd_probes_best_m(&m, lambda) : 1;
     }
     free(all);
 }

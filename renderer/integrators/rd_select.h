@@ -89,7 +89,6 @@ double rd_select_work_cost(const rd_select_work *c0, const rd_thread *th, double
  * where the selection gives it the pixel). */
 typedef vec3 (*rd_select_fn)(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp);
 
-
 /* An empty selection among `estimators` (2 or 3) for a width x height image (no tile's
  * statistics yet, every tile to delta). */
 rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost, int estimators,
