@@ -5,6 +5,8 @@
  * the sanitizer run included, while tests/test_mpi.c tests the command line under mpirun.
  *  - three ranks give rank 0 one process's image and standard error bit for bit (guided with the
  *    tile selection, whose epochs need the ranks' sums);
+ *  - "auto" probes (delta, guided, guided-unbiased), whose epochs choose M from the whole
+ *    image's models, give rank 0 one process's image bit for bit;
  *  - a cancel flag set on one rank stops every rank at the next agreement (none waits);
  *  - rd_bake on three ranks (each traces a range of the photon blocks, gathered in block order)
  *    gives every rank one process's photons, segments, indirect photons, power sums and guides
@@ -191,6 +193,52 @@ Test(ranks, three_ranks_give_rank_0_one_process_s_image_bit_for_bit, .timeout = 
     for (int k = 0; k < 3; k++) rd_render_result_free(&ranks[k].res);
     rd_render_result_free(&one);
     rd_baked_free(b);
+    rd_scene_free(s);
+}
+
+/* "auto" probes (settings.probes for delta, march.probes for guided, guide.probes for
+ * guided-unbiased; integrators/probes.c): at every epoch each pixel's M is chosen from its
+ * model and from one rate, lambda, a fixed point over the whole image, so each rank needs
+ * every other rank's pixels (the models are summed over the ranks first). Three ranks give
+ * rank 0 one process's image, standard error and probe count bit for bit, past the epochs at
+ * 4 and 16, on a small sphere light seen through haze (test_surface_images.c's scene 6 without
+ * the glass ball), where the chains that end on the light's edge are the noisy part. The
+ * probes must go past the first samples' (2 a pixel, one each), or the epochs chose nothing. */
+Test(ranks, auto_probes_on_three_ranks_give_rank_0_one_process_s_image, .timeout = 600)
+{
+    rd_scene *s = rt_scene("ranksq.json",
+        "{\"camera\":{\"position\":[0.1,0.05,3],\"look_at\":[0,0,0],\"fov\":24,\"resolution\":[48,36]},"
+        "\"media\":[{\"bounds\":{\"min\":[-1.5,-1.2,-2.2],\"max\":[1.5,1.2,3.5]},"
+        "\"density\":1,\"sigma_t\":0.25,\"albedo\":0.8,\"g\":0.3}],"
+        "\"lights\":[{\"type\":\"sphere\",\"center\":[0.35,0.1,-1.5],\"radius\":0.1,\"radiance\":[100,90,80]}],"
+        "\"photons\":{\"count\":10000},\"march\":{\"probes\":\"auto\"},\"guide\":{\"probes\":\"auto\"},"
+        "\"settings\":{\"max_depth\":8,\"probes\":\"auto\"}}");
+    static const char *const methods[] = {"delta", "guided", "guided-unbiased"};
+    for (int i = 0; i < 3; i++) {
+        rd_render_opts o = {.method = methods[i], .spp = 20, .seed = 9, .threads = 1};
+        rd_render_result one;
+        char err[RD_ERRLEN];
+        cr_assert(rd_render(s, &o, &one, err, sizeof err) == RD_OK, "%s: %s", methods[i], err);
+        uint64_t first = 2 * (uint64_t)one.image.w * one.image.h;
+        cr_log_info("%s: %llu probes (the first samples' %llu)", methods[i], (unsigned long long)one.stats.probes,
+                    (unsigned long long)first);
+        cr_expect(one.stats.probes > first, "%s: %llu probes, no more than the first samples' %llu", methods[i],
+                  (unsigned long long)one.stats.probes, (unsigned long long)first);
+        fake_rank ranks[3];
+        render_on_ranks(s, &o, 3, ranks);
+        const rd_render_result *r0 = &ranks[0].res;
+        size_t n = (size_t)one.image.w * one.image.h * 3;
+        cr_expect(memcmp(one.image.rgb, r0->image.rgb, n * sizeof(float)) == 0, "%s: rank 0's image is not one process's",
+                  methods[i]);
+        cr_expect(memcmp(one.stderr_img.rgb, r0->stderr_img.rgb, n * sizeof(float)) == 0,
+                  "%s: rank 0's standard error is not one process's", methods[i]);
+        cr_expect(one.stats.probes == r0->stats.probes && one.stats.paths == r0->stats.paths,
+                  "%s: probes %llu / %llu, paths %llu / %llu", methods[i], (unsigned long long)one.stats.probes,
+                  (unsigned long long)r0->stats.probes, (unsigned long long)one.stats.paths,
+                  (unsigned long long)r0->stats.paths);
+        for (int k = 0; k < 3; k++) rd_render_result_free(&ranks[k].res);
+        rd_render_result_free(&one);
+    }
     rd_scene_free(s);
 }
 
