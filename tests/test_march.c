@@ -496,6 +496,27 @@ Test(march, probes_setting_is_checked)
             rd_scene_free(s);
         }
     }
+    /* With a "raymarch" transmittance a number of guided-unbiased's probes is refused, as
+     * settings.probes is (the probes and the path must be unbiased alike); "auto" takes none. */
+    static const char *const gp[] = {"8", "\"auto\""};
+    for (int i = 0; i < 2; i++) {
+        char path[256], err[RD_ERRLEN] = "", json[2300];
+        const char *base = scene_json_photons("\"settings\":{\"transmittance\":\"raymarch\"}", -2.5, 1000);
+        const char *at = strstr(base, "\"guide\":{");
+        cr_assert(at != NULL);
+        size_t head = (size_t)(at - base) + strlen("\"guide\":{");
+        snprintf(json, sizeof json, "%.*s\"probes\":%s,%s", (int)head, base, gp[i], base + head);
+        snprintf(path, sizeof path, "%s/probes_rm.json", rt_tmpdir());
+        rt_write_file(path, json, strlen(json));
+        rd_scene *s = NULL;
+        rd_status st = rd_scene_load(&s, path, NULL, 0, err, sizeof err);
+        if (i == 0)
+            cr_expect(st != RD_OK && strstr(err, "guide.probes") && strstr(err, "raymarch"),
+                      "guide.probes 8 with raymarch: status %d, \"%s\"", st, err);
+        else
+            cr_expect(st == RD_OK, "guide.probes \"auto\" with raymarch refused: %s", err);
+        rd_scene_free(s);
+    }
     /* the defaults: "auto" for the marchers and guided-unbiased, 1 (none) for delta */
     rd_scene *s = rt_scene("probes_default.json", scene_json_photons("\"settings\":{}", -2.5, 1000));
     cr_expect(s->march.probes == 0 && s->settings.probes == 1 && s->guide.probes == 0, "defaults %d, %d and %d",

@@ -642,7 +642,8 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
     ctx->state = st;
     /* guide.probes, with the selection's cell cost below; none with a ray-marched tracker or
      * transmittance (the probes' estimate and the path's own must be unbiased alike, as
-     * settings.probes requires of `delta`) */
+     * settings.probes requires of `delta`): "auto" takes none there, and a number is refused
+     * when the scene is loaded (load/load.c) */
     int raymarch = s->settings.tracker == RD_FP_RAYMARCH || s->settings.transmittance == RD_TR_RAYMARCH;
     rd_status ps = rd_probes_init(&st->probes, s, raymarch ? 1 : g->probes, GU_CELL_COST, err, errlen);
     if (ps != RD_OK) {

@@ -241,6 +241,10 @@ static rd_status validate(ld_ctx *c, const cJSON *root, rd_scene *s)
     LD_TRY(ld_parse_photons(c, cJSON_GetObjectItemCaseSensitive(root, "photons"), &s->photons));
     LD_TRY(ld_parse_guide(c, cJSON_GetObjectItemCaseSensitive(root, "guide"), &s->guide));
     LD_TRY(ld_parse_march(c, cJSON_GetObjectItemCaseSensitive(root, "march"), &s->march));
+    /* guide.probes as settings.probes: a number of probes needs guided-unbiased's path to pass
+     * or stop without bias, as the probes' transmittance does; "auto" (0) there takes none. */
+    if (s->guide.probes > 1 && (s->settings.tracker == RD_FP_RAYMARCH || s->settings.transmittance == RD_TR_RAYMARCH))
+        return ld_fail(c, "guide.probes", "needs an unbiased tracker and transmittance, not \"raymarch\"");
     if (s->guide.track && !s->photons.segments)
         s->photons.segments = 1; /* the track-length bake needs the segments */
     /* Every key is read: now the media's majorant structures (for a noise medium the loader's
