@@ -456,8 +456,8 @@ Test(march, a_directional_beam_s_equiangular_sample_keeps_every_method_s_image, 
  * [1, 256]; anything else is refused with one line naming the field (integrators/probes.c;
  * docs/scene-format.md). */
 /* The scene of scene_json_photons with `key`.probes = value (guide's in its own section,
- * which that scene already has). */
-static const char *probes_json(const char *key, const char *value)
+ * which that scene already has; its settings then `settings`, e.g. "{}"). */
+static const char *probes_json_with(const char *key, const char *value, const char *settings)
 {
     static char buf[2300];
     char extra[128];
@@ -465,11 +465,18 @@ static const char *probes_json(const char *key, const char *value)
         snprintf(extra, sizeof extra, "\"%s\":{\"probes\":%s}", key, value);
         return scene_json_photons(extra, -2.5, 1000);
     }
-    const char *base = scene_json_photons("\"settings\":{}", -2.5, 1000), *at = strstr(base, "\"guide\":{");
+    char set[128];
+    snprintf(set, sizeof set, "\"settings\":%s", settings);
+    const char *base = scene_json_photons(set, -2.5, 1000), *at = strstr(base, "\"guide\":{");
     cr_assert(at != NULL, "the scene has no guide section");
     size_t head = (size_t)(at - base) + strlen("\"guide\":{");
     snprintf(buf, sizeof buf, "%.*s\"probes\":%s,%s", (int)head, base, value, base + head);
     return buf;
+}
+
+static const char *probes_json(const char *key, const char *value)
+{
+    return probes_json_with(key, value, "{}");
 }
 
 Test(march, probes_setting_is_checked)
@@ -496,27 +503,26 @@ Test(march, probes_setting_is_checked)
             rd_scene_free(s);
         }
     }
-    /* With a "raymarch" transmittance a number of guided-unbiased's probes is refused, as
-     * settings.probes is (the probes and the path must be unbiased alike); "auto" takes none. */
-    static const char *const gp[] = {"8", "\"auto\""};
-    for (int i = 0; i < 2; i++) {
-        char path[256], err[RD_ERRLEN] = "", json[2300];
-        const char *base = scene_json_photons("\"settings\":{\"transmittance\":\"raymarch\"}", -2.5, 1000);
-        const char *at = strstr(base, "\"guide\":{");
-        cr_assert(at != NULL);
-        size_t head = (size_t)(at - base) + strlen("\"guide\":{");
-        snprintf(json, sizeof json, "%.*s\"probes\":%s,%s", (int)head, base, gp[i], base + head);
-        snprintf(path, sizeof path, "%s/probes_rm.json", rt_tmpdir());
-        rt_write_file(path, json, strlen(json));
-        rd_scene *s = NULL;
-        rd_status st = rd_scene_load(&s, path, NULL, 0, err, sizeof err);
-        if (i == 0)
-            cr_expect(st != RD_OK && strstr(err, "guide.probes") && strstr(err, "raymarch"),
-                      "guide.probes 8 with raymarch: status %d, \"%s\"", st, err);
-        else
-            cr_expect(st == RD_OK, "guide.probes \"auto\" with raymarch refused: %s", err);
-        rd_scene_free(s);
-    }
+    /* With a "raymarch" transmittance or tracker more than one of guided-unbiased's probes is
+     * refused, as settings.probes is (the probes and the path must be unbiased alike); 1 and
+     * "auto" take none there and load. */
+    static const char *const raymarch[] = {"{\"transmittance\":\"raymarch\"}", "{\"tracker\":\"raymarch\"}"};
+    static const char *const gp[] = {"8", "2", "1", "\"auto\""};
+    for (int r = 0; r < 2; r++)
+        for (int i = 0; i < 4; i++) {
+            char path[256], err[RD_ERRLEN] = "";
+            const char *json = probes_json_with("guide", gp[i], raymarch[r]);
+            snprintf(path, sizeof path, "%s/probes_rm.json", rt_tmpdir());
+            rt_write_file(path, json, strlen(json));
+            rd_scene *s = NULL;
+            rd_status st = rd_scene_load(&s, path, NULL, 0, err, sizeof err);
+            if (i < 2)
+                cr_expect(st != RD_OK && strstr(err, "guide.probes") && strstr(err, "raymarch") && !strchr(err, '\n'),
+                          "guide.probes %s with %s: status %d, \"%s\"", gp[i], raymarch[r], st, err);
+            else
+                cr_expect(st == RD_OK, "guide.probes %s with %s refused: %s", gp[i], raymarch[r], err);
+            rd_scene_free(s);
+        }
     /* the defaults: "auto" for the marchers and guided-unbiased, 1 (none) for delta */
     rd_scene *s = rt_scene("probes_default.json", scene_json_photons("\"settings\":{}", -2.5, 1000));
     cr_expect(s->march.probes == 0 && s->settings.probes == 1 && s->guide.probes == 0, "defaults %d, %d and %d",

@@ -1,12 +1,14 @@
 /* rd_render on several ranks through its hooks (rd_render_opts.comm, renderer.h), without MPI:
  * the ranks are threads of this process and the reduce is done in shared memory behind a
  * barrier. So the render's part of the work split (tile ownership, the agreements between
- * passes, the selection's epoch sums, the films summed onto rank 0) is tested in every suite,
+ * passes, the selection's epoch sums, the probes' model sums, the films summed onto rank 0) is
+ * tested in every suite,
  * the sanitizer run included, while tests/test_mpi.c tests the command line under mpirun.
  *  - three ranks give rank 0 one process's image and standard error bit for bit (guided with the
  *    tile selection, whose epochs need the ranks' sums);
  *  - "auto" probes (delta, guided, guided-unbiased), whose epochs choose M from the whole
- *    image's models, give rank 0 one process's image bit for bit;
+ *    image's models, give rank 0 one process's image, standard error and probe count bit for
+ *    bit;
  *  - a cancel flag set on one rank stops every rank at the next agreement (none waits);
  *  - rd_bake on three ranks (each traces a range of the photon blocks, gathered in block order)
  *    gives every rank one process's photons, segments, indirect photons, power sums and guides
@@ -202,8 +204,11 @@ Test(ranks, three_ranks_give_rank_0_one_process_s_image_bit_for_bit, .timeout = 
  * every other rank's pixels (the models are summed over the ranks first). Three ranks give
  * rank 0 one process's image, standard error and probe count bit for bit, past the epochs at
  * 4 and 16, on a small sphere light seen through haze (test_surface_images.c's scene 6 without
- * the glass ball), where the chains that end on the light's edge are the noisy part. The
- * probes must go past the first samples' (2 a pixel, one each), or the epochs chose nothing. */
+ * the glass ball, at 48x36 with the default source and selection), where the chains that end
+ * on the light's edge are the noisy part: the 16-pixel render tiles put the light's edge on
+ * two ranks and none on rank 0. The probes must go past the first samples' (2 a pixel, one
+ * each), or the epochs chose nothing. A planted fault, the models' sum over the ranks skipped
+ * (rd_probes_epoch), fails it (guided-unbiased: 8852 probes on three ranks against 8872). */
 Test(ranks, auto_probes_on_three_ranks_give_rank_0_one_process_s_image, .timeout = 600)
 {
     rd_scene *s = rt_scene("ranksq.json",

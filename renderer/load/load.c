@@ -241,8 +241,9 @@ static rd_status validate(ld_ctx *c, const cJSON *root, rd_scene *s)
     LD_TRY(ld_parse_photons(c, cJSON_GetObjectItemCaseSensitive(root, "photons"), &s->photons));
     LD_TRY(ld_parse_guide(c, cJSON_GetObjectItemCaseSensitive(root, "guide"), &s->guide));
     LD_TRY(ld_parse_march(c, cJSON_GetObjectItemCaseSensitive(root, "march"), &s->march));
-    /* guide.probes as settings.probes: a number of probes needs guided-unbiased's path to pass
-     * or stop without bias, as the probes' transmittance does; "auto" (0) there takes none. */
+    /* guide.probes as settings.probes: the probes' transmittance and guided-unbiased's own pass
+     * or stop must be unbiased alike, so more than one chain needs an unbiased tracker and
+     * transmittance; 1 and "auto" (0) take none there. */
     if (s->guide.probes > 1 && (s->settings.tracker == RD_FP_RAYMARCH || s->settings.transmittance == RD_TR_RAYMARCH))
         return ld_fail(c, "guide.probes", "needs an unbiased tracker and transmittance, not \"raymarch\"");
     if (s->guide.track && !s->photons.segments)
