@@ -24,7 +24,10 @@
  * follows alike), which would otherwise be the whole MSE. Printed per variant: the medians over
  * the K rounds with min-max of seconds, samples per pixel, MSE and efficiency, and of the
  * efficiency ratio to the first variant within the same round (the figure to quote: one round's
- * variants share one load). --save DIR writes every render as DIR/LABEL-rK.exr (K = 1..runs), to
+ * variants share one load), and that ratio taken apart (its inverse is their product): the
+ * time a camera sample took (the bake's share included) and the MSE times the samples a pixel
+ * (the variance of one sample, where the error is variance), each over the first variant's in
+ * the same round. --save DIR writes every render as DIR/LABEL-rK.exr (K = 1..runs), to
  * measure the same renders against another reference afterwards (DIR must exist; a label is
  * one file name, no '/'). The reference is yours to render, 20x longer or more, by the
  * strongest `delta` for the scene (with a point or spot light, settings.equiangular true or
@@ -48,6 +51,7 @@ typedef struct {
     int n_set;
     rd_scene *scene;
     double seconds[MAXK], spp[MAXK], mse[MAXK], eff[MAXK], ratio[MAXK];
+    double cost[MAXK], var[MAXK]; /* time a sample and MSE x samples, over the first variant's */
 } variant;
 
 static int cmp_d(const void *a, const void *b)
@@ -215,6 +219,12 @@ int main(int argc, char **argv)
             v[k].mse[r] = mse;
             v[k].eff[r] = 1.0 / (mse * res.stats.seconds);
             v[k].ratio[r] = v[k].eff[r] / v[0].eff[r];
+            /* The ratio taken apart: efficiency over the first variant's = 1 / (cost x var), with
+             * cost the time a camera sample took (the bake's share included) and var the MSE
+             * times the samples a pixel (the variance of one sample where the error is variance:
+             * an unbiased method's, the reference's variance removed), each over the first's. */
+            v[k].cost[r] = (res.stats.seconds / res.stats.spp_mean) / (v[0].seconds[r] / v[0].spp[r]);
+            v[k].var[r] = (mse * res.stats.spp_mean) / (v[0].mse[r] * v[0].spp[r]);
             fprintf(stderr, "round %d %-28s %6.2f s %8.1f spp  MSE %.4g  eff %.4g  x%.3f\n", r + 1, v[k].label,
                     res.stats.seconds, res.stats.spp_mean, mse, v[k].eff[r], v[k].ratio[r]);
             if (save_dir) {
@@ -229,16 +239,21 @@ int main(int argc, char **argv)
             rd_render_result_free(&res);
         }
     }
-    printf("| variant | seconds | spp | MSE | efficiency | vs %s |\n|---|---|---|---|---|---|\n", v[0].label);
+    printf("| variant | seconds | spp | MSE | efficiency | vs %s | time a sample vs %s | variance a sample vs %s |\n"
+           "|---|---|---|---|---|---|---|---|\n", v[0].label, v[0].label, v[0].label);
     for (int k = 0; k < nv; k++) {
-        double m[5], lo[5], hi[5];
+        double m[7], lo[7], hi[7];
         stats(v[k].seconds, runs, &m[0], &lo[0], &hi[0]);
         stats(v[k].spp, runs, &m[1], &lo[1], &hi[1]);
         stats(v[k].mse, runs, &m[2], &lo[2], &hi[2]);
         stats(v[k].eff, runs, &m[3], &lo[3], &hi[3]);
         stats(v[k].ratio, runs, &m[4], &lo[4], &hi[4]);
-        printf("| %s | %.2f | %.1f (%.1f-%.1f) | %.3g (%.3g-%.3g) | %.3g (%.3g-%.3g) | %.2f (%.2f-%.2f) |\n", v[k].label, m[0],
-               m[1], lo[1], hi[1], m[2], lo[2], hi[2], m[3], lo[3], hi[3], m[4], lo[4], hi[4]);
+        stats(v[k].cost, runs, &m[5], &lo[5], &hi[5]);
+        stats(v[k].var, runs, &m[6], &lo[6], &hi[6]);
+        printf("| %s | %.2f | %.1f (%.1f-%.1f) | %.3g (%.3g-%.3g) | %.3g (%.3g-%.3g) | %.2f (%.2f-%.2f) | %.2f (%.2f-%.2f) |"
+               " %.3g (%.3g-%.3g) |\n",
+               v[k].label, m[0], m[1], lo[1], hi[1], m[2], lo[2], hi[2], m[3], lo[3], hi[3], m[4], lo[4], hi[4], m[5],
+               lo[5], hi[5], m[6], lo[6], hi[6]);
     }
     for (int k = 0; k < nv; k++) {
         rd_scene_free(v[k].scene);
