@@ -27,7 +27,10 @@
  * variants share one load), and that ratio taken apart (its inverse is their product): the
  * time a camera sample took (the bake's share included) and the MSE times the samples a pixel
  * (the variance of one sample, where the error is variance), each over the first variant's in
- * the same round. --save DIR writes every render as DIR/LABEL-rK.exr (K = 1..runs), to
+ * the same round; and the seconds of bake and set-up inside each render (a guided method's
+ * bake and its tile selection's pilot, charged to it) and, for a guided method, the share of
+ * its camera samples its selection left on the method's own estimator (the rest went to
+ * delta's path: select.c). --save DIR writes every render as DIR/LABEL-rK.exr (K = 1..runs), to
  * measure the same renders against another reference afterwards (DIR must exist; a label is
  * one file name, no '/'). The reference is yours to render, 20x longer or more, by the
  * strongest `delta` for the scene (with a point or spot light, settings.equiangular true or
@@ -52,6 +55,9 @@ typedef struct {
     rd_scene *scene;
     double seconds[MAXK], spp[MAXK], mse[MAXK], eff[MAXK], ratio[MAXK];
     double cost[MAXK], var[MAXK]; /* time a sample and MSE x samples, over the first variant's */
+    double setup[MAXK];           /* seconds of bake and set-up (a selection's pilot) */
+    double own[MAXK];             /* a guided method's share of samples on its own estimator
+                                     (the rest its selection gave to delta's path); -1: not one */
 } variant;
 
 static int cmp_d(const void *a, const void *b)
@@ -225,6 +231,10 @@ int main(int argc, char **argv)
              * an unbiased method's, the reference's variance removed), each over the first's. */
             v[k].cost[r] = (res.stats.seconds / res.stats.spp_mean) / (v[0].seconds[r] / v[0].spp[r]);
             v[k].var[r] = (mse * res.stats.spp_mean) / (v[0].mse[r] * v[0].spp[r]);
+            v[k].setup[r] = res.stats.bake_seconds + res.stats.prepare_seconds;
+            v[k].own[r] = strcmp(method, "delta") && res.stats.paths
+                              ? 1.0 - (double)res.stats.delta_samples / (double)res.stats.paths
+                              : -1.0;
             fprintf(stderr, "round %d %-28s %6.2f s %8.1f spp  MSE %.4g  eff %.4g  x%.3f\n", r + 1, v[k].label,
                     res.stats.seconds, res.stats.spp_mean, mse, v[k].eff[r], v[k].ratio[r]);
             if (save_dir) {
@@ -239,10 +249,11 @@ int main(int argc, char **argv)
             rd_render_result_free(&res);
         }
     }
-    printf("| variant | seconds | spp | MSE | efficiency | vs %s | time a sample vs %s | variance a sample vs %s |\n"
-           "|---|---|---|---|---|---|---|---|\n", v[0].label, v[0].label, v[0].label);
+    printf("| variant | seconds | spp | MSE | efficiency | vs %s | time a sample vs %s | variance a sample vs %s |"
+           " bake + set-up s | own samples |\n"
+           "|---|---|---|---|---|---|---|---|---|---|\n", v[0].label, v[0].label, v[0].label);
     for (int k = 0; k < nv; k++) {
-        double m[7], lo[7], hi[7];
+        double m[9], lo[9], hi[9];
         stats(v[k].seconds, runs, &m[0], &lo[0], &hi[0]);
         stats(v[k].spp, runs, &m[1], &lo[1], &hi[1]);
         stats(v[k].mse, runs, &m[2], &lo[2], &hi[2]);
@@ -250,10 +261,14 @@ int main(int argc, char **argv)
         stats(v[k].ratio, runs, &m[4], &lo[4], &hi[4]);
         stats(v[k].cost, runs, &m[5], &lo[5], &hi[5]);
         stats(v[k].var, runs, &m[6], &lo[6], &hi[6]);
+        stats(v[k].setup, runs, &m[7], &lo[7], &hi[7]);
+        stats(v[k].own, runs, &m[8], &lo[8], &hi[8]);
         printf("| %s | %.2f | %.1f (%.1f-%.1f) | %.3g (%.3g-%.3g) | %.3g (%.3g-%.3g) | %.2f (%.2f-%.2f) | %.2f (%.2f-%.2f) |"
-               " %.3g (%.3g-%.3g) |\n",
+               " %.3g (%.3g-%.3g) | %.2f (%.2f-%.2f) |",
                v[k].label, m[0], m[1], lo[1], hi[1], m[2], lo[2], hi[2], m[3], lo[3], hi[3], m[4], lo[4], hi[4], m[5],
-               lo[5], hi[5], m[6], lo[6], hi[6]);
+               lo[5], hi[5], m[6], lo[6], hi[6], m[7], lo[7], hi[7]);
+        if (m[8] < 0.0) printf(" - |\n");
+        else printf(" %.3f (%.3f-%.3f) |\n", m[8], lo[8], hi[8]);
     }
     for (int k = 0; k < nv; k++) {
         rd_scene_free(v[k].scene);
