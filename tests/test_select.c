@@ -813,6 +813,39 @@ Test(select, a_directional_beam_is_sampled_by_the_tiles_that_take_the_strategy, 
     rd_scene_free(ref);
 }
 
+Test(select, a_beam_that_delta_s_path_connects_to_makes_no_third_estimator, .timeout = 60)
+{
+    /* Where settings.beam_connect is on (its "auto" on this narrow beam: breadth about 0.001),
+     * delta's path connects every vertex to the beam, and delta with the strategy on every
+     * flight drops those connections for its own sample of the beam (transport/path.c): the
+     * same light found the weaker way, so the selection has no third estimator there (select.c,
+     * "Beams that delta's path connects to"). With the connections off the same scene has one,
+     * and its tiles take it (the strategy pays on nearly every tile here: the test above). Both
+     * methods, 16 samples a pixel. Planted: the rule dropped (any beam makes a third) puts every
+     * sample of both methods (12288 of 12288) on the third with the connections on. */
+    rd_scene *on = rt_scene("selBc1.json", beam_fog_scene(0.3, 0.08, "\"select\":\"tiles\""));
+    rd_scene *off = rt_scene("selBc0.json", beam_fog_scene(0.3, 0.08, "\"select\":\"tiles\",\"beam_connect\":false"));
+    cr_assert(on->beam_connect.light >= 0 && off->beam_connect.light < 0, "beam_connect: on %d, off %d",
+              on->beam_connect.light, off->beam_connect.light);
+    static const char *const methods[2] = {"guided-unbiased", "guided"};
+    for (int k = 0; k < 2; k++) {
+        rd_render_result a = rt_render(on, methods[k], 16, 51, NULL);
+        rd_render_result b = rt_render(off, methods[k], 16, 51, NULL);
+        cr_log_info("%s on a beam: delta with the strategy %llu of %llu samples with the connections, %llu of %llu "
+                    "without", methods[k], (unsigned long long)a.stats.delta_eq_samples,
+                    (unsigned long long)a.stats.paths, (unsigned long long)b.stats.delta_eq_samples,
+                    (unsigned long long)b.stats.paths);
+        cr_expect(a.stats.delta_eq_samples == 0, "%s: %llu samples on a third estimator beside the beam's connections",
+                  methods[k], (unsigned long long)a.stats.delta_eq_samples);
+        cr_expect(b.stats.delta_eq_samples > 0, "%s: no sample on the third estimator without the connections",
+                  methods[k]);
+        rd_render_result_free(&a);
+        rd_render_result_free(&b);
+    }
+    rd_scene_free(on);
+    rd_scene_free(off);
+}
+
 Test(select, delta_s_own_tiles_mix_its_two_modes_and_give_delta_s_image, .timeout = 300)
 {
     /* `delta` with settings.equiangular "tiles" (integrators/delta.c): per tile its path without

@@ -16,7 +16,8 @@
  * ("tiles" read as off: rd_eq_path_mode), the method, and delta's path with equiangular
  * sampling on every flight, RD_EQ_ALL (only where the method's own mode is not off,
  * settings.equiangular is not RD_EQ_ALL, and the scene has a light the strategy samples: a
- * point or spot light or a directional beam; rd_select.n). */
+ * point or spot light, or a directional beam that delta's path does not connect to,
+ * settings.beam_connect; rd_select.n). */
 enum { RD_SEL_DELTA = 0, RD_SEL_METHOD = 1, RD_SEL_DELTA_EQ = 2, RD_SEL_MAX = 3 };
 
 /* One estimator's samples in one half of one tile (rd_select.stats), from the pilot and the
@@ -97,7 +98,8 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
  * per sample of `method` and of delta's path in every tile (and of delta's path with the
  * equiangular strategy on every flight, where the method's own mode `equiangular`, RD_EQ_*, is
  * not RD_EQ_OFF, settings.equiangular is not RD_EQ_ALL, and the scene has a point or spot
- * light or a directional beam to sample); keeps the choices
+ * light, or a directional beam that delta's path does not connect to, to sample); keeps the
+ * choices
  * that give the image the least error at equal time. The cost is counted work (select.c):
  * `cell_cost` is what one of the method's PDF segments (rd_thread.cells) costs, in density
  * lookups, fitted on the calibration scenes. delta's path is `delta` where the method gives

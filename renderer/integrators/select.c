@@ -127,6 +127,18 @@
  * 71.0, homogeneous 1.58 -> 1.62 / 1.61 -> 1.63, default 0.928 -> 0.966 / 0.921 -> 0.909. The
  * dense block's lit tiles on the strategy went from 30-41 to 7-23.
  *
+ * Beams that delta's path connects to (session 38). Where settings.beam_connect is on, delta's
+ * path (and the method's) connects every scattering vertex to the scene's directional beam
+ * (transport/beam_connect.c), and a flight with the strategy on every flight (RD_EQ_ALL) drops
+ * those connections for the strategy's own sample of the beam's chord (transport/path.c: the two
+ * would sample the same light twice). The third estimator is then the same light found the
+ * weaker way, not a new strategy: on beam.json `delta` with `true` made 0.40x plain `delta`
+ * (whose connections are on), yet guided-unbiased's selection gave it tiles (a fifth of the
+ * samples of a 64-spp render), its pilots misled by heavy tails, and the method made 0.78x
+ * plain `delta` (docs/benchmarks.md "Session 38"; 1.30x without the third). So a beam makes a third estimator only where delta's path
+ * does not connect to it (as compare's rendered reference decides, compare/reference.c); a
+ * point or spot light still does.
+ *
  * A consistent method. The marcher with march.ls nee+beams is consistent, not unbiased: its
  * photon part carries the kernel's bias (shrinking with the progressive passes). It mixes with
  * delta's path only when settings.select names "tiles" or "pilot" (the default "auto" marches
@@ -518,8 +530,11 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_se
 {
     const rd_scene *s = ctx->scene;
     const rd_camera *cam = &s->camera;
-    /* the third estimator: delta's path with the strategy on every flight (the head) */
-    int third = equiangular != RD_EQ_OFF && s->settings.equiangular != RD_EQ_ALL && rd_eq_has_lights(s, 1);
+    /* the third estimator: delta's path with the strategy on every flight (the head); a
+     * directional beam counts only where delta's path does not connect to it (the head,
+     * "Beams that delta's path connects to") */
+    int beams = s->beam_connect.light < 0;
+    int third = equiangular != RD_EQ_OFF && s->settings.equiangular != RD_EQ_ALL && rd_eq_has_lights(s, beams);
     rd_status st = rd_select_init(sel, cam->width, cam->height, cell_cost, third ? 3 : 2, err, errlen);
     if (st != RD_OK) return st;
     sel->delta = delta;
