@@ -28,9 +28,10 @@
  * time a camera sample took (the bake's share included) and the MSE times the samples a pixel
  * (the variance of one sample, where the error is variance), each over the first variant's in
  * the same round; and the seconds of bake and set-up inside each render (a guided method's
- * bake and its tile selection's pilot, charged to it) and, for a guided method, the share of
- * its camera samples its selection left on the method's own estimator (the rest went to
- * delta's path: select.c). --save DIR writes every render as DIR/LABEL-rK.exr (K = 1..runs), to
+ * bake and its tile selection's pilot, charged to it) and, for a method other than `delta`, the
+ * share of its camera samples its selection left on the method's own estimator (the rest went
+ * to delta's path: select.c; 1 for a method without a selection, "-" for `delta`, whose
+ * "tiles" count something else). --save DIR writes every render as DIR/LABEL-rK.exr (K = 1..runs), to
  * measure the same renders against another reference afterwards (DIR must exist; a label is
  * one file name, no '/'). The reference is yours to render, 20x longer or more, by the
  * strongest `delta` for the scene (with a point or spot light, settings.equiangular true or

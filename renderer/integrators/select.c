@@ -135,9 +135,11 @@
  * weaker way, not a new strategy: on beam.json `delta` with `true` made 0.40x plain `delta`
  * (whose connections are on), yet guided-unbiased's selection gave it tiles (a fifth of the
  * samples of a 64-spp render), its pilots misled by heavy tails, and the method made 0.78x
- * plain `delta` (docs/benchmarks.md "Session 38"; 1.30x without the third). So a beam makes a third estimator only where delta's path
- * does not connect to it (as compare's rendered reference decides, compare/reference.c); a
- * point or spot light still does.
+ * plain `delta` (docs/benchmarks.md "Session 38"; 1.30x without the third). So a beam makes
+ * a third estimator only where delta's path does not connect to it (as compare's rendered
+ * reference decides, compare/reference.c); a point or spot light still does (a scene with
+ * both keeps the third, whose flights then drop the connections: not measured, no shipped
+ * scene has both).
  *
  * A consistent method. The marcher with march.ls nee+beams is consistent, not unbiased: its
  * photon part carries the kernel's bias (shrinking with the progressive passes). It mixes with

@@ -173,8 +173,9 @@ int rd_eq_mode_beams(int mode);
  * ef->iv[0..ef->n) filled by the caller from rd_media_intervals(s, region, r, 0, t_light)
  * (n = 0 allowed): the rest of the set-up, with the same result as rd_eq_flight_init.
  * rd_eq_has_lights with beams = 0: a point or spot light (what "auto" looks for); with
- * beams = 1, a directional beam also counts (`delta`'s "tiles", the guided methods' third
- * estimator and compare's reference). */
+ * beams = 1, a directional beam also counts (`delta`'s "tiles"; the guided methods' third
+ * estimator and compare's reference pass beams = 1 only where delta's path does not connect
+ * to the beam, s->beam_connect.light < 0). */
 int rd_eq_has_lights(const rd_scene *s, int beams);
 int rd_eq_flight_choose(const rd_scene *s, ray3 r, int region, double q, int mode, rd_eq_flight *ef);
 /* Does the strategy sample light i on this flight (in its set and not left to delta tracking)? */
