@@ -404,8 +404,7 @@ static void reference_scene(rd_comparison *c, const rd_scene *s)
      * sample's 1.2x (a 200-s reference), and 1.9-2.1x on beam-vdb against its 0.91x
      * (docs/benchmarks.md "Session 31", docs/free-path.md "Directional beams"), so only point
      * and spot lights, and beams "auto" leaves unconnected, call for "tiles" there */
-    int beams = s->beam_connect.light < 0;
-    c->tiles_ref = !c->opts.reference && !c->photon_ref && !s->settings.equiangular_given && rd_eq_has_lights(s, beams);
+    c->tiles_ref = !c->opts.reference && !c->photon_ref && !s->settings.equiangular_given && rd_eq_tiles_have_lights(s);
     snprintf(c->sum.ref_method, sizeof c->sum.ref_method, "%s",
              c->opts.reference ? "given"
              : c->photon_ref  ? "guided, march.ls photons, progressive passes"

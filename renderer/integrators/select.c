@@ -136,8 +136,8 @@
  * (whose connections are on), yet guided-unbiased's selection gave it tiles (a fifth of the
  * samples of a 64-spp render), its pilots misled by heavy tails, and the method made 0.78x
  * plain `delta` (docs/benchmarks.md "Session 38"; 1.30x without the third). So a beam makes
- * a third estimator only where delta's path does not connect to it (as compare's rendered
- * reference decides, compare/reference.c); a point or spot light still does (a scene with
+ * a third estimator only where delta's path does not connect to it (rd_eq_tiles_have_lights,
+ * which compare's rendered reference asks too); a point or spot light still does (a scene with
  * both keeps the third, whose flights then drop the connections: not measured, no shipped
  * scene has both).
  *
@@ -532,11 +532,10 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_se
 {
     const rd_scene *s = ctx->scene;
     const rd_camera *cam = &s->camera;
-    /* the third estimator: delta's path with the strategy on every flight (the head); a
-     * directional beam counts only where delta's path does not connect to it (the head,
-     * "Beams that delta's path connects to") */
-    int beams = s->beam_connect.light < 0;
-    int third = equiangular != RD_EQ_OFF && s->settings.equiangular != RD_EQ_ALL && rd_eq_has_lights(s, beams);
+    /* the third estimator: delta's path with the strategy on every flight (the head; a
+     * directional beam counts only where delta's path does not connect to it, "Beams that
+     * delta's path connects to") */
+    int third = equiangular != RD_EQ_OFF && s->settings.equiangular != RD_EQ_ALL && rd_eq_tiles_have_lights(s);
     rd_status st = rd_select_init(sel, cam->width, cam->height, cell_cost, third ? 3 : 2, err, errlen);
     if (st != RD_OK) return st;
     sel->delta = delta;

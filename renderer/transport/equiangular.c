@@ -237,6 +237,8 @@ static double set_pmf(const rd_scene *s, int beams)
 
 int rd_eq_has_lights(const rd_scene *s, int beams) { return set_pmf(s, beams) > 0.0; }
 
+int rd_eq_tiles_have_lights(const rd_scene *s) { return rd_eq_has_lights(s, s->beam_connect.light < 0); }
+
 int rd_eq_mode_beams(int mode) { return mode == RD_EQ_ALL || mode == RD_EQ_CAMERA; }
 
 int rd_eq_flight_init(const rd_scene *s, ray3 r, int region, double t_light, double q, int mode,
