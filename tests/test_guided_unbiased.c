@@ -465,6 +465,33 @@ Test(guided_unbiased, scene_keys_are_validated)
 }
 
 
+/* guide.equiangular's default (session 39, renderer/load/load.c): false where the tile
+ * selection runs (its third estimator carries the strategy), "auto" with settings.select off
+ * (the method alone); a value in the file wins either way. A default that ignored the selection
+ * fails the second case, one that ignored the file the third. */
+Test(guided_unbiased, equiangular_default_follows_the_selection)
+{
+    const char *cases[][2] = {{"\"settings\":{}", ""},
+                              {"\"settings\":{\"select\":\"off\"}", ""},
+                              {"\"settings\":{\"select\":\"off\"}", ",\"guide\":{\"equiangular\":false}"},
+                              {"\"settings\":{}", ",\"guide\":{\"equiangular\":true}"}};
+    const int want[] = {RD_EQ_OFF, RD_EQ_AUTO, RD_EQ_OFF, RD_EQ_ALL};
+    for (int i = 0; i < 4; i++) {
+        char json[1024], name[32];
+        snprintf(json, sizeof json,
+                 "{\"camera\":{\"position\":[0,0,3],\"look_at\":[0,0,0],\"resolution\":[8,8]},"
+                 "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
+                 "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1,\"albedo\":0.9}],"
+                 "\"lights\":[{\"type\":\"point\",\"position\":[0,2,0],\"intensity\":[1,1,1]}],%s%s}",
+                 cases[i][0], cases[i][1]);
+        snprintf(name, sizeof name, "gu_eqdef%d.json", i);
+        rd_scene *s = rt_scene(name, json);
+        cr_expect(s->guide.equiangular == want[i], "case %d: guide.equiangular %d, expected %d", i, s->guide.equiangular,
+                  want[i]);
+        rd_scene_free(s);
+    }
+}
+
 /* The guide's incident-light lobe (integrators/guided_unbiased.c guide_lobe) points where the
  * light comes from: a point light in a homogeneous forward-scattering medium sends the photons
  * radially, so the lobe's mean at points around it must point back at the light. The lobe is

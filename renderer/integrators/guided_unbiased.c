@@ -650,10 +650,13 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
         gu_release(ctx);
         return ps;
     }
-    /* With a guide (else the method is delta's path already), the tiles where it pays. */
+    /* With a guide (else the method is delta's path already), the tiles where it pays. The
+     * selection has `delta`'s path with the strategy on every flight as a third estimator
+     * whatever the method's own flights take (guide.equiangular): since session 39 they take
+     * none by default where the selection runs (load.c), and the third estimator is where the
+     * strategy pays (select.c's head). */
     if (s->settings.select != RD_SELECT_OFF && ctx->guide) {
-        rd_status rs = rd_select_prepare(ctx, gu_path, gu_delta, GU_CELL_COST, s->guide.equiangular, &st->sel, err,
-                                         errlen);
+        rd_status rs = rd_select_prepare(ctx, gu_path, gu_delta, GU_CELL_COST, RD_EQ_ALL, &st->sel, err, errlen);
         if (rs != RD_OK) {
             gu_release(ctx);
             return rs;

@@ -96,10 +96,11 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
                          char *err, size_t errlen);
 /* Run the pilot and make the first choice: on random numbers of its own, the variance and cost
  * per sample of `method` and of delta's path in every tile (and of delta's path with the
- * equiangular strategy on every flight, where the method's own mode `equiangular`, RD_EQ_*, is
- * not RD_EQ_OFF, settings.equiangular is not RD_EQ_ALL, and the scene has a point or spot
- * light, or a directional beam that delta's path does not connect to, to sample); keeps the
- * choices
+ * equiangular strategy on every flight, where `equiangular`, RD_EQ_*, is not RD_EQ_OFF (the
+ * marcher's own mode for `guided`; always RD_EQ_ALL for `guided-unbiased` since session 39;
+ * RD_EQ_OFF for `delta`'s "tiles"), settings.equiangular is not RD_EQ_ALL, and the scene has a
+ * point or spot light, or a directional beam that delta's path does not connect to, to
+ * sample); keeps the choices
  * that give the image the least error at equal time. The cost is counted work (select.c):
  * `cell_cost` is what one of the method's PDF segments (rd_thread.cells) costs, in density
  * lookups, fitted on the calibration scenes. delta's path is `delta` where the method gives

@@ -22,14 +22,18 @@
  * estimate given the past, and so is each pixel's mean of a fixed number of them.
  *
  * The third estimator (session 24; its mode since session 25). The methods' own paths and
- * samples take `delta`'s equiangular strategy in their own mode (march.equiangular,
- * guide.equiangular: "auto" by default), while delta's path takes settings.equiangular ("tiles"
- * read as off; off by default: "auto" costs 4-38% of the time where it samples nothing, docs/free-path.md and
- * docs/benchmarks.md "Session 24"). On a narrow spot across thin fog `delta` with "auto" is
- * 34x plain `delta` and beat both methods (docs/benchmarks.md, session 23): what the methods
- * gained there came from the strategy, and their own estimators cost 3.5-11x a delta path for
- * the same variance. So where the method samples with the strategy (its mode not "false"), the
- * scene has a light the strategy samples (a point or spot light; a directional beam too since
+ * samples take `delta`'s equiangular strategy in their own mode (march.equiangular "auto" by
+ * default; guide.equiangular "auto", and "false" where the selection runs since session 39),
+ * while delta's path takes settings.equiangular ("tiles" read as off; off by default: "auto"
+ * costs 4-38% of the time where it samples nothing, docs/free-path.md and docs/benchmarks.md
+ * "Session 24"). On a narrow spot across thin fog `delta` with "auto" is 34x plain `delta`
+ * and beat both methods (docs/benchmarks.md, session 23): what the methods gained there came
+ * from the strategy, and their own estimators cost 3.5-11x a delta path for
+ * the same variance. So where the method samples with the strategy (its mode not "false";
+ * guided-unbiased always since session 39, whatever its own flights take: with the selection
+ * they take none by default, where "auto" cost more than it gave on hard-dense-block, and the
+ * third estimator carries the strategy's gains: docs/guided-unbiased.md "The equiangular
+ * strategy"), the scene has a light the strategy samples (a point or spot light; a directional beam too since
  * session 30, below) and settings.equiangular is not "true", delta's path with
  * the strategy on every flight ("true") is a third estimator (RD_SEL_DELTA_EQ) with statistics
  * of its own, and every rule below runs over the three: each tile gets delta's path with or

@@ -215,7 +215,7 @@ rd_status ld_parse_guide(ld_ctx *c, const cJSON *j, rd_guide_settings *g)
     g->split_max = 2;
     g->eval_bands = 2; /* calibrated on the six calibration scenes and beam-vdb (docs/guided-unbiased.md) */
     g->photon_share = 0.25; /* the same seven scenes (docs/guided-unbiased.md) */
-    g->equiangular = RD_EQ_AUTO; /* docs/guided-unbiased.md, "The equiangular strategy" */
+    g->equiangular = RD_EQ_OFF; /* with settings.select off "auto": load.c, since session 39 */
     g->probes = 0; /* "auto": docs/guided-unbiased.md, "Probes" */
     if (!j) return RD_OK;
     const char *path = "guide";
