@@ -719,8 +719,8 @@ static int third_kind_keeps_delta_s_image(const rd_scene *ref, const rd_scene *s
 Test(select, delta_with_equiangular_sampling_on_every_flight_is_a_third_kind_of_tile, .timeout = 300)
 {
     /* guided-unbiased (guide.equiangular its default: "auto" until session 39, false since)
-     * where delta's own equiangular strategy is "auto": three estimators, the method, delta's path ("auto"), and delta's path
-     * with the strategy on every flight ("true", RD_SEL_DELTA_EQ). All are unbiased, so any mix
+     * where delta's own equiangular strategy is "auto": three estimators, the method, delta's
+     * path ("auto"), and delta's path with the strategy on every flight ("true", RD_SEL_DELTA_EQ). All are unbiased, so any mix
      * of them gives delta's image (z bounds of rt_expect_same; the reference is delta with
      * `true`). The test needs both kinds of delta tile. (With delta's "camera" its own tiles
      * would not do: on this scene `camera`'s 256 and even 2048 samples differ from `true`'s in
@@ -730,6 +730,7 @@ Test(select, delta_with_equiangular_sampling_on_every_flight_is_a_third_kind_of_
      * same at session 29's commit; session 27 recorded 20% / 80%): z = -1.46 over the image
      * and -2.20 in the worst of 12 regions (session 27's seed 33: 58% / 42%, z = 0.44 and 1.46). Planted: the third kind's samples scaled
      * by 1.15 (in the pilot too) fail at z = -4.94 over the image and -7.12 in the worst region.
+     * (Those figures are of guide.equiangular "auto", before session 39; not re-recorded.)
      * And no third kind when delta's own mode is "true"; since session 39 a third kind whatever
      * the method's own mode (guide.equiangular "false", its default now). */
     rd_scene *s = rt_scene("sel3.json", full_fog_scene("{\"select\":\"tiles\",\"equiangular\":\"auto\"}"));

@@ -1,7 +1,8 @@
 /* rd_select.h: the guided methods' choice, per tile of the image, between the method and
- * delta's path, and delta's path with equiangular sampling on every flight where the method
- * samples with it (settings.select = "tiles"; integrators/select.c); and `delta`'s own between
- * its path without and with that strategy (settings.equiangular "tiles": the "method" is the
+ * delta's path, and delta's path with equiangular sampling on every flight (where `guided`'s
+ * marcher samples with it; for `guided-unbiased` always: rd_select_prepare) (settings.select =
+ * "tiles"; integrators/select.c); and `delta`'s own between its path without and with that
+ * strategy (settings.equiangular "tiles": the "method" is the
  * path with it; integrators/delta.c). Internal to integrators/ (tests include
  * it). */
 #ifndef RD_SELECT_H
@@ -14,7 +15,7 @@
 
 /* The estimators a tile can be given (rd_select.choice): delta's path with settings.equiangular
  * ("tiles" read as off: rd_eq_path_mode), the method, and delta's path with equiangular
- * sampling on every flight, RD_EQ_ALL (only where the method's own mode is not off,
+ * sampling on every flight, RD_EQ_ALL (only where rd_select_prepare's `equiangular` is not off,
  * settings.equiangular is not RD_EQ_ALL, and the scene has a light the strategy samples: a
  * point or spot light, or a directional beam that delta's path does not connect to,
  * settings.beam_connect; rd_select.n). */
