@@ -439,7 +439,7 @@ Test(select, the_pilot_puts_half_of_each_tile_s_pixels_in_each_half)
     rd_render_ctx ctx = {.scene = s, .method = rd_method_find("delta"), .threads = 2};
     rd_select sel;
     char err[RD_ERRLEN];
-    cr_assert(rd_select_prepare(&ctx, unit_method, NULL, 1.0, RD_EQ_OFF, &sel, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_select_prepare(&ctx, unit_method, NULL, 1.0, 0, &sel, err, sizeof err) == RD_OK, "%s", err);
     cr_assert(sel.n == 2 && sel.tiles_x == 4 && sel.tiles_y == 3);
     size_t mn = (size_t)sel.n * sel.tiles_x * sel.tiles_y;
     for (size_t i = 0; i < mn; i++)
@@ -475,7 +475,7 @@ Test(select, the_delta_hook_renders_both_delta_estimators)
     rd_render_ctx ctx = {.scene = s, .method = rd_method_find("delta"), .threads = 1, .state = &log};
     rd_select sel;
     char err[RD_ERRLEN];
-    cr_assert(rd_select_prepare(&ctx, unit_method, recording_hook, 1.0, RD_EQ_ALL, &sel, err, sizeof err) == RD_OK, "%s",
+    cr_assert(rd_select_prepare(&ctx, unit_method, recording_hook, 1.0, 1, &sel, err, sizeof err) == RD_OK, "%s",
               err);
     cr_assert(sel.n == 3, "a spot light and the method's own mode on: three estimators, got %d", sel.n);
     /* the pilot: 16 pixels a tile x 8 samples, each delta estimator, 12 tiles */
@@ -500,7 +500,7 @@ Test(select, the_delta_hook_renders_both_delta_estimators)
     /* without the hook: never called */
     hook_log none = {0};
     ctx.state = &none;
-    cr_assert(rd_select_prepare(&ctx, unit_method, NULL, 1.0, RD_EQ_ALL, &sel, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_select_prepare(&ctx, unit_method, NULL, 1.0, 1, &sel, err, sizeof err) == RD_OK, "%s", err);
     long total = 0;
     for (int p = 0; p < 2; p++)
         for (int m = 0; m <= RD_EQ_TILES; m++) total += none.calls[p][m];
@@ -720,7 +720,8 @@ Test(select, delta_with_equiangular_sampling_on_every_flight_is_a_third_kind_of_
 {
     /* guided-unbiased (guide.equiangular its default: "auto" until session 39, false since)
      * where delta's own equiangular strategy is "auto": three estimators, the method, delta's
-     * path ("auto"), and delta's path with the strategy on every flight ("true", RD_SEL_DELTA_EQ). All are unbiased, so any mix
+     * path ("auto"), and delta's path with the strategy on every flight ("true",
+     * RD_SEL_DELTA_EQ). All are unbiased, so any mix
      * of them gives delta's image (z bounds of rt_expect_same; the reference is delta with
      * `true`). The test needs both kinds of delta tile. (With delta's "camera" its own tiles
      * would not do: on this scene `camera`'s 256 and even 2048 samples differ from `true`'s in

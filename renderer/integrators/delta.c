@@ -90,8 +90,8 @@ static rd_status delta_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
             snprintf(err, errlen, "out of memory for the tile selection");
             st = RD_ERR_NOMEM;
         } else {
-            /* two estimators: the method's own mode off means no third (rd_select_prepare) */
-            st = rd_select_prepare(ctx, delta_every_flight, NULL, 0.0, RD_EQ_OFF, ds->sel, err, errlen);
+            /* two estimators: its "method" is the path with the strategy already, no third */
+            st = rd_select_prepare(ctx, delta_every_flight, NULL, 0.0, 0, ds->sel, err, errlen);
         }
     }
     if (st != RD_OK) delta_release(ctx);

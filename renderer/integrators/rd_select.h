@@ -15,7 +15,7 @@
 
 /* The estimators a tile can be given (rd_select.choice): delta's path with settings.equiangular
  * ("tiles" read as off: rd_eq_path_mode), the method, and delta's path with equiangular
- * sampling on every flight, RD_EQ_ALL (only where rd_select_prepare's `equiangular` is not off,
+ * sampling on every flight, RD_EQ_ALL (only where rd_select_prepare's `third_wanted` is set,
  * settings.equiangular is not RD_EQ_ALL, and the scene has a light the strategy samples: a
  * point or spot light, or a directional beam that delta's path does not connect to,
  * settings.beam_connect; rd_select.n). */
@@ -97,9 +97,9 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
                          char *err, size_t errlen);
 /* Run the pilot and make the first choice: on random numbers of its own, the variance and cost
  * per sample of `method` and of delta's path in every tile (and of delta's path with the
- * equiangular strategy on every flight, where `equiangular`, RD_EQ_*, is not RD_EQ_OFF (the
- * marcher's own mode for `guided`; always RD_EQ_ALL for `guided-unbiased` since session 39;
- * RD_EQ_OFF for `delta`'s "tiles"), settings.equiangular is not RD_EQ_ALL, and the scene has a
+ * equiangular strategy on every flight, where the method asks for it, `third_wanted` non-zero
+ * (`guided`: where its marcher samples with the strategy, march.equiangular not off;
+ * `guided-unbiased`: always since session 39; `delta`'s "tiles": never), settings.equiangular is not RD_EQ_ALL, and the scene has a
  * point or spot light, or a directional beam that delta's path does not connect to, to
  * sample); keeps the choices
  * that give the image the least error at equal time. The cost is counted work (select.c):
@@ -108,7 +108,7 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
  * one (its probes), else rd_delta_radiance_eq. Call at the end of the method's prepare
  * (ctx->state set: the pilot renders with the method's scratch, ctx->method->scratch_bytes). */
 rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_select_delta_fn delta,
-                            double cell_cost, int equiangular, rd_select *sel, char *err, size_t errlen);
+                            double cell_cost, int third_wanted, rd_select *sel, char *err, size_t errlen);
 void rd_select_free(rd_select *sel);
 /* The camera sample of `th->pixel`: `method` where the selection gives it the pixel's tile,
  * else delta's path in the estimator's equiangular mode (counted in th->delta_samples, and

@@ -28,13 +28,13 @@
  * costs 4-38% of the time where it samples nothing, docs/free-path.md and docs/benchmarks.md
  * "Session 24"). On a narrow spot across thin fog `delta` with "auto" is 34x plain `delta`
  * and beat both methods (docs/benchmarks.md, session 23): what the methods gained there came
- * from the strategy, and their own estimators cost 3.5-11x a delta path for
- * the same variance. So where the method samples with the strategy (its mode not "false";
+ * from the strategy, and their own estimators cost 3.5-11x a delta path for the same
+ * variance. So where the method samples with the strategy (its mode not "false";
  * guided-unbiased always since session 39, whatever its own flights take: with the selection
  * they take none by default, where "auto" cost more than it gave on hard-dense-block, and the
  * third estimator carries the strategy's gains: docs/guided-unbiased.md "The equiangular
- * strategy"), the scene has a light the strategy samples (a point or spot light; a directional beam too since
- * session 30, below) and settings.equiangular is not "true", delta's path with
+ * strategy"), the scene has a light the strategy samples (a point or spot light; a
+ * directional beam too since session 30, below) and settings.equiangular is not "true", delta's path with
  * the strategy on every flight ("true") is a third estimator (RD_SEL_DELTA_EQ) with statistics
  * of its own, and every rule below runs over the three: each tile gets delta's path with or
  * without the strategy, or the method, whichever pays there. Why "true" and not the method's
@@ -532,14 +532,14 @@ static void choose_tiles(rd_select *sel)
 }
 
 rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_select_delta_fn delta,
-                            double cell_cost, int equiangular, rd_select *sel, char *err, size_t errlen)
+                            double cell_cost, int third_wanted, rd_select *sel, char *err, size_t errlen)
 {
     const rd_scene *s = ctx->scene;
     const rd_camera *cam = &s->camera;
     /* the third estimator: delta's path with the strategy on every flight (the head; a
      * directional beam counts only where delta's path does not connect to it, "Beams that
      * delta's path connects to") */
-    int third = equiangular != RD_EQ_OFF && s->settings.equiangular != RD_EQ_ALL && rd_eq_tiles_have_lights(s);
+    int third = third_wanted && s->settings.equiangular != RD_EQ_ALL && rd_eq_tiles_have_lights(s);
     rd_status st = rd_select_init(sel, cam->width, cam->height, cell_cost, third ? 3 : 2, err, errlen);
     if (st != RD_OK) return st;
     sel->delta = delta;

@@ -240,10 +240,10 @@ static rd_status validate(ld_ctx *c, const cJSON *root, rd_scene *s)
                        s->settings.track_step, 2.0 * rd_scene_radius(s));
     LD_TRY(ld_parse_photons(c, cJSON_GetObjectItemCaseSensitive(root, "photons"), &s->photons));
     LD_TRY(ld_parse_guide(c, cJSON_GetObjectItemCaseSensitive(root, "guide"), &s->guide));
-    /* guide.equiangular's default (session 39): false where guided-unbiased's tile selection
-     * runs, whose third estimator (`delta` with the strategy on every flight) carries the
-     * strategy's gains, and "auto" where it does not (settings.select off: the method alone, as
-     * calibrated in session 23); docs/guided-unbiased.md, "The equiangular strategy" */
+    /* guide.equiangular's default (session 39): false unless settings.select is off, since
+     * guided-unbiased's tile selection has a third estimator (`delta` with the strategy on
+     * every flight) that carries the strategy's gains; "auto" with the selection off (the method
+     * alone, as calibrated in session 23); docs/guided-unbiased.md, "The equiangular strategy" */
     const cJSON *guide = cJSON_GetObjectItemCaseSensitive(root, "guide");
     if (!(cJSON_IsObject(guide) && cJSON_GetObjectItemCaseSensitive(guide, "equiangular")))
         s->guide.equiangular = s->settings.select == RD_SELECT_OFF ? RD_EQ_AUTO : RD_EQ_OFF;
