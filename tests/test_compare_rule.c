@@ -132,8 +132,9 @@ Test(compare_rule, a_cached_reference_too_noisy_for_the_runs_is_extended, .timeo
  * says so, and a --ref-spp one (one render) is the very render of that scene with "tiles" at
  * the reference's seed, whose tiles took the strategy (in thin fog, sigma_t 0.25, where the
  * strategy pays: 1.8x plain `delta`'s efficiency; 100% of the samples here. At sigma_t 0.5 it
- * halves the variance at twice the time, and the selection's halves leave such a tie to the
- * cheaper plain path), so it is not plain `delta`'s image. It is unbiased: against an
+ * halves the variance at twice the time, and the selection's halves left such a tie to the
+ * cheaper plain path under session 27's rule; since session 40 the rest of the image's
+ * prediction picks between the halves' two), so it is not plain `delta`'s image. It is unbiased: against an
  * independent plain `delta` render of many more samples, the pixels' summed difference over its
  * standard error (the two images' errors combined) is N(0, 1), checked to 5 sigma (fixed seeds;
  * 2.76 sigma here). The check can fail: the same reference 5% too bright fails it (12.0 sigma

@@ -10,7 +10,9 @@
  *  - the choice is deterministic: one thread and two give the same image bit for bit;
  *  - replication: a tile's samples (the pilot's, a trial's) fall 50/50 into two halves of 2x2
  *    blocks in a checkerboard, and a costlier estimator takes the tile only when the rule on
- *    each half alone wants it (a tile in one half only: that half's choice). */
+ *    each half alone wants it (a tile in one half only: that half's choice);
+ *  - where a tile's halves disagree, the rule on the image's predicted variances (its pooled
+ *    relative variance times the tile's mean squared) picks between their two. */
 #include "support/rd_test.h"
 #include "integrators/rd_select.h"
 
@@ -352,6 +354,53 @@ Test(select, a_costlier_estimator_takes_a_tile_only_when_both_halves_want_it)
     rd_select_free(&sel);
 }
 
+/* ---- Where the halves disagree, the image decides ---------------------------------------------- */
+
+/* A row of eight tiles (64x8 pixels) whose halves show delta (cost 1) with variance v0[k] and
+ * v1[k] and the method (cost 4) with variance 1, each half a pilot's 8 pixels x 8 samples, mean 1,
+ * every sample non-zero (no Cauchy-Schwarz bound). */
+static void noisy_row(rd_select *sel, const double *v0, const double *v1)
+{
+    char err[RD_ERRLEN];
+    cr_assert(rd_select_init(sel, 64, 8, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
+    for (int k = 0; k < 8; k++)
+        for (int h = 0; h < 2; h++) {
+            add_half(sel, h, 2 * k + RD_SEL_DELTA, 8, 8, 1.0, h ? v1[k] : v0[k], 1.0, 1.0);
+            add_half(sel, h, 2 * k + RD_SEL_METHOD, 8, 8, 1.0, 1.0, 1.0, 4.0);
+        }
+    rd_select_epoch(sel, NULL); /* no samples: the choice from these statistics */
+}
+
+Test(select, where_the_halves_disagree_the_image_s_pooled_variance_decides)
+{
+    /* In every tile one half reads delta's variance as 0.01 (it drew no tail) and the other as
+     * 10: the first half gives every tile to delta (less variance and less cost), the second to
+     * the method ((sum V)(sum C) 8 x 32 = 256 against 80 x 8 = 640 all to delta), so the halves
+     * disagree everywhere. Over the image delta's relative variance is 5.005: predicted, every
+     * tile to delta makes 40 x 8 = 320 > 256, so the image wants the method, and every tile
+     * goes on trial toward it (a move the halves do not agree on always does). The rule before
+     * session 40, the cheaper of the two, keeps delta with no trial (the planted fault fails
+     * here). */
+    double lo[8], hi[8];
+    for (int k = 0; k < 8; k++) lo[k] = 0.01, hi[k] = 10.0;
+    rd_select sel;
+    noisy_row(&sel, lo, hi);
+    for (int k = 0; k < 8; k++)
+        cr_assert(sel.choice[k] == RD_SEL_DELTA && sel.trial[k] == 1 + RD_SEL_METHOD,
+                  "tile %d: estimator %d, trial %d: not delta with the method on trial", k, sel.choice[k], sel.trial[k]);
+    rd_select_free(&sel);
+    /* The second half reads 6 instead (its own rule still wants the method: 48 x 8 = 384 >
+     * 256): the image's relative variance is 3.005, every tile to delta predicts 24 x 8 = 192
+     * < 256, the image wants delta, and the tiles keep it with no trial (a rule that took the
+     * costlier on a split fails here). */
+    for (int k = 0; k < 8; k++) hi[k] = 6.0;
+    noisy_row(&sel, lo, hi);
+    for (int k = 0; k < 8; k++)
+        cr_assert(sel.choice[k] == RD_SEL_DELTA && sel.trial[k] == 0, "tile %d: estimator %d, trial %d", k, sel.choice[k],
+                  sel.trial[k]);
+    rd_select_free(&sel);
+}
+
 /* The half (0 or 1) that one sample of pixel (x, y) of a 16x16 selection lands in. */
 static int half_of_pixel(int x, int y)
 {
@@ -516,7 +565,11 @@ Test(select, a_tile_of_2x2_pixels_at_the_edge_takes_the_choice_of_its_one_half)
      * (variance 1, cost 1) better than the method (1, cost 2) in both halves, but the corner,
      * whose 4 pixels' delta variance is 1000: half 0 wants the method there (and, pooled, in
      * its neighbours), half 1, which has no samples of the corner, delta. The corner takes its
-     * one half's method; its neighbours, whose halves differ, the cheaper delta. */
+     * one half's method; its neighbours' halves differ, and the image beyond their 3x3 tiles
+     * (which leaves the corner out: select.c, "Where the halves disagree") predicts delta's
+     * variance 1 there, so they keep delta with no trial. A prediction that kept the corner in
+     * (delta's pooled relative variance about 7.5) would put tile 10 on trial toward the
+     * method. */
     rd_select sel;
     char err[RD_ERRLEN];
     cr_assert(rd_select_init(&sel, 26, 26, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
@@ -530,7 +583,8 @@ Test(select, a_tile_of_2x2_pixels_at_the_edge_takes_the_choice_of_its_one_half)
         }
     rd_select_epoch(&sel, NULL);
     cr_assert(sel.choice[15] == RD_SEL_METHOD, "the corner tile: %d", sel.choice[15]);
-    cr_assert(sel.choice[10] == RD_SEL_DELTA, "its neighbour: %d", sel.choice[10]);
+    cr_assert(sel.choice[10] == RD_SEL_DELTA && sel.trial[10] == 0, "its neighbour: %d, trial %d", sel.choice[10],
+              sel.trial[10]);
     rd_select_free(&sel);
 }
 

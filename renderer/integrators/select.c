@@ -131,6 +131,46 @@
  * 71.0, homogeneous 1.58 -> 1.62 / 1.61 -> 1.63, default 0.928 -> 0.966 / 0.921 -> 0.909. The
  * dense block's lit tiles on the strategy went from 30-41 to 7-23.
  *
+ * Where the halves disagree, the image decides (session 40). Until then the cheaper of the two
+ * took such a tile, and on hard-dense-block that was most of the lit tiles at the first epochs
+ * (the halves of 45, 50 and 64 of about 75 disagreed at the pilot and the epochs at 4 and 16),
+ * where `delta`'s heavy tail shows only at thousands of samples a tile: its variance a sample
+ * read 0.0005 from a tile's pilot, 0.13 from 1152 samples, about 1.0 from 10^4, against the
+ * method's 0.014-0.09 at 8-12x the cost; the tiles moved late, and a pixel's mean keeps the
+ * samples drawn before a move (docs/benchmarks.md "Session 39"). Pooled over the lit tiles the
+ * tail shows at once: a scratch print of every tile's statistics (guided-unbiased, 160x120, seed
+ * 8) read `delta`'s variance a sample 1.16 from the pilot's 9472 samples and 0.69 from the
+ * 594048 of the epochs up to 256, where the median tile read 0.015 and 0.41; the method's pooled
+ * 0.127 and 0.22. So where the halves disagree, each estimator's variance in the tile is read as
+ * the rest of the image predicts it, mu^2 r, with mu the tile's mean (as in the bound above) and
+ *     r = sum of dev2 / sum of (dof mu^2) over the lit tiles outside the tile's 3x3,
+ * the estimator's relative variance pooled over the image but the 3x3 tiles whose samples the
+ * tile's own figures pool (so the prediction is evidence besides the halves': one tile's
+ * firefly, which the pooling spreads into one half of its neighbours, is not in their r; and a
+ * one-tile image keeps the halves' rule exactly), and the rule on those figures (not pooled
+ * over 3x3 tiles, which would bring the neighbours' predictions back; the tiles' own costs,
+ * pooled as always) picks between the halves' two (if it wants neither,
+ * or an estimator has no prediction, r 0, the cheaper, as before). The move still goes on trial
+ * first, and where the halves agree nothing changes. Measured, 10 s, paired rounds against the
+ * build before (docs/benchmarks.md "Session 40"; rounds spread widely there, so read the
+ * figures as "no loss" or "a gain", not as their digits): guided-unbiased's efficiency on
+ * hard-dense-block 1.33x (1.16-1.70, four rounds), over plain `delta` 1.41 (1.36-1.68) against
+ * 1.05 (1.00-1.19) in the same rounds; the calibration scenes beam-vdb 1.21x (two rounds),
+ * hetero-forward 1.03x (0.99, 1.08), cloud 0.99x, sphere-in-fog 0.98x; beam 1.21x (one round);
+ * hard-lens-caustic 0.95x (0.87-1.04, four rounds: 8-13% of its samples on the method's paths
+ * against 5-7%, a loss there within the rounds' spread or a little beyond). Two earlier forms of the same rule (r
+ * over all the lit tiles; r without the tile alone, and pooled) measured 1.17x (nine rounds) and
+ * 1.14x (three) on the dense block and 0.99-1.06x (beam-vdb 1.36x in two rounds) elsewhere,
+ * `guided`'s marcher 0.94-1.25x on five of the benchmark's scenes (two rounds each, noisy: beam
+ * 0.79 and 1.71). Tried first and not kept, with r read everywhere rather than only where the
+ * halves disagree: added to every tile's own estimate as a prior of nu pseudo-samples (nu 512
+ * or infinite: dense block 1.36-1.43x, but sphere-in-fog 0.72x in one round of two, cloud 0.90x
+ * with nu infinite), or moving every tile toward it by the share of the tiles' spread in log
+ * variance that the halves' disagreement says is noise (empirical Bayes: dense block 1.22x,
+ * hetero-forward 1.08x, but beam-vdb 0.74x and one lens-caustic round 0.76x, where it gave the
+ * method 82% of the samples; r from the pilot alone: beam-vdb 0.80x). Tiles truly differ on
+ * those scenes, and a figure for the whole image overrode tiles whose halves agreed.
+ *
  * Beams that delta's path connects to (session 38). Where settings.beam_connect is on, delta's
  * path (and the method's) connects every scattering vertex to the scene's directional beam
  * (transport/beam_connect.c), and a flight with the strategy on every flight (RD_EQ_ALL) drops
@@ -322,11 +362,11 @@ static void pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, const rd_select
 }
 
 /* The per-sample variance of estimator e (RD_SEL_*) in a tile whose m statistics are
- * tile[0 .. m-1] (mean over RGB): the pooled sample variance, bounded below by Cauchy-Schwarz
+ * tile[0 .. m-1] (mean over RGB): the pooled sample variance, or with r > 0 the image's
+ * prediction mu^2 r (see the head, "Where the halves disagree"), bounded below by Cauchy-Schwarz
  * with mu the mean of the estimators' means (all unbiased for the tile's mean) and the non-zero
- * probability p from the tile's count and e's fraction pbar over the lit tiles (see the
- * head). */
-static double tile_variance(const rd_select_stats *tile, int m, int e, double pbar)
+ * probability p from the tile's count and e's fraction pbar over the lit tiles (see the head). */
+static double tile_variance(const rd_select_stats *tile, int m, int e, double pbar, double r)
 {
     const rd_select_stats *st = &tile[e];
     if (!(st->n > 0.0)) return 0.0;
@@ -337,7 +377,7 @@ static double tile_variance(const rd_select_stats *tile, int m, int e, double pb
         for (int j = 0; j < m; j++)
             if (tile[j].n > 0.0) mu += tile[j].sum[c] / tile[j].n, k++;
         mu /= k;
-        double sv = st->dof > 0.0 ? st->dev2[c] / st->dof : 0.0;
+        double sv = r > 0.0 ? r * mu * mu : st->dof > 0.0 ? st->dev2[c] / st->dof : 0.0;
         v += fmax(sv, mu > 0.0 ? mu * mu * (1.0 / p - 1.0) : 0.0);
     }
     return v / 3.0;
@@ -446,9 +486,12 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
 
 /* The rule's figures from statistics st ([m k + e], one set of m per tile): each tile's V and C
  * (as sums over its pixels, which is what the image's error and time add up), pooled over 3x3
- * tiles (pool), with each estimator's non-zero prior pbar[e]. var or cost may be NULL. */
-static void figures(const rd_select *sel, const rd_select_stats *st, const double *pbar, double *var,
-                    double *cost, double *tmp)
+ * tiles (pool), with each estimator's non-zero prior pbar[e]; with r (unless NULL) each tile's
+ * V is the prediction from the estimator's relative variance beyond the tile's 3x3, r[m k + e],
+ * not pooled (pooling would bring back the neighbours' predictions, which hold the tile's own
+ * samples). var or cost may be NULL. */
+static void figures(const rd_select *sel, const rd_select_stats *st, const double *pbar, const double *r,
+                    double *var, double *cost, double *tmp)
 {
     int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
     for (int k = 0; k < n; k++) {
@@ -457,30 +500,73 @@ static void figures(const rd_select *sel, const rd_select_stats *st, const doubl
         double pixels = (double)(w < RD_SELECT_TILE ? w : RD_SELECT_TILE) * (h < RD_SELECT_TILE ? h : RD_SELECT_TILE);
         for (int e = 0; e < m; e++) {
             const rd_select_stats *s = &st[m * k + e];
-            if (var) var[m * k + e] = pixels * tile_variance(&st[m * k], m, e, pbar[e]);
+            if (var) var[m * k + e] = pixels * tile_variance(&st[m * k], m, e, pbar[e], r ? r[m * k + e] : 0.0);
             if (cost) cost[m * k + e] = s->n > 0.0 ? pixels * s->cost / s->n : 0.0;
         }
     }
-    if (var) pool(var, tmp, nx, ny, m);
+    if (var && !r) pool(var, tmp, nx, ny, m); /* (r's predictions are pooled over the image already) */
     if (cost) pool(cost, tmp, nx, ny, m);
 }
 
+/* For each tile k and estimator e, e's relative variance pooled over the lit tiles of statistics
+ * st (all of the tiles' samples) outside the 3x3 tiles k's figures are pooled over,
+ * r[m k + e] = sum dev2 / sum (dof mu^2) over them, mu per channel as in tile_variance; 0 where
+ * they have no deviation of e's (see the head, "Where the halves disagree"). num and den: room
+ * for m n doubles each. */
+static void pooled_relative_variance(const rd_select *sel, const rd_select_stats *st, double *r, double *num,
+                                     double *den)
+{
+    int n = sel->tiles_x * sel->tiles_y, m = sel->n;
+    double N[RD_SEL_MAX] = {0, 0, 0}, D[RD_SEL_MAX] = {0, 0, 0};
+    for (int k = 0; k < n; k++) {
+        const rd_select_stats *t = &st[m * k];
+        double lit = 0.0;
+        for (int e = 0; e < m; e++) lit += t[e].nonzero, num[m * k + e] = den[m * k + e] = 0.0;
+        if (!(lit > 0.0)) continue;
+        for (int c = 0; c < 3; c++) {
+            double mu = 0.0;
+            int kk = 0;
+            for (int j = 0; j < m; j++)
+                if (t[j].n > 0.0) mu += t[j].sum[c] / t[j].n, kk++;
+            if (kk) mu /= kk;
+            for (int e = 0; e < m; e++)
+                if (t[e].dof > 0.0) num[m * k + e] += t[e].dev2[c], den[m * k + e] += t[e].dof * mu * mu;
+        }
+        for (int e = 0; e < m; e++) N[e] += num[m * k + e], D[e] += den[m * k + e];
+    }
+    int nx = sel->tiles_x, ny = sel->tiles_y;
+    for (int k = 0; k < n; k++) {
+        int tx = k % nx, ty = k / nx;
+        double a[RD_SEL_MAX] = {0, 0, 0}, b[RD_SEL_MAX] = {0, 0, 0};
+        for (int y = ty - 1; y <= ty + 1; y++) /* the 3x3 tiles k's figures are pooled over */
+            for (int x = tx - 1; x <= tx + 1; x++) {
+                if (x < 0 || y < 0 || x >= nx || y >= ny) continue;
+                for (int e = 0; e < m; e++) a[e] += num[m * (y * nx + x) + e], b[e] += den[m * (y * nx + x) + e];
+            }
+        for (int e = 0; e < m; e++) {
+            double d = D[e] - b[e];
+            r[m * k + e] = d > 0.0 ? fmax(0.0, N[e] - a[e]) / d : 0.0;
+        }
+    }
+}
+
 /* Choose every tile's estimator from the statistics so far: the rule on each half of the
- * samples alone, the estimator both halves want or else the cheaper of their two (see the head,
- * "Replication"); a move to the estimator with far fewer samples goes on trial first ("Evidence
- * of unequal size"). */
+ * samples alone, the estimator both halves want, or else the rule's on the image's predicted
+ * variances if it is one of their two, else the cheaper of their two (see the head, "Replication"
+ * and "Where the halves disagree"); a move to the estimator with far fewer samples goes on trial
+ * first ("Evidence of unequal size"). */
 static void choose_tiles(rd_select *sel)
 {
     int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
     size_t mn = (size_t)m * n;
     rd_select_stats *all = malloc(mn * sizeof *all);
-    double *buf = malloc(4 * mn * sizeof *buf);
-    uint8_t *want = malloc(2 * (size_t)n);
+    double *buf = malloc(7 * mn * sizeof *buf);
+    uint8_t *want = malloc(3 * (size_t)n); /* the two halves', and the image's (image_want) */
     if (!all || !buf || !want) { /* the choices stay as they are */
         free(all), free(buf), free(want);
         return;
     }
-    double *var = buf, *cost = buf + mn, *all_cost = buf + 2 * mn, *tmp = buf + 3 * mn;
+    double *var = buf, *cost = buf + mn, *all_cost = buf + 2 * mn, *tmp = buf + 3 * mn, *r = buf + 4 * mn;
     const rd_select_stats *half[2] = {sel->stats, sel->stats + mn};
     for (size_t i = 0; i < mn; i++) { /* a tile's samples: its two halves' */
         const rd_select_stats *a = &half[0][i], *b = &half[1][i];
@@ -500,10 +586,21 @@ static void choose_tiles(rd_select *sel)
     }
     for (int e = 0; e < m; e++) pbar[e] = (nz[e] + 1.0) / (nn[e] + 2.0);
     for (int h = 0; h < 2; h++) {
-        figures(sel, half[h], pbar, var, cost, tmp);
+        figures(sel, half[h], pbar, NULL, var, cost, tmp);
         rd_select_choose(var, cost, n, m, want + (size_t)h * n);
     }
-    figures(sel, all, pbar, NULL, all_cost, tmp);
+    figures(sel, all, pbar, NULL, NULL, all_cost, tmp);
+    /* What the tiles beyond a tile's pooling predict, for the tiles whose halves disagree (see
+     * the head); a tile for which any estimator has no prediction (r 0: no deviation of its
+     * samples beyond the 3x3 tiles) has no such choice (RD_SEL_MAX), and a split goes to the
+     * cheaper of the two. */
+    uint8_t *image_want = want + 2 * (size_t)n;
+    pooled_relative_variance(sel, all, r, r + mn, r + 2 * mn);
+    figures(sel, all, pbar, r, var, cost, tmp);
+    rd_select_choose(var, cost, n, m, image_want);
+    for (int k = 0; k < n; k++)
+        for (int e = 0; e < m; e++)
+            if (!(r[m * k + e] > 0.0)) image_want[k] = RD_SEL_MAX;
     /* The evidence is the tile's own samples (its neighbours, committed to one estimator,
      * would outweigh its trial in a pooled count for ever). A trial lasts one epoch: then the
      * rule decides. */
@@ -512,7 +609,8 @@ static void choose_tiles(rd_select *sel)
         double na = 0.0, nb = 0.0, ca = all_cost[m * k + a], cb = all_cost[m * k + b];
         for (int e = 0; e < m; e++) na += half[0][m * k + e].n, nb += half[1][m * k + e].n;
         int split = a != b && na > 0.0 && nb > 0.0; /* they differ and both have samples */
-        if (split) w = ca < cb || (ca == cb && a < b) ? a : b; /* the cheaper of the two */
+        if (split) /* the image's choice between the two, or else the cheaper of them */
+            w = image_want[k] == a || image_want[k] == b ? image_want[k] : ca < cb || (ca == cb && a < b) ? a : b;
         else if (!(na > 0.0)) w = b;
         int cur = sel->choice[k];
         const rd_select_stats *st = &all[m * k];
