@@ -157,7 +157,7 @@
  * hard-dense-block 1.33x (1.16-1.70, four rounds), over plain `delta` 1.41 (1.36-1.68) against
  * 1.05 (1.00-1.19) in the same rounds; the calibration scenes beam-vdb 1.21x (two rounds),
  * hetero-forward 1.03x (0.99, 1.08), cloud 0.99x, sphere-in-fog 0.98x; beam 1.21x (one round);
- * hard-lens-caustic 0.95x (0.87-1.04, four rounds: 8-13% of its samples on the method's paths
+ * hard-lens-caustic 0.95x (0.87-1.04, four rounds: 6-13% of its samples on the method's paths
  * against 5-7%, a loss there within the rounds' spread or a little beyond). Two earlier forms of the same rule (r
  * over all the lit tiles; r without the tile alone, and pooled) measured 1.17x (nine rounds) and
  * 1.14x (three) on the dense block and 0.99-1.06x (beam-vdb 1.36x in two rounds) elsewhere,
@@ -361,6 +361,17 @@ static void pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, const rd_select
     pixel_fold(st, &px);
 }
 
+/* Channel c of a tile's mean, from its m statistics tile[0 .. m-1]: the mean of the estimators'
+ * means (all unbiased for it), over those with samples; 0 if none has. */
+static double tile_mean(const rd_select_stats *tile, int m, int c)
+{
+    double mu = 0.0;
+    int k = 0;
+    for (int j = 0; j < m; j++)
+        if (tile[j].n > 0.0) mu += tile[j].sum[c] / tile[j].n, k++;
+    return k ? mu / k : 0.0;
+}
+
 /* The per-sample variance of estimator e (RD_SEL_*) in a tile whose m statistics are
  * tile[0 .. m-1] (mean over RGB): the pooled sample variance, or with r > 0 the image's
  * prediction mu^2 r (see the head, "Where the halves disagree"), bounded below by Cauchy-Schwarz
@@ -372,11 +383,7 @@ static double tile_variance(const rd_select_stats *tile, int m, int e, double pb
     if (!(st->n > 0.0)) return 0.0;
     double p = (st->nonzero + 2.0 * pbar) / (st->n + 2.0), v = 0.0;
     for (int c = 0; c < 3; c++) {
-        double mu = 0.0;
-        int k = 0;
-        for (int j = 0; j < m; j++)
-            if (tile[j].n > 0.0) mu += tile[j].sum[c] / tile[j].n, k++;
-        mu /= k;
+        double mu = tile_mean(tile, m, c);
         double sv = r > 0.0 ? r * mu * mu : st->dof > 0.0 ? st->dev2[c] / st->dof : 0.0;
         v += fmax(sv, mu > 0.0 ? mu * mu * (1.0 / p - 1.0) : 0.0);
     }
@@ -524,11 +531,7 @@ static void pooled_relative_variance(const rd_select *sel, const rd_select_stats
         for (int e = 0; e < m; e++) lit += t[e].nonzero, num[m * k + e] = den[m * k + e] = 0.0;
         if (!(lit > 0.0)) continue;
         for (int c = 0; c < 3; c++) {
-            double mu = 0.0;
-            int kk = 0;
-            for (int j = 0; j < m; j++)
-                if (t[j].n > 0.0) mu += t[j].sum[c] / t[j].n, kk++;
-            if (kk) mu /= kk;
+            double mu = tile_mean(t, m, c);
             for (int e = 0; e < m; e++)
                 if (t[e].dof > 0.0) num[m * k + e] += t[e].dev2[c], den[m * k + e] += t[e].dof * mu * mu;
         }
