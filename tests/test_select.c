@@ -535,7 +535,7 @@ Test(select, the_delta_hook_renders_both_delta_estimators)
     long delta_px = 0, eq_px = 0;
     for (int y = 0; y < 24; y++)
         for (int x = 0; x < 32; x++) {
-            th.pixel = (uint64_t)y * 32 + x;
+            th.pixel = (uint64_t)y * 32 + x, th.x = x, th.y = y;
             rd_sampler smp = rd_sampler_start(th.pixel, 0, 7);
             vec3 L = rd_select_radiance(&ctx, &sel, unit_method, &th, (ray3){v3(0, 0, 3), v3(0, 0, -1)}, &smp);
             int use = rd_select_uses(&sel, x, y);

@@ -699,7 +699,7 @@ Test(surface_images, the_selection_s_pilot_takes_no_probes)
     cr_assert(rd_probes_on(&p), "a sphere light in view and no probes");
     rd_thread th = {0};
     th.pilot = 1;
-    th.pixel = 5;
+    th.pixel = 5, th.x = 5, th.y = 0;
     pcg32 rng = pcg32_seed(8, 7, 13);
     vec3 L = rd_probes_add(&ctx, &p, &th, v3(1, 2, 3), v3(4, 5, 6), 10.0, &rng);
     cr_expect(L.x == 5.0 && L.y == 7.0 && L.z == 9.0 && th.probes == 0, "the pilot's sample is %g %g %g with %llu probes",

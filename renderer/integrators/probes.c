@@ -320,7 +320,7 @@ vec3 rd_probes_add(const rd_render_ctx *ctx, rd_probes *p, rd_thread *th, vec3 I
     double cost_p = 0.0, p1 = 0.0, p2 = 0.0;
     if (M > 1) {
         const rd_camera *cam = &s->camera;
-        double x = (double)(th->pixel % (uint64_t)cam->width), y = (double)(th->pixel / (uint64_t)cam->width);
+        double x = th->x, y = th->y;
         rd_select_work w0 = rd_select_work_now(th);
         for (int j = 1; j < M; j++) {
             double jx = pcg32_uniform(rng), jy = pcg32_uniform(rng);

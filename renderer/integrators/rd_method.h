@@ -29,6 +29,7 @@ struct sh_guide;
 typedef struct rd_thread {
     _Alignas(RD_CACHE_LINE) int index;
     uint64_t pixel;         /* the pixel being rendered (y * width + x), set before radiance() */
+    int x, y;               /* ... and its column and row (set with it) */
     int pilot;              /* 1 while the selection's pilot samples the pixel (select.c) */
     rd_track_counters counters;
     /* Per-ray statistics of the marching methods (zero for the others). */

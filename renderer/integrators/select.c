@@ -352,7 +352,7 @@ static void pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, const rd_select
         if (!cam->jitter) jx = jy = 0.5;
         ray3 r = rd_camera_ray(cam, x + jx, y + jy);
         rd_select_work c0 = rd_select_work_now(th);
-        th->pixel = pix;
+        th->pixel = pix, th->x = x, th->y = y;
         th->pilot = 1; /* (not an image sample: march.probes "auto" learns from those only) */
         vec3 L = estimate(ctx, sel, th, e, method, r, &smp);
         th->pilot = 0;
@@ -738,9 +738,7 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
                         rd_thread *th, ray3 r, rd_sampler *smp)
 {
     if (!sel->choice) return method(ctx, th, r, smp);
-    int w = ctx->scene->camera.width;
-    int x = (int)(th->pixel % (uint64_t)w), y = (int)(th->pixel / (uint64_t)w);
-    int use = rd_select_uses(sel, x, y);
+    int use = rd_select_uses(sel, th->x, th->y);
     rd_select_work c0 = rd_select_work_now(th);
     th->delta_samples += use != RD_SEL_METHOD;
     th->delta_eq_samples += use == RD_SEL_DELTA_EQ;

@@ -48,6 +48,7 @@ rd_status ld_parse_camera(ld_ctx *c, const cJSON *j, rd_camera *cam)
         fwd = v3_sub(at, cam->pos);
         if (v3_len(fwd) < 1e-12) return ld_fail(c, "camera.look_at", "must differ from camera.position");
         LD_TRY(ld_get_num(c, j, path, "fov", 0, 40.0, 0, 1, 180, 1, &cam->fov_deg));
+        cam->tan_half_fov = tan(0.5 * cam->fov_deg * M_PI / 180.0);
     } else {
         LD_TRY(ld_get_vec3(c, j, path, "direction", 1, v3(0, 0, -1), 0, -1e9, 1e9, &fwd));
         if (v3_len(fwd) < 1e-12) return ld_fail(c, "camera.direction", "must not be the zero vector");

@@ -170,7 +170,7 @@ static int render_pass(const rd_render_ctx *ctx, rd_thread *th, film *f, int s0,
                     double jx = rd_sampler_1d(&smp), jy = rd_sampler_1d(&smp); /* RD_DIM_FILM */
                     if (!cam->jitter) jx = jy = 0.5; /* pixel centres (camera.jitter false) */
                     ray3 r = rd_camera_ray(cam, x + jx, y + jy);
-                    t->pixel = pix;
+                    t->pixel = pix, t->x = x, t->y = y;
                     vec3 L = m->radiance(ctx, t, r, &smp);
                     /* A non-finite sample would poison the pixel: drop and count it. */
                     if (!v3_finite(L)) { bad++; continue; }

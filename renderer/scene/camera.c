@@ -12,7 +12,7 @@ ray3 rd_camera_ray(const rd_camera *cam, double px, double py)
     double sy = 1.0 - 2.0 * py / cam->height;
     ray3 r;
     if (cam->kind == RD_CAM_PERSPECTIVE) {
-        double th = tan(0.5 * cam->fov_deg * M_PI / 180.0);
+        double th = cam->tan_half_fov;
         r.o = cam->pos;
         r.d = v3_norm(v3_add(cam->forward, v3_add(v3_scale(cam->right, sx * th), v3_scale(cam->up, sy * th))));
     } else {
@@ -29,7 +29,7 @@ int rd_camera_project(const rd_camera *cam, vec3 p, double *px, double *py)
     double aspect = (double)cam->width / cam->height, sx, sy;
     vec3 v = v3_sub(p, cam->pos);
     if (cam->kind == RD_CAM_PERSPECTIVE) {
-        double z = v3_dot(v, cam->forward), th = tan(0.5 * cam->fov_deg * M_PI / 180.0);
+        double z = v3_dot(v, cam->forward), th = cam->tan_half_fov;
         if (!(z > 0.0)) return 0;
         sx = v3_dot(v, cam->right) / (z * th);
         sy = v3_dot(v, cam->up) / (z * th);

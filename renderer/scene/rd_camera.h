@@ -17,6 +17,8 @@ typedef struct {
     vec3 pos;
     vec3 forward, right, up; /* orthonormal, right-handed: right = forward x up */
     double fov_deg;          /* perspective: vertical field of view */
+    double tan_half_fov;     /* perspective: tan(fov_deg / 2), the film's half-height at unit
+                              * distance (set with fov_deg by the loader, not per ray) */
     double ortho_width;      /* orthographic: width of the view in scene units */
     double exposure;         /* PNG preview: value * 2^exposure */
     int jitter;              /* 1 (default): a random position inside the pixel per sample;
