@@ -28,9 +28,10 @@ double rd_probes_cost(const rd_probes *p, const rd_select_work *w0, const rd_thr
  * (settings.transmittance's estimator) and the chain's glass; 0 where it ends on a diffuse
  * surface. */
 vec3 rd_probes_chain(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c);
-/* A sample's estimate of pixel th->pixel from its I and its own chain's E0 (probes.c's head),
- * with M - 1 probes averaged into E0; cost: the sample's counted cost (rd_probes_cost). Learns
- * from the sample under "auto" (p's per-pixel statistics). */
+/* A sample's estimate of pixel th->pixel (the probes aim at column th->x, row th->y) from
+ * its I and its own chain's E0 (probes.c's head), with M - 1 probes averaged into E0; cost:
+ * the sample's counted cost (rd_probes_cost). Learns from the sample under "auto" (p's
+ * per-pixel statistics). */
 vec3 rd_probes_add(const rd_render_ctx *ctx, rd_probes *p, rd_thread *th, vec3 I, vec3 E0, double cost,
                    pcg32 *rng);
 /* One pixel's model under "auto" (probes.c's head): a sample with M - 1 probes,

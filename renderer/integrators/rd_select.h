@@ -110,10 +110,11 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
 rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_select_delta_fn delta,
                             double cell_cost, int third_wanted, rd_select *sel, char *err, size_t errlen);
 void rd_select_free(rd_select *sel);
-/* The camera sample of `th->pixel`: `method` where the selection gives it the pixel's tile,
- * else delta's path in the estimator's equiangular mode (counted in th->delta_samples, and
- * th->delta_eq_samples for RD_SEL_DELTA_EQ). The sample is recorded for the next epoch:
- * sel is written at th->pixel only, which one thread renders at a time, in sample order. */
+/* The camera sample of `th->pixel` (column th->x, row th->y): `method` where the selection
+ * gives it the pixel's tile, else delta's path in the estimator's equiangular mode (counted in
+ * th->delta_samples, and th->delta_eq_samples for RD_SEL_DELTA_EQ). The sample is recorded
+ * for the next epoch: sel is written at th->pixel only, which one thread renders at a time,
+ * in sample order. */
 vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn method,
                         rd_thread *th, ray3 r, rd_sampler *smp);
 /* Record one sample L of `pixel`, with its counted cost, for the next epoch. */

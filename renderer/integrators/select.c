@@ -171,8 +171,9 @@
  * method 82% of the samples; r from the pilot alone: beam-vdb 0.80x). Tiles truly differ on
  * those scenes, and a figure for the whole image overrode tiles whose halves agreed. Nor as a
  * veto (session 41): a move to a costlier estimator, where the halves agree or a trial ends,
- * only if the rule on the predicted figures wants the same one: 0.77-0.85x on beam-vdb and the
- * dense block, 0.92-0.98x on the lens caustic and hetero-forward (two rounds each).
+ * only if the rule on the predicted figures wants the same one: 0.76-0.85x on beam-vdb and the
+ * dense block, 0.92-0.98x on the lens caustic and hetero-forward (two rounds each), cloud a
+ * tie (one round).
  *
  * Beams that delta's path connects to (session 38). Where settings.beam_connect is on, delta's
  * path (and the method's) connects every scattering vertex to the scene's directional beam
