@@ -173,7 +173,11 @@
  * veto (session 41): a move to a costlier estimator, where the halves agree or a trial ends,
  * only if the rule on the predicted figures wants the same one: 0.76-0.85x on beam-vdb and the
  * dense block, 0.92-0.98x on the lens caustic and hetero-forward (two rounds each), cloud a
- * tie (one round).
+ * tie (one round). Nor (session 41) the 3x3 pooling weakened as a tile's own samples grow
+ * (its own figure weighted by its samples, each neighbour's by a pilot's): beam-vdb 0.89x and
+ * 0.92x, beam 0.66x and 1.07x (`guided` 0.78x and 0.84x) in two rounds; on beam.json the
+ * neighbours' fireflies likely show tails that 6000 samples of a tile's own had not (not
+ * proven: two rounds).
  *
  * Beams that delta's path connects to (session 38). Where settings.beam_connect is on, delta's
  * path (and the method's) connects every scattering vertex to the scene's directional beam
