@@ -159,8 +159,9 @@
  * hetero-forward 1.03x (0.99, 1.08), cloud 0.99x, sphere-in-fog 0.98x; beam 1.21x (one round);
  * hard-lens-caustic 0.95x (0.87-1.04, four rounds: 6-13% of its samples on the method's paths
  * against 5-7%, a loss there within the rounds' spread or a little beyond). Two earlier forms of the same rule (r
- * over all the lit tiles; r without the tile alone, and pooled) measured 1.17x (nine rounds) and
- * 1.14x (three) on the dense block and 0.99-1.06x (beam-vdb 1.36x in two rounds) elsewhere,
+ * over all the lit tiles; r without the tile alone, and pooled) measured 1.17x (six rounds) and
+ * 1.14x (three) on the dense block and 0.99-1.07x elsewhere but for the second's beam-vdb
+ * 1.36x, beam 1.37x and hard-narrow-spot 1.19x (two rounds each),
  * `guided`'s marcher 0.94-1.25x on five of the benchmark's scenes (two rounds each, noisy: beam
  * 0.79 and 1.71). Tried first and not kept, with r read everywhere rather than only where the
  * halves disagree: added to every tile's own estimate as a prior of nu pseudo-samples (nu 512
