@@ -471,6 +471,66 @@ Test(select, a_move_the_halves_do_not_agree_on_goes_on_trial_first)
     rd_select_free(&sel);
 }
 
+/* ---- Tiles no sample has lit ----------------------------------------------------------------- */
+
+/* A row of eight tiles (64x8 pixels), each estimator's pilot as fake_pilot's: tiles 0-3 lit
+ * (mean 1, every sample non-zero) with delta's path at variance v_delta, cost 1, the third
+ * estimator (delta's path with the strategy) at variance v_eq, cost 1.2, and the method at
+ * variance 1, cost 10; tiles 4-7 unlit (every sample zero, the same costs). */
+static void half_lit_row(rd_select *sel, int estimators, double v_delta, double v_eq)
+{
+    char err[RD_ERRLEN];
+    cr_assert(rd_select_init(sel, 64, 8, 1.0, estimators, err, sizeof err) == RD_OK, "%s", err);
+    int m = sel->n;
+    for (int k = 0; k < 8; k++) {
+        double lit = k < 4 ? 1.0 : 0.0;
+        fake_pilot(sel, m * k + RD_SEL_DELTA, lit, lit * v_delta, lit, 1.0);
+        fake_pilot(sel, m * k + RD_SEL_METHOD, lit, lit * 1.0, lit, m == 3 ? 10.0 : 1.2);
+        if (m == 3) fake_pilot(sel, m * k + RD_SEL_DELTA_EQ, lit, lit * v_eq, lit, 1.2);
+    }
+    rd_select_epoch(sel, NULL); /* no samples: the pilot's choice */
+}
+
+Test(select, a_tile_no_sample_has_lit_takes_the_path_the_image_prefers)
+{
+    /* The lit tiles show the strategy's path far better (variance 0.1 against 10, at 1.2x the
+     * cost): the unlit tiles take it too, at once, where the rule's figures (all zero) would
+     * give them plain delta, the cheapest (the build before session 42 fails here: tiles 5-7,
+     * whose 3x3 neighbourhoods are dark too). */
+    rd_select sel;
+    half_lit_row(&sel, 3, 10.0, 0.1);
+    for (int k = 4; k < 8; k++)
+        cr_assert(sel.choice[k] == RD_SEL_DELTA_EQ && sel.trial[k] == 0, "unlit tile %d: estimator %d, trial %d", k,
+                  sel.choice[k], sel.trial[k]);
+    rd_select_free(&sel);
+    /* The lit tiles show plain delta better (0.1 against 0.1 at 1.2x the cost): unlit tiles
+     * keep it. */
+    half_lit_row(&sel, 3, 0.1, 0.1);
+    for (int k = 4; k < 8; k++)
+        cr_assert(sel.choice[k] == RD_SEL_DELTA && sel.trial[k] == 0, "unlit tile %d: estimator %d, trial %d", k,
+                  sel.choice[k], sel.trial[k]);
+    rd_select_free(&sel);
+    /* A guided method without the third estimator: one path, and an unlit tile takes what the
+     * rule gives it, the cheapest, as before. */
+    half_lit_row(&sel, 2, 10.0, 0.1);
+    cr_assert(sel.choice[7] == RD_SEL_DELTA, "one path: unlit tile 7 on estimator %d", sel.choice[7]);
+    rd_select_free(&sel);
+    /* `delta`'s own "tiles": its "method" is the strategy's path, one of delta's paths. */
+    char err[RD_ERRLEN];
+    cr_assert(rd_select_init(&sel, 64, 8, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
+    sel.paths |= 1u << RD_SEL_METHOD; /* as rd_select_prepare sets it for RD_SELECT_METHOD_IS_PATH */
+    for (int k = 0; k < 8; k++) {
+        double lit = k < 4 ? 1.0 : 0.0;
+        fake_pilot(&sel, 2 * k + RD_SEL_DELTA, lit, lit * 10.0, lit, 1.0);
+        fake_pilot(&sel, 2 * k + RD_SEL_METHOD, lit, lit * 0.1, lit, 1.2);
+    }
+    rd_select_epoch(&sel, NULL);
+    for (int k = 4; k < 8; k++)
+        cr_assert(sel.choice[k] == RD_SEL_METHOD && sel.trial[k] == 0, "delta's tiles, unlit tile %d: estimator %d, trial %d",
+                  k, sel.choice[k], sel.trial[k]);
+    rd_select_free(&sel);
+}
+
 static const char *select_scene(const char *settings); /* below, with the image tests */
 
 /* A camera sample of a stand-in method: always 1. */

@@ -64,7 +64,8 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
         /* (delta's tiles without the marcher's probes: with them, tried in session 36, `guided`
          * lost 0-10% against `delta` with probes on the calibration scenes; the marcher wins the
          * light's tiles without that: docs/guided-unbiased.md "Probes") */
-        st = rd_select_prepare(ctx, march_guided, NULL, RD_MARCH_CELL_COST, s->march.equiangular != RD_EQ_OFF,
+        st = rd_select_prepare(ctx, march_guided, NULL, RD_MARCH_CELL_COST,
+                               s->march.equiangular != RD_EQ_OFF ? RD_SELECT_THIRD : 0,
                                &mst->sel, err, errlen);
         if (st != RD_OK) rd_march_release(ctx);
     }

@@ -656,7 +656,7 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
      * none by default where the selection runs (load.c), and the third estimator is where the
      * strategy pays (select.c's head). */
     if (s->settings.select != RD_SELECT_OFF && ctx->guide) {
-        rd_status rs = rd_select_prepare(ctx, gu_path, gu_delta, GU_CELL_COST, 1, &st->sel, err, errlen);
+        rd_status rs = rd_select_prepare(ctx, gu_path, gu_delta, GU_CELL_COST, RD_SELECT_THIRD, &st->sel, err, errlen);
         if (rs != RD_OK) {
             gu_release(ctx);
             return rs;

@@ -15,7 +15,7 @@
 
 /* The estimators a tile can be given (rd_select.choice): delta's path with settings.equiangular
  * ("tiles" read as off: rd_eq_path_mode), the method, and delta's path with equiangular
- * sampling on every flight, RD_EQ_ALL (only where rd_select_prepare's `third_wanted` is set,
+ * sampling on every flight, RD_EQ_ALL (only where rd_select_prepare's options have RD_SELECT_THIRD,
  * settings.equiangular is not RD_EQ_ALL, and the scene has a light the strategy samples: a
  * point or spot light, or a directional beam that delta's path does not connect to,
  * settings.beam_connect; rd_select.n). */
@@ -55,6 +55,12 @@ typedef struct {
                                 two with the higher index, the others the lower (rd_select_uses) */
     int n;                   /* estimators compared: 2 (delta, the method) or 3 (RD_SEL_DELTA_EQ
                                 too) */
+    unsigned paths;          /* bit e set: estimator e is one of delta's paths (RD_SEL_DELTA,
+                                RD_SEL_DELTA_EQ; in delta's own selection its "method" too) */
+    int unlit;               /* the estimator of a tile no sample has lit yet, where the rule
+                                gives it one of delta's paths and there are two: the one the
+                                pilot's samples prefer for the whole image (select.c, "Tiles no
+                                sample has lit"); -1 until the pilot's choice */
     int tiles_x, tiles_y, width, height;
     int epochs;              /* choose again at the epochs (settings.select "pilot": 0; every
                                 other value 1: the guided methods select only with "tiles" or
@@ -97,7 +103,8 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
                          char *err, size_t errlen);
 /* Run the pilot and make the first choice: on random numbers of its own, the variance and cost
  * per sample of `method` and of delta's path in every tile (and of delta's path with the
- * equiangular strategy on every flight, where the method asks for it, `third_wanted` non-zero
+ * equiangular strategy on every flight, where the method asks for it, options with
+ * RD_SELECT_THIRD
  * (`guided`: where its marcher samples with the strategy, march.equiangular not off;
  * `guided-unbiased`: always since session 39; `delta`'s "tiles": never), settings.equiangular is not RD_EQ_ALL, and the scene has a
  * point or spot light, or a directional beam that delta's path does not connect to, to
@@ -108,7 +115,11 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
  * one (its probes), else rd_delta_radiance_eq. Call at the end of the method's prepare
  * (ctx->state set: the pilot renders with the method's scratch, ctx->method->scratch_bytes). */
 rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_select_delta_fn delta,
-                            double cell_cost, int third_wanted, rd_select *sel, char *err, size_t errlen);
+                            double cell_cost, int options, rd_select *sel, char *err, size_t errlen);
+/* rd_select_prepare's options (bits): the third estimator wanted (above); the method is delta's
+ * own path with the strategy on every flight (`delta`'s "tiles": one of delta's paths,
+ * rd_select.paths). */
+enum { RD_SELECT_THIRD = 1, RD_SELECT_METHOD_IS_PATH = 2 };
 void rd_select_free(rd_select *sel);
 /* The camera sample of `th->pixel` (column th->x, row th->y): `method` where the selection
  * gives it the pixel's tile, else delta's path in the estimator's equiangular mode (counted in

@@ -180,6 +180,28 @@
  * neighbours' fireflies likely show tails that 6000 samples of a tile's own had not (not
  * proven: two rounds).
  *
+ * Tiles no sample has lit (session 42). Where no estimator has drawn a non-zero sample in a
+ * tile, every variance the rule reads there is 0 and it gives the tile the cheapest estimator:
+ * of delta's two paths, the one without the strategy. On hard-narrow-spot that is the faint
+ * glow around the beam, which plain delta's path reaches more rarely still than the beam
+ * itself (there its samples are non-zero once in a thousand, above): a tile that saw nothing in
+ * the pilot took plain delta, drew its first firefly after 64-1024 samples a pixel, and moved
+ * to the strategy at the next epoch, but its pixels keep the firefly. `delta` with "tiles",
+ * 1024 spp, 160x120, seeds 1-3: its squared error 1.42x that of `true` (the strategy
+ * everywhere) at equal samples, 98% of the excess in 15 of the 300 tiles; of the 8 largest
+ * (seed 1), 5 were unlit at the pilot. So a tile no sample has lit, where the rule gives it
+ * one of delta's paths and there are two (sel->paths: the third estimator, or delta's own
+ * "tiles"), takes the path the rule picks for the whole image from the pilot's samples summed
+ * over the lit tiles (image_path; the pilot draws the same number of each estimator in every
+ * tile, so the sums compare like with like). It moves there at once, without a trial: there is
+ * no evidence to weigh. Where the image prefers plain delta (the dense block, default, cloud,
+ * hetero-forward) nothing changes; where it prefers the strategy (the narrow spot, the window
+ * beam, homogeneous, glass-fog) a tile that stays dark pays the strategy's set-up on flights
+ * that find nothing. Measured on new seeds (11-14, the same 1024 spp; docs/benchmarks.md
+ * "Session 42"): the squared error of "tiles" 1.71e-6 -> 1.49e-6 and of guided-unbiased 1.56e-6
+ * -> 1.48e-6, against `true`'s 1.45e-6; at 10 s (two paired rounds on six scenes) within the
+ * rounds' spread everywhere, the gain spread over 4000 samples a pixel.
+ *
  * Beams that delta's path connects to (session 38). Where settings.beam_connect is on, delta's
  * path (and the method's) connects every scattering vertex to the scene's directional beam
  * (transport/beam_connect.c), and a flight with the strategy on every flight (RD_EQ_ALL) drops
@@ -487,6 +509,7 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
     memset(sel, 0, sizeof *sel);
     sel->width = width, sel->height = height, sel->cell_cost = cell_cost, sel->epochs = 1;
     sel->n = estimators == 3 ? 3 : 2;
+    sel->paths = 1u << RD_SEL_DELTA | (sel->n == 3 ? 1u << RD_SEL_DELTA_EQ : 0u), sel->unlit = -1;
     sel->tiles_x = (width + RD_SELECT_TILE - 1) / RD_SELECT_TILE;
     sel->tiles_y = (height + RD_SELECT_TILE - 1) / RD_SELECT_TILE;
     size_t n = (size_t)sel->tiles_x * sel->tiles_y;
@@ -562,6 +585,35 @@ static void pooled_relative_variance(const rd_select *sel, const rd_select_stats
     }
 }
 
+/* Of delta's paths (sel->paths), the one the rule picks for the image as one tile: the least
+ * V C, with the samples all[m k + e] summed over the lit tiles and each estimator's non-zero
+ * prior pbar[e] (see the head, "Tiles no sample has lit"). */
+static int image_path(const rd_select *sel, const rd_select_stats *all, const double *pbar)
+{
+    int n = sel->tiles_x * sel->tiles_y, m = sel->n;
+    rd_select_stats sum[RD_SEL_MAX];
+    memset(sum, 0, sizeof sum);
+    for (int k = 0; k < n; k++) {
+        const rd_select_stats *st = &all[m * k];
+        double lit = 0.0;
+        for (int e = 0; e < m; e++) lit += st[e].nonzero;
+        if (!(lit > 0.0)) continue;
+        for (int e = 0; e < m; e++) {
+            rd_select_stats *t = &sum[e];
+            t->n += st[e].n, t->nonzero += st[e].nonzero, t->dof += st[e].dof, t->cost += st[e].cost;
+            for (int c = 0; c < 3; c++) t->sum[c] += st[e].sum[c], t->dev2[c] += st[e].dev2[c];
+        }
+    }
+    int best = RD_SEL_DELTA;
+    double fbest = 0.0;
+    for (int e = 0; e < m; e++) {
+        if (!(sel->paths >> e & 1u) || !(sum[e].n > 0.0)) continue;
+        double f = tile_variance(sum, m, e, pbar[e], 0.0) * sum[e].cost / sum[e].n;
+        if (e == RD_SEL_DELTA || f < fbest * (1.0 - SEL_TIE)) best = e, fbest = f;
+    }
+    return best;
+}
+
 /* Choose every tile's estimator from the statistics so far: the rule on each half of the
  * samples alone, the estimator both halves want, or else the rule's on the image's predicted
  * variances if it is one of their two, else the cheaper of their two (see the head, "Replication"
@@ -597,6 +649,8 @@ static void choose_tiles(rd_select *sel)
         for (int e = 0; e < m; e++) nz[e] += st[e].nonzero, nn[e] += st[e].n;
     }
     for (int e = 0; e < m; e++) pbar[e] = (nz[e] + 1.0) / (nn[e] + 2.0);
+    if (sel->unlit < 0) sel->unlit = image_path(sel, all, pbar); /* the pilot's samples */
+    int two_paths = (sel->paths & (sel->paths - 1u)) != 0u;
     for (int h = 0; h < 2; h++) {
         figures(sel, half[h], pbar, NULL, var, cost, tmp);
         rd_select_choose(var, cost, n, m, want + (size_t)h * n);
@@ -626,6 +680,13 @@ static void choose_tiles(rd_select *sel)
         else if (!(na > 0.0)) w = b;
         int cur = sel->choice[k];
         const rd_select_stats *st = &all[m * k];
+        double lit = 0.0;
+        for (int e = 0; e < m; e++) lit += st[e].nonzero;
+        if (two_paths && !(lit > 0.0) && (sel->paths >> w & 1u)) { /* no evidence to weigh: no trial */
+            sel->choice[k] = (uint8_t)sel->unlit;
+            sel->trial[k] = 0;
+            continue;
+        }
         /* after a trial, only the estimator on trial is taken without the ratio's test: with
          * three, the rule may want the one that was not on trial, on its pilot's samples alone;
          * a move the halves do not agree on always goes on trial first */
@@ -642,16 +703,17 @@ static void choose_tiles(rd_select *sel)
 }
 
 rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_select_delta_fn delta,
-                            double cell_cost, int third_wanted, rd_select *sel, char *err, size_t errlen)
+                            double cell_cost, int options, rd_select *sel, char *err, size_t errlen)
 {
     const rd_scene *s = ctx->scene;
     const rd_camera *cam = &s->camera;
     /* the third estimator: delta's path with the strategy on every flight (the head; a
      * directional beam counts only where delta's path does not connect to it, "Beams that
      * delta's path connects to") */
-    int third = third_wanted && s->settings.equiangular != RD_EQ_ALL && rd_eq_tiles_have_lights(s);
+    int third = (options & RD_SELECT_THIRD) && s->settings.equiangular != RD_EQ_ALL && rd_eq_tiles_have_lights(s);
     rd_status st = rd_select_init(sel, cam->width, cam->height, cell_cost, third ? 3 : 2, err, errlen);
     if (st != RD_OK) return st;
+    if (options & RD_SELECT_METHOD_IS_PATH) sel->paths |= 1u << RD_SEL_METHOD;
     sel->delta = delta;
     sel->epochs = ctx->scene->settings.select != RD_SELECT_PILOT;
     int n = sel->tiles_x * sel->tiles_y;
