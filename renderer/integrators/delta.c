@@ -105,6 +105,12 @@ static vec3 delta_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_s
     return rd_select_radiance(ctx, ds->sel, delta_every_flight, th, r, smp);
 }
 
+static void delta_pixel_done(const rd_render_ctx *ctx, rd_thread *th)
+{
+    const delta_state *ds = ctx->state;
+    if (ds && ds->sel) rd_select_pixel_done(ds->sel, th);
+}
+
 /* The epochs: the selection's, or settings.probes "auto"'s (never both: see the head). */
 static int delta_epoch_next(const rd_render_ctx *ctx, int sample)
 {
@@ -131,4 +137,5 @@ const rd_method rd_method_delta = {
     .epoch = delta_epoch,
     .release = delta_release,
     .radiance = delta_radiance,
+    .pixel_done = delta_pixel_done,
 };

@@ -79,6 +79,12 @@ static vec3 radiance_guided(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_
     return rd_select_radiance(ctx, &mst->sel, march_guided, th, r, smp);
 }
 
+static void pixel_done_guided(const rd_render_ctx *ctx, rd_thread *th)
+{
+    march_state *mst = ctx->state;
+    rd_select_pixel_done(&mst->sel, th);
+}
+
 /* The epochs: the selection's (select.c: the tiles chosen again from the image's samples) and
  * march.probes "auto"'s (probes.c: its lambda), each on its own schedule. */
 static int epoch_next_guided(const rd_render_ctx *ctx, int sample)
@@ -123,4 +129,5 @@ const rd_method rd_method_guided = {
     .epoch = epoch_guided,
     .release = rd_march_release,
     .radiance = radiance_guided,
+    .pixel_done = pixel_done_guided,
 };

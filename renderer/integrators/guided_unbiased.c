@@ -520,6 +520,12 @@ static vec3 gu_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_samp
     return rd_select_radiance(ctx, &st->sel, gu_path, th, r, smp);
 }
 
+static void gu_pixel_done(const rd_render_ctx *ctx, rd_thread *th)
+{
+    gu_state *st = ctx->state;
+    rd_select_pixel_done(&st->sel, th);
+}
+
 /* The epochs: the selection's (select.c: the tiles chosen again from the image's samples) and
  * guide.probes "auto"'s (probes.c), each on its own schedule. */
 static int gu_epoch_next(const rd_render_ctx *ctx, int sample)
@@ -706,4 +712,5 @@ const rd_method rd_method_guided_unbiased = {
     .epoch = gu_epoch,
     .release = gu_release,
     .radiance = gu_radiance,
+    .pixel_done = gu_pixel_done,
 };

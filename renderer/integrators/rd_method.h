@@ -110,6 +110,9 @@ typedef struct rd_method {
     /* Radiance arriving at the camera along r. The sampler is keyed by (pixel, sample) and
      * positioned after the film dimensions (RD_DIM_METHOD); the method draws from it only. */
     vec3 (*radiance)(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp);
+    /* Optional: called by the thread that rendered them after each pixel's samples of a pass
+     * (the tile selection writes back what it gathered over the pixel's samples: select.c). */
+    void (*pixel_done)(const rd_render_ctx *ctx, rd_thread *th);
 } rd_method;
 
 /* The table (methods.c). NULL for an unknown name. */

@@ -71,6 +71,10 @@ typedef struct {
                                 and estimator e, [n (tiles h + k) + e], tiles = tiles_x
                                 tiles_y: a tile's samples are the sum of its two halves' */
     rd_select_pixel *pixels; /* per pixel, the current epoch's samples */
+    struct rd_select_run *runs; /* per worker thread (rd_thread.index), the samples of the pixel
+                                   it renders now, written to `pixels` at rd_select_pixel_done
+                                   (select.c); NULL before rd_select_prepare */
+    int n_runs;
     rd_select_delta_fn delta; /* delta's path as the method gives it (with its probes), NULL:
                                  rd_delta_radiance_eq (rd_select_prepare) */
 } rd_select;
@@ -124,10 +128,14 @@ void rd_select_free(rd_select *sel);
 /* The camera sample of `th->pixel` (column th->x, row th->y): `method` where the selection
  * gives it the pixel's tile, else delta's path in the estimator's equiangular mode (counted in
  * th->delta_samples, and th->delta_eq_samples for RD_SEL_DELTA_EQ). The sample is recorded
- * for the next epoch: sel is written at th->pixel only, which one thread renders at a time,
- * in sample order. */
+ * for the next epoch (rd_select_pixel_done): sel is written at th->pixel only, which one
+ * thread renders at a time, in sample order. */
 vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn method,
                         rd_thread *th, ray3 r, rd_sampler *smp);
+/* After th's samples of one pixel in a pass (rd_method.pixel_done): what rd_select_radiance
+ * gathered over them, with their counted cost, goes into the pixel's record for the next epoch.
+ * Without it, the thread's next pixel or the next epoch writes it. */
+void rd_select_pixel_done(rd_select *sel, const rd_thread *th);
 /* Record one sample L of `pixel`, with its counted cost, for the next epoch. */
 void rd_select_observe(rd_select *sel, uint64_t pixel, vec3 L, double cost);
 /* The image's epochs: the choice is made again at samples 4, 16, 64, ... (x4) of every pixel

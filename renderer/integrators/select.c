@@ -328,6 +328,44 @@ static void pixel_fold(rd_select_stats *st, const rd_select_pixel *px)
     st->cost += px->cost;
 }
 
+/* One thread's samples of the pixel it renders now (rd_select_radiance), since its first of
+ * this pass: the pixel's record as it stood with these samples added (the sums in float, as
+ * pixel_add keeps them: the same sums to the bit), the estimator the pixel uses (its tile's
+ * choice, which changes only at an epoch), and the thread's work counters at the first sample.
+ * Written back once (run_close), so that a sample costs one sum and no reading of the counters
+ * or of the tiles: on hard-narrow-spot, with every tile forced to the strategy, `delta`'s
+ * "tiles" took 8% longer than `true` per sample when every sample was recorded on its own
+ * (docs/benchmarks.md "Session 42"). The cost is counted over the run: the work of every sample
+ * in it, a dropped non-finite one's too. */
+typedef struct rd_select_run {
+    _Alignas(RD_CACHE_LINE) float sum[3], sum2[3];
+    double n, nonzero;
+    rd_select_work c0;
+    const rd_thread *th; /* the thread whose counters c0 read; NULL: no run open */
+    uint64_t pixel, samples;
+    int use;
+} rd_select_run;
+
+static void run_open(rd_select *sel, rd_select_run *u, const rd_thread *th)
+{
+    const rd_select_pixel *px = &sel->pixels[th->pixel];
+    for (int c = 0; c < 3; c++) u->sum[c] = (float)px->sum[c], u->sum2[c] = (float)px->sum2[c]; /* exact */
+    u->n = px->n, u->nonzero = px->nonzero;
+    u->c0 = rd_select_work_now(th);
+    u->th = th, u->pixel = th->pixel, u->samples = 0;
+    u->use = rd_select_uses(sel, th->x, th->y);
+}
+
+static void run_close(rd_select *sel, rd_select_run *u)
+{
+    if (!u->th) return;
+    rd_select_pixel *px = &sel->pixels[u->pixel];
+    for (int c = 0; c < 3; c++) px->sum[c] = u->sum[c], px->sum2[c] = u->sum2[c];
+    px->n = u->n, px->nonzero = u->nonzero;
+    px->cost += rd_select_work_cost(&u->c0, u->th, sel->cell_cost) + SEL_COST_SAMPLE * (double)u->samples;
+    u->th = NULL;
+}
+
 /* The statistics of the half pixel (x, y)'s samples count in, [n k + e] (see the head,
  * "Replication"): 2x2 blocks of pixels in a checkerboard, so that a tile's pilot pixels (every
  * other pixel each way) and a trial's checkerboard of pixels fall evenly into both halves. */
@@ -718,8 +756,10 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_se
     sel->epochs = ctx->scene->settings.select != RD_SELECT_PILOT;
     int n = sel->tiles_x * sel->tiles_y;
     int threads = ctx->threads > 0 ? ctx->threads : 1;
+    sel->runs = rd_alloc_lines((size_t)threads * sizeof *sel->runs);
+    sel->n_runs = sel->runs ? threads : 0;
     rd_thread *th = rd_threads_new(ctx, threads);
-    int ok = th != NULL;
+    int ok = th != NULL && sel->runs != NULL;
     if (ok) {
         /* One thread a tile: its statistics are summed in pixel order whatever the threads. */
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 1)
@@ -748,6 +788,7 @@ void rd_select_free(rd_select *sel)
     free(sel->trial);
     free(sel->stats);
     free(sel->pixels);
+    free(sel->runs);
     memset(sel, 0, sizeof *sel);
 }
 
@@ -790,6 +831,7 @@ void rd_select_epoch(rd_select *sel, const rd_comm *comm)
     if (!sel->choice) return;
     _Static_assert(sizeof(rd_select_pixel) == RD_SELECT_PIXEL_DOUBLES * sizeof(double),
                    "rd_select_pixel is an array of doubles");
+    for (int i = 0; i < sel->n_runs; i++) run_close(sel, &sel->runs[i]); /* (no pass runs) */
     /* Several ranks: each holds the samples of the pixels it rendered and zeros elsewhere, so
      * the sum over the ranks is every pixel's samples, exactly (x + 0 = x). */
     if (comm && comm->size > 1)
@@ -809,11 +851,34 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
                         rd_thread *th, ray3 r, rd_sampler *smp)
 {
     if (!sel->choice) return method(ctx, th, r, smp);
-    int use = rd_select_uses(sel, th->x, th->y);
-    rd_select_work c0 = rd_select_work_now(th);
-    th->delta_samples += use != RD_SEL_METHOD;
-    th->delta_eq_samples += use == RD_SEL_DELTA_EQ;
-    vec3 L = estimate(ctx, sel, th, use, method, r, smp);
-    if (v3_finite(L)) rd_select_observe(sel, th->pixel, L, sample_cost(sel, th, c0));
+    if (th->index < 0 || th->index >= sel->n_runs) { /* (no run for this thread: one sample's record) */
+        int use = rd_select_uses(sel, th->x, th->y);
+        rd_select_work c0 = rd_select_work_now(th);
+        th->delta_samples += use != RD_SEL_METHOD;
+        th->delta_eq_samples += use == RD_SEL_DELTA_EQ;
+        vec3 L = estimate(ctx, sel, th, use, method, r, smp);
+        if (v3_finite(L)) rd_select_observe(sel, th->pixel, L, sample_cost(sel, th, c0));
+        return L;
+    }
+    rd_select_run *u = &sel->runs[th->index];
+    if (u->th != th || u->pixel != th->pixel) { /* a new pixel: the last one's run written back */
+        run_close(sel, u);
+        run_open(sel, u, th);
+    }
+    th->delta_samples += u->use != RD_SEL_METHOD;
+    th->delta_eq_samples += u->use == RD_SEL_DELTA_EQ;
+    vec3 L = estimate(ctx, sel, th, u->use, method, r, smp);
+    u->samples++;
+    if (v3_finite(L)) { /* pixel_add's sums, on the run's floats */
+        const float v[3] = {(float)L.x, (float)L.y, (float)L.z}, v2[3] = {(float)(L.x * L.x), (float)(L.y * L.y), (float)(L.z * L.z)};
+        for (int c = 0; c < 3; c++) u->sum[c] += v[c], u->sum2[c] += v2[c];
+        u->nonzero += L.x != 0.0 || L.y != 0.0 || L.z != 0.0;
+        u->n += 1.0;
+    }
     return L;
+}
+
+void rd_select_pixel_done(rd_select *sel, const rd_thread *th)
+{
+    if (th->index >= 0 && th->index < sel->n_runs) run_close(sel, &sel->runs[th->index]);
 }

@@ -178,6 +178,7 @@ static int render_pass(const rd_render_ctx *ctx, rd_thread *th, film *f, int s0,
                     acc2[0] += L.x * L.x; acc2[1] += L.y * L.y; acc2[2] += L.z * L.z;
                     count++;
                 }
+                if (m->pixel_done) m->pixel_done(ctx, t);
                 memcpy(&f->sum[3 * pix], acc, sizeof acc);
                 memcpy(&f->sum2[3 * pix], acc2, sizeof acc2);
                 f->n[pix] = count;
