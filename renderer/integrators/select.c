@@ -183,8 +183,8 @@
  * Tiles no sample has lit (session 42). Where no estimator has drawn a non-zero sample in a
  * tile, every variance the rule reads there is 0 and it gives the tile the cheapest estimator:
  * of delta's two paths, the one without the strategy. On hard-narrow-spot that is the faint
- * glow around the beam, which plain delta's path reaches more rarely still than the beam
- * itself (there its samples are non-zero once in a thousand, above): a tile that saw nothing in
+ * glow around the beam (over the lit tiles plain delta's samples are non-zero once in a
+ * thousand, above): a tile that saw nothing in
  * the pilot took plain delta, drew its first firefly after 64-1024 samples a pixel, and moved
  * to the strategy at the next epoch, but its pixels keep the firefly. `delta` with "tiles",
  * 1024 spp, 160x120, seeds 1-3: its squared error 1.42x that of `true` (the strategy
