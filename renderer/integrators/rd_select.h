@@ -58,7 +58,7 @@ typedef struct {
     unsigned paths;          /* bit e set: estimator e is one of delta's paths (RD_SEL_DELTA,
                                 RD_SEL_DELTA_EQ; in delta's own selection its "method" too) */
     int unlit;               /* the estimator of a tile no sample has lit yet, where the rule
-                                gives it one of delta's paths and there are two: the one the
+                                gives it plain delta and there are two paths: the one the
                                 pilot's samples prefer for the whole image (select.c, "Tiles no
                                 sample has lit"); -1 until the pilot's choice */
     int tiles_x, tiles_y, width, height;

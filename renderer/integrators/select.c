@@ -181,7 +181,8 @@
  * proven: two rounds).
  *
  * Tiles no sample has lit (session 42). Where no estimator has drawn a non-zero sample in a
- * tile, every variance the rule reads there is 0 and it gives the tile the cheapest estimator:
+ * tile or its neighbours, every variance the rule reads there is 0 and it gives the tile the
+ * cheapest estimator:
  * of delta's two paths, the one without the strategy. On hard-narrow-spot that is the faint
  * glow around the beam (over the lit tiles plain delta's samples are non-zero once in a
  * thousand, above): a tile that saw nothing in
@@ -190,7 +191,7 @@
  * 1024 spp, 160x120, seeds 1-3: its squared error 1.42x that of `true` (the strategy
  * everywhere) at equal samples, 98% of the excess in 15 of the 300 tiles; of the 8 largest
  * (seed 1), 5 were unlit at the pilot. So a tile no sample has lit, where the rule gives it
- * one of delta's paths and there are two (sel->paths: the third estimator, or delta's own
+ * plain delta and delta has two paths (sel->paths: the third estimator, or delta's own
  * "tiles"), takes the path the rule picks for the whole image from the pilot's samples summed
  * over the lit tiles (image_path; the pilot draws the same number of each estimator in every
  * tile, so the sums compare like with like). It moves there at once, without a trial: there is
@@ -329,20 +330,22 @@ static void pixel_fold(rd_select_stats *st, const rd_select_pixel *px)
 }
 
 /* One thread's samples of the pixel it renders now (rd_select_radiance), since its first of
- * this pass: the pixel's record as it stood with these samples added (the sums in float, as
- * pixel_add keeps them: the same sums to the bit), the estimator the pixel uses (its tile's
- * choice, which changes only at an epoch), and the thread's work counters at the first sample.
- * Written back once (run_close), so that a sample costs one sum and no reading of the counters
- * or of the tiles: on hard-narrow-spot, with every tile forced to the strategy, `delta`'s
- * "tiles" took 8% longer than `true` per sample when every sample was recorded on its own
- * (docs/benchmarks.md "Session 42"). The cost is counted over the run: the work of every sample
- * in it, a dropped non-finite one's too. */
+ * this pass: the pixel's record as it stood with these samples added (the sums in float and the
+ * cost in double, added in pixel_add's order: the same record to the bit, however the passes
+ * split the pixel's samples), the estimator the pixel uses (its tile's choice, which changes
+ * only at an epoch), and the thread's work counters after the last sample (a sample's cost is
+ * the counters' change over it). Written back once (run_close), so that a sample reads the
+ * counters once and neither the tile nor the record in memory: on hard-narrow-spot, with every
+ * tile forced to the strategy, `delta`'s "tiles" took 8% longer than `true` per sample when
+ * every sample was recorded on its own (docs/benchmarks.md "Session 42"). A thread that is not
+ * one of the render's (rd_threads_new: its index picks its run) must call rd_select_pixel_done
+ * before another thread renders the pixel, and before rd_select_epoch while it lives. */
 typedef struct rd_select_run {
     _Alignas(RD_CACHE_LINE) float sum[3], sum2[3];
-    double n, nonzero;
-    rd_select_work c0;
+    double n, nonzero, cost;
+    rd_select_work c; /* the counters after the run's last sample */
     const rd_thread *th; /* the thread whose counters c0 read; NULL: no run open */
-    uint64_t pixel, samples;
+    uint64_t pixel;
     int use;
 } rd_select_run;
 
@@ -350,9 +353,9 @@ static void run_open(rd_select *sel, rd_select_run *u, const rd_thread *th)
 {
     const rd_select_pixel *px = &sel->pixels[th->pixel];
     for (int c = 0; c < 3; c++) u->sum[c] = (float)px->sum[c], u->sum2[c] = (float)px->sum2[c]; /* exact */
-    u->n = px->n, u->nonzero = px->nonzero;
-    u->c0 = rd_select_work_now(th);
-    u->th = th, u->pixel = th->pixel, u->samples = 0;
+    u->n = px->n, u->nonzero = px->nonzero, u->cost = px->cost;
+    u->c = rd_select_work_now(th);
+    u->th = th, u->pixel = th->pixel;
     u->use = rd_select_uses(sel, th->x, th->y);
 }
 
@@ -361,8 +364,7 @@ static void run_close(rd_select *sel, rd_select_run *u)
     if (!u->th) return;
     rd_select_pixel *px = &sel->pixels[u->pixel];
     for (int c = 0; c < 3; c++) px->sum[c] = u->sum[c], px->sum2[c] = u->sum2[c];
-    px->n = u->n, px->nonzero = u->nonzero;
-    px->cost += rd_select_work_cost(&u->c0, u->th, sel->cell_cost) + SEL_COST_SAMPLE * (double)u->samples;
+    px->n = u->n, px->nonzero = u->nonzero, px->cost = u->cost;
     u->th = NULL;
 }
 
@@ -720,7 +722,7 @@ static void choose_tiles(rd_select *sel)
         const rd_select_stats *st = &all[m * k];
         double lit = 0.0;
         for (int e = 0; e < m; e++) lit += st[e].nonzero;
-        if (two_paths && !(lit > 0.0) && (sel->paths >> w & 1u)) { /* no evidence to weigh: no trial */
+        if (two_paths && !(lit > 0.0) && w == RD_SEL_DELTA) { /* no evidence to weigh: no trial */
             sel->choice[k] = (uint8_t)sel->unlit;
             sel->trial[k] = 0;
             continue;
@@ -776,7 +778,7 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_se
     rd_threads_free(th, threads);
     if (!ok) {
         rd_select_free(sel);
-        snprintf(err, errlen, "out of memory for the tile selection's pilot");
+        snprintf(err, errlen, "out of memory for the tile selection's pilot and its threads' records");
         return RD_ERR_NOMEM;
     }
     return RD_OK;
@@ -868,8 +870,10 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
     th->delta_samples += u->use != RD_SEL_METHOD;
     th->delta_eq_samples += u->use == RD_SEL_DELTA_EQ;
     vec3 L = estimate(ctx, sel, th, u->use, method, r, smp);
-    u->samples++;
-    if (v3_finite(L)) { /* pixel_add's sums, on the run's floats */
+    double cost = sample_cost(sel, th, u->c); /* (the counters do not move between samples) */
+    u->c = rd_select_work_now(th);
+    if (v3_finite(L)) { /* pixel_add's sums and cost, in the same order: the same to the bit */
+        u->cost += cost;
         const float v[3] = {(float)L.x, (float)L.y, (float)L.z}, v2[3] = {(float)(L.x * L.x), (float)(L.y * L.y), (float)(L.z * L.z)};
         for (int c = 0; c < 3; c++) u->sum[c] += v[c], u->sum2[c] += v2[c];
         u->nonzero += L.x != 0.0 || L.y != 0.0 || L.z != 0.0;
