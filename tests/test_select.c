@@ -17,6 +17,7 @@
 #include "integrators/rd_select.h"
 
 #include <limits.h>
+#include <math.h>
 #include <string.h>
 
 /* ---- The rule ---------------------------------------------------------------------------- */
@@ -615,6 +616,67 @@ Test(select, the_delta_hook_renders_both_delta_estimators)
         for (int m = 0; m <= RD_EQ_TILES; m++) total += none.calls[p][m];
     cr_expect(total == 0, "a selection without the hook called it %ld times", total);
     rd_select_free(&sel);
+    rd_scene_free(s);
+}
+
+/* A stand-in method whose samples vary: a value from the sampler (now and then 0, now and then
+ * not finite), and some counted work (density lookups) that depends on it. */
+static vec3 varying_method(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
+{
+    (void)ctx, (void)r;
+    double u = rd_sampler_1d(smp);
+    th->counters.lookups += (uint64_t)(u * 7.0);
+    if (u < 0.05) return v3(NAN, 0, 0);
+    if (u < 0.3) return v3(0, 0, 0);
+    return v3(u * 3.1, u * u, 1.0 / u);
+}
+
+/* The samples of two passes (samples 0-2 of every pixel, then 3-6), pixel after pixel, through
+ * rd_select_radiance on a thread whose index is `index`, each pixel closed by
+ * rd_select_pixel_done; the selection prepared with varying_method. */
+static void two_passes(rd_render_ctx *ctx, rd_select *sel, int index)
+{
+    char err[RD_ERRLEN];
+    cr_assert(rd_select_prepare(ctx, varying_method, NULL, 1.0, 0, sel, err, sizeof err) == RD_OK, "%s", err);
+    rd_thread th = {0};
+    th.index = index;
+    for (int pass = 0; pass < 2; pass++)
+        for (int y = 0; y < 24; y++)
+            for (int x = 0; x < 32; x++) {
+                th.pixel = (uint64_t)y * 32 + x, th.x = x, th.y = y;
+                for (int i = pass ? 3 : 0; i < (pass ? 7 : 3); i++) {
+                    rd_sampler smp = rd_sampler_start(th.pixel, (uint64_t)i, 9);
+                    rd_select_radiance(ctx, sel, varying_method, &th, (ray3){v3(0, 0, 3), v3(0, 0, -1)}, &smp);
+                }
+                rd_select_pixel_done(sel, &th);
+            }
+}
+
+/* A thread's record of a pixel (select.c, rd_select_run) is the record a sample at a time
+ * gives, to the bit: the sums, the counts and the counted cost (a dropped non-finite sample's
+ * work left out), over samples that two passes split. The one-sample path runs for a thread
+ * with no record of its own (index -1). The build whose record summed the cost over a pass at
+ * once fails here (its cost differs in the last bits, and counts the dropped samples' work). */
+Test(select, a_thread_s_record_of_a_pixel_equals_one_sample_at_a_time)
+{
+    rd_scene *s = rt_scene("selrun.json", select_scene("{\"select\":\"tiles\"}"));
+    rd_render_ctx ctx = {.scene = s, .method = rd_method_find("delta"), .threads = 1};
+    rd_select a, b;
+    two_passes(&ctx, &a, 0);
+    two_passes(&ctx, &b, -1);
+    size_t n = (size_t)a.width * a.height;
+    double samples = 0.0, costs = 0.0;
+    for (size_t p = 0; p < n; p++) samples += a.pixels[p].n, costs += a.pixels[p].cost;
+    cr_assert(samples > 0.5 * 7 * n && samples < 7.0 * n, "%g finite samples of %zu", samples, 7 * n);
+    cr_assert(memcmp(a.pixels, b.pixels, n * sizeof *a.pixels) == 0, "the thread's records differ from one sample's at a time");
+    cr_assert(costs > 2.18 * samples, "the counted cost %g of %g samples has no work in it", costs, samples);
+    rd_select_epoch(&a, NULL);
+    rd_select_epoch(&b, NULL);
+    size_t mn = 2 * (size_t)a.n * a.tiles_x * a.tiles_y;
+    cr_assert(memcmp(a.stats, b.stats, mn * sizeof *a.stats) == 0 && memcmp(a.choice, b.choice, (size_t)a.tiles_x * a.tiles_y) == 0,
+              "the epoch's statistics or choices differ");
+    rd_select_free(&a);
+    rd_select_free(&b);
     rd_scene_free(s);
 }
 
