@@ -655,8 +655,8 @@ static void two_passes(rd_render_ctx *ctx, rd_select *sel, int index)
 /* A thread's record of a pixel (select.c, rd_select_run) is the record a sample at a time
  * gives, to the bit: the sums, the counts and the counted cost (a dropped non-finite sample's
  * work left out), over samples that two passes split. The one-sample path runs for a thread
- * with no record of its own (index -1). The build whose record summed the cost over a pass at
- * once fails here (its cost differs in the last bits, and counts the dropped samples' work). */
+ * with no record of its own (index -1). A record that counts a dropped sample's work fails
+ * here (checked). */
 Test(select, a_thread_s_record_of_a_pixel_equals_one_sample_at_a_time)
 {
     rd_scene *s = rt_scene("selrun.json", select_scene("{\"select\":\"tiles\"}"));

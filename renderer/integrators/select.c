@@ -182,11 +182,10 @@
  *
  * Tiles no sample has lit (session 42). Where no estimator has drawn a non-zero sample in a
  * tile or its neighbours, every variance the rule reads there is 0 and it gives the tile the
- * cheapest estimator:
- * of delta's two paths, the one without the strategy. On hard-narrow-spot that is the faint
- * glow around the beam (over the lit tiles plain delta's samples are non-zero once in a
- * thousand, above): a tile that saw nothing in
- * the pilot took plain delta, drew its first firefly after 64-1024 samples a pixel, and moved
+ * cheapest estimator: of delta's two paths, the one without the strategy. On hard-narrow-spot
+ * that is the faint glow around the beam (over the lit tiles plain delta's samples are non-zero
+ * once in a thousand, above): a tile that saw nothing in the pilot took plain delta, drew its
+ * first firefly after 64-1024 samples a pixel, and moved
  * to the strategy at the next epoch, but its pixels keep the firefly. `delta` with "tiles",
  * 1024 spp, 160x120, seeds 1-3: its squared error 1.42x that of `true` (the strategy
  * everywhere) at equal samples, 98% of the excess in 15 of the 300 tiles; of the 8 largest
@@ -383,13 +382,19 @@ rd_select_work rd_select_work_now(const rd_thread *th)
                             th->beam_hits, th->counters.eq_flights};
 }
 
+/* The weighted work between two readings of a thread's counters, c0 then c1. */
+static double work_between(const rd_select_work *c0, const rd_select_work *c1, double cell_cost)
+{
+    return (double)(c1->lookups - c0->lookups) + SEL_COST_SHADOW * (double)(c1->shadow_rays - c0->shadow_rays) +
+           cell_cost * (double)(c1->cells - c0->cells) + SEL_COST_VERTEX * (double)(c1->vertices - c0->vertices) +
+           SEL_COST_BEAM_HIT * (double)(c1->beam_hits - c0->beam_hits) +
+           SEL_COST_EQ_FLIGHT * (double)(c1->eq_flights - c0->eq_flights);
+}
+
 double rd_select_work_cost(const rd_select_work *c0, const rd_thread *th, double cell_cost)
 {
     rd_select_work c1 = rd_select_work_now(th);
-    return (double)(c1.lookups - c0->lookups) + SEL_COST_SHADOW * (double)(c1.shadow_rays - c0->shadow_rays) +
-           cell_cost * (double)(c1.cells - c0->cells) + SEL_COST_VERTEX * (double)(c1.vertices - c0->vertices) +
-           SEL_COST_BEAM_HIT * (double)(c1.beam_hits - c0->beam_hits) +
-           SEL_COST_EQ_FLIGHT * (double)(c1.eq_flights - c0->eq_flights);
+    return work_between(c0, &c1, cell_cost);
 }
 
 /* The counted cost of one sample, from th's counters before it (c0) and after (see the head). */
@@ -870,8 +875,9 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
     th->delta_samples += u->use != RD_SEL_METHOD;
     th->delta_eq_samples += u->use == RD_SEL_DELTA_EQ;
     vec3 L = estimate(ctx, sel, th, u->use, method, r, smp);
-    double cost = sample_cost(sel, th, u->c); /* (the counters do not move between samples) */
-    u->c = rd_select_work_now(th);
+    rd_select_work c1 = rd_select_work_now(th); /* (the counters do not move between samples) */
+    double cost = work_between(&u->c, &c1, sel->cell_cost) + SEL_COST_SAMPLE; /* sample_cost's */
+    u->c = c1;
     if (v3_finite(L)) { /* pixel_add's sums and cost, in the same order: the same to the bit */
         u->cost += cost;
         const float v[3] = {(float)L.x, (float)L.y, (float)L.z}, v2[3] = {(float)(L.x * L.x), (float)(L.y * L.y), (float)(L.z * L.z)};
