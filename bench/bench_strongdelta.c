@@ -164,12 +164,12 @@ int main(int argc, char **argv)
     }
     if (mask_outliers && !have_se)
         fprintf(stderr, "bench_strongdelta: --mask-outliers needs %s; every pixel counts\n", se_path);
+    size_t np = 0; /* pixels with some variance in the reference */
     if (mask_outliers && have_se) {
         /* the median over the pixels with some variance (a background that sees no medium has
          * none, and would put the median at 0) */
         double *sorted = malloc(npx * sizeof *sorted);
         if (!sorted) { fprintf(stderr, "bench_strongdelta: out of memory\n"); return 1; }
-        size_t np = 0;
         for (size_t p = 0; p < npx; p++)
             if (pv[p] > 0.0) sorted[np++] = pv[p];
         qsort(sorted, np, sizeof *sorted, cmp_d);
@@ -178,11 +178,14 @@ int main(int argc, char **argv)
         free(sorted);
     }
     size_t masked = 0;
+    double var_all = 0.0; /* the reference's variance summed over every pixel, left out or not */
     for (size_t p = 0; p < npx; p++) {
+        var_all += pv[p];
         if (!keep[p]) { masked++; continue; }
         ref_var += pv[p];
         nvals += 3;
     }
+    double var_left_out = var_all > 0.0 ? 1.0 - ref_var / var_all : 0.0;
     free(pv);
     if (nvals == 0) { fprintf(stderr, "bench_strongdelta: every pixel left out\n"); return 1; }
     ref_var /= (double)nvals;
@@ -198,8 +201,19 @@ int main(int argc, char **argv)
     }
     printf("bench_strongdelta %s: %d variants, %d rounds of %g s each, %d threads, reference %s (variance %.3g%s)",
            scene, nv, runs, seconds, threads, ref_path, ref_var, have_se ? "" : ", unknown: no stderr image");
-    if (mask_outliers) printf(", %zu pixels left out (--mask-outliers)", masked);
+    if (mask_outliers)
+        printf(", %zu pixels left out (--mask-outliers: %.2g%% of those with variance, %.3g%% of the "
+               "reference's variance)", masked, np ? 100.0 * (double)masked / (double)np : 0.0,
+               100.0 * var_left_out);
     printf("\n");
+    if (mask_outliers && np && masked * 100 > np)
+        /* The mask is for a few pixels one camera chain makes noisy in every render alike. More
+         * than 1% of the pixels are the reference's own rare paths (one sample each, wherever such
+         * paths land): leaving them out drops the image where the methods differ most. */
+        printf("warning: --mask-outliers left out %zu of %zu pixels, more than the few one camera chain "
+               "makes noisy: they are likely the reference's own rare paths (a single sample each), "
+               "and the figures leave out where those paths land; measure without it too\n",
+               masked, np);
     fflush(stdout);
     for (int r = 0; r < runs; r++) {
         for (int k = 0; k < nv; k++) {
