@@ -654,9 +654,8 @@ static void two_passes(rd_render_ctx *ctx, rd_select *sel, int index)
 
 /* A thread's record of a pixel (select.c, rd_select_run) is the record a sample at a time
  * gives, to the bit: the sums, the counts and the counted cost (a dropped non-finite sample's
- * work left out), over samples that two passes split. The one-sample path runs for a thread
- * with no record of its own (index -1). A record that counts a dropped sample's work fails
- * here (checked). */
+ * work counted too), over samples that two passes split. The one-sample path runs for a thread
+ * with no record of its own (index -1). */
 Test(select, a_thread_s_record_of_a_pixel_equals_one_sample_at_a_time)
 {
     rd_scene *s = rt_scene("selrun.json", select_scene("{\"select\":\"tiles\"}"));
@@ -666,7 +665,7 @@ Test(select, a_thread_s_record_of_a_pixel_equals_one_sample_at_a_time)
     two_passes(&ctx, &b, -1);
     size_t n = (size_t)a.width * a.height;
     double samples = 0.0, costs = 0.0;
-    for (size_t p = 0; p < n; p++) samples += a.pixels[p].n, costs += a.pixels[p].cost;
+    for (size_t p = 0; p < n; p++) samples += a.pixels[p].n, costs += a.pixels[p].cost / RD_SELECT_COST_UNIT;
     cr_assert(samples > 0.5 * 7 * n && samples < 7.0 * n, "%g finite samples of %zu", samples, 7 * n);
     cr_assert(memcmp(a.pixels, b.pixels, n * sizeof *a.pixels) == 0, "the thread's records differ from one sample's at a time");
     cr_assert(costs > 2.18 * samples, "the counted cost %g of %g samples has no work in it", costs, samples);
@@ -677,6 +676,47 @@ Test(select, a_thread_s_record_of_a_pixel_equals_one_sample_at_a_time)
               "the epoch's statistics or choices differ");
     rd_select_free(&a);
     rd_select_free(&b);
+    rd_scene_free(s);
+}
+
+/* A pixel's counted cost is that of every sample it drew, the film's dropped ones too: with
+ * every tile on varying_method, whose sample u costs floor(7 u) lookups and the camera sample's
+ * RD_SELECT_COST_SAMPLE, each pixel's record is the sum over its seven samples, the ones whose
+ * value is not finite (u < 0.05) included, up to the weights' rounding to whole units (a
+ * relative 1e-5). A record that leaves the dropped samples' work out, or that counts a run's
+ * work twice, fails (the samples of 5% of the draws, 2.18 lookups each: about 2% of the sum). */
+Test(select, a_pixel_s_counted_cost_is_every_drawn_sample_s)
+{
+    rd_scene *s = rt_scene("selcost.json", select_scene("{\"select\":\"tiles\"}"));
+    rd_render_ctx ctx = {.scene = s, .method = rd_method_find("delta"), .threads = 1};
+    rd_select sel;
+    char err[RD_ERRLEN];
+    cr_assert(rd_select_prepare(&ctx, varying_method, NULL, 1.0, 0, &sel, err, sizeof err) == RD_OK, "%s", err);
+    size_t tiles = (size_t)sel.tiles_x * sel.tiles_y;
+    memset(sel.choice, RD_SEL_METHOD, tiles), memset(sel.trial, 0, tiles);
+    rd_thread th = {0};
+    int dropped = 0;
+    for (int pass = 0; pass < 2; pass++)
+        for (int y = 0; y < 24; y++)
+            for (int x = 0; x < 32; x++) {
+                th.pixel = (uint64_t)y * 32 + x, th.x = x, th.y = y;
+                for (int i = pass ? 3 : 0; i < (pass ? 7 : 3); i++) {
+                    rd_sampler smp = rd_sampler_start(th.pixel, (uint64_t)i, 9);
+                    dropped += !v3_finite(rd_select_radiance(&ctx, &sel, varying_method, &th, (ray3){v3(0, 0, 3), v3(0, 0, -1)}, &smp));
+                }
+                rd_select_pixel_done(&sel, &th);
+            }
+    cr_assert(dropped > 0, "no sample was dropped: the test tests nothing");
+    for (int p = 0; p < 24 * 32; p++) {
+        double want = 0.0;
+        for (int i = 0; i < 7; i++) {
+            rd_sampler smp = rd_sampler_start((uint64_t)p, (uint64_t)i, 9);
+            want += floor(rd_sampler_1d(&smp) * 7.0) + RD_SELECT_COST_SAMPLE;
+        }
+        double got = sel.pixels[p].cost / RD_SELECT_COST_UNIT;
+        cr_assert(fabs(got - want) <= 1e-5 * want, "pixel %d: counted cost %.9g, its samples' %.9g", p, got, want);
+    }
+    rd_select_free(&sel);
     rd_scene_free(s);
 }
 

@@ -32,8 +32,11 @@ typedef struct {
 /* One pixel's samples since the last epoch (all of one estimator: the pixel's, rd_select_uses,
  * does not change within an epoch). Plain doubles, so that several ranks' arrays are summed as
  * one array of doubles (rd_select_epoch): 9 a pixel, 72 bytes. sum and sum2 are accumulated in
- * float precision (each sum rounded to a float; the sums feed a choice, not the image) and n
- * and nonzero are counts, all exact in a double. */
+ * float precision (each sum rounded to a float; the sums feed a choice, not the image), n
+ * and nonzero are counts of the finite samples, and cost is the counted cost of all the
+ * samples drawn (the film's dropped ones too: their time was spent) as a whole number of
+ * 1/RD_SELECT_COST_UNIT lookups, all exact in a double. */
+#define RD_SELECT_COST_UNIT 65536.0
 typedef struct {
     double n, nonzero;
     double sum[3], sum2[3];

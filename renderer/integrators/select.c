@@ -299,8 +299,19 @@
 /* The pilot's random numbers: the image's keys (pixel, sample, seed) with the seed moved by a
  * constant, so no pilot sample is one of the image's. */
 #define SEL_SEED_SHIFT 0x5E1EC7ULL
+/* A weight in whole units of 1/RD_SELECT_COST_UNIT lookups (a relative change under 1e-5). A
+ * pixel's record keeps its cost in these units: the work counters' changes times the weights,
+ * summed in integers, so the record is the same whichever runs of samples it is summed over,
+ * and a run's cost is read from the counters once, at its end (rd_select_run). The unit is a
+ * power of two: scaling a double by it is exact. */
+static uint64_t cost_units(double w)
+{
+    return (uint64_t)llround(w * RD_SELECT_COST_UNIT);
+}
 
-static void pixel_add(rd_select_pixel *px, vec3 L, double cost)
+/* Add one finite sample L to a pixel's record (its cost is added apart: the work of the
+ * samples the film drops counts too). */
+static void pixel_add(rd_select_pixel *px, vec3 L)
 {
     const double v[3] = {L.x, L.y, L.z};
     for (int c = 0; c < 3; c++) { /* float sums, as they always were: the same choices */
@@ -309,12 +320,12 @@ static void pixel_add(rd_select_pixel *px, vec3 L, double cost)
     }
     px->nonzero += L.x != 0.0 || L.y != 0.0 || L.z != 0.0;
     px->n++;
-    px->cost += cost;
 }
 
 /* Add one pixel's samples (all of one estimator) to that estimator's statistics in its tile. */
 static void pixel_fold(rd_select_stats *st, const rd_select_pixel *px)
 {
+    st->cost += px->cost / RD_SELECT_COST_UNIT; /* (exact: a power of two; the dropped samples' too) */
     if (px->n == 0) return;
     double n = px->n;
     for (int c = 0; c < 3; c++) {
@@ -325,25 +336,27 @@ static void pixel_fold(rd_select_stats *st, const rd_select_pixel *px)
     st->n += n;
     st->dof += n - 1.0;
     st->nonzero += px->nonzero;
-    st->cost += px->cost;
 }
 
 /* One thread's samples of the pixel it renders now (rd_select_radiance), since its first of
- * this pass: the pixel's record as it stood with these samples added (the sums in float and the
- * cost in double, added in pixel_add's order: the same record to the bit, however the passes
- * split the pixel's samples), the estimator the pixel uses (its tile's choice, which changes
- * only at an epoch), and the thread's work counters after the last sample (a sample's cost is
- * the counters' change over it). Written back once (run_close), so that a sample reads the
- * counters once and neither the tile nor the record in memory: on hard-narrow-spot, with every
- * tile forced to the strategy, `delta`'s "tiles" took 8% longer than `true` per sample when
- * every sample was recorded on its own (docs/benchmarks.md "Session 42"). A thread that is not
- * one of the render's (rd_threads_new: its index picks its run) must call rd_select_pixel_done
- * before another thread renders the pixel, and before rd_select_epoch while it lives. */
+ * this pass: the pixel's record as it stood with these samples added (the sums in float, added
+ * in pixel_add's order), how many samples it drew (the dropped ones too), the estimator the
+ * pixel uses (its tile's choice, which changes only at an epoch), and the thread's work
+ * counters at the run's first sample. Written back once (run_close), with the run's cost from
+ * the counters' change over it (work_units): a sample reads neither the counters nor the tile
+ * nor the record in memory. The cost is a whole number of units, so the record is the same to
+ * the bit however the passes split the pixel's samples. On hard-narrow-spot, with every tile
+ * forced to the strategy, `delta`'s "tiles" took 8% longer than `true` per sample when every
+ * sample was recorded on its own, 6% when a sample read and weighed the counters
+ * (docs/benchmarks.md "Session 42", "Session 43"). A thread that is not one of the render's
+ * (rd_threads_new: its index picks its run) must call rd_select_pixel_done before another thread
+ * renders the pixel, and stay alive until it does or until rd_select_epoch. */
 typedef struct rd_select_run {
     _Alignas(RD_CACHE_LINE) float sum[3], sum2[3];
-    double n, nonzero, cost;
-    rd_select_work c; /* the counters after the run's last sample */
-    const rd_thread *th; /* the thread whose counters c0 read; NULL: no run open */
+    double n, nonzero;
+    uint64_t drawn;       /* the run's samples, finite or not */
+    rd_select_work c;     /* the counters at the run's first sample */
+    const rd_thread *th;  /* the thread whose counters c read; NULL: no run open */
     uint64_t pixel;
     int use;
 } rd_select_run;
@@ -352,18 +365,22 @@ static void run_open(rd_select *sel, rd_select_run *u, const rd_thread *th)
 {
     const rd_select_pixel *px = &sel->pixels[th->pixel];
     for (int c = 0; c < 3; c++) u->sum[c] = (float)px->sum[c], u->sum2[c] = (float)px->sum2[c]; /* exact */
-    u->n = px->n, u->nonzero = px->nonzero, u->cost = px->cost;
+    u->n = px->n, u->nonzero = px->nonzero, u->drawn = 0;
     u->c = rd_select_work_now(th);
     u->th = th, u->pixel = th->pixel;
     u->use = rd_select_uses(sel, th->x, th->y);
 }
+
+static uint64_t work_units(const rd_select *sel, const rd_select_work *c0, const rd_select_work *c1);
 
 static void run_close(rd_select *sel, rd_select_run *u)
 {
     if (!u->th) return;
     rd_select_pixel *px = &sel->pixels[u->pixel];
     for (int c = 0; c < 3; c++) px->sum[c] = u->sum[c], px->sum2[c] = u->sum2[c];
-    px->n = u->n, px->nonzero = u->nonzero, px->cost = u->cost;
+    px->n = u->n, px->nonzero = u->nonzero;
+    rd_select_work c1 = rd_select_work_now(u->th);
+    px->cost += (double)(work_units(sel, &u->c, &c1) + u->drawn * cost_units(SEL_COST_SAMPLE)); /* exact */
     u->th = NULL;
 }
 
@@ -397,10 +414,22 @@ double rd_select_work_cost(const rd_select_work *c0, const rd_thread *th, double
     return work_between(c0, &c1, cell_cost);
 }
 
-/* The counted cost of one sample, from th's counters before it (c0) and after (see the head). */
-static double sample_cost(const rd_select *sel, const rd_thread *th, rd_select_work c0)
+/* work_between in whole units of 1/RD_SELECT_COST_UNIT lookups (cost_units), the camera
+ * sample's own left out. */
+static uint64_t work_units(const rd_select *sel, const rd_select_work *c0, const rd_select_work *c1)
 {
-    return rd_select_work_cost(&c0, th, sel->cell_cost) + SEL_COST_SAMPLE;
+    return (c1->lookups - c0->lookups) * cost_units(1.0) + (c1->shadow_rays - c0->shadow_rays) * cost_units(SEL_COST_SHADOW) +
+           (c1->cells - c0->cells) * cost_units(sel->cell_cost) + (c1->vertices - c0->vertices) * cost_units(SEL_COST_VERTEX) +
+           (c1->beam_hits - c0->beam_hits) * cost_units(SEL_COST_BEAM_HIT) +
+           (c1->eq_flights - c0->eq_flights) * cost_units(SEL_COST_EQ_FLIGHT);
+}
+
+/* The counted cost of one sample in units (work_units), from th's counters before it (c0) and
+ * after. */
+static uint64_t sample_units(const rd_select *sel, const rd_thread *th, rd_select_work c0)
+{
+    rd_select_work c1 = rd_select_work_now(th);
+    return work_units(sel, &c0, &c1) + cost_units(SEL_COST_SAMPLE);
 }
 
 /* Camera sample `smp` of ray r with estimator e (RD_SEL_*). */
@@ -432,7 +461,8 @@ static void pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, const rd_select
         th->pilot = 1; /* (not an image sample: march.probes "auto" learns from those only) */
         vec3 L = estimate(ctx, sel, th, e, method, r, &smp);
         th->pilot = 0;
-        if (v3_finite(L)) pixel_add(&px, L, sample_cost(sel, th, c0));
+        px.cost += (double)sample_units(sel, th, c0); /* (a dropped sample's work counts too) */
+        if (v3_finite(L)) pixel_add(&px, L);
     }
     pixel_fold(st, &px);
 }
@@ -819,7 +849,8 @@ uint64_t rd_select_method_pixels(const rd_select *sel, uint64_t all)
 
 void rd_select_observe(rd_select *sel, uint64_t pixel, vec3 L, double cost)
 {
-    pixel_add(&sel->pixels[pixel], L, cost);
+    pixel_add(&sel->pixels[pixel], L);
+    sel->pixels[pixel].cost += cost * RD_SELECT_COST_UNIT; /* (exact: a power of two) */
 }
 
 int rd_select_epoch_next(const rd_select *sel, int sample)
@@ -864,7 +895,8 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
         th->delta_samples += use != RD_SEL_METHOD;
         th->delta_eq_samples += use == RD_SEL_DELTA_EQ;
         vec3 L = estimate(ctx, sel, th, use, method, r, smp);
-        if (v3_finite(L)) rd_select_observe(sel, th->pixel, L, sample_cost(sel, th, c0));
+        sel->pixels[th->pixel].cost += (double)sample_units(sel, th, c0); /* (a dropped sample's too) */
+        if (v3_finite(L)) pixel_add(&sel->pixels[th->pixel], L);
         return L;
     }
     rd_select_run *u = &sel->runs[th->index];
@@ -875,11 +907,8 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
     th->delta_samples += u->use != RD_SEL_METHOD;
     th->delta_eq_samples += u->use == RD_SEL_DELTA_EQ;
     vec3 L = estimate(ctx, sel, th, u->use, method, r, smp);
-    rd_select_work c1 = rd_select_work_now(th); /* (the counters do not move between samples) */
-    double cost = work_between(&u->c, &c1, sel->cell_cost) + SEL_COST_SAMPLE; /* sample_cost's */
-    u->c = c1;
-    if (v3_finite(L)) { /* pixel_add's sums and cost, in the same order: the same to the bit */
-        u->cost += cost;
+    u->drawn++; /* (its work is read from the counters at the run's end: run_close) */
+    if (v3_finite(L)) { /* pixel_add's sums, in the same order: the same to the bit */
         const float v[3] = {(float)L.x, (float)L.y, (float)L.z}, v2[3] = {(float)(L.x * L.x), (float)(L.y * L.y), (float)(L.z * L.z)};
         for (int c = 0; c < 3; c++) u->sum[c] += v[c], u->sum2[c] += v2[c];
         u->nonzero += L.x != 0.0 || L.y != 0.0 || L.z != 0.0;
