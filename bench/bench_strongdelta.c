@@ -21,7 +21,11 @@
  * where the reference's variance is over 1000x its median over the pixels with any variance: a
  * few pixels that one camera chain, common to every method, makes far noisier than the rest
  * (hard-lens-caustic's image of the small light through the ball, a specular chain every method
- * follows alike), which would otherwise be the whole MSE. Printed per variant: the medians over
+ * follows alike), which would otherwise be the whole MSE. It says how many pixels that left out
+ * and what share of the reference's variance they held, and warns when they are more than 1% of
+ * the pixels: against a `delta` reference the rule also takes every pixel where the reference drew
+ * one of its own rare paths (hard-lens-caustic against session 38's 200-s reference: 1786 of
+ * 19200 pixels, 99.6% of its variance; docs/benchmarks.md "Session 43"). Printed per variant: the medians over
  * the K rounds with min-max of seconds, samples per pixel, MSE and efficiency, and of the
  * efficiency ratio to the first variant within the same round (the figure to quote: one round's
  * variants share one load), and that ratio taken apart (its inverse is their product): the

@@ -275,7 +275,10 @@
  * again when the set-up stopped searching the flight's media a second time (session 25: the
  * path loop finds them once for the flight and the set-up): 0.065 us, 0.40 lookups, the model
  * within 0.99-1.02 of the three; checked, not fitted: default 0.74, hard-dense-block 1.79,
- * hard-narrow-spot 1.31 (differences of 0.07-0.11 us a sample between two noisy times). */
+ * hard-narrow-spot 1.31 (differences of 0.07-0.11 us a sample between two noisy times). Since
+ * session 43 a pixel's record holds its cost in whole units of 1/RD_SELECT_COST_UNIT lookup (the
+ * weights rounded to them), from the counters' change over each run of a thread's samples of
+ * the pixel (rd_select_run), the samples the film drops included: their time was spent. */
 #include "integrators/rd_select.h"
 #include "transport/rd_path.h"
 
