@@ -23,7 +23,7 @@
  * (hard-lens-caustic's image of the small light through the ball, a specular chain every method
  * follows alike), which would otherwise be the whole MSE. It says how many pixels that left out
  * and what share of the reference's variance they held, and warns when they are more than 1% of
- * the pixels: against a `delta` reference the rule also takes every pixel where the reference drew
+ * the pixels with variance: against a `delta` reference the rule also takes every pixel where the reference drew
  * one of its own rare paths (hard-lens-caustic against session 38's 200-s reference: 1786 of
  * 19200 pixels, 99.6% of its variance; docs/benchmarks.md "Session 43"). Printed per variant: the medians over
  * the K rounds with min-max of seconds, samples per pixel, MSE and efficiency, and of the
@@ -206,15 +206,15 @@ int main(int argc, char **argv)
     printf("bench_strongdelta %s: %d variants, %d rounds of %g s each, %d threads, reference %s (variance %.3g%s)",
            scene, nv, runs, seconds, threads, ref_path, ref_var, have_se ? "" : ", unknown: no stderr image");
     if (mask_outliers)
-        printf(", %zu pixels left out (--mask-outliers: %.2g%% of those with variance, %.3g%% of the "
-               "reference's variance)", masked, np ? 100.0 * (double)masked / (double)np : 0.0,
+        printf(", %zu pixels left out (--mask-outliers: %.1f%% of the %zu with variance, %.1f%% of the "
+               "reference's variance)", masked, np ? 100.0 * (double)masked / (double)np : 0.0, np,
                100.0 * var_left_out);
     printf("\n");
     if (mask_outliers && np && masked * 100 > np)
         /* The mask is for a few pixels one camera chain makes noisy in every render alike. More
          * than 1% of the pixels are the reference's own rare paths (one sample each, wherever such
          * paths land): leaving them out drops the image where the methods differ most. */
-        printf("warning: --mask-outliers left out %zu of %zu pixels, more than the few one camera chain "
+        printf("warning: --mask-outliers left out %zu of the %zu pixels with variance, more than the few one camera chain "
                "makes noisy: they are likely the reference's own rare paths (a single sample each), "
                "and the figures leave out where those paths land; measure without it too\n",
                masked, np);

@@ -136,10 +136,13 @@ void rd_select_free(rd_select *sel);
 vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn method,
                         rd_thread *th, ray3 r, rd_sampler *smp);
 /* After th's samples of one pixel in a pass (rd_method.pixel_done): what rd_select_radiance
- * gathered over them, with their counted cost, goes into the pixel's record for the next epoch.
- * Without it, the thread's next pixel or the next epoch writes it. */
+ * gathered over them, with their counted cost (th's work counters' change since the first of
+ * them), goes into the pixel's record for the next epoch. Without it, the thread's next pixel
+ * or the next epoch writes it, reading th's counters then: th must live, its counters not
+ * reset, until one of them does. */
 void rd_select_pixel_done(rd_select *sel, const rd_thread *th);
-/* Record one sample L of `pixel`, with its counted cost, for the next epoch. */
+/* Record one sample L of `pixel`, with its counted cost (in lookups; kept in whole units of
+ * 1/RD_SELECT_COST_UNIT), for the next epoch. */
 void rd_select_observe(rd_select *sel, uint64_t pixel, vec3 L, double cost);
 /* The image's epochs: the choice is made again at samples 4, 16, 64, ... (x4) of every pixel
  * from everything seen so far. rd_select_epoch_next: the first epoch boundary after `sample`

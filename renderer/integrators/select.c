@@ -302,7 +302,7 @@
 /* The pilot's random numbers: the image's keys (pixel, sample, seed) with the seed moved by a
  * constant, so no pilot sample is one of the image's. */
 #define SEL_SEED_SHIFT 0x5E1EC7ULL
-/* A weight in whole units of 1/RD_SELECT_COST_UNIT lookups (a relative change under 1e-5). A
+/* A weight in whole units of 1/RD_SELECT_COST_UNIT lookups (a relative change under 2e-5). A
  * pixel's record keeps its cost in these units: the work counters' changes times the weights,
  * summed in integers, so the record is the same whichever runs of samples it is summed over,
  * and a run's cost is read from the counters once, at its end (rd_select_run). The unit is a
@@ -853,7 +853,7 @@ uint64_t rd_select_method_pixels(const rd_select *sel, uint64_t all)
 void rd_select_observe(rd_select *sel, uint64_t pixel, vec3 L, double cost)
 {
     pixel_add(&sel->pixels[pixel], L);
-    sel->pixels[pixel].cost += cost * RD_SELECT_COST_UNIT; /* (exact: a power of two) */
+    sel->pixels[pixel].cost += (double)cost_units(cost); /* (whole units, as every record's) */
 }
 
 int rd_select_epoch_next(const rd_select *sel, int sample)
