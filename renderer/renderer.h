@@ -203,6 +203,12 @@ typedef struct {
      * other ranks' results hold only their own pixels. Every rank calls rd_render with the
      * same scene and options. */
     const rd_comm *comm;
+    /* Optional path: the guided methods' tile selection (settings.select; `delta`'s "tiles")
+     * writes there, at its pilot and at every epoch, each 8x8 tile's choice and the figures it
+     * was made from, one JSON line a choice (docs/cli.md, "The selection's trace"), the whole
+     * file rewritten in place each time (rd_write_atomic). A render without a selection writes
+     * nothing. Rank 0 alone writes. NULL: none. */
+    const char *select_trace;
 } rd_render_opts;
 
 typedef struct {

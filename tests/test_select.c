@@ -16,9 +16,11 @@
 #include "support/rd_test.h"
 #include "integrators/rd_select.h"
 
+#include <cjson/cJSON.h>
 #include <limits.h>
 #include <math.h>
 #include <string.h>
+#include <unistd.h>
 
 /* ---- The rule ---------------------------------------------------------------------------- */
 
@@ -1156,6 +1158,77 @@ Test(select, the_choice_does_not_depend_on_the_threads, .timeout = 300)
     cr_assert(memcmp(r[0].image.rgb, r[1].image.rgb, sizeof(float) * 3 * r[0].image.w * r[0].image.h) == 0,
               "one thread and two give different images");
     for (int i = 0; i < 2; i++) rd_render_result_free(&r[i]);
+    rd_scene_free(s);
+}
+
+Test(select, the_trace_says_which_estimator_drew_every_sample, .timeout = 300)
+{
+    /* rd_render_opts.select_trace: one JSON line a choice (the pilot's, the epochs' at 4 and
+     * 16 of 20 samples). Counted from the trace alone (each tile's choice, or its trial's
+     * checkerboard, over the samples from its line's from_sample to the next's), the samples
+     * given to delta's paths, and of those to delta's path with the strategy, must be the
+     * render's own counts, to the sample; and writing the trace must not change the image.
+     * hard-dense-block at 32x24, seed 1: its tiles go on trial at the pilot and move at both
+     * epochs (checked below), so a trace written before the choice, or of the wrong one, fails. */
+    const rd_override res[] = {{"camera.resolution", "[32,24]"}};
+    rd_scene *s = NULL;
+    char err[RD_ERRLEN];
+    cr_assert(rd_scene_load(&s, "scenes/hard-dense-block.json", res, 1, err, sizeof err) == RD_OK, "%s", err);
+    const char *path = rt_tmp_path("trace.jsonl");
+    rd_render_result r[2];
+    for (int i = 0; i < 2; i++) {
+        rd_render_opts o = {.method = "guided-unbiased", .spp = 20, .seed = 1, .threads = 2, .select_trace = i ? path : NULL};
+        cr_assert(rd_render(s, &o, &r[i], err, sizeof err) == RD_OK, "%s", err);
+    }
+    cr_assert(memcmp(r[0].image.rgb, r[1].image.rgb, sizeof(float) * 3 * r[0].image.w * r[0].image.h) == 0,
+              "the trace changed the image");
+    FILE *f = fopen(path, "r");
+    cr_assert(f, "no trace at %s", path);
+    static char line[1 << 16];
+    const long from_expected[3] = {0, 4, 16};
+    uint64_t delta_samples = 0, eq_samples = 0;
+    int lines = 0, moves = 0, w = r[1].image.w, h = r[1].image.h;
+    static int last[64 * 64];
+    while (fgets(line, sizeof line, f)) {
+        cr_assert(lines < 3, "more than three choices for 20 samples");
+        cJSON *j = cJSON_Parse(line);
+        cr_assert(j, "line %d is not JSON", lines + 1);
+        long from = (long)cJSON_GetObjectItem(j, "from_sample")->valuedouble;
+        int tx = cJSON_GetObjectItem(j, "tiles_x")->valueint, ty = cJSON_GetObjectItem(j, "tiles_y")->valueint;
+        int m = cJSON_GetArraySize(cJSON_GetObjectItem(j, "estimators"));
+        const cJSON *tiles = cJSON_GetObjectItem(j, "tiles");
+        cr_assert(from == from_expected[lines] && tx == (w + 7) / 8 && ty == (h + 7) / 8 && cJSON_GetArraySize(tiles) == tx * ty,
+                  "line %d: from_sample %ld, %dx%d tiles (%d listed)", lines + 1, from, tx, ty, cJSON_GetArraySize(tiles));
+        long to = lines < 2 ? from_expected[lines + 1] : 20;
+        for (int y = 0; y < h; y++)
+            for (int x = 0; x < w; x++) {
+                const cJSON *t = cJSON_GetArrayItem(tiles, (y / 8) * tx + x / 8);
+                int c = cJSON_GetObjectItem(t, "choice")->valueint, trial = cJSON_GetObjectItem(t, "trial")->valueint;
+                cr_assert(c >= 0 && c < m && trial >= 0 && trial <= m, "a tile's choice %d, trial %d of %d estimators", c, trial, m);
+                int hi = trial && trial - 1 > c ? trial - 1 : c, lo = trial && trial - 1 < c ? trial - 1 : c;
+                int use = trial ? ((x + y) & 1 ? hi : lo) : c; /* rd_select_uses */
+                delta_samples += use != RD_SEL_METHOD ? (uint64_t)(to - from) : 0;
+                eq_samples += use == RD_SEL_DELTA_EQ ? (uint64_t)(to - from) : 0;
+                moves += lines > 0 && use != last[y * w + x];
+                last[y * w + x] = use;
+            }
+        cJSON_Delete(j);
+        lines++;
+    }
+    fclose(f);
+    cr_assert(lines == 3, "%d choices traced, not 3", lines);
+    cr_assert(moves > 0, "no pixel changed estimator at the epochs: the check below could not see a stale trace");
+    cr_assert(delta_samples == r[1].stats.delta_samples && eq_samples == r[1].stats.delta_eq_samples,
+              "the trace gives delta's paths %llu samples (%llu with the strategy), the render %llu (%llu)",
+              (unsigned long long)delta_samples, (unsigned long long)eq_samples, (unsigned long long)r[1].stats.delta_samples,
+              (unsigned long long)r[1].stats.delta_eq_samples);
+    for (int i = 0; i < 2; i++) rd_render_result_free(&r[i]);
+    /* A render without a selection writes no trace. */
+    const char *none = rt_tmp_path("no-trace.jsonl");
+    rd_render_opts o = {.method = "delta", .spp = 2, .seed = 5, .threads = 1, .select_trace = none};
+    cr_assert(rd_render(s, &o, &r[0], err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(access(none, F_OK) != 0, "delta without a selection wrote a trace");
+    rd_render_result_free(&r[0]);
     rd_scene_free(s);
 }
 

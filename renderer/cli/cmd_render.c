@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 /* render -o OUT.exr writes OUT.exr, OUT-stderr.exr, OUT.png and OUT.json: none may be the scene
@@ -54,6 +55,11 @@ static const char *const usage_render =
     "                    against it after every pass (\"convergence\")\n"
     "  --set KEY=VALUE   override a scene field before validation, e.g. --set settings.spp=64,\n"
     "                    --set camera.resolution=[320,240], --set media[0].g=0.9 (repeatable)\n"
+    "  --select-trace FILE  the tile selection's choices (guided, guided-unbiased, delta with\n"
+    "                    settings.equiangular \"tiles\"): at its pilot and every epoch, one JSON\n"
+    "                    line with each 8x8 tile's estimator and the samples, mean, variance\n"
+    "                    and cost it was chosen from (docs/cli.md, \"The selection's trace\");\n"
+    "                    a render without a selection writes none and says so\n"
     "  -q, --quiet       no progress and no summary\n"
     "  -h, --help        this text\n";
 
@@ -70,6 +76,16 @@ static void note_hidden_light(const rd_scene *scene, const char *method)
                         "way of glass first; %s cannot render it (guided with its default march.ls here, nee+beams, can: "
                         "docs/compare.md, \"Light only photons find\")\n",
                 100.0 * share, method);
+}
+
+/* The identity of the file at path (0 when there is none): the selection's trace is written
+ * whole under a temporary name and renamed (rd_write_atomic), so a trace written by this render
+ * is a file that was not there before it. */
+static unsigned long long file_identity(const char *path)
+{
+    struct stat sb;
+    if (!path || stat(path, &sb) != 0) return 0;
+    return ((unsigned long long)sb.st_dev << 40) ^ (unsigned long long)sb.st_ino ^ 1ull;
 }
 
 /* render --help: the options, then the method table. */
@@ -107,7 +123,7 @@ static void progress(void *user, int done, int total, double seconds)
 /* The command line of render, parsed. */
 typedef struct {
     cli_scene_args a;
-    const char *method, *outpath, *refpath, *photons_path, *guide_path;
+    const char *method, *outpath, *refpath, *photons_path, *guide_path, *trace_path;
     long spp, seed, threads;
     double time_limit;
     int quiet, no_cache;
@@ -118,7 +134,7 @@ typedef struct {
 static int parse_render(int argc, char **argv, render_args *r)
 {
     cli_scene_args *a = &r->a;
-    const char *method = NULL, *outpath = NULL, *refpath = NULL, *photons_path = NULL, *guide_path = NULL;
+    const char *method = NULL, *outpath = NULL, *refpath = NULL, *photons_path = NULL, *guide_path = NULL, *trace_path = NULL;
     long spp = -1, seed = -1, threads = 0;
     double time_limit = -1;
     int quiet = 0, no_cache = 0;
@@ -132,6 +148,7 @@ static int parse_render(int argc, char **argv, render_args *r)
         else if (!strcmp(o, "-q") || !strcmp(o, "--quiet")) quiet = 1;
         else if (!strcmp(o, "--method") && has_val) method = argv[++i];
         else if (!strcmp(o, "--reference") && has_val) refpath = argv[++i];
+        else if (!strcmp(o, "--select-trace") && has_val) trace_path = argv[++i];
         else if (!strcmp(o, "--photons") && has_val) photons_path = argv[++i];
         else if (!strcmp(o, "--guide") && has_val) guide_path = argv[++i];
         else if (!strcmp(o, "--no-cache")) no_cache = 1;
@@ -154,7 +171,7 @@ static int parse_render(int argc, char **argv, render_args *r)
     }
     if (refuse_render_outputs(outpath, a->scene)) return CLI_EXIT_USAGE;
     r->method = method, r->outpath = outpath, r->refpath = refpath;
-    r->photons_path = photons_path, r->guide_path = guide_path;
+    r->photons_path = photons_path, r->guide_path = guide_path, r->trace_path = trace_path;
     r->spp = spp, r->seed = seed, r->threads = threads, r->time_limit = time_limit;
     r->quiet = quiet, r->no_cache = no_cache;
     return -1;
@@ -193,7 +210,7 @@ int cli_cmd_render_on(int argc, char **argv, rd_dist *d)
     const int lead = rd_dist_rank(d) == 0, ranks = rd_dist_size(d);
     cli_scene_args *a = &r->a;
     const char *method = r->method, *outpath = r->outpath, *refpath = r->refpath;
-    const char *photons_path = r->photons_path, *guide_path = r->guide_path;
+    const char *photons_path = r->photons_path, *guide_path = r->guide_path, *trace_path = r->trace_path;
     long spp = r->spp, seed = r->seed, threads = r->threads;
     double time_limit = r->time_limit;
     int quiet = r->quiet || !lead, no_cache = r->no_cache;
@@ -226,6 +243,7 @@ int cli_cmd_render_on(int argc, char **argv, rd_dist *d)
     ro.cancel = cli_cancel_flag();
     ro.reference = refpath ? &ref : NULL;
     ro.comm = rd_dist_comm(d);
+    ro.select_trace = trace_path;
     cli_progress_state ps = {ro.time_limit, isatty(2), 0.0};
     if (!quiet) {
         ro.progress = progress;
@@ -267,6 +285,7 @@ int cli_cmd_render_on(int argc, char **argv, rd_dist *d)
     }
     cli_on_signal_stop(); /* from here on, a signal stops and writes what it has */
     rd_render_result res;
+    unsigned long long trace_before = file_identity(trace_path);
     st = rd_render(scene, &ro, &res, err, sizeof err);
     if (ro.progress && ps.tty) fputc('\n', stderr);
     if (refpath && st == RD_ERR_ARG) { /* the only argument rd_render checks against a file */
@@ -307,6 +326,15 @@ int cli_cmd_render_on(int argc, char **argv, rd_dist *d)
             char base[1100];
             snprintf(base, sizeof base, "%.*s", (int)(strlen(outpath) - 4), outpath);
             printf("image  %s\nstderr %s-stderr.exr\npng    %s.png\nreport %s.json\n", outpath, base, base, base);
+        }
+        if (trace_path && lead) {
+            unsigned long long after = file_identity(trace_path);
+            if (after && after != trace_before) {
+                if (!quiet) printf("trace  %s\n", trace_path);
+            } else {
+                fprintf(stderr, "note: --select-trace %s: this render made no tile selection (method %s; settings.select, "
+                                "or delta's settings.equiangular \"tiles\"), so nothing was written there\n", trace_path, ro.method);
+            }
         }
         /* A signal that came after the last pixel still says so in the status. */
         if (cli_interrupted()) code = cli_exit_interrupted(cli_interrupted());

@@ -71,6 +71,7 @@ typedef struct rd_render_ctx {
     /* Several ranks on one image (rd_render_opts.comm; NULL: one process): a method that learns
      * from the image's samples (epoch) sums what each rank saw through it first. */
     const rd_comm *comm;
+    const char *select_trace; /* rd_render_opts.select_trace (integrators/select.c) */
 } rd_render_ctx;
 
 typedef struct rd_method {

@@ -80,11 +80,23 @@ typedef struct {
     int n_runs;
     rd_select_delta_fn delta; /* delta's path as the method gives it (with its probes), NULL:
                                  rd_delta_radiance_eq (rd_select_prepare) */
+    int choices;              /* choices made so far: the pilot's, then one an epoch (traced_choice) */
+    const char *trace_path;   /* rd_render_ctx.select_trace on rank 0, else NULL */
+    char *trace;              /* the trace's lines so far (trace_len bytes, room for trace_cap) */
+    size_t trace_len, trace_cap;
 } rd_select;
 
 /* The estimator (RD_SEL_*) the selection gives pixel (x, y): its tile's choice, or on a tile on
  * trial, the pixel's square of the checkerboard. */
 int rd_select_uses(const rd_select *sel, int x, int y);
+/* Where the render asked for a trace (sel->trace_path), add the line of the choice just made,
+ * which governs the samples from `from` on, and write the file again whole (select_trace.c): for every
+ * tile, row by row, its estimator, its trial (0, or 1 + the estimator on trial) and, per
+ * estimator, the samples the choice saw (both halves, the pilot's included), their mean and
+ * their variance a sample (over RGB; squared deviations from each pixel's own mean over their
+ * degrees of freedom) and their counted cost a sample in density lookups. Errors: RD_ERR_NOMEM,
+ * or rd_write_atomic's naming the path. */
+rd_status rd_select_trace(rd_select *sel, long from, char *err, size_t errlen);
 /* How many pixels the selection gives to the method now (all of them without a selection:
  * `all`). */
 uint64_t rd_select_method_pixels(const rd_select *sel, uint64_t all);

@@ -216,6 +216,12 @@
  * both keeps the third, whose flights then drop the connections: not measured, no shipped
  * scene has both).
  *
+ * The trace (session 44). `render --select-trace FILE` writes every choice, the pilot's and each
+ * epoch's, with each tile's own figures (select_trace.c; docs/cli.md, "The selection's trace"),
+ * and bench/bench_select_score scores such choices against fixed per-pixel variance tables:
+ * two rules then differ by their choices alone, not by the images' noise (docs/benchmarks.md
+ * "Session 44").
+ *
  * A consistent method. The marcher with march.ls nee+beams is consistent, not unbiased: its
  * photon part carries the kernel's bias (shrinking with the progressive passes). It mixes with
  * delta's path only when settings.select names "tiles" or "pilot" (the default "auto" marches
@@ -780,6 +786,16 @@ static void choose_tiles(rd_select *sel)
     free(all), free(buf), free(want);
 }
 
+/* Count the choice just made and trace it (rd_select_trace): the pilot's governs the samples
+ * from 0, the epochs' from SEL_EPOCH_FIRST, then each SEL_EPOCH_GROWTH times the last. */
+static rd_status traced_choice(rd_select *sel, char *err, size_t errlen)
+{
+    long from = 0;
+    for (int i = 0; i < sel->choices; i++) from = i == 0 ? SEL_EPOCH_FIRST : from * SEL_EPOCH_GROWTH;
+    sel->choices++;
+    return rd_select_trace(sel, from, err, errlen);
+}
+
 rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_select_delta_fn delta,
                             double cell_cost, int options, rd_select *sel, char *err, size_t errlen)
 {
@@ -794,6 +810,7 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_se
     if (options & RD_SELECT_METHOD_IS_PATH) sel->paths |= 1u << RD_SEL_METHOD;
     sel->delta = delta;
     sel->epochs = ctx->scene->settings.select != RD_SELECT_PILOT;
+    sel->trace_path = ctx->select_trace && (!ctx->comm || ctx->comm->rank == 0) ? ctx->select_trace : NULL;
     int n = sel->tiles_x * sel->tiles_y;
     int threads = ctx->threads > 0 ? ctx->threads : 1;
     sel->runs = rd_alloc_lines((size_t)threads * sizeof *sel->runs);
@@ -819,7 +836,8 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_se
         snprintf(err, errlen, "out of memory for the tile selection's pilot and its threads' records");
         return RD_ERR_NOMEM;
     }
-    return RD_OK;
+    if ((st = traced_choice(sel, err, errlen)) != RD_OK) rd_select_free(sel);
+    return st;
 }
 
 void rd_select_free(rd_select *sel)
@@ -829,6 +847,7 @@ void rd_select_free(rd_select *sel)
     free(sel->stats);
     free(sel->pixels);
     free(sel->runs);
+    free(sel->trace);
     memset(sel, 0, sizeof *sel);
 }
 
@@ -886,6 +905,8 @@ void rd_select_epoch(rd_select *sel, const rd_comm *comm)
             memset(px, 0, sizeof *px);
         }
     choose_tiles(sel);
+    char err[RD_ERRLEN]; /* (a trace that cannot be written now keeps the last one written) */
+    (void)traced_choice(sel, err, sizeof err);
 }
 
 vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn method,

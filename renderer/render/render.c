@@ -305,7 +305,8 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
     double deadline = o->time_limit > 0 ? t_start + o->time_limit : INFINITY; /* a clock may read 0 */
     rd_render_ctx ctx = {.scene = s, .method = m, .seed = o->seed,
                          .threads = o->threads > 0 ? o->threads : omp_get_max_threads(),
-                         .comm = comm_size(o->comm) > 1 ? o->comm : NULL};
+                         .comm = comm_size(o->comm) > 1 ? o->comm : NULL,
+                         .select_trace = o->select_trace};
     const rd_comm *comm = ctx.comm;
     res->stats.threads = ctx.threads;
 
