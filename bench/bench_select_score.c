@@ -5,10 +5,16 @@
  *
  * Each TRACE is the choices of one render, `render SCENE --spp N --select-trace TRACE.jsonl`
  * (docs/cli.md, "The selection's trace"). Each table is a long render of one of the selection's
- * estimators alone, NAME as the trace names it: `delta` (`render --method delta`), `method`
- * (`--method M --set settings.select="off"`), `delta_equiangular` (`--method delta --set
- * settings.equiangular=true`), at the traces' resolution; V-stderr.exr and V.json beside V.exr
- * give each pixel's variance a sample, se^2 spp (mean over RGB).
+ * estimators alone, NAME as the trace names it, rendered as the selection renders it, at the
+ * traces' resolution. For `guided-unbiased`: `delta` is `render --method delta --set
+ * settings.probes="auto"` (its delta tiles take guide.probes "auto"), `method` is `--method
+ * guided-unbiased --set settings.select="off" --set guide.equiangular=false` (its own flights take
+ * no equiangular strategy where the selection runs), `delta_equiangular` is `--method delta --set
+ * settings.equiangular=true` (with the same probes). For `guided` the same but `method` is
+ * `--method guided --set settings.select="off"`. For `delta` with settings.equiangular "tiles",
+ * `delta` is `--set settings.equiangular=false` and `method` is `--set settings.equiangular=true`.
+ * V-stderr.exr and V.json beside V.exr give each pixel's variance a sample, se^2 spp (mean over
+ * RGB).
  *
  * A trace's score: each pixel's mean has variance sum_i n_i V_e(i)(pixel) / N^2, n_i the samples
  * the pixel drew under the trace's line i (from its from_sample to the next line's, or N) and
@@ -142,18 +148,39 @@ static int load_trace(const char *path, trace *r)
             fprintf(stderr, "bench_select_score: %s: line %d: not a trace line (from_sample, tiles_x, tiles_y, estimators, tiles)\n",
                     path, i + 1);
             ok = 0;
+        } else if (i > 0 && (tx->valueint != r->tx || ty->valueint != r->ty || cJSON_GetArraySize(est) != r->m ||
+                             (long)from->valuedouble <= r->from[i - 1])) {
+            fprintf(stderr, "bench_select_score: %s: line %d: its tiles, estimators or from_sample do not follow line %d's\n", path,
+                    i + 1, i);
+            ok = 0;
+        } else if (i == 0 && from->valuedouble != 0) {
+            fprintf(stderr, "bench_select_score: %s: line 1: from_sample must be 0 (the pilot's choice)\n", path);
+            ok = 0;
         } else {
             int n = tx->valueint * ty->valueint;
             r->tx = tx->valueint, r->ty = ty->valueint, r->m = cJSON_GetArraySize(est), r->from[i] = (long)from->valuedouble;
+            for (int e = 0; e < r->m; e++) {
+                const cJSON *name = cJSON_GetArrayItem(est, e);
+                if (!cJSON_IsString(name) || strcmp(name->valuestring, names[e])) {
+                    fprintf(stderr, "bench_select_score: %s: line %d: estimators[%d]: expected \"%s\"\n", path, i + 1, e, names[e]);
+                    ok = 0;
+                }
+            }
             r->choice[i] = malloc((size_t)n * sizeof(int)), r->trial[i] = malloc((size_t)n * sizeof(int));
             free(r->cost);
             r->cost = calloc((size_t)n * MAXE, sizeof *r->cost);
             r->lines++;
-            ok = r->choice[i] && r->trial[i] && r->cost;
+            ok = ok && r->choice[i] && r->trial[i] && r->cost;
             for (int k = 0; ok && k < n; k++) {
                 const cJSON *t = cJSON_GetArrayItem(tiles, k), *c = cJSON_GetObjectItem(t, "cost");
-                r->choice[i][k] = cJSON_GetObjectItem(t, "choice")->valueint;
-                r->trial[i][k] = cJSON_GetObjectItem(t, "trial")->valueint;
+                const cJSON *ch = cJSON_GetObjectItem(t, "choice"), *tr = cJSON_GetObjectItem(t, "trial");
+                if (!cJSON_IsNumber(ch) || !cJSON_IsNumber(tr) || !cJSON_IsArray(c)) {
+                    fprintf(stderr, "bench_select_score: %s: line %d: tiles[%d]: needs choice, trial and cost\n", path, i + 1, k);
+                    ok = 0;
+                    break;
+                }
+                r->choice[i][k] = ch->valueint;
+                r->trial[i][k] = tr->valueint;
                 for (int e = 0; e < r->m && e < cJSON_GetArraySize(c); e++) r->cost[k * MAXE + e] = cJSON_GetArrayItem(c, e)->valuedouble;
                 if (r->choice[i][k] < 0 || r->choice[i][k] >= r->m || r->trial[i][k] < 0 || r->trial[i][k] > r->m) {
                     fprintf(stderr, "bench_select_score: %s: line %d: tiles[%d]: choice or trial out of range\n", path, i + 1, k);

@@ -207,7 +207,8 @@ typedef struct {
      * writes there, at its pilot and at every epoch, each 8x8 tile's choice and the figures it
      * was made from, one JSON line a choice (docs/cli.md, "The selection's trace"), the whole
      * file rewritten in place each time (rd_write_atomic). A render without a selection writes
-     * nothing. Rank 0 alone writes. NULL: none. */
+     * nothing. Rank 0 alone writes. A write that fails does not stop the render: the result
+     * says so (rd_render_stats.select_traced, rd_render_result.select_trace_err). NULL: none. */
     const char *select_trace;
 } rd_render_opts;
 
@@ -256,6 +257,10 @@ typedef struct {
     uint64_t photons_traced;
     double photon_seconds;
     double radius_scale;
+    /* The tile selection (settings.select): the choices it made (its pilot's, one an epoch; 0:
+     * the render had no selection) and, with rd_render_opts.select_trace, how many of them the
+     * trace holds (on rank 0; the others write none). */
+    int select_choices, select_traced;
 } rd_render_stats;
 
 /* One point of the convergence curve: RMSE of the image so far against the reference. */
@@ -270,6 +275,7 @@ typedef struct {
     rd_render_stats stats;
     rd_conv_point *curve; /* one point per pass when opts.reference was given, else NULL */
     int n_curve;
+    char select_trace_err[RD_ERRLEN]; /* the first failed write of the selection's trace, or "" */
 } rd_render_result;
 
 void rd_render_result_free(rd_render_result *res); /* frees the images and the curve */

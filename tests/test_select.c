@@ -1189,6 +1189,11 @@ Test(select, the_trace_says_which_estimator_drew_every_sample, .timeout = 300)
     uint64_t delta_samples = 0, eq_samples = 0;
     int lines = 0, moves = 0, w = r[1].image.w, h = r[1].image.h;
     static int last[64 * 64];
+    /* each tile's samples of each estimator before the line: the pilot's (16 pixels x 8), then
+     * what the lines gave it (every sample of this scene is finite, so the trace counts them all) */
+    double drawn[12][3];
+    for (int k = 0; k < 12; k++)
+        for (int e = 0; e < 3; e++) drawn[k][e] = 128.0;
     while (fgets(line, sizeof line, f)) {
         cr_assert(lines < 3, "more than three choices for 20 samples");
         cJSON *j = cJSON_Parse(line);
@@ -1200,6 +1205,16 @@ Test(select, the_trace_says_which_estimator_drew_every_sample, .timeout = 300)
         cr_assert(from == from_expected[lines] && tx == (w + 7) / 8 && ty == (h + 7) / 8 && cJSON_GetArraySize(tiles) == tx * ty,
                   "line %d: from_sample %ld, %dx%d tiles (%d listed)", lines + 1, from, tx, ty, cJSON_GetArraySize(tiles));
         long to = lines < 2 ? from_expected[lines + 1] : 20;
+        cr_assert(tx * ty <= 12 && m == 3, "%dx%d tiles, %d estimators: hard-dense-block at 32x24 has 4x3 and 3", tx, ty, m);
+        for (int k = 0; k < tx * ty; k++) {
+            const cJSON *t = cJSON_GetArrayItem(tiles, k), *n = cJSON_GetObjectItem(t, "samples"), *c = cJSON_GetObjectItem(t, "cost");
+            for (int e = 0; e < m; e++) {
+                double got = cJSON_GetArrayItem(n, e)->valuedouble, cost = cJSON_GetArrayItem(c, e)->valuedouble;
+                cr_assert(got == drawn[k][e], "line %d, tile %d, estimator %d: %g samples traced, %g drawn", lines + 1, k, e, got,
+                          drawn[k][e]);
+                cr_assert(cost > 0.0, "line %d, tile %d, estimator %d: cost %g a sample", lines + 1, k, e, cost);
+            }
+        }
         for (int y = 0; y < h; y++)
             for (int x = 0; x < w; x++) {
                 const cJSON *t = cJSON_GetArrayItem(tiles, (y / 8) * tx + x / 8);
@@ -1208,6 +1223,7 @@ Test(select, the_trace_says_which_estimator_drew_every_sample, .timeout = 300)
                 int hi = trial && trial - 1 > c ? trial - 1 : c, lo = trial && trial - 1 < c ? trial - 1 : c;
                 int use = trial ? ((x + y) & 1 ? hi : lo) : c; /* rd_select_uses */
                 delta_samples += use != RD_SEL_METHOD ? (uint64_t)(to - from) : 0;
+                drawn[(y / 8) * tx + x / 8][use] += (double)(to - from);
                 eq_samples += use == RD_SEL_DELTA_EQ ? (uint64_t)(to - from) : 0;
                 moves += lines > 0 && use != last[y * w + x];
                 last[y * w + x] = use;

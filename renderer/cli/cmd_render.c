@@ -9,6 +9,38 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+/* 1 when paths a and b name one file: the same string, or the same existing file. */
+static int same_path(const char *a, const char *b)
+{
+    struct stat sa, sb;
+    if (!a || !b) return 0;
+    return !strcmp(a, b) || (stat(a, &sa) == 0 && stat(b, &sb) == 0 && sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino);
+}
+
+/* --select-trace FILE may be none of the render's inputs (the scene, --reference, --photons,
+ * --guide) nor of its outputs (refuse_render_outputs' four): exit 1 after a message. */
+static int refuse_trace_path(const char *trace, const char *exr, const char *const in[4])
+{
+    static const char *const ext[] = {".exr", "-stderr.exr", ".png", ".json"};
+    static const char *const what[] = {"the scene", "--reference", "--photons", "--guide"};
+    if (!trace) return 0;
+    for (int i = 0; i < 4; i++)
+        if (same_path(trace, in[i])) {
+            fprintf(stderr, "photonmarch render: --select-trace %s: is %s; choose another path\n", trace, what[i]);
+            return CLI_EXIT_USAGE;
+        }
+    size_t stem = strlen(exr) - 4;
+    for (int i = 0; i < 4; i++) {
+        char path[1100];
+        snprintf(path, sizeof path, "%.*s%s", (int)stem, exr, ext[i]);
+        if (same_path(trace, path)) {
+            fprintf(stderr, "photonmarch render: --select-trace %s: is one of the render's outputs; choose another path\n", trace);
+            return CLI_EXIT_USAGE;
+        }
+    }
+    return 0;
+}
+
 /* render -o OUT.exr writes OUT.exr, OUT-stderr.exr, OUT.png and OUT.json: none may be the scene
  * (`render scene.json -o scene.exr` would replace it with the report). */
 static int refuse_render_outputs(const char *exr, const char *scene)
@@ -76,16 +108,6 @@ static void note_hidden_light(const rd_scene *scene, const char *method)
                         "way of glass first; %s cannot render it (guided with its default march.ls here, nee+beams, can: "
                         "docs/compare.md, \"Light only photons find\")\n",
                 100.0 * share, method);
-}
-
-/* The identity of the file at path (0 when there is none): the selection's trace is written
- * whole under a temporary name and renamed (rd_write_atomic), so a trace written by this render
- * is a file that was not there before it. */
-static unsigned long long file_identity(const char *path)
-{
-    struct stat sb;
-    if (!path || stat(path, &sb) != 0) return 0;
-    return ((unsigned long long)sb.st_dev << 40) ^ (unsigned long long)sb.st_ino ^ 1ull;
 }
 
 /* render --help: the options, then the method table. */
@@ -170,6 +192,8 @@ static int parse_render(int argc, char **argv, render_args *r)
         return CLI_EXIT_USAGE;
     }
     if (refuse_render_outputs(outpath, a->scene)) return CLI_EXIT_USAGE;
+    const char *const inputs[4] = {a->scene, refpath, photons_path, guide_path};
+    if (refuse_trace_path(trace_path, outpath, inputs)) return CLI_EXIT_USAGE;
     r->method = method, r->outpath = outpath, r->refpath = refpath;
     r->photons_path = photons_path, r->guide_path = guide_path, r->trace_path = trace_path;
     r->spp = spp, r->seed = seed, r->threads = threads, r->time_limit = time_limit;
@@ -285,7 +309,6 @@ int cli_cmd_render_on(int argc, char **argv, rd_dist *d)
     }
     cli_on_signal_stop(); /* from here on, a signal stops and writes what it has */
     rd_render_result res;
-    unsigned long long trace_before = file_identity(trace_path);
     st = rd_render(scene, &ro, &res, err, sizeof err);
     if (ro.progress && ps.tty) fputc('\n', stderr);
     if (refpath && st == RD_ERR_ARG) { /* the only argument rd_render checks against a file */
@@ -327,13 +350,17 @@ int cli_cmd_render_on(int argc, char **argv, rd_dist *d)
             snprintf(base, sizeof base, "%.*s", (int)(strlen(outpath) - 4), outpath);
             printf("image  %s\nstderr %s-stderr.exr\npng    %s.png\nreport %s.json\n", outpath, base, base, base);
         }
-        if (trace_path && lead) {
-            unsigned long long after = file_identity(trace_path);
-            if (after && after != trace_before) {
-                if (!quiet) printf("trace  %s\n", trace_path);
-            } else {
+        if (trace_path && lead) { /* (rank 0 writes the trace) */
+            const rd_render_stats *rs = &res.stats;
+            if (!rs->select_choices) {
                 fprintf(stderr, "note: --select-trace %s: this render made no tile selection (method %s; settings.select, "
                                 "or delta's settings.equiangular \"tiles\"), so nothing was written there\n", trace_path, ro.method);
+            } else if (rs->select_traced < rs->select_choices) {
+                fprintf(stderr, "photonmarch render: --select-trace %s: %s (%d of the %d choices written)\n", trace_path,
+                        res.select_trace_err, rs->select_traced, rs->select_choices);
+                code = cli_exit_for(RD_ERR_OUTPUT);
+            } else if (!quiet) {
+                printf("trace  %s\n", trace_path);
             }
         }
         /* A signal that came after the last pixel still says so in the status. */

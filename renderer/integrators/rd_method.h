@@ -72,7 +72,16 @@ typedef struct rd_render_ctx {
      * from the image's samples (epoch) sums what each rank saw through it first. */
     const rd_comm *comm;
     const char *select_trace; /* rd_render_opts.select_trace (integrators/select.c) */
+    struct rd_select_report *select_report; /* where a tile selection counts its choices and
+                                               its trace's writes (render.c's; may be NULL) */
 } rd_render_ctx;
+
+/* What a tile selection reports to the render (rd_render_stats.select_choices, select_traced,
+ * rd_render_result.select_trace_err). */
+typedef struct rd_select_report {
+    int choices, traced;
+    char err[RD_ERRLEN]; /* the trace's first failed write, or "" */
+} rd_select_report;
 
 typedef struct rd_method {
     const char *name;

@@ -81,6 +81,7 @@ typedef struct {
     rd_select_delta_fn delta; /* delta's path as the method gives it (with its probes), NULL:
                                  rd_delta_radiance_eq (rd_select_prepare) */
     int choices;              /* choices made so far: the pilot's, then one an epoch (traced_choice) */
+    rd_select_report *report; /* rd_render_ctx.select_report (may be NULL) */
     const char *trace_path;   /* rd_render_ctx.select_trace on rank 0, else NULL */
     char *trace;              /* the trace's lines so far (trace_len bytes, room for trace_cap) */
     size_t trace_len, trace_cap;

@@ -786,14 +786,22 @@ static void choose_tiles(rd_select *sel)
     free(all), free(buf), free(want);
 }
 
-/* Count the choice just made and trace it (rd_select_trace): the pilot's governs the samples
- * from 0, the epochs' from SEL_EPOCH_FIRST, then each SEL_EPOCH_GROWTH times the last. */
-static rd_status traced_choice(rd_select *sel, char *err, size_t errlen)
+/* Count the choice just made and trace it (rd_select_trace): the pilot's governs the render's
+ * samples from its first, the epochs' from SEL_EPOCH_FIRST, then each SEL_EPOCH_GROWTH times the
+ * last. A failed write does not stop the render: the report keeps the first error. */
+static void traced_choice(rd_select *sel)
 {
     long from = 0;
     for (int i = 0; i < sel->choices; i++) from = i == 0 ? SEL_EPOCH_FIRST : from * SEL_EPOCH_GROWTH;
     sel->choices++;
-    return rd_select_trace(sel, from, err, errlen);
+    if (sel->report) sel->report->choices++;
+    if (!sel->trace_path) return;
+    char err[RD_ERRLEN];
+    if (rd_select_trace(sel, from, err, sizeof err) == RD_OK) {
+        if (sel->report) sel->report->traced++;
+    } else if (sel->report && !sel->report->err[0]) {
+        snprintf(sel->report->err, sizeof sel->report->err, "%s", err);
+    }
 }
 
 rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_select_delta_fn delta,
@@ -811,6 +819,7 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_se
     sel->delta = delta;
     sel->epochs = ctx->scene->settings.select != RD_SELECT_PILOT;
     sel->trace_path = ctx->select_trace && (!ctx->comm || ctx->comm->rank == 0) ? ctx->select_trace : NULL;
+    sel->report = ctx->select_report;
     int n = sel->tiles_x * sel->tiles_y;
     int threads = ctx->threads > 0 ? ctx->threads : 1;
     sel->runs = rd_alloc_lines((size_t)threads * sizeof *sel->runs);
@@ -836,8 +845,8 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_se
         snprintf(err, errlen, "out of memory for the tile selection's pilot and its threads' records");
         return RD_ERR_NOMEM;
     }
-    if ((st = traced_choice(sel, err, errlen)) != RD_OK) rd_select_free(sel);
-    return st;
+    traced_choice(sel);
+    return RD_OK;
 }
 
 void rd_select_free(rd_select *sel)
@@ -905,8 +914,7 @@ void rd_select_epoch(rd_select *sel, const rd_comm *comm)
             memset(px, 0, sizeof *px);
         }
     choose_tiles(sel);
-    char err[RD_ERRLEN]; /* (a trace that cannot be written now keeps the last one written) */
-    (void)traced_choice(sel, err, sizeof err);
+    traced_choice(sel);
 }
 
 vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn method,

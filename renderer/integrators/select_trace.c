@@ -6,6 +6,7 @@
 #include "integrators/rd_select.h"
 #include "core/rd_core.h"
 
+#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -38,7 +39,7 @@ rd_status rd_select_trace(rd_select *sel, long from, char *err, size_t errlen)
     if (!sel->trace_path) return RD_OK;
     static const char *const names[RD_SEL_MAX] = {"delta", "method", "delta_equiangular"};
     int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
-    size_t mn = (size_t)m * n;
+    size_t mn = (size_t)m * n, start = sel->trace_len; /* (a line cut short is taken back) */
     int ok = trace_add(sel, "{\"from_sample\": %ld, \"tile\": %d, \"tiles_x\": %d, \"tiles_y\": %d, \"estimators\": [", from,
                        RD_SELECT_TILE, nx, ny);
     for (int e = 0; e < m; e++) ok = ok && trace_add(sel, "%s\"%s\"", e ? ", " : "", names[e]);
@@ -56,13 +57,16 @@ rd_status rd_select_trace(rd_select *sel, long from, char *err, size_t errlen)
         ok = trace_add(sel, "%s{\"choice\": %d, \"trial\": %d", k ? ", " : "", sel->choice[k], sel->trial[k]);
         for (int f = 0; ok && f < 4; f++) {
             ok = trace_add(sel, ", \"%s\": [", keys[f]);
-            for (int e = 0; ok && e < m; e++) ok = trace_add(sel, f ? "%s%.6g" : "%s%.0f", e ? ", " : "", fig[f][e]);
+            for (int e = 0; ok && e < m; e++) /* (float sums can overflow: JSON has no inf) */
+                ok = isfinite(fig[f][e]) ? trace_add(sel, f ? "%s%.6g" : "%s%.0f", e ? ", " : "", fig[f][e])
+                                         : trace_add(sel, "%snull", e ? ", " : "");
             ok = ok && trace_add(sel, "]");
         }
         ok = ok && trace_add(sel, "}");
     }
     ok = ok && trace_add(sel, "]}\n");
     if (!ok) {
+        sel->trace_len = start;
         snprintf(err, errlen, "%s: out of memory for the selection's trace", sel->trace_path);
         return RD_ERR_NOMEM;
     }

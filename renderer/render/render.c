@@ -307,6 +307,8 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
                          .threads = o->threads > 0 ? o->threads : omp_get_max_threads(),
                          .comm = comm_size(o->comm) > 1 ? o->comm : NULL,
                          .select_trace = o->select_trace};
+    rd_select_report select_report = {0};
+    ctx.select_report = &select_report;
     const rd_comm *comm = ctx.comm;
     res->stats.threads = ctx.threads;
 
@@ -505,6 +507,8 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         rs->cells_per_ray = (double)cells / rs->rays_marched;
     }
     rs->seconds = now_seconds(clk) - t_start;
+    rs->select_choices = select_report.choices, rs->select_traced = select_report.traced;
+    snprintf(res->select_trace_err, sizeof res->select_trace_err, "%s", select_report.err);
 done:
     if (st != RD_OK) rd_render_result_free(res);
     film_free(&f);
