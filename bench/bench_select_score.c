@@ -10,9 +10,13 @@
  * settings.probes="auto"` (its delta tiles take guide.probes "auto"), `method` is `--method
  * guided-unbiased --set settings.select="off" --set guide.equiangular=false` (its own flights take
  * no equiangular strategy where the selection runs), `delta_equiangular` is `--method delta --set
- * settings.equiangular=true` (with the same probes). For `guided` the same but `method` is
- * `--method guided --set settings.select="off"`. For `delta` with settings.equiangular "tiles",
- * `delta` is `--set settings.equiangular=false` and `method` is `--set settings.equiangular=true`.
+ * settings.equiangular=true` (with the same probes); `settings.probes` as the scene's
+ * guide.probes, and guide.equiangular false only where the scene leaves it unset. For `guided`,
+ * whose delta tiles take no probes: `delta` is `--method delta --set settings.probes=1`, `method`
+ * `--method guided --set settings.select="off"`, `delta_equiangular` `--method delta --set
+ * settings.equiangular=true --set settings.probes=1`. For `delta` with settings.equiangular
+ * "tiles": `delta` is `--set settings.equiangular=false --set settings.probes=1` and `method`
+ * `--set settings.equiangular=true --set settings.probes=1`.
  * V-stderr.exr and V.json beside V.exr give each pixel's variance a sample, se^2 spp (mean over
  * RGB).
  *
@@ -153,6 +157,9 @@ static int load_trace(const char *path, trace *r)
             fprintf(stderr, "bench_select_score: %s: line %d: its tiles, estimators or from_sample do not follow line %d's\n", path,
                     i + 1, i);
             ok = 0;
+        } else if (!cJSON_IsNumber(cJSON_GetObjectItem(j, "tile")) || cJSON_GetObjectItem(j, "tile")->valueint != 8) {
+            fprintf(stderr, "bench_select_score: %s: line %d: tile: must be 8 (the selection's tiles)\n", path, i + 1);
+            ok = 0;
         } else if (i == 0 && from->valuedouble != 0) {
             fprintf(stderr, "bench_select_score: %s: line 1: from_sample must be 0 (the pilot's choice)\n", path);
             ok = 0;
@@ -174,8 +181,11 @@ static int load_trace(const char *path, trace *r)
             for (int k = 0; ok && k < n; k++) {
                 const cJSON *t = cJSON_GetArrayItem(tiles, k), *c = cJSON_GetObjectItem(t, "cost");
                 const cJSON *ch = cJSON_GetObjectItem(t, "choice"), *tr = cJSON_GetObjectItem(t, "trial");
-                if (!cJSON_IsNumber(ch) || !cJSON_IsNumber(tr) || !cJSON_IsArray(c)) {
-                    fprintf(stderr, "bench_select_score: %s: line %d: tiles[%d]: needs choice, trial and cost\n", path, i + 1, k);
+                int costs = cJSON_IsArray(c) && cJSON_GetArraySize(c) == r->m;
+                for (int e = 0; costs && e < r->m; e++) costs = cJSON_IsNumber(cJSON_GetArrayItem(c, e));
+                if (!cJSON_IsNumber(ch) || !cJSON_IsNumber(tr) || !costs) {
+                    fprintf(stderr, "bench_select_score: %s: line %d: tiles[%d]: needs choice, trial and a number of cost per estimator\n",
+                            path, i + 1, k);
                     ok = 0;
                     break;
                 }

@@ -1182,6 +1182,10 @@ Test(select, the_trace_says_which_estimator_drew_every_sample, .timeout = 300)
     }
     cr_assert(memcmp(r[0].image.rgb, r[1].image.rgb, sizeof(float) * 3 * r[0].image.w * r[0].image.h) == 0,
               "the trace changed the image");
+    cr_assert(r[0].stats.select_choices == 3 && r[0].stats.select_traced == 0 && r[1].stats.select_choices == 3 &&
+                  r[1].stats.select_traced == 3 && !r[1].select_trace_err[0],
+              "choices %d and %d, traced %d and %d (%s)", r[0].stats.select_choices, r[1].stats.select_choices,
+              r[0].stats.select_traced, r[1].stats.select_traced, r[1].select_trace_err);
     FILE *f = fopen(path, "r");
     cr_assert(f, "no trace at %s", path);
     static char line[1 << 16];
@@ -1243,7 +1247,16 @@ Test(select, the_trace_says_which_estimator_drew_every_sample, .timeout = 300)
     const char *none = rt_tmp_path("no-trace.jsonl");
     rd_render_opts o = {.method = "delta", .spp = 2, .seed = 5, .threads = 1, .select_trace = none};
     cr_assert(rd_render(s, &o, &r[0], err, sizeof err) == RD_OK, "%s", err);
-    cr_assert(access(none, F_OK) != 0, "delta without a selection wrote a trace");
+    cr_assert(access(none, F_OK) != 0 && r[0].stats.select_choices == 0, "delta without a selection: %d choices, or a trace",
+              r[0].stats.select_choices);
+    rd_render_result_free(&r[0]);
+    /* A trace that cannot be written does not stop the render: the result says so. */
+    o = (rd_render_opts){.method = "guided-unbiased", .spp = 5, .seed = 1, .threads = 1,
+                         .select_trace = rt_tmp_path("no-such-dir/trace.jsonl")};
+    cr_assert(rd_render(s, &o, &r[0], err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(r[0].stats.select_choices == 2 && r[0].stats.select_traced == 0 && strstr(r[0].select_trace_err, "no-such-dir"),
+              "an unwritable trace: %d choices, %d traced, error \"%s\"", r[0].stats.select_choices, r[0].stats.select_traced,
+              r[0].select_trace_err);
     rd_render_result_free(&r[0]);
     rd_scene_free(s);
 }

@@ -788,7 +788,8 @@ static void choose_tiles(rd_select *sel)
 
 /* Count the choice just made and trace it (rd_select_trace): the pilot's governs the render's
  * samples from its first, the epochs' from SEL_EPOCH_FIRST, then each SEL_EPOCH_GROWTH times the
- * last. A failed write does not stop the render: the report keeps the first error. */
+ * last. A failed write does not stop the render: the report keeps its error and the tracing
+ * stops, so the file holds the first select_traced lines, none missing between them. */
 static void traced_choice(rd_select *sel)
 {
     long from = 0;
@@ -799,8 +800,9 @@ static void traced_choice(rd_select *sel)
     char err[RD_ERRLEN];
     if (rd_select_trace(sel, from, err, sizeof err) == RD_OK) {
         if (sel->report) sel->report->traced++;
-    } else if (sel->report && !sel->report->err[0]) {
-        snprintf(sel->report->err, sizeof sel->report->err, "%s", err);
+    } else {
+        if (sel->report) snprintf(sel->report->err, sizeof sel->report->err, "%s", err);
+        sel->trace_path = NULL;
     }
 }
 
