@@ -66,6 +66,8 @@ int cli_report_error(rd_status st, const char *err);
 /* 0 unless `out` is the input `scene` (the same file): then CLI_EXIT_USAGE after a message
  * naming `cmd`. */
 int cli_refuse_input_as_output(const char *cmd, const char *out, const char *scene);
+/* 1 when both paths exist and are one file (the same device and inode). */
+int cli_same_file(const char *out, const char *in);
 /* out/<scene file name without extension><suffix> into out[n]. */
 void cli_default_output(const char *scene, const char *suffix, char *out, size_t n);
 /* Bake what `bo` asks for through the cache folder beside `out` (OUT's folder, then

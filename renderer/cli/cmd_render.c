@@ -6,51 +6,47 @@
 #include <stdlib.h>
 #include <stdio.h>
 #include <string.h>
-#include <sys/stat.h>
 #include <unistd.h>
 
-/* 1 when paths a and b name one file: the same string, or the same existing file. */
-static int same_path(const char *a, const char *b)
-{
-    struct stat sa, sb;
-    if (!a || !b) return 0;
-    return !strcmp(a, b) || (stat(a, &sa) == 0 && stat(b, &sb) == 0 && sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino);
-}
-
-/* --select-trace FILE may be none of the render's inputs (the scene, --reference, --photons,
- * --guide) nor of its outputs (refuse_render_outputs' four): exit 1 after a message. */
-static int refuse_trace_path(const char *trace, const char *exr, const char *const in[4])
+/* render -o OUT.exr writes OUT.exr, OUT-stderr.exr, OUT.png and OUT.json: output i of the four
+ * into path. */
+static void render_output(const char *exr, int i, char *path, size_t n)
 {
     static const char *const ext[] = {".exr", "-stderr.exr", ".png", ".json"};
-    static const char *const what[] = {"the scene", "--reference", "--photons", "--guide"};
-    if (!trace) return 0;
-    for (int i = 0; i < 4; i++)
-        if (same_path(trace, in[i])) {
-            fprintf(stderr, "photonmarch render: --select-trace %s: is %s; choose another path\n", trace, what[i]);
-            return CLI_EXIT_USAGE;
-        }
-    size_t stem = strlen(exr) - 4;
+    snprintf(path, n, "%.*s%s", (int)(strlen(exr) - 4), exr, ext[i]);
+}
+
+/* None of the four outputs may be the scene (`render scene.json -o scene.exr` would replace it
+ * with the report). */
+static int refuse_render_outputs(const char *exr, const char *scene)
+{
     for (int i = 0; i < 4; i++) {
         char path[1100];
-        snprintf(path, sizeof path, "%.*s%s", (int)stem, exr, ext[i]);
-        if (same_path(trace, path)) {
-            fprintf(stderr, "photonmarch render: --select-trace %s: is one of the render's outputs; choose another path\n", trace);
-            return CLI_EXIT_USAGE;
-        }
+        render_output(exr, i, path, sizeof path);
+        if (cli_refuse_input_as_output("render", path, scene)) return CLI_EXIT_USAGE;
     }
     return 0;
 }
 
-/* render -o OUT.exr writes OUT.exr, OUT-stderr.exr, OUT.png and OUT.json: none may be the scene
- * (`render scene.json -o scene.exr` would replace it with the report). */
-static int refuse_render_outputs(const char *exr, const char *scene)
+/* --select-trace FILE may be none of the render's inputs (the scene, --reference, --photons,
+ * --guide) nor of its four outputs (the same string, or the same existing file): exit 1 after a
+ * message. */
+static int refuse_trace_path(const char *trace, const char *exr, const char *const in[4])
 {
-    static const char *const ext[] = {".exr", "-stderr.exr", ".png", ".json"};
-    size_t stem = strlen(exr) - 4;
+    static const char *const what[] = {"the scene", "--reference", "--photons", "--guide"};
+    if (!trace) return 0;
+    for (int i = 0; i < 4; i++)
+        if (in[i] && (!strcmp(trace, in[i]) || cli_same_file(trace, in[i]))) {
+            fprintf(stderr, "photonmarch render: --select-trace %s: is %s; choose another path\n", trace, what[i]);
+            return CLI_EXIT_USAGE;
+        }
     for (int i = 0; i < 4; i++) {
         char path[1100];
-        snprintf(path, sizeof path, "%.*s%s", (int)stem, exr, ext[i]);
-        if (cli_refuse_input_as_output("render", path, scene)) return CLI_EXIT_USAGE;
+        render_output(exr, i, path, sizeof path);
+        if (!strcmp(trace, path) || cli_same_file(trace, path)) {
+            fprintf(stderr, "photonmarch render: --select-trace %s: is one of the render's outputs; choose another path\n", trace);
+            return CLI_EXIT_USAGE;
+        }
     }
     return 0;
 }

@@ -12,7 +12,7 @@
 
 /* 1 when `out` names the same existing file as the input `in` (after symbolic links), so
  * writing it would replace the input. */
-static int same_file(const char *out, const char *in)
+int cli_same_file(const char *out, const char *in)
 {
     struct stat so, si;
     return stat(out, &so) == 0 && stat(in, &si) == 0 && so.st_dev == si.st_dev && so.st_ino == si.st_ino;
@@ -21,7 +21,7 @@ static int same_file(const char *out, const char *in)
 /* Refuse an output path that is the input scene (exit 1 after a message). */
 int cli_refuse_input_as_output(const char *cmd, const char *out, const char *scene)
 {
-    if (!same_file(out, scene)) return 0;
+    if (!cli_same_file(out, scene)) return 0;
     fprintf(stderr, "photonmarch %s: %s is the input scene %s; choose another output (-o)\n", cmd, out, scene);
     return CLI_EXIT_USAGE;
 }

@@ -8,6 +8,7 @@
 #ifndef RD_SELECT_H
 #define RD_SELECT_H
 
+#include "core/rd_core.h"
 #include "integrators/rd_method.h"
 
 /* The tile edge in pixels. */
@@ -83,8 +84,7 @@ typedef struct {
     int choices;              /* choices made so far: the pilot's, then one an epoch (traced_choice) */
     rd_select_report *report; /* rd_render_ctx.select_report (may be NULL) */
     const char *trace_path;   /* rd_render_ctx.select_trace on rank 0, else NULL */
-    char *trace;              /* the trace's lines so far (trace_len bytes, room for trace_cap) */
-    size_t trace_len, trace_cap;
+    rd_text trace;            /* the trace's lines so far */
 } rd_select;
 
 /* The estimator (RD_SEL_*) the selection gives pixel (x, y): its tile's choice, or on a tile on

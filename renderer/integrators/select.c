@@ -858,7 +858,7 @@ void rd_select_free(rd_select *sel)
     free(sel->stats);
     free(sel->pixels);
     free(sel->runs);
-    free(sel->trace);
+    free(sel->trace.s);
     memset(sel, 0, sizeof *sel);
 }
 
