@@ -42,6 +42,7 @@
  * cancels both, leaving the albedo). NEE at the vertex estimates L_s = integral p L_direct,
  * which holds no sigma_s, so the vertex weight multiplies it as it is (rd_path_radiance). */
 #include "integrators/rd_guide_pdf.h"
+#include "scene/rd_geom.h"
 #include "transport/rd_path.h"
 #include "integrators/rd_method.h"
 #include "integrators/rd_probes.h"
@@ -65,6 +66,10 @@ typedef struct {
     sh_guide *fast, *fast_indirect;
     rd_probes probes; /* guide.probes: more camera chains for the light at the camera chain's
                          end (integrators/probes.c) */
+    /* With guide.roulette: each pixel's estimate I~ for the weight window (pixel_estimate), -1
+     * until the first of its samples that reaches the guided path needs it; width x height,
+     * a pixel's entry written only by the thread rendering that pixel. */
+    double *I_pix;
 } gu_state;
 
 /* The guide the method reads (its truncated copy when there is one), and the indirect one. */
@@ -255,9 +260,10 @@ typedef struct {
     const rd_render_ctx *ctx;
     void *scratch;
     double P_pass;
-    double I_cam;   /* the guide's estimate of the camera sample's radiance, S~ + B~ of its
-                     * first flight (0 when that flight was delta tracking's): the pixel
-                     * estimate of the roulette's weight window */
+    double I_cam;   /* the pixel estimate of the roulette's weight window: the guide's S~ + B~
+                     * along the pixel's centre ray (pixel_estimate), or without I_pix along
+                     * the camera sample's own first flight; 0: none (delta's roulette) */
+    double *I_pix;  /* this pixel's entry of gu_state.I_pix; NULL: none (rd_gu_vertex's) */
     uint64_t segments; /* distance-pdf segments built (the selection's counted cost, select.c) */
     uint64_t vertices; /* vertices whose policy read the guide (likewise) */
     int guided;        /* the last flight was guided: D below is its mixture (its pdfs' segments
@@ -269,6 +275,43 @@ typedef struct {
 static int flight_guided(const rd_scene *s, const rd_render_ctx *ctx, const rd_flight_in *in)
 {
     return ctx->guide && s->guide.distances && (in->depth == 0 || s->guide.secondary);
+}
+
+/* The pixel estimate I~ of the roulette's weight window (Vorba and Krivanek 2016, §4: the
+ * pixel's value, estimated before its samples), for the pixel whose entry u->I_pix is: the
+ * guide's S~ + B~ (flight_dist) along the ray through the pixel's centre, up to what the ray
+ * meets first, as the camera flight sees it (transport/path.c); 0 where that ray crosses no
+ * medium. A fixed function of the pixel, so the roulette and splitting it steers keep every
+ * sample unbiased and the image is the same however the passes, threads or ranks split the
+ * samples. It is found once a pixel, at its first sample on the guided path, instead of
+ * walking the guide along every camera ray that delta tracking's flight takes anyway (a thick
+ * flight, guide.distance_tau_max): on hard-dense-block, where every camera flight is thick,
+ * that walk was 9% of the method's time (docs/guided-unbiased.md, "The pixel estimate"). */
+static double pixel_estimate(const rd_render_ctx *ctx, gu_user *u)
+{
+    const rd_scene *s = ctx->scene;
+    const gu_state *st = ctx->state;
+    size_t pix = (size_t)(u->I_pix - st->I_pix);
+    int w = s->camera.width;
+    ray3 r = rd_camera_ray(&s->camera, (double)(pix % (size_t)w) + 0.5, (double)(pix / (size_t)w) + 0.5);
+    rd_flight_in in = {.r = r, .depth = 0, .region = rd_scene_camera_region(s, r), .camera_chain = 1,
+                       .hit_light = -1, .hit_shape = -1, .t_light = INFINITY};
+    rd_hit hit;
+    if (rd_scene_intersect(s, r, INFINITY, NULL, &hit)) {
+        in.t_light = hit.t;
+        in.hit_light = hit.light;
+        in.hit_shape = hit.shape;
+    }
+    double t0, t1;
+    if (!flight_interval(s, &in, &t0, &t1)) return 0.0;
+    gu_scratch sc;
+    scratch_layout(st, &sc, u->scratch);
+    gu_dist D;
+    flight_majorant(ctx, &sc, in.region, r, t0, t1, &D);
+    flight_dist(ctx, &sc, r, t0, t1, behind_mean(s, &in), &D);
+    u->segments += (uint64_t)D.m.n + (uint64_t)D.g.n;
+    double I = D.g.I + D.B;
+    return I > 0.0 && isfinite(I) ? I : 0.0;
 }
 
 static rd_flight guided_flight(const rd_flight_sampler *fs, const rd_scene *s,
@@ -286,6 +329,11 @@ static rd_flight guided_flight(const rd_flight_sampler *fs, const rd_scene *s,
      * The camera flight still walks the guide when the roulette needs its estimate I~_cam. */
     int guided = flight_guided(s, ctx, in);
     int want_I = ctx->guide && s->guide.roulette && in->depth == 0;
+    if (want_I && u->I_pix) { /* the pixel's estimate: no histogram for it on this flight */
+        if (*u->I_pix < 0.0) *u->I_pix = pixel_estimate(ctx, u);
+        u->I_cam = *u->I_pix;
+        want_I = 0;
+    }
     if (!(guided || want_I) || !flight_interval(s, in, &t0, &t1))
         return rd_flight_delta(s, in, rng, c);
     gu_scratch sc;
@@ -301,7 +349,7 @@ static rd_flight guided_flight(const rd_flight_sampler *fs, const rd_scene *s,
     if (!(guided || want_I)) return rd_flight_delta(s, in, rng, c);
     flight_dist(ctx, &sc, r, t0, t1, behind_mean(s, in), &D);
     u->segments += (uint64_t)D.g.n;
-    if (in->depth == 0) u->I_cam = D.g.I + D.B;
+    if (in->depth == 0 && !u->I_pix) u->I_cam = D.g.I + D.B;
     /* A guide with no light along this ray (an empty or wrong guide, or a dark region) knows
      * nothing to guide by: delta tracking's flight. The choice depends on the ray alone, so
      * each flight's estimate stays unbiased. Without this the guide strategy would pass at
@@ -476,7 +524,8 @@ static void gu_vertex(const rd_flight_sampler *fs, const rd_scene *s, const rd_v
 
 static vec3 gu_path(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
 {
-    gu_user u = {.ctx = ctx, .scratch = th->scratch};
+    gu_state *st = ctx->state;
+    gu_user u = {.ctx = ctx, .scratch = th->scratch, .I_pix = st->I_pix ? &st->I_pix[th->pixel] : NULL};
     /* With directions and roulette off the vertex is `delta`'s (the loop's own roulette and
      * phase sampling); with every part off (guide.equiangular too, or the same as `delta`'s
      * settings.equiangular, and guide.probes 1) the method is `delta`, bit for bit. */
@@ -489,7 +538,6 @@ static vec3 gu_path(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler 
                                   .user = &u,
                                   .equiangular = gs->equiangular};
     pcg32 rng = rd_sampler_stream(smp);
-    gu_state *st = ctx->state;
     if (!rd_probes_on(&st->probes)) {
         vec3 L = rd_path_radiance(ctx->scene, r, &fs, &rng, &th->counters);
         th->cells += u.segments;
@@ -646,6 +694,16 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
     st->cap_m = 1 + 2 * s->n_media;
     for (int i = 0; i < s->n_media; i++) st->cap_m += majorant_crossings(&s->media[i]) + 1;
     ctx->state = st;
+    if (ctx->guide && g->roulette) {
+        size_t np = (size_t)s->camera.width * (size_t)s->camera.height;
+        st->I_pix = malloc(np * sizeof *st->I_pix);
+        if (!st->I_pix) {
+            snprintf(err, errlen, "out of memory for guided-unbiased's pixel estimates (%zu pixels)", np);
+            gu_release(ctx);
+            return RD_ERR_NOMEM;
+        }
+        for (size_t i = 0; i < np; i++) st->I_pix[i] = -1.0; /* not yet found */
+    }
     /* guide.probes, with the selection's cell cost below; none with a ray-marched tracker or
      * transmittance (the probes' estimate and the path's own must be unbiased alike, as
      * settings.probes requires of `delta`): "auto" takes none there, and a number is refused
@@ -679,6 +737,7 @@ static void gu_release(rd_render_ctx *ctx)
         rd_probes_free(&st->probes);
         sh_guide_free(st->fast);
         sh_guide_free(st->fast_indirect);
+        free(st->I_pix);
     }
     free(ctx->state);
     ctx->state = NULL;
