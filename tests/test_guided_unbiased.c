@@ -750,12 +750,14 @@ Test(guided_unbiased, equiangular_strategy_keeps_the_expectation_and_finds_the_n
 }
 
 /* The weight window's pixel estimate (guided_unbiased.c, pixel_estimate) is the guide's along
- * the pixel's centre ray, a function of the pixel alone, so no camera sample depends on the
- * samples drawn before it, and rd_render_opts.first_sample's promise holds: samples [0, 4) of
- * every pixel are the mean of [0, 2) and [2, 4) rendered apart (roulette and splitting on, the
- * selection and guide.probes' epochs off, which by design learn from earlier samples). An
- * estimate taken from the camera ray of the pixel's first sample on the guided path fails it
- * (checked by mutation). The three means differ only by float rounding: 1e-5 relative. */
+ * four fixed rays through the pixel, a function of the pixel alone, so no camera sample
+ * depends on the samples drawn before it, and rd_render_opts.first_sample's promise holds:
+ * samples [0, 4) of every pixel are the mean of [0, 2) and [2, 4) rendered apart (roulette and
+ * splitting on, the selection and guide.probes' epochs off, which by design learn from earlier
+ * samples). An estimate taken from the camera ray of the pixel's first sample on the guided
+ * path fails it (checked by mutation). The three means differ only by float rounding: 1e-5
+ * relative. The window must act (the image without it differs), or the test would pass with
+ * nothing to test. */
 Test(guided_unbiased, a_camera_sample_does_not_depend_on_the_samples_before_it, .timeout = 300)
 {
     rd_scene *s = rt_scene("gu_first.json", scene_json_exact(0.6, -2.5, ENV, ",\"probes\":1"));
@@ -778,6 +780,14 @@ Test(guided_unbiased, a_camera_sample_does_not_depend_on_the_samples_before_it, 
     }
     cr_expect(lit > n / 2, "only %zu of %zu values lit", lit, n);
     cr_expect(bad == 0, "%zu of %zu values differ from the mean of the two halves", bad, n);
+    /* and the window acted: without it the same samples differ */
+    s->guide.roulette = 0;
+    rd_render_result off;
+    rd_render_opts o = {.method = "guided-unbiased", .spp = 4, .seed = 5, .threads = 2, .baked = b};
+    char err[RD_ERRLEN];
+    cr_assert(rd_render(s, &o, &off, err, sizeof err) == RD_OK, "%s", err);
+    cr_expect(memcmp(off.image.rgb, r[0].image.rgb, n * sizeof(float)) != 0, "the weight window changed nothing");
+    rd_render_result_free(&off);
     for (int i = 0; i < 3; i++) rd_render_result_free(&r[i]);
     rd_baked_free(b);
     rd_scene_free(s);

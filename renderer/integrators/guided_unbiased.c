@@ -278,40 +278,68 @@ static int flight_guided(const rd_scene *s, const rd_render_ctx *ctx, const rd_f
 }
 
 /* The pixel estimate I~ of the roulette's weight window (Vorba and Krivanek 2016, §4: the
- * pixel's value, estimated before its samples), for the pixel whose entry u->I_pix is: the
- * guide's S~ + B~ (flight_dist) along the ray through the pixel's centre, up to what the ray
- * meets first, as the camera flight sees it (transport/path.c); 0 where that ray crosses no
- * medium. A fixed function of the pixel, so the roulette and splitting it steers keep every
- * sample unbiased and the image is the same however the passes, threads or ranks split the
- * samples. It is found once a pixel, at its first sample on the guided path, instead of
+ * pixel's value, estimated before its samples), for the pixel whose entry u->I_pix is: the mean
+ * over four fixed points of the pixel (a 2x2 pattern, so that a pixel on a medium's silhouette
+ * is not read by one ray) of the guide's estimate along the camera ray through each
+ * (ray_estimate); 0 where none crosses a medium. A fixed function of the pixel, so the
+ * roulette and splitting it steers keep every sample unbiased and the image is the same
+ * however the passes, threads or ranks split the samples. It is found once a pixel, at its
+ * first sample on the guided path (the selection's pilot's, for a pilot pixel), instead of
  * walking the guide along every camera ray that delta tracking's flight takes anyway (a thick
  * flight, guide.distance_tau_max): on hard-dense-block, where every camera flight is thick,
  * that walk was 9% of the method's time (docs/guided-unbiased.md, "The pixel estimate"). */
+#define GU_PIXEL_CROSSINGS 64 /* interfaces followed (transport/path.c allows 4096) */
+static double ray_estimate(const rd_render_ctx *ctx, const gu_scratch *sc, ray3 r, uint64_t *segments)
+{
+    /* The camera flight as the path loop starts it (transport/path.c, trace), and the flights
+     * after each interface it crosses (a surface that only changes the medium: still the
+     * camera flight, depth 0): I~ = sum_k T~_<k (S~_k + B~_k), T~_<k the guide's
+     * transmittance of the flights before k; B~ only after the last (a flight that ends at a
+     * surface has none: flight_dist). */
+    const rd_scene *s = ctx->scene;
+    int region = rd_scene_camera_region(s, r);
+    rd_hit hit, prev;
+    const rd_hit *from = NULL;
+    double I = 0.0, T = 1.0;
+    for (int k = 0; k <= GU_PIXEL_CROSSINGS; k++) {
+        rd_flight_in in = {.r = r, .depth = 0, .region = region, .camera_chain = 1, .hit_light = -1,
+                           .hit_shape = -1, .t_light = INFINITY};
+        if (rd_scene_intersect(s, r, INFINITY, from, &hit)) {
+            in.t_light = hit.t;
+            in.hit_light = hit.light;
+            in.hit_shape = hit.shape;
+        }
+        double t0, t1;
+        if (flight_interval(s, &in, &t0, &t1)) {
+            gu_dist D;
+            flight_majorant(ctx, sc, in.region, r, t0, t1, &D);
+            flight_dist(ctx, sc, r, t0, t1, behind_mean(s, &in), &D);
+            *segments += (uint64_t)D.m.n + (uint64_t)D.g.n;
+            I += T * (D.g.I + D.B);
+            T *= exp(-rd_guide_pdf_tau(&D.g));
+        }
+        if (in.hit_shape < 0 || s->shapes[in.hit_shape].material.kind != RD_MAT_INTERFACE) break;
+        prev = hit;
+        from = &prev;
+        region = prev.medium_to;
+        r = rd_hit_spawn(&prev, r.d);
+    }
+    return I > 0.0 && isfinite(I) ? I : 0.0;
+}
+
 static double pixel_estimate(const rd_render_ctx *ctx, gu_user *u)
 {
     const rd_scene *s = ctx->scene;
     const gu_state *st = ctx->state;
-    size_t pix = (size_t)(u->I_pix - st->I_pix);
-    int w = s->camera.width;
-    ray3 r = rd_camera_ray(&s->camera, (double)(pix % (size_t)w) + 0.5, (double)(pix / (size_t)w) + 0.5);
-    rd_flight_in in = {.r = r, .depth = 0, .region = rd_scene_camera_region(s, r), .camera_chain = 1,
-                       .hit_light = -1, .hit_shape = -1, .t_light = INFINITY};
-    rd_hit hit;
-    if (rd_scene_intersect(s, r, INFINITY, NULL, &hit)) {
-        in.t_light = hit.t;
-        in.hit_light = hit.light;
-        in.hit_shape = hit.shape;
-    }
-    double t0, t1;
-    if (!flight_interval(s, &in, &t0, &t1)) return 0.0;
+    size_t pix = (size_t)(u->I_pix - st->I_pix), w = (size_t)s->camera.width;
     gu_scratch sc;
     scratch_layout(st, &sc, u->scratch);
-    gu_dist D;
-    flight_majorant(ctx, &sc, in.region, r, t0, t1, &D);
-    flight_dist(ctx, &sc, r, t0, t1, behind_mean(s, &in), &D);
-    u->segments += (uint64_t)D.m.n + (uint64_t)D.g.n;
-    double I = D.g.I + D.B;
-    return I > 0.0 && isfinite(I) ? I : 0.0;
+    double I = 0.0;
+    for (int j = 0; j < 4; j++) {
+        double px = (double)(pix % w) + 0.25 + 0.5 * (j & 1), py = (double)(pix / w) + 0.25 + 0.5 * (j >> 1);
+        I += 0.25 * ray_estimate(ctx, &sc, rd_camera_ray(&s->camera, px, py), &u->segments);
+    }
+    return I;
 }
 
 static rd_flight guided_flight(const rd_flight_sampler *fs, const rd_scene *s,
@@ -326,7 +354,8 @@ static rd_flight guided_flight(const rd_flight_sampler *fs, const rd_scene *s,
     /* No guide, distances off, a secondary flight with guide.secondary off, or no medium on
      * the way: delta tracking's flight (it passes with weight 1 when the ray misses every
      * medium). Which sampler a flight uses depends on the flight alone: each stays unbiased.
-     * The camera flight still walks the guide when the roulette needs its estimate I~_cam. */
+     * The roulette's I~ is the pixel's (pixel_estimate); without a pixel (rd_gu_flight) the
+     * camera flight walks the guide for it. */
     int guided = flight_guided(s, ctx, in);
     int want_I = ctx->guide && s->guide.roulette && in->depth == 0;
     if (want_I && u->I_pix) { /* the pixel's estimate: no histogram for it on this flight */
