@@ -261,8 +261,9 @@ typedef struct {
     void *scratch;
     double P_pass;
     double I_cam;   /* the pixel estimate of the roulette's weight window: the guide's S~ + B~
-                     * along the pixel's centre ray (pixel_estimate), or without I_pix along
-                     * the camera sample's own first flight; 0: none (delta's roulette) */
+                     * along four fixed rays through the pixel (pixel_estimate), or without
+                     * I_pix along the camera sample's own first flight; 0: none (delta's
+                     * roulette) */
     double *I_pix;  /* this pixel's entry of gu_state.I_pix; NULL: none (rd_gu_vertex's) */
     uint64_t segments; /* distance-pdf segments built (the selection's counted cost, select.c) */
     uint64_t vertices; /* vertices whose policy read the guide (likewise) */
