@@ -32,12 +32,13 @@ static rd_baked *bake(const rd_scene *s)
 }
 
 /* The tests guide every flight's distance, however thick and however deep in the path (the
- * default distance_tau_max leaves the thick ones to delta tracking, and the default
- * secondary = false the ones after a scattering event, which would hide the guided sampler
- * from them); each rule has its own test. */
+ * default distances = false leaves them all to delta tracking, distance_tau_max the thick
+ * ones, and secondary = false the ones after a scattering event, which would hide the guided
+ * sampler from them); each rule has its own test. */
+#define GUIDED_FLIGHTS ",\"distances\":true"
 #define THICK_FLIGHTS ",\"distance_tau_max\":1e9"
 #define DEEP_FLIGHTS ",\"secondary\":true"
-#define ALL_FLIGHTS THICK_FLIGHTS DEEP_FLIGHTS
+#define ALL_FLIGHTS GUIDED_FLIGHTS THICK_FLIGHTS DEEP_FLIGHTS
 
 /* A heterogeneous medium (noise in an ellipsoid) of asymmetry g, lit by a spot at x = spot_x
  * aimed at it, and `lights` more; `keys` are the guide's keys after "bands", as they are. */
@@ -57,13 +58,14 @@ static const char *scene_json_exact(double g, double spot_x, const char *lights,
     return buf;
 }
 
-/* The same with the guide keys in `extra` after ALL_FLIGHTS' two, each unless `extra` sets it
+/* The same with the guide keys in `extra` after ALL_FLIGHTS' three, each unless `extra` sets it
  * itself (cJSON reads the first of two equal keys). */
 static const char *scene_json(double g, double spot_x, const char *lights, const char *extra)
 {
     char keys[512];
-    snprintf(keys, sizeof keys, "%s%s%s", strstr(extra, "distance_tau_max") ? "" : THICK_FLIGHTS,
-             strstr(extra, "secondary") ? "" : DEEP_FLIGHTS, extra);
+    snprintf(keys, sizeof keys, "%s%s%s%s", strstr(extra, "\"distances\"") ? "" : GUIDED_FLIGHTS,
+             strstr(extra, "distance_tau_max") ? "" : THICK_FLIGHTS, strstr(extra, "secondary") ? "" : DEEP_FLIGHTS,
+             extra);
     return scene_json_exact(g, spot_x, lights, keys);
 }
 
@@ -106,8 +108,8 @@ Test(guided_unbiased, equals_delta_forward_scattering_spot_and_environment, .tim
  * true (the selection off, so that every pixel is the method's; 16 samples, one seed). */
 Test(guided_unbiased, secondary_flights_are_delta_tracking_s_by_default, .timeout = 300)
 {
-    static const char *const extra[3] = {",\"distance_tau_max\":1e9", ",\"distance_tau_max\":1e9,\"secondary\":false",
-                                         ",\"distance_tau_max\":1e9,\"secondary\":true"};
+    static const char *const extra[3] = {GUIDED_FLIGHTS THICK_FLIGHTS, GUIDED_FLIGHTS THICK_FLIGHTS ",\"secondary\":false",
+                                         GUIDED_FLIGHTS THICK_FLIGHTS ",\"secondary\":true"};
     static const char *const files[3] = {"gu_sec0.json", "gu_sec1.json", "gu_sec2.json"};
     rd_render_result r[3];
     for (int k = 0; k < 3; k++) {
@@ -121,6 +123,28 @@ Test(guided_unbiased, secondary_flights_are_delta_tracking_s_by_default, .timeou
     cr_expect(memcmp(r[0].image.rgb, r[2].image.rgb, bytes) != 0, "secondary true gives the default's image");
     cr_expect(r[0].stats.flight_segments < r[2].stats.flight_segments, "%llu segments by default, %llu with secondary",
               (unsigned long long)r[0].stats.flight_segments, (unsigned long long)r[2].stats.flight_segments);
+    for (int k = 0; k < 3; k++) rd_render_result_free(&r[k]);
+}
+
+/* guide.distances' default is false (docs/guided-unbiased.md, "Guided distances off by
+ * default"): with the key absent the render is the one with "distances": false, bit for bit,
+ * and not the one with true (thick flights guided too, the selection off; 16 samples). */
+Test(guided_unbiased, distances_are_delta_tracking_s_by_default, .timeout = 300)
+{
+    static const char *const extra[3] = {THICK_FLIGHTS, THICK_FLIGHTS ",\"distances\":false",
+                                         THICK_FLIGHTS ",\"distances\":true"};
+    rd_render_result r[3];
+    for (int k = 0; k < 3; k++) {
+        static const char *const files[3] = {"gu_dist0.json", "gu_dist1.json", "gu_dist2.json"};
+        rd_scene *s = rt_scene(files[k], scene_json_exact(0.9, -2.5, ENV, extra[k]));
+        if (k == 0) cr_expect_eq(s->guide.distances, 0, "guide.distances defaults to %d", s->guide.distances);
+        s->settings.select = RD_SELECT_OFF;
+        r[k] = rt_render(s, "guided-unbiased", 16, 5, NULL);
+        rd_scene_free(s);
+    }
+    size_t bytes = sizeof(float) * 3 * r[0].image.w * r[0].image.h;
+    cr_expect(memcmp(r[0].image.rgb, r[1].image.rgb, bytes) == 0, "the default is not \"distances\": false");
+    cr_expect(memcmp(r[0].image.rgb, r[2].image.rgb, bytes) != 0, "distances true gives the default's image");
     for (int k = 0; k < 3; k++) rd_render_result_free(&r[k]);
 }
 
@@ -715,7 +739,7 @@ Test(guided_unbiased, equiangular_strategy_keeps_the_expectation_and_finds_the_n
         for (int sec = 0; sec < 2; sec++) {
             if (sec && mo != 1) continue; /* every flight guided: with `true` */
             char extra[256], what[128];
-            snprintf(extra, sizeof extra, "\"photons\":{\"count\":40000},\"guide\":{\"equiangular\":%s,\"secondary\":%s}",
+            snprintf(extra, sizeof extra, "\"photons\":{\"count\":40000},\"guide\":{\"distances\":true,\"equiangular\":%s,\"secondary\":%s}",
                      modes[mo], sec ? "true" THICK_FLIGHTS : "false");
             rd_scene *s = rt_scene("gueq.json", rt_spot_fog_json_with(32, 24, "{\"max_depth\":8,\"select\":\"off\"}", extra));
             rd_render_result g = rt_render(s, "guided-unbiased", 128, 113 + 2 * mo + sec, NULL);

@@ -792,7 +792,7 @@ static unsigned gu_needs(const rd_scene *s)
 
 const rd_method rd_method_guided_unbiased = {
     .name = "guided-unbiased",
-    .summary = "unbiased path tracing with free-flight distances and scatter/pass guided by the SH guide",
+    .summary = "unbiased path tracing with continuation directions and roulette/splitting guided by the SH guide",
     .needs = RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE,
     .needs_for = gu_needs,
     .scratch_bytes = gu_scratch_bytes,

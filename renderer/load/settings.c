@@ -203,7 +203,7 @@ rd_status ld_parse_guide(ld_ctx *c, const cJSON *j, rd_guide_settings *g)
     g->lambda = 1.0;
     g->max_depth = 8;
     g->window = 1;
-    g->distances = 1;        /* guided-unbiased (docs/guided-unbiased.md) */
+    g->distances = 0; /* guided-unbiased: off since session 46, by the calibration scenes (docs/guided-unbiased.md) */
     g->distance_alpha = 0.2;
     g->pass_floor = 0.1;
     g->majorant_weight = 0.2;
@@ -243,7 +243,7 @@ rd_status ld_parse_guide(ld_ctx *c, const cJSON *j, rd_guide_settings *g)
     /* guided-unbiased: p > 0 wherever the integrand can be needs alpha > 0; both outcomes of
      * the scatter-or-pass decision need a floor > 0 (and <= 0.5 so the two floors fit); the
      * majorant strategy's weight is in [0, 1) so the guide keeps a share. */
-    LD_TRY(ld_get_bool(c, j, path, "distances", 1, &g->distances));
+    LD_TRY(ld_get_bool(c, j, path, "distances", 0, &g->distances));
     LD_TRY(ld_get_num(c, j, path, "distance_alpha", 0, 0.2, 0, 1, 1, 0, &g->distance_alpha));
     LD_TRY(ld_get_num(c, j, path, "pass_floor", 0, 0.1, 0, 1, 0.5, 0, &g->pass_floor));
     LD_TRY(ld_get_num(c, j, path, "majorant_weight", 0, 0.2, 0, 0, 1, 1, &g->majorant_weight));

@@ -101,8 +101,8 @@ typedef struct {
     int max_depth;       /* adaptive: deepest level */
     int window;          /* 1 (default): Hann window on the phase's b_l (sh_window_hann), 0: none */
     /* guided-unbiased (docs/guided-unbiased.md): */
-    int distances;       /* 1 (default): free-flight distances and the scatter-or-pass decision
-                          * from the guide; 0: delta tracking's */
+    int distances;       /* 1: free-flight distances and the scatter-or-pass decision from the
+                          * guide; 0 (default): delta tracking's */
     double distance_alpha; /* defensive weight of the distance pdf's uniform part, in (0, 1] */
     double pass_floor;   /* the guide strategy's least probability of scatter and of pass, (0, 0.5] */
     double majorant_weight; /* weight of the majorant (delta-tracking) strategy, in [0, 1) */
