@@ -66,7 +66,7 @@ if [ "$FIT" = beams ]; then
   extra=(--set march.ls='"nee+beams"' --set photons.progressive=false)
 elif [ "$FIT" = gu ]; then
   methods=guided-unbiased
-  extra=()
+  extra=(--set guide.distances=true) # the flight segments the fit weighs (off by default since session 46)
 elif [ "$FIT" = eq ]; then
   methods="delta-auto delta-off"
   extra=()

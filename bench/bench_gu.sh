@@ -8,7 +8,9 @@
 #     delta        the reference method
 #     dist         guided-unbiased, guided distances only (directions and roulette off)
 #     dist+dir     ... plus guided directions
-#     all          ... plus roulette and splitting (the default)
+#     all          the default: guided directions, roulette and splitting (guided distances
+#                  off since session 46, docs/guided-unbiased.md)
+#     all+dist     ... plus guided distances (the default before session 46)
 #     all-nosplit  the default with guide.split_max = 1 (roulette without splitting)
 #     dir          guided directions alone
 #     rr           roulette and splitting alone
@@ -43,9 +45,10 @@ mkdir -p "$OUT"
 config_args() { # configuration -> method and settings
   case $1 in
     delta) echo delta ;;
-    dist) echo guided-unbiased --set guide.directions=false --set guide.roulette=false ;;
-    dist+dir) echo guided-unbiased --set guide.roulette=false ;;
+    dist) echo guided-unbiased --set guide.distances=true --set guide.directions=false --set guide.roulette=false ;;
+    dist+dir) echo guided-unbiased --set guide.distances=true --set guide.roulette=false ;;
     all) echo guided-unbiased ;;
+    all+dist) echo guided-unbiased --set guide.distances=true ;;
     all-nosplit) echo guided-unbiased --set guide.split_max=1 ;;
     dir) echo guided-unbiased --set guide.distances=false --set guide.roulette=false ;;
     rr) echo guided-unbiased --set guide.distances=false --set guide.directions=false ;;

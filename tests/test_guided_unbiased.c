@@ -128,7 +128,9 @@ Test(guided_unbiased, secondary_flights_are_delta_tracking_s_by_default, .timeou
 
 /* guide.distances' default is false (docs/guided-unbiased.md, "Guided distances off by
  * default"): with the key absent the render is the one with "distances": false, bit for bit,
- * and not the one with true (thick flights guided too, the selection off; 16 samples). */
+ * and not the one with true (thick flights guided too, the selection off; 16 samples); a scene
+ * with no "guide" object at all has it false too (the loader's two defaults: the value set
+ * before the object is read, and the one for an absent key). */
 Test(guided_unbiased, distances_are_delta_tracking_s_by_default, .timeout = 300)
 {
     static const char *const extra[3] = {THICK_FLIGHTS, THICK_FLIGHTS ",\"distances\":false",
@@ -146,6 +148,9 @@ Test(guided_unbiased, distances_are_delta_tracking_s_by_default, .timeout = 300)
     cr_expect(memcmp(r[0].image.rgb, r[1].image.rgb, bytes) == 0, "the default is not \"distances\": false");
     cr_expect(memcmp(r[0].image.rgb, r[2].image.rgb, bytes) != 0, "distances true gives the default's image");
     for (int k = 0; k < 3; k++) rd_render_result_free(&r[k]);
+    rd_scene *bare = rt_scene("gu_dist_bare.json", rt_spot_fog_json(8, 6, "{}"));
+    cr_expect_eq(bare->guide.distances, 0, "no \"guide\" object: guide.distances is %d", bare->guide.distances);
+    rd_scene_free(bare);
 }
 
 Test(guided_unbiased, equals_delta_backward_scattering_every_light_type, .timeout = 600)
@@ -216,9 +221,9 @@ Test(guided_unbiased, each_part_alone_equals_delta, .timeout = 900)
         "\"density\":{\"type\":\"noise\",\"octaves\":3,\"frequency\":2,\"amplitude\":2,\"seed\":3,"
         "\"shape\":\"ellipsoid\",\"edge\":0.5},\"sigma_t\":2.5,\"albedo\":0.9,\"g\":0.8}],"
         "\"lights\":[{\"type\":\"sphere\",\"center\":[-2.8,0.4,0],\"radius\":1.4,\"radiance\":[1,1,1]}],"
-        "\"photons\":{\"count\":40000},\"guide\":{\"bands\":4" ALL_FLIGHTS "%s},"
+        "\"photons\":{\"count\":40000},\"guide\":{\"bands\":4%s" ALL_FLIGHTS "},"
         "\"settings\":{\"max_depth\":64,\"rr_depth\":3}}";
-    char jd[2048], jg[2048];
+    char jd[2048], jg[2048]; /* the part's keys first: cJSON reads the first of two equal keys */
     snprintf(jd, sizeof jd, sph, "");
     snprintf(jg, sizeof jg, sph, parts[1][0]);
     expect_delta_equals(jd, 256, 81, jg, 128, 82, "g = 0.8, sphere light alone, directions alone");

@@ -435,7 +435,7 @@ Test(march, a_directional_beam_s_equiangular_sample_keeps_every_method_s_image, 
         {"delta", "\"march\":{\"equiangular\":false}", "true", 4096},
         {"guided", "\"march\":{\"ls\":\"nee+paths\",\"equiangular\":true}", "false", 512},
         {"uniform", "\"march\":{\"ls\":\"nee+paths\",\"equiangular\":true}", "false", 256},
-        {"guided-unbiased", "\"guide\":{\"equiangular\":true}", "false", 2048},
+        {"guided-unbiased", "\"guide\":{\"equiangular\":true,\"distances\":true}", "false", 2048},
     };
     for (size_t i = 0; i < sizeof v / sizeof v[0]; i++) {
         snprintf(json, sizeof json, fmt, v[i].extra, v[i].settings_eq);

@@ -318,7 +318,7 @@ static const char *t3_json(int floor)
              "\"lights\":[{\"type\":\"spot\",\"position\":[-1.5,2.5,1],\"look_at\":[0,0,0],\"angle\":30,"
              "\"falloff\":5,\"intensity\":[30,25,20]},"
              "{\"type\":\"point\",\"position\":[1.6,1.2,1.5],\"intensity\":[2,2,3]}],"
-             "\"photons\":{\"count\":10000},\"guide\":{\"bands\":4,\"distance_tau_max\":1e9},"
+             "\"photons\":{\"count\":10000},\"guide\":{\"bands\":4,\"distances\":true,\"distance_tau_max\":1e9},"
              "\"settings\":{\"max_depth\":24,\"rr_depth\":3}}",
              icosphere(),
              floor ? ",{\"name\":\"floor\",\"file\":\"floor.obj\",\"material\":{\"type\":\"diffuse\",\"albedo\":0.6},"
