@@ -103,51 +103,51 @@ Test(guided_unbiased, equals_delta_forward_scattering_spot_and_environment, .tim
     rd_scene_free(s);
 }
 
-/* guide.secondary's default is false (docs/guided-unbiased.md, "Camera flights only"): with the
- * key absent the render is the one with "secondary": false, bit for bit, and not the one with
- * true (the selection off, so that every pixel is the method's; 16 samples, one seed). */
-Test(guided_unbiased, secondary_flights_are_delta_tracking_s_by_default, .timeout = 300)
+/* A key's default against both its values: the scene with guide keys extra[0] (the key absent),
+ * extra[1] (its default given) and extra[2] (the other value), each rendered by the method alone
+ * (the selection off, so that every pixel is the method's; 16 samples, one seed) into r[k]; the
+ * first two must be the same image bit for bit and the third another (`key` names it). */
+static void render_default_and_both(const char *key, const char *const extra[3], rd_render_result r[3])
 {
-    static const char *const extra[3] = {GUIDED_FLIGHTS THICK_FLIGHTS, GUIDED_FLIGHTS THICK_FLIGHTS ",\"secondary\":false",
-                                         GUIDED_FLIGHTS THICK_FLIGHTS ",\"secondary\":true"};
-    static const char *const files[3] = {"gu_sec0.json", "gu_sec1.json", "gu_sec2.json"};
-    rd_render_result r[3];
     for (int k = 0; k < 3; k++) {
-        rd_scene *s = rt_scene(files[k], scene_json_exact(0.9, -2.5, ENV, extra[k]));
+        char file[64];
+        snprintf(file, sizeof file, "gu_%s%d.json", key, k);
+        rd_scene *s = rt_scene(file, scene_json_exact(0.9, -2.5, ENV, extra[k]));
         s->settings.select = RD_SELECT_OFF;
         r[k] = rt_render(s, "guided-unbiased", 16, 5, NULL);
         rd_scene_free(s);
     }
     size_t bytes = sizeof(float) * 3 * r[0].image.w * r[0].image.h;
-    cr_expect(memcmp(r[0].image.rgb, r[1].image.rgb, bytes) == 0, "the default is not \"secondary\": false");
-    cr_expect(memcmp(r[0].image.rgb, r[2].image.rgb, bytes) != 0, "secondary true gives the default's image");
+    cr_expect(memcmp(r[0].image.rgb, r[1].image.rgb, bytes) == 0, "the default is not %s's given default", key);
+    cr_expect(memcmp(r[0].image.rgb, r[2].image.rgb, bytes) != 0, "%s's other value gives the default's image", key);
+}
+
+/* guide.secondary's default is false (docs/guided-unbiased.md, "Camera flights only"). */
+Test(guided_unbiased, secondary_flights_are_delta_tracking_s_by_default, .timeout = 300)
+{
+    static const char *const extra[3] = {GUIDED_FLIGHTS THICK_FLIGHTS, GUIDED_FLIGHTS THICK_FLIGHTS ",\"secondary\":false",
+                                         GUIDED_FLIGHTS THICK_FLIGHTS ",\"secondary\":true"};
+    rd_render_result r[3];
+    render_default_and_both("secondary", extra, r);
     cr_expect(r[0].stats.flight_segments < r[2].stats.flight_segments, "%llu segments by default, %llu with secondary",
               (unsigned long long)r[0].stats.flight_segments, (unsigned long long)r[2].stats.flight_segments);
     for (int k = 0; k < 3; k++) rd_render_result_free(&r[k]);
 }
 
 /* guide.distances' default is false (docs/guided-unbiased.md, "Guided distances off by
- * default"): with the key absent the render is the one with "distances": false, bit for bit,
- * and not the one with true (thick flights guided too, the selection off; 16 samples); a scene
- * with no "guide" object at all has it false too (the loader's two defaults: the value set
- * before the object is read, and the one for an absent key). */
+ * default"), thick flights guided too where it is true; and a scene with no "guide" object at
+ * all has it false (the loader has two defaults: the value set before the object is read, and
+ * the one for an absent key). */
 Test(guided_unbiased, distances_are_delta_tracking_s_by_default, .timeout = 300)
 {
     static const char *const extra[3] = {THICK_FLIGHTS, THICK_FLIGHTS ",\"distances\":false",
                                          THICK_FLIGHTS ",\"distances\":true"};
     rd_render_result r[3];
-    for (int k = 0; k < 3; k++) {
-        static const char *const files[3] = {"gu_dist0.json", "gu_dist1.json", "gu_dist2.json"};
-        rd_scene *s = rt_scene(files[k], scene_json_exact(0.9, -2.5, ENV, extra[k]));
-        if (k == 0) cr_expect_eq(s->guide.distances, 0, "guide.distances defaults to %d", s->guide.distances);
-        s->settings.select = RD_SELECT_OFF;
-        r[k] = rt_render(s, "guided-unbiased", 16, 5, NULL);
-        rd_scene_free(s);
-    }
-    size_t bytes = sizeof(float) * 3 * r[0].image.w * r[0].image.h;
-    cr_expect(memcmp(r[0].image.rgb, r[1].image.rgb, bytes) == 0, "the default is not \"distances\": false");
-    cr_expect(memcmp(r[0].image.rgb, r[2].image.rgb, bytes) != 0, "distances true gives the default's image");
+    render_default_and_both("distances", extra, r);
     for (int k = 0; k < 3; k++) rd_render_result_free(&r[k]);
+    rd_scene *keyless = rt_scene("gu_distances_keyless.json", scene_json_exact(0.9, -2.5, ENV, ""));
+    cr_expect_eq(keyless->guide.distances, 0, "key absent: guide.distances is %d", keyless->guide.distances);
+    rd_scene_free(keyless);
     rd_scene *bare = rt_scene("gu_dist_bare.json", rt_spot_fog_json(8, 6, "{}"));
     cr_expect_eq(bare->guide.distances, 0, "no \"guide\" object: guide.distances is %d", bare->guide.distances);
     rd_scene_free(bare);
