@@ -215,7 +215,8 @@ double rd_majorant_depth(const rd_interval *iv, int n, ray3 r, double t, int glo
  * which is <= 1 / (1 - q): the thin flight's light gets q / P_k times as many samples as delta
  * tracking gives it, and what lies behind pays at most 1 / (1 - q) in weight. Biasing the
  * rest of the flight again after each null collision keeps the boost when the majorant is
- * loose (a null first collision would otherwise fall back to delta tracking's odds). */
+ * loose (a null first collision would otherwise fall back to delta tracking's odds), while the
+ * chain's weight is at least THIN_BOOST_W. */
 rd_collision rd_sample_free_path_thin(const rd_scene *s, int region, ray3 r, double tmax, double q,
                                       pcg32 *rng, rd_track_counters *c)
 {
