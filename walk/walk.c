@@ -55,7 +55,10 @@ static double slab_exit(const wk_dda *w, int a)
     if (w->step[a] == 0)
         return INFINITY;
     int i = w->ijk[a] + (w->step[a] > 0 ? 1 : 0);
-    return (wk_plane(w->lo[a], w->hi[a], w->h[a], w->res[a], i) - w->o[a]) / w->d[a];
+    double num = wk_plane(w->lo[a], w->hi[a], w->h[a], w->res[a], i) - w->o[a];
+    /* times 1/d, found once a walk (a division costs several multiplications' time, and this
+     * runs at every step of every walk); the division where 1/d overflows (|d| subnormal) */
+    return isfinite(w->inv[a]) ? num * w->inv[a] : num / w->d[a];
 }
 
 /* The nearest of the three slab exits and its axis (-1 when the ray is parallel to every axis);
@@ -87,6 +90,7 @@ void wk_dda_begin(wk_dda *w, const double lo[3], const double hi[3], const int r
         w->o[a] = o[a];
         w->d[a] = d[a];
         w->step[a] = d[a] > 0.0 ? 1 : d[a] < 0.0 ? -1 : 0;
+        w->inv[a] = d[a] != 0.0 ? 1.0 / d[a] : INFINITY;
     }
     /* The first cell (Amanatides & Woo's initialisation): on the entry face's axis it is the
      * first or last slab by the direction alone; elsewhere the cell holding x(t0). */

@@ -60,7 +60,7 @@ static inline int wk_cell_of(double lo, double hi, double h, int n, double p)
  * The segments tile [t0, t1] exactly in increasing t (ta of one = tb of the previous, the first
  * ta = t0, the last tb = t1) and never have zero length (crossings through an edge or corner
  * are skipped). Each axis's exit parameter is computed from the plane index when the walk
- * steps on that axis (one division per step, not three), never accumulated, so there is no
+ * steps on that axis (one multiplication by 1/d per step, not three), never accumulated, so there is no
  * drift. If rounding takes the walk out of the grid before t1, the rest of [t0, t1] goes to the
  * last cell. */
 typedef struct {
@@ -73,7 +73,7 @@ typedef struct {
     /* private */
     double lo[3], hi[3], h[3];
     int res[3];
-    double o[3], d[3];
+    double o[3], d[3], inv[3]; /* inv: 1/d (inf where d is 0 or 1/d overflows) */
     double t, tend;
     int ijk[3], step[3];
     double tx[3]; /* where the ray leaves the current cell's slab on each axis (inf: parallel) */
