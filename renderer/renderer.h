@@ -98,9 +98,12 @@ double rd_scene_hidden_light(const rd_scene *scene);
 /* What a method needs baked: a photon map, its guide grid, and the photon map of the photons
  * stored without their first flight (multiple scattering only, beside next-event estimation).
  * RD_NEEDS_FEW_PHOTONS: the guide only steers sampling decisions, so a share of the photons
- * serves (guide.photon_share of photons.count; guided-unbiased). */
+ * serves (guide.photon_share of photons.count; guided-unbiased). RD_NEEDS_REACHABLE: the maps
+ * (and so the guides) hold only light the method's paths can reach, without the light that a
+ * point, spot or directional light sends through glass (rd_bake_opts.reachable;
+ * guided-unbiased, whose guide steers paths that cannot find that light). */
 enum { RD_NEEDS_PHOTONS = 1, RD_NEEDS_GUIDE = 2, RD_NEEDS_INDIRECT = 4, RD_NEEDS_INDIRECT_GUIDE = 8,
-       RD_NEEDS_FEW_PHOTONS = 16 };
+       RD_NEEDS_FEW_PHOTONS = 16, RD_NEEDS_REACHABLE = 32 };
 int rd_method_count(void);
 /* Name, one-line summary and needs of method i (0 <= i < rd_method_count()). */
 const char *rd_method_name(int i);
@@ -357,6 +360,10 @@ typedef struct {
     const char *load_indirect_guide; /* reuse a saved indirect .guide (with indirect_guide) */
     int few_photons;           /* 1 (RD_NEEDS_FEW_PHOTONS): with photons 0, trace the scene's
                                   guide.photon_share of photons.count (at least 1) */
+    int reachable;             /* 1 (RD_NEEDS_REACHABLE): the maps leave out the photons on
+                                  L S+ paths from point, spot and directional lights, the light
+                                  that reaches the media only through glass and that no
+                                  camera path can find (rd_hidden_light's share) */
     const volatile int *cancel; /* non-NULL: polled while tracing (every 4096 photons), between
                                    the steps and while baking the guide; once non-zero the bake
                                    stops and returns RD_ERR_CANCELLED with no bake, and

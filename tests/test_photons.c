@@ -889,3 +889,93 @@ Test(photons, hidden_light_is_what_leaves_a_delta_light_through_glass_first, .ti
     cr_expect(share == 0.0, "a light of no power: share %g", share);
     rd_scene_free(s);
 }
+
+/* Whether the records of `sub` are those of `all` with some left out, in the same order. */
+static int is_subsequence(const void *sub, size_t n_sub, const void *all, size_t n_all, size_t rec)
+{
+    size_t j = 0;
+    for (size_t i = 0; i < n_all && j < n_sub; i++)
+        if (memcmp((const char *)all + i * rec, (const char *)sub + j * rec, rec) == 0) j++;
+    return j == n_sub;
+}
+
+/* rd_photon_opts.reachable (guided-unbiased's bake, RD_NEEDS_REACHABLE) leaves out exactly the
+ * hidden light: the photons and segments on L S+ paths from a delta light. On one thread a
+ * photon's records come in photon order, so the reachable map must be the full map with
+ * records left out; all of them where all the light is hidden, none where none is. */
+Test(photons, a_reachable_map_leaves_out_the_hidden_light_and_nothing_else, .timeout = 60)
+{
+    char err[RD_ERRLEN];
+    rd_photon_stats st, st_r;
+    rd_photon_opts o = {.count = 20000, .store_direct = 1, .segments = 1, .max_depth = 16, .seed = 5, .threads = 1};
+    rd_photon_opts o_r = o;
+    o_r.reachable = 1;
+    const char *lights[3] = {"{\"type\":\"point\",\"position\":[0,0,0],\"intensity\":1}",        /* all hidden */
+                             "{\"type\":\"point\",\"position\":[0.7,0,0],\"intensity\":1}",      /* ~3% hidden */
+                             "{\"type\":\"sphere\",\"center\":[0,0,0],\"radius\":0.05,\"radiance\":1}"}; /* none */
+    for (int k = 0; k < 3; k++) {
+        char name[64];
+        snprintf(name, sizeof name, "reachable_%d.json", k);
+        rd_scene *s = rt_glass_ball_in_fog(name, lights[k], 4);
+        pm_map *all = pm_map_new(), *r = pm_map_new();
+        cr_assert(rd_trace_photons(s, &o, all, &st, err, sizeof err) == RD_OK, "%s", err);
+        cr_assert(rd_trace_photons(s, &o_r, r, &st_r, err, sizeof err) == RD_OK, "%s", err);
+        size_t na = pm_map_photon_count(all), nr = pm_map_photon_count(r);
+        size_t sa = pm_map_segment_count(all), sr = pm_map_segment_count(r);
+        /* the statistics count every photon either way */
+        cr_expect(memcmp(st.power_hidden, st_r.power_hidden, sizeof st.power_hidden) == 0 &&
+                  memcmp(st.power_scattered, st_r.power_scattered, sizeof st.power_scattered) == 0,
+                  "light %d: the statistics changed", k);
+        cr_assert(na > 1000 && sa > 1000, "light %d: %zu photons, %zu segments", k, na, sa);
+        if (k == 0) {
+            cr_expect(st.power_hidden[0] > 0.99 * st.power_scattered[0], "light 0: all hidden");
+            /* The first flights, from the light to the glass, come before the photon is on an
+             * L S+ path (and cross only the ball's vacuum): those segments stay, no others. */
+            size_t from_light = 0;
+            const pm_segment *seg = pm_map_segments(r);
+            for (size_t i = 0; i < sr; i++)
+                from_light += fabsf(seg[i].org[0]) + fabsf(seg[i].org[1]) + fabsf(seg[i].org[2]) < 1e-6f;
+            cr_expect(nr == 0 && sr > 0 && from_light == sr && sr < sa,
+                      "light 0, all hidden: %zu photons, %zu segments kept (%zu from the light), of %zu", nr, sr, from_light, sa);
+        } else if (k == 1) {
+            cr_expect(nr < na && nr > na / 2 && sr < sa, "light 1: %zu of %zu photons, %zu of %zu segments", nr, na, sr, sa);
+            cr_expect(is_subsequence(pm_map_photons(r), nr, pm_map_photons(all), na, sizeof(pm_photon)),
+                      "light 1: the kept photons are not the full map's");
+            cr_expect(is_subsequence(pm_map_segments(r), sr, pm_map_segments(all), sa, sizeof(pm_segment)),
+                      "light 1: the kept segments are not the full map's");
+        } else {
+            cr_expect(st.power_hidden[0] == 0.0 && st.power_caustic[0] > 0.0, "light 2: seen, not hidden");
+            cr_expect(nr == na && sr == sa && memcmp(pm_map_photons(r), pm_map_photons(all), na * sizeof(pm_photon)) == 0 &&
+                          memcmp(pm_map_segments(r), pm_map_segments(all), sa * sizeof(pm_segment)) == 0,
+                      "light 2, nothing hidden: the map changed");
+        }
+        pm_map_free(all);
+        pm_map_free(r);
+        rd_scene_free(s);
+    }
+}
+
+/* guided-unbiased asks for that bake, and the bake cache keeps it apart from a full one. */
+Test(photons, guided_unbiased_bakes_the_reachable_light_alone)
+{
+    rd_scene *s = rt_glass_ball_in_fog("reachable_needs.json", "{\"type\":\"point\",\"position\":[0,0,0],\"intensity\":1}", 4);
+    unsigned gu = rd_method_needs_for("guided-unbiased", s), g = rd_method_needs_for("guided", s);
+    cr_expect(gu & RD_NEEDS_REACHABLE, "guided-unbiased needs %#x", gu);
+    cr_expect(!(g & RD_NEEDS_REACHABLE), "guided needs %#x: its photon estimates need the hidden light", g);
+    rd_bake_opts bo = {.seed = -1, .threads = 1};
+    rd_bake_opts_for(&bo, gu);
+    cr_expect(bo.reachable == 1);
+    char err[RD_ERRLEN], dir[300];
+    snprintf(dir, sizeof dir, "%s/reachable-cache", rt_tmpdir());
+    rd_baked *b = NULL;
+    int hit = -1;
+    cr_assert(rd_bake_cached(s, &bo, dir, &b, &hit, err, sizeof err) == RD_OK, "%s", err);
+    cr_expect(hit == 0 && pm_map_photon_count(rd_baked_map(b)) == 0, "all hidden: %zu photons", pm_map_photon_count(rd_baked_map(b)));
+    rd_baked_free(b);
+    bo.reachable = 0;
+    cr_assert(rd_bake_cached(s, &bo, dir, &b, &hit, err, sizeof err) == RD_OK, "%s", err);
+    cr_expect(hit == 0 && pm_map_photon_count(rd_baked_map(b)) > 0, "full bake: hit %d, %zu photons", hit,
+              pm_map_photon_count(rd_baked_map(b)));
+    rd_baked_free(b);
+    rd_scene_free(s);
+}

@@ -202,6 +202,7 @@ void rd_bake_opts_for(rd_bake_opts *o, unsigned needs)
     o->indirect = (needs & (RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE)) != 0;
     o->indirect_guide = (needs & RD_NEEDS_INDIRECT_GUIDE) != 0;
     o->few_photons = (needs & RD_NEEDS_FEW_PHOTONS) != 0;
+    o->reachable = (needs & RD_NEEDS_REACHABLE) != 0;
 }
 
 /* Photons to emit: the options' count, or the scene's (its guide.photon_share of it when the
@@ -226,6 +227,7 @@ static rd_status trace_new_map(const rd_scene *s, const rd_bake_opts *o, int sto
                          .store_direct = store_direct,
                          .segments = segments,
                          .max_depth = s->photons.max_depth,
+                         .reachable = o->reachable,
                          .seed = o->seed >= 0 ? (uint64_t)o->seed : s->photons.seed,
                          .threads = o->threads,
                          .cancel = o->cancel,
@@ -459,8 +461,8 @@ rd_status rd_bake_cached(const rd_scene *s, const rd_bake_opts *o, const char *d
 {
     /* The key: the scene's bake key and the options that change what is baked. */
     uint64_t k = s->bake_key;
-    uint64_t extra[5] = {photons_to_trace(s, o), (uint64_t)o->seed, (uint64_t)o->indirect,
-                         (uint64_t)o->no_guide, (uint64_t)o->indirect_guide};
+    uint64_t extra[6] = {photons_to_trace(s, o), (uint64_t)o->seed, (uint64_t)o->indirect,
+                         (uint64_t)o->no_guide, (uint64_t)o->indirect_guide, (uint64_t)o->reachable};
     for (size_t i = 0; i < sizeof extra; i++) k = (k ^ ((const unsigned char *)extra)[i]) * 0x100000001b3ULL;
     char pmap[1100], ind[1100], guide[1100], iguide[1100], msg[RD_ERRLEN];
     snprintf(pmap, sizeof pmap, "%s/%016llx.pmap", dir, (unsigned long long)k);

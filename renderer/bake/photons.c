@@ -314,7 +314,9 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
             rd_collision col = rd_sample_free_path(s, region, r, t_light, &rng, tc);
             /* The first flight carries direct light: store it only with store_direct, as for
              * the photons, so k-NN and track-length bakes see the same light. */
-            if (o->segments && !o->count_only && (depth > 1 || o->store_direct))
+            /* With o->reachable, a hidden photon (caustic, from a delta light) stores nothing. */
+            const int store = !o->count_only && !(o->reachable && caustic && delta_light);
+            if (o->segments && store && (depth > 1 || o->store_direct))
                 push_segment(b, s, r, col.hit ? col.t : t_light, beta);
             /* Weighted trackers (seed 002 Alg. 2-3) return a path weight for the flight; the
              * analog trackers return 1. (Segments keep the flowing power before it: the
@@ -367,8 +369,8 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
             if (caustic) acc(b->caustic, scattered);
             if (caustic && delta_light) acc(b->hidden, scattered);
             /* Store the scattered power; skip first collisions when NEE supplies direct light. */
-            if (!o->count_only && (depth > 1 || o->store_direct)) push_to(b, &b->ph, &b->n_ph, &b->cap_ph, x, r.d, scattered);
-            if (!o->count_only && depth > 1 && b->split) push_to(b, &b->ind, &b->n_ind, &b->cap_ind, x, r.d, scattered);
+            if (store && (depth > 1 || o->store_direct)) push_to(b, &b->ph, &b->n_ph, &b->cap_ph, x, r.d, scattered);
+            if (store && depth > 1 && b->split) push_to(b, &b->ind, &b->n_ind, &b->cap_ind, x, r.d, scattered);
             acc(b->absorbed, v3_sub(beta, scattered)); /* expected absorption at this event */
             if (depth >= o->max_depth) { acc(b->carried, scattered); break; }
             /* Russian roulette on the albedo: survive with p = max channel, power x albedo / p. */

@@ -17,6 +17,9 @@ typedef struct {
     int segments;      /* 1: also store path segments (clipped to the media bounds) */
     int max_depth;     /* collisions per photon path */
     int count_only;    /* 1: store nothing, only the statistics' power sums (rd_hidden_light) */
+    int reachable;     /* 1: store only light that a path tracer's paths can reach: no photon
+                          or segment on an L S+ path from a point, spot or directional light
+                          (the light of power_hidden, below); the statistics count all */
     uint64_t seed;
     int threads;       /* 0 = all */
     const volatile int *cancel; /* non-NULL: read before each block of 4096 photons; once it is

@@ -787,13 +787,15 @@ static unsigned gu_needs(const rd_scene *s)
     unsigned n = RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE;
     if (s->guide.directions) n |= RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE;
     if (s->guide.photon_share < 1.0) n |= RD_NEEDS_FEW_PHOTONS; /* its guide steers, never sums */
-    return n;
+    /* Its paths cannot find the light a delta light sends through glass (docs/surfaces.md): a
+     * guide that held it would split and steer paths toward light they never reach. */
+    return n | RD_NEEDS_REACHABLE;
 }
 
 const rd_method rd_method_guided_unbiased = {
     .name = "guided-unbiased",
     .summary = "unbiased path tracing with continuation directions and roulette/splitting guided by the SH guide",
-    .needs = RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE,
+    .needs = RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE | RD_NEEDS_REACHABLE,
     .needs_for = gu_needs,
     .scratch_bytes = gu_scratch_bytes,
     .prepare = gu_prepare,
