@@ -380,7 +380,7 @@ typedef struct {
 } rd_bake_opts;
 
 /* Set the bake options that a method's needs (RD_NEEDS_*, from rd_method_needs_for) decide:
- * no_guide, indirect, indirect_guide, few_photons. The rest of *opts is left alone. */
+ * no_guide, indirect, indirect_guide, few_photons, reachable. The rest of *opts is left alone. */
 void rd_bake_opts_for(rd_bake_opts *opts, unsigned needs);
 
 typedef struct {

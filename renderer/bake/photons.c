@@ -312,10 +312,10 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
             int got = rd_scene_intersect(s, r, INFINITY, from, &h);
             double t_light = got ? h.t : INFINITY;
             rd_collision col = rd_sample_free_path(s, region, r, t_light, &rng, tc);
-            /* The first flight carries direct light: store it only with store_direct, as for
-             * the photons, so k-NN and track-length bakes see the same light. */
             /* With o->reachable, a hidden photon (caustic, from a delta light) stores nothing. */
             const int store = !o->count_only && !(o->reachable && caustic && delta_light);
+            /* The first flight carries direct light: store it only with store_direct, as for
+             * the photons, so k-NN and track-length bakes see the same light. */
             if (o->segments && store && (depth > 1 || o->store_direct))
                 push_segment(b, s, r, col.hit ? col.t : t_light, beta);
             /* Weighted trackers (seed 002 Alg. 2-3) return a path weight for the flight; the

@@ -86,7 +86,7 @@ typedef struct rd_select_report {
 typedef struct rd_method {
     const char *name;
     const char *summary;   /* one line, for --help and the report */
-    unsigned needs;        /* RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | RD_NEEDS_INDIRECT, at most */
+    unsigned needs;        /* the RD_NEEDS_* flags (renderer.h) the method can ask for, at most */
     /* Optional: what this scene's settings need (a subset of `needs`); NULL = `needs`. */
     unsigned (*needs_for)(const rd_scene *scene);
     /* Optional: the photon maps a progressive photon pass must trace anew for this scene
