@@ -861,8 +861,9 @@ Test(select, tiles_of_both_kinds_give_delta_s_image, .timeout = 300)
 {
     /* guided's marcher against delta's path. guided-unbiased mixes through the same
      * rd_select_radiance; on this scene it wins no tile robustly (its paths cost 9x delta's
-     * there, for 8x less variance, when measured with guided flights before session 46), and a precondition that holds for one compiler's
-     * rounding and not another's tests nothing, so it is not asserted for it. The marcher's
+     * there, for 8x less variance, when measured with guided flights before session 46), and
+     * a precondition that holds for one compiler's rounding and not another's tests nothing,
+     * so it is not asserted for it. The marcher's
      * equiangular sample is off, as delta's is: two estimators (with it on, the third,
      * delta's path with equiangular sampling, takes every lit tile here; the next test). */
     rd_scene *s = rt_scene("sel.json", rt_spot_fog_json_with(32, 24, "{\"select\":\"tiles\"}",

@@ -150,7 +150,8 @@ Test(thin_bias, weighted_outcomes_have_delta_trackings_law, .timeout = 120)
  * P_k <= P_0 = 1 - exp(-1) (tau_left only shrinks) and a step is forced only while the weight
  * is >= 0.01, so at most 1 + floor(ln 0.01 / ln P_0) = 11 steps are forced, and delta
  * tracking's own chain over what is left (majorant depth <= 1) adds at most 1 tentative
- * collision in expectation: the mean must stay below 12 plus 4.5 standard errors. The weighted collisions keep delta tracking's law (as above). */
+ * collision in expectation: the mean must stay below 12 plus 4.5 standard errors. The
+ * weighted collisions keep delta tracking's law (as above). */
 Test(thin_bias, a_forced_chain_over_empty_space_ends, .timeout = 120)
 {
     rd_scene *s = slab(0.001);

@@ -283,8 +283,8 @@ Test(walk, dda_rays_through_corners_and_along_planes)
         {{0.5, 4, -1}, {0, 0, 1}, 4, {0, 3, 0}},       /* in the box face y = 4: the last cell */
         {{1, 1, -1}, {0, 0, 1}, 4, {1, 1, 0}},         /* along the edge x = 1, y = 1 */
         {{-2, 0.5, 0.5}, {1, 0.5, 0}, 4, {0, 1, 0}},   /* enters at (0, 1.5), corners (1, 2), (3, 3) */
-        {{-1, 2.5, 0.5}, {1, 1e-310, 0}, 4, {0, 2, 0}}, /* a subnormal component: 1/d overflows, the
-                                                          exit on y is the division's (+inf) */
+        {{-1, 2.5, 0.5}, {1, 1e-310, 0}, 4, {0, 2, 0}}, /* a subnormal component (1/d overflows):
+                                                          walked as a ray parallel to y's planes */
     };
     for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
         cr_assert(wk_box_clip(lo, hi, cases[c].o, cases[c].d, 0, INFINITY, &t0, &t1, &enter), "case %zu", c);

@@ -60,8 +60,8 @@ static inline int wk_cell_of(double lo, double hi, double h, int n, double p)
  * The segments tile [t0, t1] exactly in increasing t (ta of one = tb of the previous, the first
  * ta = t0, the last tb = t1) and never have zero length (crossings through an edge or corner
  * are skipped). Each axis's exit parameter is computed from the plane index when the walk
- * steps on that axis (one multiplication by 1/d per step, not three), never accumulated, so there is no
- * drift. If rounding takes the walk out of the grid before t1, the rest of [t0, t1] goes to the
+ * steps on that axis (one multiplication by 1/d per step, not three), never accumulated, so
+ * there is no drift. If rounding takes the walk out of the grid before t1, the rest of [t0, t1] goes to the
  * last cell. */
 typedef struct {
     double ta, tb; /* the cell's piece of the ray, ta < tb */
