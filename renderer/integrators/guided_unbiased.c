@@ -51,6 +51,14 @@
 
 #include <stdlib.h>
 
+/* A guide cell's incident-light lobe for one medium (cell_lobe): a vMF lobe of directions. */
+typedef struct gu_lobe {
+    vec3 mu;      /* its mean direction (unit) */
+    double kappa; /* its concentration; 0: the cell has none */
+} gu_lobe;
+/* Most lobe table entries (cells x media) gu_prepare builds: 32 MiB */
+#define GU_LOBES_MAX ((size_t)1 << 20)
+
 typedef struct {
     int cap_g;   /* guide pdf segments a flight can need (guide cells crossed + 2 fillers) */
     int cap_m;   /* majorant pdf segments (majorant cells crossed in every medium + gaps) */
@@ -70,6 +78,13 @@ typedef struct {
      * until the first of its samples that reaches the guided path needs it; width x height,
      * a pixel's entry written only by the thread rendering that pixel. */
     double *I_pix;
+    /* With guide.directions: the incident-light lobe of every cell of the guide the lobe is
+     * read from (the indirect one when there is one) for every medium, [medium x lobe_cells +
+     * cell] (cell_lobe; kappa 0: none), and each medium's phase lobe concentration kappa_g;
+     * NULL where the table would pass GU_LOBES_MAX entries (the vertex finds its cell's). */
+    struct gu_lobe *lobes;
+    size_t lobe_cells;
+    double *kappa_g;
 } gu_state;
 
 /* The guide the method reads (its truncated copy when there is one), and the indirect one. */
@@ -440,18 +455,21 @@ static double guided_density(const rd_flight_sampler *fs, double t)
  * cache holds no usable direction and the continuation is phase sampling alone. */
 #define GU_B1_MIN 0.1
 
-/* The guide's incident-light lobe at a vertex in cell `coeffs` (3 channel-major bands^2 blocks;
- * baked_bands the L the guide was baked with, which the window factor is a function of) of a
- * medium with HG g, as a von Mises-Fisher lobe for the continuation direction.
+/* The guide's incident-light lobe in cell `coeffs` (3 channel-major bands^2 blocks; baked_bands
+ * the L the guide was baked with, which the window factor is a function of) for a medium with
+ * HG g, as a von Mises-Fisher lobe (mean mu, concentration kappa) of the directions a path
+ * continuing from the cell would gather it along. 0 where there is none.
  *   The bake stores c_lm = (1/V) sum_k dPhi_k b_l Y_lm(w'_k) (sh.h; w'_k the photons' travel
  *   directions, b_l = g^l times the Hann window w_l when guide.window is on), so with
  *   (Y_1-1, Y_10, Y_11) = sqrt(3/(4 pi)) (y, z, x) and Y_00 = 1/(2 sqrt(pi)):
  *       m = sum_k dPhi_k w'_k / sum_k dPhi_k = (c_11, c_1-1, c_10) / (sqrt(3) b_1 c_00),
  *   the mean travel direction of the light arriving in the cell, |m| <= 1 its mean cosine.
  *   A path continuing along wo gathers light that travels along -wo: the lobe's mean is -m/|m|,
- *   its concentration the vMF's whose mean cosine is |m| (rd_vmf_kappa). */
-static int guide_lobe(const rd_scene *s, const float *coeffs, int bands, int baked_bands, double g,
-                      vec3 d, rd_dir_mix *mx)
+ *   its concentration the vMF's whose mean cosine is |m| (rd_vmf_kappa).
+ * It depends on the cell and the medium alone, so gu_prepare finds it once for every cell of
+ * the guide and every medium (gu_state.lobes); a vertex only takes its product with the phase
+ * function (lobe_product). */
+static int cell_lobe(const rd_scene *s, const float *coeffs, int bands, int baked_bands, double g, gu_lobe *out)
 {
     if (bands < 2) return 0;
     double b1 = g * (s->guide.window ? 0.5 * (1.0 + cos(M_PI / baked_bands)) : 1.0);
@@ -469,14 +487,20 @@ static int guide_lobe(const rd_scene *s, const float *coeffs, int bands, int bak
     vec3 m = v3_scale(v3(c[0], c[1], c[2]), 1.0 / (sqrt(3.0) * b1 * c00));
     double rbar = v3_len(m);
     if (!(rbar > 0.05) || !isfinite(rbar)) return 0; /* no preferred direction to speak of */
-    /* The continuation wants p_HG(d.wo) L_i(wo), the product. With the phase function
-     * approximated by the vMF of the same mean cosine about its axis (sign(g) d, kappa_g), the
-     * product of two vMF lobes is a vMF lobe (up to a constant factor):
-     *     kappa_g a_g . w + kappa_L mu_L . w = |v| (v/|v|) . w,  v = kappa_g a_g + kappa_L mu_L
-     * (the product trick of Herholz et al. 2019, §5, for their vMF mixtures). */
-    vec3 mu_L = v3_scale(m, -1.0 / rbar);
-    double kappa_L = rd_vmf_kappa(fmin(rbar, 0.95)), kappa_g = rd_vmf_kappa(fabs(g));
-    vec3 v = v3_add(v3_scale(d, g < 0.0 ? -kappa_g : kappa_g), v3_scale(mu_L, kappa_L));
+    out->mu = v3_scale(m, -1.0 / rbar);
+    out->kappa = rd_vmf_kappa(fmin(rbar, 0.95));
+    return 1;
+}
+
+/* The continuation wants p_HG(d.wo) L_i(wo), the product. With the phase function approximated
+ * by the vMF of the same mean cosine about its axis (sign(g) d, kappa_g = rd_vmf_kappa(|g|)),
+ * the product of two vMF lobes is a vMF lobe (up to a constant factor):
+ *     kappa_g a_g . w + kappa_L mu_L . w = |v| (v/|v|) . w,  v = kappa_g a_g + kappa_L mu_L
+ * (the product trick of Herholz et al. 2019, §5, for their vMF mixtures). 0 where the two
+ * cancel. */
+static int lobe_product(const rd_scene *s, const gu_lobe *L, double g, double kappa_g, vec3 d, rd_dir_mix *mx)
+{
+    vec3 v = v3_add(v3_scale(d, g < 0.0 ? -kappa_g : kappa_g), v3_scale(L->mu, L->kappa));
     double kv = v3_len(v);
     if (!(kv > 1e-9)) return 0; /* the two cancel: no preferred direction */
     mx->mu = v3_scale(v, 1.0 / kv);
@@ -506,9 +530,18 @@ static void gu_vertex(const rd_flight_sampler *fs, const rd_scene *s, const rd_v
     const sh_guide *lg = u->ctx->guide_indirect ? gu_guide_indirect(u->ctx) : guide;
     long lcell = lg == guide ? cell : sh_guide_locate(lg, xv);
     if (lcell >= 0 && gs->directions && gs->direction_weight > 0.0) {
-        const sh_guide *baked = u->ctx->guide_indirect ? u->ctx->guide_indirect : u->ctx->guide;
-        guide_lobe(s, sh_guide_cell_coeffs(lg, (size_t)lcell), sh_guide_bands(lg), sh_guide_bands(baked),
-                   v->medium->g, v->d, &out->mix);
+        const gu_state *st = u->ctx->state;
+        const double g = v->medium->g;
+        ptrdiff_t mi = v->medium - s->media;
+        if (st->lobes && mi >= 0 && mi < s->n_media && (size_t)lcell < st->lobe_cells) { /* found once (gu_prepare) */
+            const gu_lobe *L = &st->lobes[(size_t)mi * st->lobe_cells + (size_t)lcell];
+            if (L->kappa > 0.0) lobe_product(s, L, g, st->kappa_g[mi], v->d, &out->mix);
+        } else {
+            const sh_guide *baked = u->ctx->guide_indirect ? u->ctx->guide_indirect : u->ctx->guide;
+            gu_lobe L;
+            if (cell_lobe(s, sh_guide_cell_coeffs(lg, (size_t)lcell), sh_guide_bands(lg), sh_guide_bands(baked), g, &L))
+                lobe_product(s, &L, g, rd_vmf_kappa(fabs(g)), v->d, &out->mix);
+        }
     }
 
     /* Roulette and splitting by the path's expected contribution against the pixel's
@@ -670,6 +703,34 @@ static int majorant_crossings(const rd_medium *m)
 
 static void gu_release(rd_render_ctx *ctx);
 
+/* gu_state.lobes and kappa_g (guide.directions): every cell's lobe for every medium, found as a
+ * vertex would find it (cell_lobe, the same operations: the same bits). Left NULL where the
+ * table would be too large; 0 on out-of-memory. */
+static int build_lobes(const rd_render_ctx *ctx, gu_state *st)
+{
+    const rd_scene *s = ctx->scene;
+    if (!ctx->guide || !s->guide.directions || !(s->guide.direction_weight > 0.0) || s->n_media < 1) return 1;
+    const sh_guide *lg = ctx->guide_indirect ? gu_guide_indirect(ctx) : gu_guide(ctx);
+    const sh_guide *baked = ctx->guide_indirect ? ctx->guide_indirect : ctx->guide;
+    sh_guide_stats gs;
+    sh_guide_stats_get(lg, &gs);
+    if (gs.cells == 0 || gs.cells > GU_LOBES_MAX / (size_t)s->n_media) return 1;
+    st->lobes = malloc(gs.cells * (size_t)s->n_media * sizeof *st->lobes);
+    st->kappa_g = malloc((size_t)s->n_media * sizeof *st->kappa_g);
+    if (!st->lobes || !st->kappa_g) return 0;
+    st->lobe_cells = gs.cells;
+    int bands = sh_guide_bands(lg), baked_bands = sh_guide_bands(baked);
+    for (int i = 0; i < s->n_media; i++) {
+        double g = s->media[i].g;
+        st->kappa_g[i] = rd_vmf_kappa(fabs(g));
+        for (size_t c = 0; c < gs.cells; c++) {
+            gu_lobe *L = &st->lobes[(size_t)i * gs.cells + c];
+            if (!cell_lobe(s, sh_guide_cell_coeffs(lg, c), bands, baked_bands, g, L)) *L = (gu_lobe){.kappa = 0.0};
+        }
+    }
+    return 1;
+}
+
 /* The counted cost of one of its flights' pdf segments, in lookups (select.c, the fit): the
  * selection's and the probes' */
 #define GU_CELL_COST 0.41
@@ -734,6 +795,11 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
         }
         for (size_t i = 0; i < np; i++) st->I_pix[i] = -1.0; /* not yet found */
     }
+    if (!build_lobes(ctx, st)) {
+        snprintf(err, errlen, "out of memory for guided-unbiased's direction lobes");
+        gu_release(ctx);
+        return RD_ERR_NOMEM;
+    }
     /* guide.probes, with the selection's cell cost below; none with a ray-marched tracker or
      * transmittance (the probes' estimate and the path's own must be unbiased alike, as
      * settings.probes requires of `delta`): "auto" takes none there, and a number is refused
@@ -768,6 +834,8 @@ static void gu_release(rd_render_ctx *ctx)
         sh_guide_free(st->fast);
         sh_guide_free(st->fast_indirect);
         free(st->I_pix);
+        free(st->lobes);
+        free(st->kappa_g);
     }
     free(ctx->state);
     ctx->state = NULL;
