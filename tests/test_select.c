@@ -833,6 +833,64 @@ Test(select, a_tile_of_zeros_goes_by_how_often_delta_sees_light_elsewhere)
     rd_select_free(&sel);
 }
 
+/* A 5x5-tile selection, columns 0-1 dim and 2-4 bright (session 48, select.c's head "A dim
+ * tile's prior"). In the bright tiles delta (cost 1) finds the light in 8 of 128 pilot samples
+ * (mean 1, variance 15), the method (cost 3) in every one (variance 0.5). In the dim tiles the
+ * method finds it once in 128 (mean mu_d, variance mu_d^2 x 127) and delta never: its variance
+ * there is the Cauchy-Schwarz bound, mu^2 (1/p - 1) with mu = mu_d / 2 and p from its prior. */
+static void dim_scene(rd_select *sel, double mu_d, int delta_hits_dim)
+{
+    char err[RD_ERRLEN];
+    cr_assert(rd_select_init(sel, 40, 40, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
+    for (int k = 0; k < 25; k++) {
+        if (k % 5 >= 2) {
+            fake_pilot(sel, 2 * k, 1.0, 15.0, 8.0 / 128.0, 1.0);
+            fake_pilot(sel, 2 * k + 1, 1.0, 0.5, 1.0, 3.0);
+        } else {
+            double q = delta_hits_dim / 128.0;
+            if (q > 0.0) fake_pilot(sel, 2 * k, mu_d, mu_d * mu_d * (1.0 / q - 1.0), q, 1.0);
+            else fake_pilot(sel, 2 * k, 0.0, 0.0, 0.0, 1.0);
+            fake_pilot(sel, 2 * k + 1, mu_d, mu_d * mu_d * 127.0, 1.0 / 128.0, 3.0);
+        }
+    }
+    rd_select_epoch(sel, NULL); /* no samples: the choice from these statistics */
+}
+
+Test(select, a_dim_tile_s_zeros_weigh_by_how_dim_it_is)
+{
+    /* Delta's non-zero fraction over the lit tiles, pbar = 121/3202 = 0.038 (the bright tiles'
+     * 8 in 128 over the dim tiles' zeros), put its bound in a dim tile's half (64 samples) at
+     * mu^2 (66 / (2 pbar) - 1) = 0.022 for mu_d = 0.01, 1.7x the method's 0.0127 there, and
+     * the image's lambda (its variance over its cost: the bright tiles' 0.5 a sample at cost 3)
+     * judged that worth a third of the cost: the dim tiles went to delta, the narrow spot's
+     * firefly. The method's half hit there, where its image fraction (0.60) expects 38.6, scales
+     * delta's prior centre by 1.5/39.6 and its bound about 26x: the dim tiles go to the method.
+     * (It fails without the scale.) */
+    rd_select sel;
+    dim_scene(&sel, 0.01, 0);
+    for (int y = 0; y < 5; y++) {
+        cr_assert(sel.choice[5 * y] == 1, "dim tile (0, %d) went to delta on its zeros", y);
+        cr_assert(sel.choice[5 * y + 4] == 1, "bright tile (4, %d) went to delta", y);
+    }
+    rd_select_free(&sel);
+    /* Where delta does find the dim tiles' light, once in 128 as the method does, its own
+     * samples say what it is worth: variance mu_d^2 x 127 at a third of the cost, and the dim
+     * tiles keep delta (a check that the scale does not overshoot: its bound there, 0.013, is
+     * about its sample variance). */
+    dim_scene(&sel, 0.01, 1);
+    for (int y = 0; y < 5; y++) cr_assert(sel.choice[5 * y] == 0, "dim tile (0, %d) lost delta, which finds its light", y);
+    rd_select_free(&sel);
+    /* A tile bright to the others is not dim: session 22's "most" case (delta non-zero in 115
+     * of 128 samples around a tile where it saw none and the method lit every sample), with the
+     * method at 3x delta's cost, keeps delta, as it did before the scale. A scale that counted
+     * delta's own zeros (dimness 129/239 there, its bound 1.85x) gives the tile to the method. */
+    int lit[25];
+    for (int k = 0; k < 25; k++) lit[k] = k != 12;
+    prior_scene(&sel, lit, 115, 3.0);
+    cr_assert(sel.choice[12] == 0, "a tile bright to the method went to it on delta's zeros");
+    rd_select_free(&sel);
+}
+
 Test(select, epochs_end_at_4_16_64_and_only_with_epochs_on)
 {
     rd_select sel;

@@ -75,6 +75,19 @@
  * sums include the epochs' samples, so the tiles already given to an estimator weigh most in
  * its pbar (not measured: a pbar from the pilot's counts alone would avoid it).
  *
+ * A dim tile's prior (session 48). The image's pbar is mostly the bright tiles' fraction: in a
+ * dim tile every estimator finds light less often, and an estimator that saw nothing there
+ * (plain `delta` beside a narrow beam's faint glow) was read as far less heavy-tailed than it
+ * is. On hard-narrow-spot such a tile went to plain `delta` at the pilot and one of its samples
+ * found the beam: a quarter of the image's squared error in one pixel. So an estimator's prior
+ * centre in a tile is pbar times how dim the tile is to the other estimators: the hits they saw
+ * there over the hits the image's fractions expect from their samples, (sum of non-zero + 1) /
+ * (sum of n pbar + 1) over the others (one pseudo-hit each side), capped at 1. The estimator's
+ * own count is left out: its zeros are in p already, and a tile bright to the others where it
+ * alone saw nothing is not dim. The scale only ever makes a bound stronger, for an estimator
+ * with few hits in a tile the others find dimmer than the image's lit tiles on average. A tile
+ * no estimator has lit has mu = 0 and no bound either way.
+ *
  * Evidence of unequal size. At an epoch the tile's current estimator has the image's thousands of
  * samples and the other only its pilot's hundred or so. A heavy tail is seen in proportion to
  * the samples drawn, so the comparison favours the estimator with fewer: where both carry the
@@ -491,7 +504,8 @@ static double tile_mean(const rd_select_stats *tile, int m, int c)
  * tile[0 .. m-1] (mean over RGB): the pooled sample variance, or with r > 0 the image's
  * prediction mu^2 r (see the head, "Where the halves disagree"), bounded below by Cauchy-Schwarz
  * with mu the mean of the estimators' means (all unbiased for the tile's mean) and the non-zero
- * probability p from the tile's count and e's fraction pbar over the lit tiles (see the head). */
+ * probability p from the tile's count and a prior centred on pbar, e's fraction over the lit
+ * tiles, times the tile's dimness (see the head; figures). */
 static double tile_variance(const rd_select_stats *tile, int m, int e, double pbar, double r)
 {
     const rd_select_stats *st = &tile[e];
@@ -609,7 +623,8 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
 
 /* The rule's figures from statistics st ([m k + e], one set of m per tile): each tile's V and C
  * (as sums over its pixels, which is what the image's error and time add up), pooled over 3x3
- * tiles (pool), with each estimator's non-zero prior pbar[e]; with r (unless NULL) each tile's
+ * tiles (pool), with each estimator's non-zero prior centred on pbar[e] times the tile's dimness
+ * to the other estimators (see the head, "A dim tile's prior"); with r (unless NULL) each tile's
  * V is the prediction from the estimator's relative variance beyond the tile's 3x3, r[m k + e],
  * not pooled (pooling would bring back the neighbours' predictions, which hold the tile's own
  * samples). var or cost may be NULL. */
@@ -621,9 +636,15 @@ static void figures(const rd_select *sel, const rd_select_stats *st, const doubl
         int tx = k % nx, ty = k / nx;
         int w = sel->width - tx * RD_SELECT_TILE, h = sel->height - ty * RD_SELECT_TILE;
         double pixels = (double)(w < RD_SELECT_TILE ? w : RD_SELECT_TILE) * (h < RD_SELECT_TILE ? h : RD_SELECT_TILE);
+        /* The hits the tile's estimators saw, and those the image's fractions expect of them */
+        double z = 0.0, x = 0.0;
+        for (int e = 0; e < m; e++) z += st[m * k + e].nonzero, x += st[m * k + e].n * pbar[e];
         for (int e = 0; e < m; e++) {
             const rd_select_stats *s = &st[m * k + e];
-            if (var) var[m * k + e] = pixels * tile_variance(&st[m * k], m, e, pbar[e], r ? r[m * k + e] : 0.0);
+            /* e's prior centre scaled by how dim the others find the tile (see the head, "A dim
+             * tile's prior"): its own zeros are in p already */
+            const double dim = fmin(1.0, (z - s->nonzero + 1.0) / (x - s->n * pbar[e] + 1.0));
+            if (var) var[m * k + e] = pixels * tile_variance(&st[m * k], m, e, pbar[e] * dim, r ? r[m * k + e] : 0.0);
             if (cost) cost[m * k + e] = s->n > 0.0 ? pixels * s->cost / s->n : 0.0;
         }
     }
