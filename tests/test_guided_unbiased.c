@@ -521,7 +521,7 @@ Test(guided_unbiased, equiangular_default_follows_the_selection)
     }
 }
 
-/* The guide's incident-light lobe (integrators/guided_unbiased.c guide_lobe) points where the
+/* The guide's incident-light lobe (integrators/guided_unbiased.c cell_lobe, lobe_product) points where the
  * light comes from: a point light in a homogeneous forward-scattering medium sends the photons
  * radially, so the lobe's mean at points around it must point back at the light. The lobe is
  * the product with the phase function's lobe about the arrival direction d, so d is taken

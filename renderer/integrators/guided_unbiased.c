@@ -52,7 +52,7 @@
 #include <stdlib.h>
 
 /* A guide cell's incident-light lobe for one medium (cell_lobe): a vMF lobe of directions. */
-typedef struct gu_lobe {
+typedef struct {
     vec3 mu;      /* its mean direction (unit) */
     double kappa; /* its concentration; 0: the cell has none */
 } gu_lobe;
@@ -82,7 +82,7 @@ typedef struct {
      * read from (the indirect one when there is one) for every medium, [medium x lobe_cells +
      * cell] (cell_lobe; kappa 0: none), and each medium's phase lobe concentration kappa_g;
      * NULL where the table would pass GU_LOBES_MAX entries (the vertex finds its cell's). */
-    struct gu_lobe *lobes;
+    gu_lobe *lobes;
     size_t lobe_cells;
     double *kappa_g;
 } gu_state;
@@ -705,19 +705,24 @@ static void gu_release(rd_render_ctx *ctx);
 
 /* gu_state.lobes and kappa_g (guide.directions): every cell's lobe for every medium, found as a
  * vertex would find it (cell_lobe, the same operations: the same bits). Left NULL where the
- * table would be too large; 0 on out-of-memory. */
-static int build_lobes(const rd_render_ctx *ctx, gu_state *st)
+ * table would be too large, or its memory is not there: the vertex then finds its cell's lobe
+ * itself (gu_vertex), the same lobe, only slower. */
+static void build_lobes(const rd_render_ctx *ctx, gu_state *st)
 {
     const rd_scene *s = ctx->scene;
-    if (!ctx->guide || !s->guide.directions || !(s->guide.direction_weight > 0.0) || s->n_media < 1) return 1;
+    if (!ctx->guide || !s->guide.directions || !(s->guide.direction_weight > 0.0) || s->n_media < 1) return;
     const sh_guide *lg = ctx->guide_indirect ? gu_guide_indirect(ctx) : gu_guide(ctx);
     const sh_guide *baked = ctx->guide_indirect ? ctx->guide_indirect : ctx->guide;
     sh_guide_stats gs;
     sh_guide_stats_get(lg, &gs);
-    if (gs.cells == 0 || gs.cells > GU_LOBES_MAX / (size_t)s->n_media) return 1;
+    if (gs.cells == 0 || gs.cells > GU_LOBES_MAX / (size_t)s->n_media) return;
     st->lobes = malloc(gs.cells * (size_t)s->n_media * sizeof *st->lobes);
     st->kappa_g = malloc((size_t)s->n_media * sizeof *st->kappa_g);
-    if (!st->lobes || !st->kappa_g) return 0;
+    if (!st->lobes || !st->kappa_g) {
+        free(st->lobes), free(st->kappa_g);
+        st->lobes = NULL, st->kappa_g = NULL;
+        return;
+    }
     st->lobe_cells = gs.cells;
     int bands = sh_guide_bands(lg), baked_bands = sh_guide_bands(baked);
     for (int i = 0; i < s->n_media; i++) {
@@ -728,7 +733,6 @@ static int build_lobes(const rd_render_ctx *ctx, gu_state *st)
             if (!cell_lobe(s, sh_guide_cell_coeffs(lg, c), bands, baked_bands, g, L)) *L = (gu_lobe){.kappa = 0.0};
         }
     }
-    return 1;
 }
 
 /* The counted cost of one of its flights' pdf segments, in lookups (select.c, the fit): the
@@ -795,11 +799,7 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
         }
         for (size_t i = 0; i < np; i++) st->I_pix[i] = -1.0; /* not yet found */
     }
-    if (!build_lobes(ctx, st)) {
-        snprintf(err, errlen, "out of memory for guided-unbiased's direction lobes");
-        gu_release(ctx);
-        return RD_ERR_NOMEM;
-    }
+    build_lobes(ctx, st);
     /* guide.probes, with the selection's cell cost below; none with a ray-marched tracker or
      * transmittance (the probes' estimate and the path's own must be unbiased alike, as
      * settings.probes requires of `delta`): "auto" takes none there, and a number is refused
@@ -816,7 +816,8 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
      * none by default where the selection runs (load.c), and the third estimator is where the
      * strategy pays (select.c's head). */
     if (s->settings.select != RD_SELECT_OFF && ctx->guide) {
-        /* Without probes (none can pay in this scene: rd_probes_init) the selection calls
+        /* Without probes (M = 1 for the whole render: guide.probes 1, a ray-marched tracker or
+         * transmittance, or a scene where no chain can end on light: rd_probes_init) the selection calls
          * delta's path itself, the same sample without the two calls between (a `delta` tile's
          * sample on hard-narrow-spot costs about 0.3 us, each call a few ns). */
         rd_select_delta_fn dfn = rd_probes_on(&st->probes) ? gu_delta : NULL;

@@ -150,7 +150,9 @@ rd_flight rd_gu_flight(const rd_render_ctx *ctx, void *scratch, const rd_flight_
 double rd_gu_flight_cdf(const rd_render_ctx *ctx, void *scratch, const rd_flight_in *in,
                         double t, double *P_pass);
 /* guided-unbiased's vertex policy (roulette/splitting and the direction mixture) at vertex v,
- * for a camera sample whose guide estimate is I_cam (0: none, the throughput roulette). */
+ * for a camera sample whose guide estimate is I_cam (0: none, the throughput roulette). The
+ * direction lobes are the scene's and guide's as they were at prepare (a changed medium or
+ * guide is prepared again). */
 void rd_gu_vertex(const rd_render_ctx *ctx, const rd_vertex_in *v, double I_cam, pcg32 *rng,
                   rd_vertex_out *out);
 
