@@ -33,10 +33,28 @@
 # shadow ray, which count as such): delta with settings.equiangular "true" and "false", paired,
 #     (t_true - t_off) / samples - (held terms, the set-ups' included) = a_Z samples.
 #
+# FIT=ms fits the weight of a marched sample's own work (its inversion of the PDF, its source's
+# set-up, the light's lit range, the continuation's set-up: all but its lookups and shadow rays,
+# which count as such): guided with march.min_samples = march.max_samples 16 and 2 on the same
+# scenes, select off, paired (the PDF's segments are the same in both; session 49),
+#     (t_16 - t_2) / samples - (held terms of the difference) = a_P marched samples.
+# Session 49: 0.085 lookups, not charged (docs/benchmarks.md "Session 49"). That fit holds the
+# lookup at one time for every scene, and what a lookup costs differs between scenes.
+#
+# FIT=rel fits the marcher's two weights, a PDF segment w_M and a marched sample w_P, as the
+# selection uses them: against delta's cost on the same scene. Each scene is rendered by delta,
+# by guided and by guided with march.min_samples = march.max_samples = 16 (select off); delta's
+# time a counted lookup on the scene, k = (t / samples) / C_delta, turns guided's time into
+# lookups, and
+#     (t / samples) / k = held counts (weights held at select.c's) + w_M segments + w_P samples
+# is fitted for relative error over the scenes' guided rows. Session 49: w_M 0.66, w_P 1.63 (the
+# model within 0.90-1.18 of the twelve rows, select.c's 0.82-1.38); tried in the selection and
+# not kept: no gain at 10 s, losses on beam and the dense block (docs/benchmarks.md "Session 49").
+#
 #   bench/bench_cost_fit.sh [BIN]
 #       environment: SCENES (the six below), SPP (16), RES ([160,120]), ROUNDS (3),
-#                    FIT (all, beams, gu, eq or eqs), OUT (bench/results/cost_fit,
-#                    cost_fit_beams, cost_fit_gu, cost_fit_eq, cost_fit_eqs)
+#                    FIT (all, beams, gu, eq, eqs, ms or rel), OUT (bench/results/cost_fit,
+#                    cost_fit_beams, cost_fit_gu, cost_fit_eq, cost_fit_eqs, cost_fit_ms, cost_fit_rel)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . bench/machine.sh
@@ -56,6 +74,8 @@ case $FIT in
   gu) OUT=${OUT:-bench/results/cost_fit_gu} ;;
   eq) OUT=${OUT:-bench/results/cost_fit_eq} ;;
   eqs) OUT=${OUT:-bench/results/cost_fit_eqs} ;;
+  ms) OUT=${OUT:-bench/results/cost_fit_ms} ;;
+  rel) OUT=${OUT:-bench/results/cost_fit_rel} ;;
   *) OUT=${OUT:-bench/results/cost_fit} ;;
 esac
 mkdir -p "$OUT"
@@ -73,6 +93,12 @@ elif [ "$FIT" = eq ]; then
 elif [ "$FIT" = eqs ]; then
   methods="delta-true delta-off"
   extra=()
+elif [ "$FIT" = ms ]; then
+  methods="guided-n16 guided-n2"
+  extra=()
+elif [ "$FIT" = rel ]; then
+  methods="delta guided guided-n16"
+  extra=()
 else
   methods="delta guided guided-unbiased"
   extra=()
@@ -87,6 +113,7 @@ for r in $(seq "$ROUNDS"); do
         delta-auto) meth=delta variant=(--set settings.equiangular='"auto"') ;;
         delta-off) meth=delta variant=(--set settings.equiangular=false) ;;
         delta-true) meth=delta variant=(--set settings.equiangular=true) ;;
+        guided-n*) meth=guided variant=(--set march.min_samples=${m#guided-n} --set march.max_samples=${m#guided-n}) ;;
       esac
       "$BIN" render "scenes/$name.json" --method "$meth" --spp "$SPP" --threads 1 \
         --set settings.select='"off"' --set camera.resolution="$RES" "${extra[@]}" "${variant[@]}" -o "$o" > /dev/null 2>&1
@@ -94,6 +121,7 @@ for r in $(seq "$ROUNDS"); do
           L: .density_lookups, S: .shadow_rays, E: (.equiangular_flights // 0),
           Z: (.equiangular_samples // 0),
           M: ((.march.rays // 0) * (.march.pdf_segments_per_ray // 0)),
+          P: ((.march.rays // 0) * (.march.samples_per_ray // 0)),
           F: ((.guided_paths.flight_segments_per_path // 0) * .paths),
           V: ((.guided_paths.guide_vertices_per_path // 0) * .paths),
           Q: (.march.beam_queries // 0),

@@ -3,9 +3,9 @@
 renderer/integrators/select.c), over the runs file the script wrote: one JSON object a render
 with the scene, the method (or variant), the render seconds t, the camera samples n and the
 counts L (lookups), S (shadow rays), E (equiangular set-ups), Z (equiangular samples), M
-(marcher segments), F (flight segments), V (guided vertices), H (balls a beam query crossed).
+(marcher segments), P (marched samples), F (flight segments), V (guided vertices), H (balls a beam query crossed).
 
-    bench/cost_fit.py all|beams|gu|eq|eqs RUNS_FILE
+    bench/cost_fit.py all|beams|gu|eq|eqs|ms|rel RUNS_FILE
 
 all    every weight, a least-squares fit of time per camera sample on every render;
 beams  the weight of a ball, the others held at select.c's;
@@ -13,7 +13,11 @@ gu     guided-unbiased's flight segment and guided vertex, the others held;
 eq     a flight's equiangular set-up, on the paired difference of delta with
        settings.equiangular "auto" and "false";
 eqs    an equiangular sample's own work (beyond its lookups and shadow ray), on the paired
-       difference of delta with settings.equiangular "true" and "false", the set-up held.
+       difference of delta with settings.equiangular "true" and "false", the set-up held;
+rel    the marcher's PDF segment and marched sample, in delta's lookups of the same scene
+       (delta, guided, and guided with 16 samples on every ray);
+ms     a marched sample's own work (beyond its lookups and shadow rays), on the paired
+       difference of guided with 16 and 2 samples on every ray, the rest held.
 Every fit minimises relative errors (each row divided by its measured time). Prints markdown
 tables: the weights, then each render's measured and modelled time."""
 import collections
@@ -22,7 +26,7 @@ import statistics
 import sys
 
 # select.c's weights in lookups, and the lookup's time in microseconds (the "all" fit's)
-LOOKUP, SHADOW, CELL, SAMPLE, EQ = 0.164, 1.96, 1.52, 2.18, 0.40
+LOOKUP, SHADOW, CELL, SAMPLE, EQ, BALL = 0.164, 1.96, 1.52, 2.18, 0.40, 0.60
 
 
 def load(path, key):
@@ -126,30 +130,81 @@ def fit_held(path, names, unknowns, held_terms, cols):
         print('| %s | %.3f | %.3f | %s | %.3f | %.3f |' % (s, t, held, ' | '.join('%.2f' % v for v in c), m, m / t))
 
 
-def fit_paired(path, variant, count, name, held_setups):
-    """One weight on the paired difference of delta with settings.equiangular `variant` and
-    "false": per scene (t_variant - t_off) / samples - held = a x count, the held part the
-    difference's lookups and shadow rays at select.c's weights (and the set-ups at EQ's when
-    `held_setups`)."""
+def fit_paired(path, a_name, o_name, count, name, held_terms):
+    """One weight on the paired difference of two variants, a_name and o_name: per scene
+    (t_a - t_o) / samples - held = w x (count_a - count_o) / samples, the held part
+    held_terms(ja, jo, n) in us per sample (the difference's lookups and shadow rays at
+    select.c's weights, and what else the mode holds)."""
     runs = load(path, lambda j: (j['scene'], j['method']))
     rows, shown = [], []
     for s in sorted({k[0] for k in runs}):
-        a, o = runs.get((s, 'delta-' + variant)), runs.get((s, 'delta-off'))
-        if not a or not o or not a[0][count]:
-            continue  # no point or spot light: nothing set up or sampled
+        a, o = runs.get((s, a_name)), runs.get((s, o_name))
+        if not a or not o or not (a[0][count] - o[0].get(count, 0)):
+            continue  # e.g. no point or spot light: nothing set up or sampled
         ja, n, ta = per_sample(a)
         jo, _, to = per_sample(o)
-        held = LOOKUP * ((ja['L'] - jo['L']) / n + SHADOW * (ja['S'] - jo['S']) / n +
-                         (EQ * ja['E'] / n if held_setups else 0.0))
-        rows.append(([ja[count] / n], to + held, ta))
-        shown.append((s, ta, to, held, ja[count] / n))
+        held = held_terms(ja, jo, n)
+        x = (ja[count] - jo.get(count, 0)) / n
+        rows.append(([x], to + held, ta))
+        shown.append((s, ta, to, held, x))
     (w,) = fit_relative(rows)
     weights_table([name], [w])
-    print('| scene | us per sample, %s | off | held part of the difference | %ss | model / measured |'
-          % (variant, name))
+    print('| scene | us per sample, %s | %s | held part of the difference | %ss | model / measured |'
+          % (a_name, o_name, name))
     print('|---|---|---|---|---|---|')
     for s, ta, to, held, x in shown:
         print('| %s | %.3f | %.3f | %.3f | %.2f | %.3f |' % (s, ta, to, held, x, (to + held + w * x) / ta))
+
+
+def held_difference(setups, cells=False):
+    """held_terms for fit_paired: the difference's lookups and shadow rays (and its equiangular
+    set-ups at EQ's weight when `setups`: all of variant a's for eqs, whose other variant sets
+    none up; the difference for ms; and its PDF segments at CELL's when `cells`)."""
+    def held(ja, jo, n):
+        h = (ja['L'] - jo['L']) / n + SHADOW * (ja['S'] - jo['S']) / n
+        if setups == 'all':
+            h += EQ * ja['E'] / n
+        elif setups == 'difference':
+            h += EQ * (ja['E'] - jo['E']) / n
+        if cells:
+            h += CELL * (ja['M'] - jo['M']) / n
+        return LOOKUP * h
+    return held
+
+
+def fit_relative_to_delta(path):
+    """The marcher's PDF segment and marched sample weights, in the lookups of delta on the same
+    scene: per scene k = delta's time a sample over its counted cost (select.c's weights); each
+    guided row's time over k is its cost in those lookups, fitted as the held counts plus
+    w_M segments plus w_P samples (relative errors)."""
+    runs = load(path, lambda j: (j['scene'], j['method']))
+
+    def held(j, n):  # select.c's weights, the marcher's two left out
+        return (j['L'] + SHADOW * j['S'] + EQ * j['E'] + BALL * j['H']) / n + SAMPLE
+
+    rows, shown = [], []
+    for s in sorted({k[0] for k in runs}):
+        if (s, 'delta') not in runs:
+            continue
+        jd, nd, td = per_sample(runs[(s, 'delta')])
+        k = td / held(jd, nd)
+        for m in ('guided', 'guided-n16'):
+            if (s, m) not in runs:
+                continue
+            j, n, t = per_sample(runs[(s, m)])
+            rows.append(([j['M'] / n, j['P'] / n], held(j, n), t / k))
+            shown.append((s, m, t / k, held(j, n), j['M'] / n, j['P'] / n, k))
+    a = fit_relative(rows)
+    print('| weight | in delta\'s lookups of the same scene |')
+    print('|---|---|')
+    for nm, v in zip(['PDF segment', 'marched sample'], a):
+        print('| %s | %.3f |' % (nm, v))
+    print()
+    print('| scene | method | delta\'s us a lookup | measured, in lookups | held | segments | samples | model / measured | with select.c\'s weights |')
+    print('|---|---|---|---|---|---|---|---|---|')
+    for s, m, y, h, M, P, k in shown:
+        print('| %s | %s | %.4f | %.2f | %.2f | %.2f | %.2f | %.3f | %.3f |' % (
+            s, m, k, y, h, M, P, (h + a[0] * M + a[1] * P) / y, (h + CELL * M) / y))
 
 
 def main():
@@ -166,11 +221,15 @@ def main():
         fit_held(path, ['flight segment', 'guided vertex'], ['F', 'V'],
                  lambda j, n: LOOKUP * (j['L'] / n + SHADOW * j['S'] / n + EQ * j['E'] / n + SAMPLE), ['F', 'V'])
     elif mode == 'eqs':
-        fit_paired(path, 'true', 'Z', 'equiangular sample', True)
+        fit_paired(path, 'delta-true', 'delta-off', 'Z', 'equiangular sample', held_difference('all'))
     elif mode == 'eq':
-        fit_paired(path, 'auto', 'E', 'equiangular set-up', False)
+        fit_paired(path, 'delta-auto', 'delta-off', 'E', 'equiangular set-up', held_difference(None))
+    elif mode == 'rel':
+        fit_relative_to_delta(path)
+    elif mode == 'ms':
+        fit_paired(path, 'guided-n16', 'guided-n2', 'P', 'marched sample', held_difference('difference', True))
     else:
-        sys.exit('cost_fit.py: mode must be all, beams, gu, eq or eqs, not ' + mode)
+        sys.exit('cost_fit.py: mode must be all, beams, gu, eq, eqs, ms or rel, not ' + mode)
 
 
 if __name__ == '__main__':
