@@ -34,8 +34,8 @@
 #     (t_true - t_off) / samples - (held terms, the set-ups' included) = a_Z samples.
 #
 # FIT=ms fits the weight of a marched sample's own work (its inversion of the PDF, its source's
-# set-up, the light's lit range, the continuation's set-up: all but its lookups and shadow rays,
-# which count as such): guided with march.min_samples = march.max_samples 16 and 2 on the same
+# set-up, the light's lit range, the continuation's set-up: all but its lookups, shadow rays and
+# equiangular set-ups, which count as such, the difference's PDF segments held too): guided with march.min_samples = march.max_samples 16 and 2 on the same
 # scenes, select off, paired (the PDF's segments are the same in both; session 49),
 #     (t_16 - t_2) / samples - (held terms of the difference) = a_P marched samples.
 # Session 49: 0.085 lookups, not charged (docs/benchmarks.md "Session 49"). That fit holds the
@@ -49,7 +49,8 @@
 #     (t / samples) / k = held counts (weights held at select.c's) + w_M segments + w_P samples
 # is fitted for relative error over the scenes' guided rows. Session 49: w_M 0.66, w_P 1.63 (the
 # model within 0.90-1.18 of the twelve rows, select.c's 0.82-1.38); tried in the selection and
-# not kept: no gain at 10 s, losses on beam and the dense block (docs/benchmarks.md "Session 49").
+# not kept: no gain at 10 s, losses on the dense block and sphere-in-fog (docs/benchmarks.md
+# "Session 49").
 #
 #   bench/bench_cost_fit.sh [BIN]
 #       environment: SCENES (the six below), SPP (16), RES ([160,120]), ROUNDS (3),
