@@ -35,8 +35,9 @@
 #
 # FIT=ms fits the weight of a marched sample's own work (its inversion of the PDF, its source's
 # set-up, the light's lit range, the continuation's set-up: all but its lookups, shadow rays and
-# equiangular set-ups, which count as such, the difference's PDF segments held too): guided with march.min_samples = march.max_samples 16 and 2 on the same
-# scenes, select off, paired (the PDF's segments are the same in both; session 49),
+# equiangular set-ups, which count as such; the difference's PDF segments are held too): guided
+# with march.min_samples = march.max_samples 16 and 2 on the same scenes, select off, paired
+# (the PDF's segments are the same in both; session 49),
 #     (t_16 - t_2) / samples - (held terms of the difference) = a_P marched samples.
 # Session 49: 0.085 lookups, not charged (docs/benchmarks.md "Session 49"). That fit holds the
 # lookup at one time for every scene, and what a lookup costs differs between scenes.

@@ -3,7 +3,8 @@
 renderer/integrators/select.c), over the runs file the script wrote: one JSON object a render
 with the scene, the method (or variant), the render seconds t, the camera samples n and the
 counts L (lookups), S (shadow rays), E (equiangular set-ups), Z (equiangular samples), M
-(marcher segments), P (marched samples), F (flight segments), V (guided vertices), H (balls a beam query crossed).
+(marcher segments), P (marched samples), F (flight segments), V (guided vertices), H (balls a
+beam query crossed).
 
     bench/cost_fit.py all|beams|gu|eq|eqs|ms|rel RUNS_FILE
 
@@ -16,8 +17,9 @@ eqs    an equiangular sample's own work (beyond its lookups and shadow ray), on 
        difference of delta with settings.equiangular "true" and "false", the set-up held;
 rel    the marcher's PDF segment and marched sample, in delta's lookups of the same scene
        (delta, guided, and guided with 16 samples on every ray);
-ms     a marched sample's own work (beyond its lookups and shadow rays), on the paired
-       difference of guided with 16 and 2 samples on every ray, the rest held.
+ms     a marched sample's own work (beyond its lookups, shadow rays and equiangular set-ups),
+       on the paired difference of guided with 16 and 2 samples on every ray, those and the
+       PDF segments held.
 Every fit minimises relative errors (each row divided by its measured time). Prints markdown
 tables: the weights, then each render's measured and modelled time."""
 import collections
