@@ -33,9 +33,10 @@
  * (the variance of one sample, where the error is variance), each over the first variant's in
  * the same round; and the seconds of bake and set-up inside each render (a guided method's
  * bake and its tile selection's pilot, charged to it) and, for a method other than `delta`, the
- * share of its camera samples its selection left on the method's own estimator (the rest went
+ * share of its camera samples its selection left on the method's own estimators (the rest went
  * to delta's path: select.c; 1 for a method without a selection, "-" for `delta`, whose
- * "tiles" count something else). --save DIR writes every render as DIR/LABEL-rK.exr (K = 1..runs), to
+ * "tiles" count something else), and for `guided` the part of it on guided-unbiased's paths
+ * (march.guided_paths). --save DIR writes every render as DIR/LABEL-rK.exr (K = 1..runs), to
  * measure the same renders against another reference afterwards (DIR must exist; a label is
  * one file name, no '/'). The reference is yours to render, 20x longer or more, by the
  * strongest `delta` for the scene (with a point or spot light, settings.equiangular true or
@@ -63,6 +64,8 @@ typedef struct {
     double setup[MAXK];           /* seconds of bake and set-up (a selection's pilot) */
     double own[MAXK];             /* a guided method's share of samples on its own estimator
                                      (the rest its selection gave to delta's path); -1: not one */
+    double paths[MAXK];           /* `guided`'s share on guided-unbiased's paths (part of own;
+                                     march.guided_paths); -1: another method */
 } variant;
 
 static int cmp_d(const void *a, const void *b)
@@ -254,6 +257,9 @@ int main(int argc, char **argv)
             v[k].own[r] = strcmp(method, "delta") && res.stats.paths
                               ? 1.0 - (double)res.stats.delta_samples / (double)res.stats.paths
                               : -1.0;
+            v[k].paths[r] = strcmp(method, "guided") == 0 && res.stats.paths
+                                ? (double)res.stats.path_samples / (double)res.stats.paths
+                                : -1.0;
             fprintf(stderr, "round %d %-28s %6.2f s %8.1f spp  MSE %.4g  eff %.4g  x%.3f\n", r + 1, v[k].label,
                     res.stats.seconds, res.stats.spp_mean, mse, v[k].eff[r], v[k].ratio[r]);
             if (save_dir) {
@@ -269,10 +275,10 @@ int main(int argc, char **argv)
         }
     }
     printf("| variant | seconds | spp | MSE | efficiency | vs %s | time a sample vs %s | variance a sample vs %s |"
-           " bake + set-up s | own samples |\n"
-           "|---|---|---|---|---|---|---|---|---|---|\n", v[0].label, v[0].label, v[0].label);
+           " bake + set-up s | own samples | of them guided-unbiased's paths |\n"
+           "|---|---|---|---|---|---|---|---|---|---|---|\n", v[0].label, v[0].label, v[0].label);
     for (int k = 0; k < nv; k++) {
-        double m[9], lo[9], hi[9];
+        double m[10], lo[10], hi[10];
         stats(v[k].seconds, runs, &m[0], &lo[0], &hi[0]);
         stats(v[k].spp, runs, &m[1], &lo[1], &hi[1]);
         stats(v[k].mse, runs, &m[2], &lo[2], &hi[2]);
@@ -282,12 +288,15 @@ int main(int argc, char **argv)
         stats(v[k].var, runs, &m[6], &lo[6], &hi[6]);
         stats(v[k].setup, runs, &m[7], &lo[7], &hi[7]);
         stats(v[k].own, runs, &m[8], &lo[8], &hi[8]);
+        stats(v[k].paths, runs, &m[9], &lo[9], &hi[9]);
         printf("| %s | %.2f | %.1f (%.1f-%.1f) | %.3g (%.3g-%.3g) | %.3g (%.3g-%.3g) | %.2f (%.2f-%.2f) | %.2f (%.2f-%.2f) |"
                " %.3g (%.3g-%.3g) | %.2f (%.2f-%.2f) |",
                v[k].label, m[0], m[1], lo[1], hi[1], m[2], lo[2], hi[2], m[3], lo[3], hi[3], m[4], lo[4], hi[4], m[5],
                lo[5], hi[5], m[6], lo[6], hi[6], m[7], lo[7], hi[7]);
-        if (m[8] < 0.0) printf(" - |\n");
-        else printf(" %.3f (%.3f-%.3f) |\n", m[8], lo[8], hi[8]);
+        if (m[8] < 0.0) printf(" - |");
+        else printf(" %.3f (%.3f-%.3f) |", m[8], lo[8], hi[8]);
+        if (m[9] < 0.0) printf(" - |\n");
+        else printf(" %.3f (%.3f-%.3f) |\n", m[9], lo[9], hi[9]);
     }
     for (int k = 0; k < nv; k++) {
         rd_scene_free(v[k].scene);

@@ -101,9 +101,12 @@ double rd_scene_hidden_light(const rd_scene *scene);
  * serves (guide.photon_share of photons.count; guided-unbiased). RD_NEEDS_REACHABLE: the maps
  * (and so the guides) hold only light the method's paths can reach, without the light that a
  * point, spot or directional light sends through glass (rd_bake_opts.reachable;
- * guided-unbiased, whose guide steers paths that cannot find that light). */
+ * guided-unbiased, whose guide steers paths that cannot find that light). RD_NEEDS_INDIRECT_LOBE:
+ * the indirect map's guide read for its direction lobe alone, its first two bands (guided-unbiased's
+ * paths): baked with those two only (rd_bake_opts.indirect_bands), unless RD_NEEDS_INDIRECT_GUIDE
+ * asks for all of them. */
 enum { RD_NEEDS_PHOTONS = 1, RD_NEEDS_GUIDE = 2, RD_NEEDS_INDIRECT = 4, RD_NEEDS_INDIRECT_GUIDE = 8,
-       RD_NEEDS_FEW_PHOTONS = 16, RD_NEEDS_REACHABLE = 32 };
+       RD_NEEDS_FEW_PHOTONS = 16, RD_NEEDS_REACHABLE = 32, RD_NEEDS_INDIRECT_LOBE = 64 };
 int rd_method_count(void);
 /* Name, one-line summary and needs of method i (0 <= i < rd_method_count()). */
 const char *rd_method_name(int i);
@@ -243,6 +246,9 @@ typedef struct {
      * settings.equiangular "tiles": the samples its tiles rendered without the strategy
      * (integrators/delta.c). */
     uint64_t delta_samples, delta_eq_samples;
+    /* `guided` with march.guided_paths: the camera samples its selection gave to
+     * guided-unbiased's paths (their guide reads are in flight_segments and guide_vertices). */
+    uint64_t path_samples;
     /* guided-unbiased: distance-pdf segments its flights built (guide cells crossed) and path
      * vertices whose policy read the guide: with lookups and shadow rays, what a sample costs
      * (the selection's counted cost, integrators/select.c). 0 for the other methods. */
@@ -358,6 +364,8 @@ typedef struct {
     int indirect_guide;        /* 1 (with indirect): also a guide grid baked from that map, the
                                   multiple-scattering source of march.ls = nee+guide */
     const char *load_indirect_guide; /* reuse a saved indirect .guide (with indirect_guide) */
+    int indirect_bands;        /* the indirect guide's SH bands: 0, guide.bands; else at most
+                                  this many (RD_NEEDS_INDIRECT_LOBE: 2, all its reader needs) */
     int few_photons;           /* 1 (RD_NEEDS_FEW_PHOTONS): with photons 0, trace the scene's
                                   guide.photon_share of photons.count (at least 1) */
     int reachable;             /* 1 (RD_NEEDS_REACHABLE): the maps leave out the photons on
@@ -380,7 +388,8 @@ typedef struct {
 } rd_bake_opts;
 
 /* Set the bake options that a method's needs (RD_NEEDS_*, from rd_method_needs_for) decide:
- * no_guide, indirect, indirect_guide, few_photons, reachable. The rest of *opts is left alone. */
+ * no_guide, indirect, indirect_guide, indirect_bands, few_photons, reachable. The rest of *opts
+ * is left alone. */
 void rd_bake_opts_for(rd_bake_opts *opts, unsigned needs);
 
 typedef struct {

@@ -823,3 +823,58 @@ Test(guided_unbiased, a_camera_sample_does_not_depend_on_the_samples_before_it, 
     rd_baked_free(b);
     rd_scene_free(s);
 }
+
+/* rd_gu_paths, the method's paths as an estimator of `guided`'s selection (march.guided_paths),
+ * on the method's own bake gives the method's camera samples bit for bit (its selection off,
+ * one probe: its radiance is then its path alone), with the same counted work, whatever the
+ * context's state and method (guided's, which hold none of this method's). */
+Test(guided_unbiased, its_paths_alone_are_its_camera_samples, .timeout = 300)
+{
+    rd_scene *s = rt_scene("gu_paths.json", scene_json_exact(0.6, -2.5, ENV, ",\"probes\":1"));
+    s->settings.select = RD_SELECT_OFF;
+    cr_assert(s->guide.roulette && s->guide.directions, "the test needs the vertex policy");
+    rd_baked *b = bake(s);
+    const rd_method *m = rd_method_find("guided-unbiased");
+    rd_render_ctx ctx = {.scene = s, .method = m, .guide = rd_baked_guide(b),
+                         .guide_indirect = rd_baked_indirect_guide(b), .threads = 1};
+    char err[RD_ERRLEN];
+    cr_assert(ctx.guide_indirect != NULL, "the bake has no indirect guide");
+    cr_assert(m->prepare(&ctx, err, sizeof err) == RD_OK, "%s", err);
+    rd_render_ctx other = ctx;
+    other.method = rd_method_find("guided"), other.state = NULL;
+    rd_gu_paths *p = NULL;
+    cr_assert(rd_gu_paths_new(&other, &p, err, sizeof err) == RD_OK, "%s", err);
+    size_t bytes = m->scratch_bytes(&ctx);
+    cr_expect(rd_gu_paths_scratch_bytes(p) == bytes, "scratch %zu, the method's %zu", rd_gu_paths_scratch_bytes(p), bytes);
+    rd_thread ta = {.scratch = aligned_alloc(64, (bytes + 63) / 64 * 64)};
+    rd_thread tb = {.scratch = aligned_alloc(64, (bytes + 63) / 64 * 64)};
+    cr_assert(ta.scratch && tb.scratch);
+    const rd_camera *cam = &s->camera;
+    long n = 0, same = 0, lit = 0;
+    for (int y = 0; y < cam->height; y++)
+        for (int x = 0; x < cam->width; x++)
+            for (int i = 0; i < 4; i++) {
+                uint64_t pix = (uint64_t)y * cam->width + x;
+                ta.pixel = tb.pixel = pix, ta.x = tb.x = x, ta.y = tb.y = y;
+                rd_sampler sa = rd_sampler_start(pix, (uint64_t)i, 9), sb = sa;
+                ray3 r = rd_camera_ray(cam, x + 0.5, y + 0.5);
+                vec3 A = m->radiance(&ctx, &ta, r, &sa), B = rd_gu_paths_radiance(&other, p, &tb, r, &sb);
+                same += memcmp(&A, &B, sizeof A) == 0;
+                lit += A.x != 0.0;
+                n++;
+            }
+    cr_expect(same == n, "%ld of %ld samples differ", n - same, n);
+    cr_expect(lit > n / 4, "only %ld of %ld samples lit", lit, n);
+    cr_expect(ta.counters.lookups == tb.counters.lookups && ta.cells == tb.cells &&
+                  ta.guide_vertices == tb.guide_vertices && ta.guide_vertices > 0,
+              "work: lookups %llu / %llu, segments %llu / %llu, guided vertices %llu / %llu",
+              (unsigned long long)ta.counters.lookups, (unsigned long long)tb.counters.lookups,
+              (unsigned long long)ta.cells, (unsigned long long)tb.cells, (unsigned long long)ta.guide_vertices,
+              (unsigned long long)tb.guide_vertices);
+    free(ta.scratch);
+    free(tb.scratch);
+    rd_gu_paths_free(p);
+    m->release(&ctx);
+    rd_baked_free(b);
+    rd_scene_free(s);
+}

@@ -529,3 +529,27 @@ Test(march, probes_setting_is_checked)
               s->march.probes, s->settings.probes, s->guide.probes);
     rd_scene_free(s);
 }
+
+/* march.guided_paths (guided's selection may give tiles to guided-unbiased's paths): true by
+ * default, a boolean, anything else refused with one line naming the field. */
+Test(march, guided_paths_setting_is_checked)
+{
+    rd_scene *s = rt_scene("gp_default.json", scene_json_photons("\"settings\":{}", -2.5, 1000));
+    cr_expect(s->march.guided_paths == 1, "default %d", s->march.guided_paths);
+    rd_scene_free(s);
+    s = rt_scene("gp_off.json", scene_json_photons("\"march\":{\"guided_paths\":false}", -2.5, 1000));
+    cr_expect(s->march.guided_paths == 0, "false read as %d", s->march.guided_paths);
+    rd_scene_free(s);
+    static const char *const bad[] = {"1", "\"yes\"", "null"};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        char path[256], err[RD_ERRLEN] = "", extra[128];
+        snprintf(extra, sizeof extra, "\"march\":{\"guided_paths\":%s}", bad[i]);
+        snprintf(path, sizeof path, "%s/gp_bad.json", rt_tmpdir());
+        const char *json = scene_json_photons(extra, -2.5, 1000);
+        rt_write_file(path, json, strlen(json));
+        rd_scene *b = NULL;
+        cr_expect(rd_scene_load(&b, path, NULL, 0, err, sizeof err) != RD_OK, "march.guided_paths %s accepted", bad[i]);
+        cr_expect(strstr(err, "march.guided_paths") != NULL && strchr(err, '\n') == NULL, "%s: message \"%s\"", bad[i], err);
+        rd_scene_free(b);
+    }
+}

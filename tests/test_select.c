@@ -561,6 +561,63 @@ Test(select, the_pilot_puts_half_of_each_tile_s_pixels_in_each_half)
     rd_scene_free(s);
 }
 
+/* A stand-in second estimator of the method's (rd_select_prepare_path): always 2, with 10 PDF
+ * segments counted a sample. */
+static vec3 path_stand_in(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
+{
+    (void)ctx, (void)r, (void)smp;
+    th->cells += 10;
+    return v3(2, 2, 2);
+}
+
+/* The method's second estimator (`guided`'s guided-unbiased paths) is the selection's last: the
+ * fourth with the third, else the third, and not one of delta's paths (the unlit tiles' choice).
+ * The pilot samples it as the others (64 samples in each half of each tile), its cost counts its
+ * PDF segments at its own weight (0.5 here; the method's 7 would make 72.18 a sample, not 7.18),
+ * and a tile given to it renders it and counts the sample in th->path_samples. */
+Test(select, the_method_s_second_estimator_is_sampled_and_costed_with_its_own_weight)
+{
+    rd_scene *s = rt_scene("selpath.json", select_scene("{\"select\":\"tiles\"}"));
+    rd_render_ctx ctx = {.scene = s, .method = rd_method_find("delta"), .threads = 1};
+    char err[RD_ERRLEN];
+    for (int third = 0; third < 2; third++) {
+        rd_select sel;
+        cr_assert(rd_select_prepare_path(&ctx, unit_method, NULL, 7.0, third ? RD_SELECT_THIRD : 0, path_stand_in, 0.5,
+                                         &sel, err, sizeof err) == RD_OK,
+                  "%s", err);
+        int e = sel.n - 1, tiles = sel.tiles_x * sel.tiles_y;
+        cr_assert(sel.n == 3 + third && sel.kind[e] == RD_SEL_PATH, "third %d: %d estimators, the last of kind %d", third,
+                  sel.n, sel.kind[e]);
+        cr_expect(!third || sel.kind[RD_SEL_DELTA_EQ] == RD_SEL_DELTA_EQ, "the third is delta's path with the strategy");
+        cr_expect(sel.paths == (1u << RD_SEL_DELTA | (third ? 1u << RD_SEL_DELTA_EQ : 0u)), "third %d: delta's paths 0x%x",
+                  third, sel.paths);
+        size_t mn = (size_t)sel.n * tiles;
+        for (int k = 0; k < tiles; k++)
+            for (int h = 0; h < 2; h++) {
+                const rd_select_stats *st = &sel.stats[h * mn + (size_t)sel.n * k + e];
+                cr_expect(st->n == 64 && st->sum[0] == 128.0 && fabs(st->cost / st->n - (RD_SELECT_COST_SAMPLE + 5.0)) < 1e-4,
+                          "third %d, tile %d, half %d: %g samples, sum %g, cost %g a sample (64, 128, 7.18)", third, k, h,
+                          st->n, st->sum[0], st->cost / st->n);
+            }
+        /* every tile given to it: every pixel's sample is its */
+        for (int k = 0; k < tiles; k++) sel.choice[k] = (uint8_t)e, sel.trial[k] = 0;
+        rd_thread th = {0};
+        for (int y = 0; y < 24; y++)
+            for (int x = 0; x < 32; x++) {
+                th.pixel = (uint64_t)y * 32 + x, th.x = x, th.y = y;
+                rd_sampler smp = rd_sampler_start(th.pixel, 0, 7);
+                vec3 L = rd_select_radiance(&ctx, &sel, unit_method, &th, (ray3){v3(0, 0, 3), v3(0, 0, -1)}, &smp);
+                cr_expect(L.x == 2.0, "pixel (%d, %d): %g, not the second estimator's 2", x, y, L.x);
+                rd_select_pixel_done(&sel, &th);
+            }
+        cr_expect(th.path_samples == 32 * 24 && th.delta_samples == 0, "%llu path samples, %llu delta samples",
+                  (unsigned long long)th.path_samples, (unsigned long long)th.delta_samples);
+        cr_expect(rd_select_method_pixels(&sel, 32 * 24) == 0, "the method renders no pixel");
+        rd_select_free(&sel);
+    }
+    rd_scene_free(s);
+}
+
 /* What a delta hook saw (through ctx->state): calls per equiangular mode, pilot or not. */
 typedef struct {
     long calls[2][RD_EQ_TILES + 1]; /* [th->pilot][mode] */
@@ -939,6 +996,44 @@ Test(select, tiles_of_both_kinds_give_delta_s_image, .timeout = 300)
     rd_render_result_free(&d);
     rd_scene_free(s);
     cr_assert(mixed, "delta's share of the samples is %g: one kind of tile only", share);
+}
+
+/* A small dense, bright block lit on one side by a spot and seen from the other
+ * (scenes/hard-dense-block.json made small, closer and thinner: sigma_t 8, albedo 0.99), 32x24
+ * pixels, settings `settings`. */
+static const char *dense_block_scene(const char *settings)
+{
+    static char buf[2048];
+    snprintf(buf, sizeof buf,
+             "{\"camera\":{\"position\":[2.1,0.6,2.0],\"look_at\":[0,-0.05,0],\"fov\":25,\"resolution\":[32,24]},"
+             "\"media\":[{\"bounds\":{\"min\":[-0.5,-0.4,-0.4],\"max\":[0.5,0.4,0.4]},"
+             "\"density\":{\"type\":\"constant\",\"value\":1.0},\"sigma_t\":8,\"albedo\":0.99,\"g\":0.8}],"
+             "\"lights\":[{\"type\":\"spot\",\"position\":[-2,0.2,0],\"look_at\":[0,0,0],\"angle\":14,\"falloff\":2,"
+             "\"intensity\":[40,38,34]}],\"photons\":{\"count\":40000},\"settings\":%s}",
+             settings);
+    return buf;
+}
+
+/* `guided` with march.guided_paths (the default): its selection holds guided-unbiased's paths
+ * as a fourth estimator beside the marcher, delta's path and delta's path with the strategy.
+ * All four are unbiased, so any mix gives delta's image (z bounds of rt_expect_same: 5 for the
+ * image, 4.5 for each 8x8 region). On this dense block the paths take part of the tiles; the
+ * test needs them to (asserted last, with the shares logged). */
+Test(select, guided_unbiased_paths_in_guided_s_tiles_give_delta_s_image, .timeout = 300)
+{
+    rd_scene *s = rt_scene("selgp.json", dense_block_scene("{\"select\":\"tiles\",\"max_depth\":256}"));
+    rd_render_result d = rt_render(s, "delta", 4096, 41, NULL);
+    rd_render_result g = rt_render(s, "guided", 1024, 42, NULL);
+    double n = (double)g.stats.paths, paths = (double)g.stats.path_samples / n, delta = (double)g.stats.delta_samples / n;
+    cr_log_info("guided: guided-unbiased's paths %.0f%%, delta's %.0f%%, the marcher %.0f%% of the samples",
+                100.0 * paths, 100.0 * delta, 100.0 * (1.0 - paths - delta));
+    int mixed = paths > 0.0 && paths < 1.0;
+    if (mixed) rt_expect_same(&d, &g, "guided with guided-unbiased's paths");
+    cr_expect(g.stats.guide_vertices > 0, "the paths read the guide at no vertex");
+    rd_render_result_free(&g);
+    rd_render_result_free(&d);
+    rd_scene_free(s);
+    cr_assert(mixed, "guided-unbiased's paths took %g of the samples: none, or all", paths);
 }
 
 /* `method` on scene s at spp samples and seed, on one thread and on two: r[0] and r[1]. */

@@ -30,25 +30,25 @@ static void cb_sigma_s(const double x[3], void *user, double out[3])
 /* The guide's phase coefficients: HG b_l = g^l (seed 001 appendix), times the Hann window
  * w_l when guide.window is on (sh_window_hann: truncated HG at g >= 0.7 rings below zero and
  * would call a forward-scattering beam seen from the side dark). */
-static void guide_phase_coeffs(const rd_guide_settings *gs, double g, double *b)
+static void guide_phase_coeffs(const rd_guide_settings *gs, int bands, double g, double *b)
 {
     double w[SH_MAX_BANDS];
-    sh_phase_coeffs_hg(g, gs->bands, b);
-    if (gs->window && sh_window_hann(gs->bands, w) == SH_OK)
-        for (int l = 0; l < gs->bands; l++) b[l] *= w[l];
+    sh_phase_coeffs_hg(g, bands, b);
+    if (gs->window && sh_window_hann(bands, w) == SH_OK)
+        for (int l = 0; l < bands; l++) b[l] *= w[l];
 }
 
 /* Phase coefficients of the medium at x (media with different g). */
-typedef struct { const rd_scene *s; } phase_ctx;
+typedef struct { const rd_scene *s; int bands; } phase_ctx;
 static void cb_phase_at(const double x[3], void *user, double *b)
 {
     const phase_ctx *pc = user;
     const rd_medium *m = rd_scene_medium_at_point(pc->s, v3(x[0], x[1], x[2]));
-    guide_phase_coeffs(&pc->s->guide, m ? m->g : 0.0, b);
+    guide_phase_coeffs(&pc->s->guide, pc->bands, m ? m->g : 0.0, b);
 }
 
 /* rd_guide_bake with a cancel flag (rd_bake_opts.cancel; NULL: none). */
-static rd_status guide_bake(const rd_scene *s, const pm_map *map, int threads, const volatile int *cancel,
+static rd_status guide_bake(const rd_scene *s, const pm_map *map, int bands, int threads, const volatile int *cancel,
                             sh_guide **out, char *err, size_t errlen)
 {
     const rd_guide_settings *gs = &s->guide;
@@ -56,7 +56,7 @@ static rd_status guide_bake(const rd_scene *s, const pm_map *map, int threads, c
     sh_bake_params_default(&p);
     p.kind = gs->adaptive ? SH_GRID_ADAPTIVE : SH_GRID_UNIFORM;
     p.method = gs->track ? SH_BAKE_TRACK : SH_BAKE_KNN;
-    p.bands = gs->bands;
+    p.bands = bands > 0 && bands < gs->bands ? bands : gs->bands;
     p.k = gs->k;
     p.lambda = gs->lambda;
     memcpy(p.res, gs->res, sizeof p.res);
@@ -68,8 +68,8 @@ static rd_status guide_bake(const rd_scene *s, const pm_map *map, int threads, c
     /* One phase function for all media when they agree, else per cell. */
     int same_g = 1;
     for (int i = 1; i < s->n_media; i++) same_g &= s->media[i].g == s->media[0].g;
-    phase_ctx pc = {s};
-    if (same_g) guide_phase_coeffs(gs, s->n_media ? s->media[0].g : 0.0, p.phase_b);
+    phase_ctx pc = {s, p.bands};
+    if (same_g) guide_phase_coeffs(gs, p.bands, s->n_media ? s->media[0].g : 0.0, p.phase_b);
     else {
         p.phase_at = cb_phase_at;
         p.phase_user = &pc;
@@ -96,7 +96,7 @@ static rd_status guide_bake(const rd_scene *s, const pm_map *map, int threads, c
 rd_status rd_guide_bake(const rd_scene *s, const pm_map *map, int threads, sh_guide **out,
                         char *err, size_t errlen)
 {
-    return guide_bake(s, map, threads, NULL, out, err, errlen);
+    return guide_bake(s, map, 0, threads, NULL, out, err, errlen);
 }
 
 /* ---- Pictures ------------------------------------------------------------------------------ */
@@ -199,8 +199,9 @@ const sh_guide *rd_baked_indirect_guide(const rd_baked *b) { return b ? b->guide
 void rd_bake_opts_for(rd_bake_opts *o, unsigned needs)
 {
     o->no_guide = !(needs & RD_NEEDS_GUIDE);
-    o->indirect = (needs & (RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE)) != 0;
-    o->indirect_guide = (needs & RD_NEEDS_INDIRECT_GUIDE) != 0;
+    o->indirect = (needs & (RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE | RD_NEEDS_INDIRECT_LOBE)) != 0;
+    o->indirect_guide = (needs & (RD_NEEDS_INDIRECT_GUIDE | RD_NEEDS_INDIRECT_LOBE)) != 0;
+    o->indirect_bands = (needs & RD_NEEDS_INDIRECT_GUIDE) ? 0 : 2; /* (the lobe's: bands 0 and 1) */
     o->few_photons = (needs & RD_NEEDS_FEW_PHOTONS) != 0;
     o->reachable = (needs & RD_NEEDS_REACHABLE) != 0;
 }
@@ -349,10 +350,11 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
             st = RD_ERR_FORMAT;
             goto fail;
         }
-    } else if (!o->no_guide && (st = guide_bake(s, b->map, o->threads, o->cancel, &b->guide, err, errlen)) != RD_OK) {
+    } else if (!o->no_guide && (st = guide_bake(s, b->map, 0, o->threads, o->cancel, &b->guide, err, errlen)) != RD_OK) {
         goto fail;
     }
-    /* 3b. The guide of the indirect map: multiple scattering for march.ls = nee+guide. */
+    /* 3b. The guide of the indirect map: multiple scattering for march.ls = nee+guide, or the
+     * direction lobe of guided-unbiased's paths (its first two bands: o->indirect_bands). */
     if (b->indirect && o->indirect_guide && o->load_indirect_guide) {
         if (sh_guide_load(&b->guide_indirect, o->load_indirect_guide, pmerr, sizeof pmerr) != SH_OK) {
             snprintf(err, errlen, "%s", pmerr);
@@ -360,7 +362,7 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
             goto fail;
         }
     } else if (b->indirect && o->indirect_guide &&
-               (st = guide_bake(s, b->indirect, o->threads, o->cancel, &b->guide_indirect, err, errlen)) != RD_OK) {
+               (st = guide_bake(s, b->indirect, o->indirect_bands, o->threads, o->cancel, &b->guide_indirect, err, errlen)) != RD_OK) {
         goto fail;
     }
     if (b->guide) {
@@ -461,8 +463,9 @@ rd_status rd_bake_cached(const rd_scene *s, const rd_bake_opts *o, const char *d
 {
     /* The key: the scene's bake key and the options that change what is baked. */
     uint64_t k = s->bake_key;
-    uint64_t extra[6] = {photons_to_trace(s, o), (uint64_t)o->seed, (uint64_t)o->indirect,
-                         (uint64_t)o->no_guide, (uint64_t)o->indirect_guide, (uint64_t)o->reachable};
+    uint64_t extra[7] = {photons_to_trace(s, o), (uint64_t)o->seed, (uint64_t)o->indirect,
+                         (uint64_t)o->no_guide, (uint64_t)o->indirect_guide, (uint64_t)o->reachable,
+                         (uint64_t)o->indirect_bands};
     for (size_t i = 0; i < sizeof extra; i++) k = (k ^ ((const unsigned char *)extra)[i]) * 0x100000001b3ULL;
     char pmap[1100], ind[1100], guide[1100], iguide[1100], msg[RD_ERRLEN];
     snprintf(pmap, sizeof pmap, "%s/%016llx.pmap", dir, (unsigned long long)k);

@@ -5,12 +5,35 @@
 #include "integrators/rd_march.h"
 #include "sh.h"
 
+#include <limits.h>
 #include <stdlib.h>
 
 /* The marcher with the guided placement at every pixel (the selection's `method`). */
 static vec3 march_guided(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
 {
     return rd_march_radiance(ctx, th, r, smp, PLACE_GUIDED);
+}
+
+/* guided-unbiased's paths, the selection's fourth estimator (march.guided_paths). */
+static vec3 paths_guided(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
+{
+    const march_state *mst = ctx->state;
+    uint64_t c0 = th->cells;
+    vec3 L = rd_gu_paths_radiance(ctx, mst->gpaths, th, r, smp);
+    th->path_cells += th->cells - c0; /* (the report's flight segments, not the marcher's) */
+    return L;
+}
+
+/* Whether the selection may hold guided-unbiased's paths (march.guided_paths; the scene's guide
+ * settings decide only what they guide): with an unbiased source that mixes with delta's path,
+ * paths that differ from delta's (a guided part on), and a guide that holds no light they cannot
+ * reach (a delta light's light through glass, rd_scene.hidden_share, would steer them to it). */
+static int wants_paths(const rd_scene *s)
+{
+    const rd_guide_settings *g = &s->guide;
+    return s->march.guided_paths && s->settings.select != RD_SELECT_OFF &&
+           (s->march.ls == RD_LS_NEE_PATHS || s->march.ls == RD_LS_NEE_DELTA) &&
+           (g->distances || g->directions || g->roulette) && !(s->hidden_share > RD_HIDDEN_SHARE);
 }
 
 /* The pilot pass of eq. 17: mean I_ray over a sparse grid of camera rays through pixel centres
@@ -61,12 +84,20 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
                 (s->march.ls == RD_LS_NEE_BEAMS && (sel == RD_SELECT_TILES || sel == RD_SELECT_PILOT) &&
                  !(s->hidden_share > RD_HIDDEN_SHARE));
     if (sel != RD_SELECT_OFF && mixes) {
+        /* guided-unbiased's paths as a fourth estimator (wants_paths) */
+        if (wants_paths(s) && ctx->guide) {
+            st = rd_gu_paths_new(ctx, &mst->gpaths, err, errlen);
+            if (st != RD_OK) {
+                rd_march_release(ctx);
+                return st;
+            }
+        }
         /* (delta's tiles without the marcher's probes: with them, tried in session 36, `guided`
          * lost 0-10% against `delta` with probes on the calibration scenes; the marcher wins the
          * light's tiles without that: docs/guided-unbiased.md "Probes") */
-        st = rd_select_prepare(ctx, march_guided, NULL, RD_MARCH_CELL_COST,
-                               s->march.equiangular != RD_EQ_OFF ? RD_SELECT_THIRD : 0,
-                               &mst->sel, err, errlen);
+        st = rd_select_prepare_path(ctx, march_guided, NULL, RD_MARCH_CELL_COST,
+                                    s->march.equiangular != RD_EQ_OFF ? RD_SELECT_THIRD : 0,
+                                    mst->gpaths ? paths_guided : NULL, RD_GU_CELL_COST, &mst->sel, err, errlen);
         if (st != RD_OK) rd_march_release(ctx);
     }
     return st;
@@ -85,13 +116,15 @@ static void pixel_done_guided(const rd_render_ctx *ctx, rd_thread *th)
     rd_select_pixel_done(&mst->sel, th);
 }
 
-/* The epochs: the selection's (select.c: the tiles chosen again from the image's samples) and
- * march.probes "auto"'s (probes.c: its lambda), each on its own schedule. */
+/* The epochs: the selection's (select.c: the tiles chosen again from the image's samples),
+ * march.probes "auto"'s (probes.c: its lambda) and the guided paths' guide.probes "auto"'s, each
+ * on its own schedule. */
 static int epoch_next_guided(const rd_render_ctx *ctx, int sample)
 {
     const march_state *mst = ctx->state;
     int a = rd_select_epoch_next(&mst->sel, sample), b = rd_probes_epoch_next(&mst->probes, sample);
-    return a < b ? a : b;
+    int c = mst->gpaths ? rd_gu_paths_epoch_next(mst->gpaths, sample) : INT_MAX;
+    return a < b ? (a < c ? a : c) : (b < c ? b : c);
 }
 
 static void epoch_guided(rd_render_ctx *ctx, int sample)
@@ -99,6 +132,7 @@ static void epoch_guided(rd_render_ctx *ctx, int sample)
     march_state *mst = ctx->state;
     if (rd_select_epoch_next(&mst->sel, sample - 1) == sample) rd_select_epoch(&mst->sel, ctx->comm);
     if (rd_probes_epoch_next(&mst->probes, sample - 1) == sample) rd_probes_epoch(ctx, &mst->probes);
+    if (mst->gpaths && rd_gu_paths_epoch_next(mst->gpaths, sample - 1) == sample) rd_gu_paths_epoch(ctx, mst->gpaths);
 }
 
 /* The pixels the marcher renders (the rest are delta's): they pace the photon passes. */
@@ -109,10 +143,20 @@ static uint64_t marched_pixels_guided(const rd_render_ctx *ctx)
     return rd_select_method_pixels(&mst->sel, (uint64_t)cam->width * (uint64_t)cam->height);
 }
 
-/* The guided placement needs the guide (and so a photon map) whatever the source needs. */
+/* The guided placement needs the guide (and so a photon map) whatever the source needs; the
+ * paths' direction lobe the indirect guide (guided-unbiased's own needs). */
 static unsigned needs_guided(const rd_scene *s)
 {
-    return rd_march_source_needs(s) | RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE;
+    unsigned paths = wants_paths(s) && s->guide.directions ? RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_LOBE : 0u;
+    return rd_march_source_needs(s) | RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | paths;
+}
+
+/* The marcher's scratch, or the paths' where they need more (a sample uses one of the two). */
+static size_t scratch_bytes_guided(const rd_render_ctx *ctx)
+{
+    const march_state *mst = ctx->state;
+    size_t a = rd_march_scratch_bytes(ctx), b = mst && mst->gpaths ? rd_gu_paths_scratch_bytes(mst->gpaths) : 0;
+    return a > b ? a : b;
 }
 
 const rd_method rd_method_guided = {
@@ -123,7 +167,7 @@ const rd_method rd_method_guided = {
     .pass_maps = rd_march_pass_maps,
     .photons_changed = rd_march_photons_changed,
     .marched_pixels = marched_pixels_guided,
-    .scratch_bytes = rd_march_scratch_bytes,
+    .scratch_bytes = scratch_bytes_guided,
     .prepare = prepare_guided,
     .epoch_next = epoch_next_guided,
     .epoch = epoch_guided,

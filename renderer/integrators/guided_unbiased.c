@@ -701,12 +701,12 @@ static int majorant_crossings(const rd_medium *m)
     return 3 * (1 << (mj->depth < 12 ? mj->depth : 12));
 }
 
-static void gu_release(rd_render_ctx *ctx);
+static void gu_state_free(gu_state *st);
 
 /* gu_state.lobes and kappa_g (guide.directions): every cell's lobe for every medium, found as a
  * vertex would find it (cell_lobe, the same operations: the same bits). Left NULL where the
  * table would be too large, or its memory is not there: the vertex then finds its cell's lobe
- * itself (gu_vertex), the same lobe, only slower. */
+ * itself (gu_vertex), the same lobe, only slower. ctx->state is st. */
 static void build_lobes(const rd_render_ctx *ctx, gu_state *st)
 {
     const rd_scene *s = ctx->scene;
@@ -735,14 +735,17 @@ static void build_lobes(const rd_render_ctx *ctx, gu_state *st)
     }
 }
 
-/* The counted cost of one of its flights' pdf segments, in lookups (select.c, the fit): the
- * selection's and the probes' */
-#define GU_CELL_COST 0.41
+/* The counted cost of one of its flights' pdf segments (rd_method.h): the selection's and the
+ * probes' */
+#define GU_CELL_COST RD_GU_CELL_COST
 
-static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
+/* The method's state for ctx's scene and bake, with guide.probes read as `probes` (1: none), and
+ * no selection yet. */
+static rd_status gu_state_new(const rd_render_ctx *ctx, int probes, gu_state **out, char *err, size_t errlen)
 {
     const rd_scene *s = ctx->scene;
     const rd_guide_settings *g = &s->guide;
+    *out = NULL;
     /* Unbiasedness needs p > 0 wherever the integrand can be and both outcomes possible. */
     if (!(g->distance_alpha > 0.0 && g->distance_alpha <= 1.0)) {
         snprintf(err, errlen, "guide.distance_alpha: must be in (0, 1], found %g", g->distance_alpha);
@@ -779,8 +782,7 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
         if (ss == SH_OK && ctx->guide_indirect && keep < sh_guide_bands(ctx->guide_indirect))
             ss = sh_guide_truncate(ctx->guide_indirect, keep, &st->fast_indirect, err, errlen);
         if (ss != SH_OK) {
-            ctx->state = st;
-            gu_release(ctx);
+            gu_state_free(st);
             return RD_ERR_NOMEM;
         }
     }
@@ -788,28 +790,60 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
      * gap each (rd_media_intervals). */
     st->cap_m = 1 + 2 * s->n_media;
     for (int i = 0; i < s->n_media; i++) st->cap_m += majorant_crossings(&s->media[i]) + 1;
-    ctx->state = st;
     if (ctx->guide && g->roulette) {
         size_t np = (size_t)s->camera.width * (size_t)s->camera.height;
         st->I_pix = malloc(np * sizeof *st->I_pix);
         if (!st->I_pix) {
             snprintf(err, errlen, "out of memory for guided-unbiased's pixel estimates (%zu pixels)", np);
-            gu_release(ctx);
+            gu_state_free(st);
             return RD_ERR_NOMEM;
         }
         for (size_t i = 0; i < np; i++) st->I_pix[i] = -1.0; /* not yet found */
     }
-    build_lobes(ctx, st);
+    rd_render_ctx own = *ctx; /* (build_lobes reads the guide copies through ctx->state) */
+    own.state = st;
+    build_lobes(&own, st);
+    rd_status ps = rd_probes_init(&st->probes, s, probes, GU_CELL_COST, err, errlen);
+    if (ps != RD_OK) {
+        gu_state_free(st);
+        return ps;
+    }
+    *out = st;
+    return RD_OK;
+}
+
+static void gu_state_free(gu_state *st)
+{
+    if (!st) return;
+    rd_select_free(&st->sel);
+    rd_probes_free(&st->probes);
+    sh_guide_free(st->fast);
+    sh_guide_free(st->fast_indirect);
+    free(st->I_pix);
+    free(st->lobes);
+    free(st->kappa_g);
+    free(st);
+}
+
+static void gu_release(rd_render_ctx *ctx)
+{
+    gu_state_free(ctx->state);
+    ctx->state = NULL;
+}
+
+static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
+{
+    const rd_scene *s = ctx->scene;
+    const rd_guide_settings *g = &s->guide;
     /* guide.probes, with the selection's cell cost below; none with a ray-marched tracker or
      * transmittance (the probes' estimate and the path's own must be unbiased alike, as
      * settings.probes requires of `delta`): "auto" takes none there, and a number is refused
      * when the scene is loaded (load/load.c) */
     int raymarch = s->settings.tracker == RD_FP_RAYMARCH || s->settings.transmittance == RD_TR_RAYMARCH;
-    rd_status ps = rd_probes_init(&st->probes, s, raymarch ? 1 : g->probes, GU_CELL_COST, err, errlen);
-    if (ps != RD_OK) {
-        gu_release(ctx);
-        return ps;
-    }
+    gu_state *st;
+    rd_status ps = gu_state_new(ctx, raymarch ? 1 : g->probes, &st, err, errlen);
+    if (ps != RD_OK) return ps;
+    ctx->state = st;
     /* With a guide (else the method is delta's path already), the tiles where it pays. The
      * selection has `delta`'s path with the strategy on every flight as a third estimator
      * whatever the method's own flights take (guide.equiangular): since session 39 they take
@@ -830,20 +864,62 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
     return RD_OK;
 }
 
-static void gu_release(rd_render_ctx *ctx)
+/* ---- The paths alone, for another method's selection (rd_method.h) ---------------------- */
+
+struct rd_gu_paths {
+    gu_state *st;
+};
+
+rd_status rd_gu_paths_new(const rd_render_ctx *ctx, rd_gu_paths **out, char *err, size_t errlen)
 {
-    gu_state *st = ctx->state;
-    if (st) {
-        rd_select_free(&st->sel);
-        rd_probes_free(&st->probes);
-        sh_guide_free(st->fast);
-        sh_guide_free(st->fast_indirect);
-        free(st->I_pix);
-        free(st->lobes);
-        free(st->kappa_g);
+    *out = NULL;
+    rd_gu_paths *p = calloc(1, sizeof *p);
+    if (!p) {
+        snprintf(err, errlen, "out of memory for guided-unbiased's paths");
+        return RD_ERR_NOMEM;
     }
-    free(ctx->state);
-    ctx->state = NULL;
+    /* guide.probes as the method takes them (gu_prepare) */
+    const rd_scene *s = ctx->scene;
+    int raymarch = s->settings.tracker == RD_FP_RAYMARCH || s->settings.transmittance == RD_TR_RAYMARCH;
+    rd_status st = gu_state_new(ctx, raymarch ? 1 : s->guide.probes, &p->st, err, errlen);
+    if (st != RD_OK) {
+        free(p);
+        return st;
+    }
+    *out = p;
+    return RD_OK;
+}
+
+size_t rd_gu_paths_scratch_bytes(const rd_gu_paths *p)
+{
+    gu_scratch sc;
+    return scratch_layout(p->st, &sc, NULL);
+}
+
+vec3 rd_gu_paths_radiance(const rd_render_ctx *ctx, const rd_gu_paths *p, rd_thread *th, ray3 r, rd_sampler *smp)
+{
+    rd_render_ctx own = *ctx; /* (the method's functions read their state through ctx) */
+    own.state = p->st;
+    return gu_path(&own, th, r, smp);
+}
+
+int rd_gu_paths_epoch_next(const rd_gu_paths *p, int sample)
+{
+    return rd_probes_epoch_next(&p->st->probes, sample);
+}
+
+void rd_gu_paths_epoch(const rd_render_ctx *ctx, rd_gu_paths *p)
+{
+    rd_render_ctx own = *ctx;
+    own.state = p->st;
+    rd_probes_epoch(&own, &p->st->probes);
+}
+
+void rd_gu_paths_free(rd_gu_paths *p)
+{
+    if (!p) return;
+    gu_state_free(p->st);
+    free(p);
 }
 
 static size_t gu_scratch_bytes(const rd_render_ctx *ctx)
@@ -858,7 +934,7 @@ static unsigned gu_needs(const rd_scene *s)
 {
     if (!s->guide.distances && !s->guide.directions && !s->guide.roulette) return 0u;
     unsigned n = RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE;
-    if (s->guide.directions) n |= RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE;
+    if (s->guide.directions) n |= RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_LOBE; /* (its lobe alone) */
     if (s->guide.photon_share < 1.0) n |= RD_NEEDS_FEW_PHOTONS; /* its guide steers, never sums */
     /* Its paths cannot find the light a delta light sends through glass (docs/surfaces.md): a
      * guide that held it would split and steer paths toward light they never reach. */
@@ -868,7 +944,7 @@ static unsigned gu_needs(const rd_scene *s)
 const rd_method rd_method_guided_unbiased = {
     .name = "guided-unbiased",
     .summary = "unbiased path tracing with continuation directions and roulette/splitting guided by the SH guide",
-    .needs = RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE | RD_NEEDS_REACHABLE,
+    .needs = RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_LOBE | RD_NEEDS_REACHABLE,
     .needs_for = gu_needs,
     .scratch_bytes = gu_scratch_bytes,
     .prepare = gu_prepare,

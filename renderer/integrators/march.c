@@ -587,6 +587,7 @@ void rd_march_release(rd_render_ctx *ctx)
         rd_select_free(&ms->sel);
         rd_march_beams_free(ms);
         rd_probes_free(&ms->probes);
+        rd_gu_paths_free(ms->gpaths);
     }
     free(ctx->state);
     ctx->state = NULL;

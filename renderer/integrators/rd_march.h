@@ -36,6 +36,8 @@ typedef struct {
     int n_lights;    /* entries of the scratch's lw (march.equiangular) */
     double beam_weight; /* 1 / the share of the photons kept as balls */
     rd_probes probes; /* march.probes (probes.c) */
+    rd_gu_paths *gpaths; /* guided with march.guided_paths: guided-unbiased's paths, the
+                            selection's fourth estimator (guided.c); else NULL */
     size_t beam_r1_queries; /* balls of the last build whose r_1 took a query of its own */
 } march_state;
 
@@ -135,6 +137,6 @@ unsigned rd_march_source_needs(const rd_scene *s);
  * the map for march.ls = photons, the indirect map for nee+photons, none for nee and nee+guide. */
 unsigned rd_march_pass_maps(const rd_scene *s);
 /* Every bake a marcher may need (the methods' `needs`). */
-#define RD_MARCH_NEEDS (RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE)
+#define RD_MARCH_NEEDS (RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE | RD_NEEDS_INDIRECT_LOBE)
 
 #endif /* RD_MARCH_H */

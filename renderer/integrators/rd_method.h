@@ -45,6 +45,9 @@ typedef struct rd_thread {
                              * delta with settings.equiangular "tiles": to its path without
                              * the strategy) */
     uint64_t delta_eq_samples; /* ... of those, with equiangular sampling on every flight */
+    uint64_t path_samples;  /* `guided`'s selection: camera samples given to guided-unbiased's
+                             * paths (march.guided_paths), */
+    uint64_t path_cells;    /* ... and their flights' pdf segments (counted in `cells` too) */
     void *scratch;
     size_t scratch_bytes;
 } rd_thread;
@@ -155,6 +158,26 @@ double rd_gu_flight_cdf(const rd_render_ctx *ctx, void *scratch, const rd_flight
  * guide is prepared again). */
 void rd_gu_vertex(const rd_render_ctx *ctx, const rd_vertex_in *v, double I_cam, pcg32 *rng,
                   rd_vertex_out *out);
+
+/* guided-unbiased's path alone, as an estimator that another method's tile selection holds
+ * (`guided`'s, march.guided_paths: integrators/guided.c): the method's flights, vertex policy,
+ * roulette and probes (guide.probes) on ctx's guide (and its indirect guide for the direction
+ * lobe, where ctx has one), without a selection of its own. rd_gu_paths_new validates the guide
+ * settings as the method's prepare does (errors: RD_ERR_ARG naming the field, RD_ERR_NOMEM);
+ * rd_gu_paths_radiance is one camera sample on ctx (its state the caller's) with th's scratch of
+ * at least rd_gu_paths_scratch_bytes bytes; th->cells counts its flights' pdf segments, and
+ * th->guide_vertices its guided vertices, as the method's. The probes' epochs (guide.probes
+ * "auto": integrators/probes.c) are the caller's to run: rd_gu_paths_epoch_next gives the next
+ * after `sample` (INT_MAX: none), rd_gu_paths_epoch runs one (no pass running). */
+typedef struct rd_gu_paths rd_gu_paths;
+rd_status rd_gu_paths_new(const rd_render_ctx *ctx, rd_gu_paths **out, char *err, size_t errlen);
+size_t rd_gu_paths_scratch_bytes(const rd_gu_paths *p);
+vec3 rd_gu_paths_radiance(const rd_render_ctx *ctx, const rd_gu_paths *p, rd_thread *th, ray3 r, rd_sampler *smp);
+int rd_gu_paths_epoch_next(const rd_gu_paths *p, int sample);
+void rd_gu_paths_epoch(const rd_render_ctx *ctx, rd_gu_paths *p);
+void rd_gu_paths_free(rd_gu_paths *p);
+/* The counted cost of one of its flights' pdf segments, in density lookups (select.c, the fit). */
+#define RD_GU_CELL_COST 0.41
 
 /* explain (integrators/march_explain.c): fill res for ray r on a context prepared for `guided`. */
 rd_status rd_march_explain(const rd_render_ctx *ctx, ray3 r, int n, uint64_t seed,

@@ -14,13 +14,17 @@
 /* The tile edge in pixels. */
 #define RD_SELECT_TILE 8
 
-/* The estimators a tile can be given (rd_select.choice): delta's path with settings.equiangular
- * ("tiles" read as off: rd_eq_path_mode), the method, and delta's path with equiangular
- * sampling on every flight, RD_EQ_ALL (only where rd_select_prepare's options have RD_SELECT_THIRD,
- * settings.equiangular is not RD_EQ_ALL, and the scene has a light the strategy samples: a
- * point or spot light, or a directional beam that delta's path does not connect to,
- * settings.beam_connect; rd_select.n). */
-enum { RD_SEL_DELTA = 0, RD_SEL_METHOD = 1, RD_SEL_DELTA_EQ = 2, RD_SEL_MAX = 3 };
+/* The kinds of estimator a tile can be given (rd_select.kind): delta's path with
+ * settings.equiangular ("tiles" read as off: rd_eq_path_mode), the method, delta's path with
+ * equiangular sampling on every flight, RD_EQ_ALL (only where rd_select_prepare's options have
+ * RD_SELECT_THIRD, settings.equiangular is not RD_EQ_ALL, and the scene has a light the strategy
+ * samples: a point or spot light, or a directional beam that delta's path does not connect to,
+ * settings.beam_connect), and a second estimator of the method's own (rd_select_setup.path:
+ * `guided`'s selection holds guided-unbiased's paths, march.guided_paths). A selection's
+ * estimators are numbered 0 .. n-1 (rd_select.choice): delta's path 0 and the method 1 always,
+ * then the others it has, in the order of their kinds (so RD_SEL_DELTA_EQ is estimator 2 where
+ * there is one). */
+enum { RD_SEL_DELTA = 0, RD_SEL_METHOD = 1, RD_SEL_DELTA_EQ = 2, RD_SEL_PATH = 3, RD_SEL_MAX = 4 };
 
 /* One estimator's samples in one half of one tile (rd_select.stats), from the pilot and the
  * image's epochs so far: the count, the count with any channel non-zero, per channel the sum
@@ -45,6 +49,10 @@ typedef struct {
 } rd_select_pixel;
 #define RD_SELECT_PIXEL_DOUBLES 9
 
+/* A method's own estimate of the radiance along camera ray r (what its radiance() does
+ * where the selection gives it the pixel). */
+typedef vec3 (*rd_select_fn)(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp);
+
 /* delta's path along camera ray r with its flights in equiangular mode `equiangular`
  * (RD_EQ_*), as a method gives it to its delta tiles: with the method's probes (rd_probes.h),
  * so that a tile's choice weighs the method and delta with the same probes. */
@@ -57,8 +65,8 @@ typedef struct {
     uint8_t *trial;          /* per tile, 0, or 1 + the estimator on trial against the choice:
                                 for one epoch the tile's pixels with x + y odd use the one of the
                                 two with the higher index, the others the lower (rd_select_uses) */
-    int n;                   /* estimators compared: 2 (delta, the method) or 3 (RD_SEL_DELTA_EQ
-                                too) */
+    int n;                   /* estimators compared: 2 (delta, the method) to 4 */
+    uint8_t kind[RD_SEL_MAX]; /* estimator e's kind (RD_SEL_*) */
     unsigned paths;          /* bit e set: estimator e is one of delta's paths (RD_SEL_DELTA,
                                 RD_SEL_DELTA_EQ; in delta's own selection its "method" too) */
     int unlit;               /* the estimator of a tile no sample has lit yet, where the rule
@@ -71,6 +79,8 @@ typedef struct {
                                 "auto", delta's "tiles" whatever settings.select says) */
     double cell_cost;        /* the method's cost per PDF segment it counts in rd_thread.cells,
                                 in density lookups (select.c) */
+    rd_select_fn path;       /* the RD_SEL_PATH estimator (NULL: none), */
+    double path_cell_cost;   /* and its cost per PDF segment */
     rd_select_stats *stats;  /* per half h of the samples (select.c, "Replication"), tile k
                                 and estimator e, [n (tiles h + k) + e], tiles = tiles_x
                                 tiles_y: a tile's samples are the sum of its two halves' */
@@ -113,12 +123,10 @@ typedef struct {
 rd_select_work rd_select_work_now(const rd_thread *th);
 double rd_select_work_cost(const rd_select_work *c0, const rd_thread *th, double cell_cost);
 
-/* A method's own estimate of the radiance along camera ray r (what its radiance() does
- * where the selection gives it the pixel). */
-typedef vec3 (*rd_select_fn)(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp);
 
-/* An empty selection among `estimators` (2 or 3) for a width x height image (no tile's
- * statistics yet, every tile to delta). */
+/* An empty selection among `estimators` (2 to 4: delta's path, the method, then delta's path
+ * with the strategy and the method's second estimator, in that order) for a width x height
+ * image (no tile's statistics yet, every tile to delta). */
 rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost, int estimators,
                          char *err, size_t errlen);
 /* Run the pilot and make the first choice: on random numbers of its own, the variance and cost
@@ -136,14 +144,21 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
  * (ctx->state set: the pilot renders with the method's scratch, ctx->method->scratch_bytes). */
 rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_select_delta_fn delta,
                             double cell_cost, int options, rd_select *sel, char *err, size_t errlen);
+/* rd_select_prepare with a fourth estimator: `path`, with `path_cell_cost` a PDF segment it
+ * counts in rd_thread.cells (NULL: rd_select_prepare). Every estimator must be unbiased for the
+ * same image (`guided`: guided-unbiased's paths, integrators/guided.c). */
+rd_status rd_select_prepare_path(const rd_render_ctx *ctx, rd_select_fn method, rd_select_delta_fn delta,
+                                 double cell_cost, int options, rd_select_fn path, double path_cell_cost,
+                                 rd_select *sel, char *err, size_t errlen);
 /* rd_select_prepare's options (bits): the third estimator wanted (above); the method is delta's
  * own path with the strategy on every flight (`delta`'s "tiles": one of delta's paths,
  * rd_select.paths). */
 enum { RD_SELECT_THIRD = 1, RD_SELECT_METHOD_IS_PATH = 2 };
 void rd_select_free(rd_select *sel);
 /* The camera sample of `th->pixel` (column th->x, row th->y): `method` where the selection
- * gives it the pixel's tile, else delta's path in the estimator's equiangular mode (counted in
- * th->delta_samples, and th->delta_eq_samples for RD_SEL_DELTA_EQ). The sample is recorded
+ * gives it the pixel's tile, the method's second estimator where it gives it that (rd_select.path),
+ * else delta's path in the estimator's equiangular mode (counted in th->delta_samples, and
+ * th->delta_eq_samples for RD_SEL_DELTA_EQ). The sample is recorded
  * for the next epoch (rd_select_pixel_done): sel is written at th->pixel only, which one
  * thread renders at a time, in sample order. */
 vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn method,

@@ -56,6 +56,13 @@
  * flights' equiangular set-up (rd_track_counters.eq_flights, weight 0.40 lookups, below); the
  * samples it then draws count as the lookups and shadow rays they are.
  *
+ * A second estimator of the method's (session 50). `guided`'s selection holds guided-unbiased's
+ * paths too (march.guided_paths; integrators/guided.c), the last estimator (rd_select.kind):
+ * where light is broad and multiple scattering carries it (a dense, bright block; smoke lit by a
+ * spot) they beat delta's path, and the marcher does not, so `guided` lost to `delta` there
+ * (0.74-0.95x on six scenes) while guided-unbiased won. Its PDF segments weigh its own
+ * cell cost (rd_select_prepare_path), and every rule below runs over the four as over three.
+ *
  * The variance. Per channel, the squared deviations from each pixel's own mean, pooled over the
  * tile's pixels (the image's squared error sums the pixels' variances). It is bounded below by
  * Cauchy-Schwarz: a non-negative X with mean mu that is non-zero with probability p has
@@ -134,15 +141,10 @@
  * A tile of at most 2x2 pixels (at the image's right and bottom edges) lies in one half: the
  * other half's figures for it are zero and its choice is the half that has samples.
  *
- * Measured at 10 s against 200-s references (`delta` with `true` or "tiles", docs/benchmarks.md
- * "Session 26"), medians of four alternating rounds over plain `delta` (docs/benchmarks.md
- * "Session 27"), before -> after the halves (fd86dfa, without the trial on disagreement, which
- * measured neutral on hard-dense-block, hard-narrow-spot and hetero-forward): "tiles" /
- * guided-unbiased on the calibration scenes cloud 0.979 -> 0.983 / 0.963 -> 0.960,
- * hetero-forward 0.967 -> 0.971 / 1.26 -> 1.20, glass-fog 18.9 -> 18.4 / 15.8 -> 18.7; on
- * hard-dense-block 0.851 -> 0.913 / 0.797 -> 0.883, hard-narrow-spot 70.5 -> 68.6 / 53.7 ->
- * 71.0, homogeneous 1.58 -> 1.62 / 1.61 -> 1.63, default 0.928 -> 0.966 / 0.921 -> 0.909. The
- * dense block's lit tiles on the strategy went from 30-41 to 7-23.
+ * Measured at 10 s, medians of four alternating rounds (docs/benchmarks.md "Session 27": each
+ * scene's figures before and after): within the rounds' spread or a gain on the calibration
+ * scenes and the benchmark's; the dense block's lit tiles on the strategy went from 30-41 to
+ * 7-23, and "tiles" there from 0.851x to 0.913x plain `delta`.
  *
  * Where the halves disagree, the image decides (session 40). Until then the cheaper of the two
  * took such a tile, and on hard-dense-block that was most of the lit tiles at the first epochs
@@ -229,11 +231,9 @@
  * both keeps the third, whose flights then drop the connections: not measured, no shipped
  * scene has both).
  *
- * The trace (session 44). `render --select-trace FILE` writes every choice, the pilot's and each
- * epoch's, with each tile's own figures (select_trace.c; docs/cli.md, "The selection's trace"),
- * and bench/bench_select_score scores such choices against fixed per-pixel variance tables:
- * two rules then differ by their choices alone, not by the images' noise (docs/benchmarks.md
- * "Session 44").
+ * The trace (session 44). `render --select-trace FILE` writes every choice with each tile's
+ * figures (select_trace.c; docs/cli.md), which bench/bench_select_score scores against fixed
+ * per-pixel variance tables: rules compared by their choices alone (docs/benchmarks.md "Session 44").
  *
  * A consistent method. The marcher with march.ls nee+beams is consistent, not unbiased: its
  * photon part carries the kernel's bias (shrinking with the progressive passes). It mixes with
@@ -275,9 +275,8 @@
  * 0.322, marcher segment 0.249, flight segment 0.061, guided vertex 0.763, camera sample
  * 0.358. Checked, not fitted, on hard-dense-block and hard-lens-caustic: the method's time
  * over delta's per sample is 3.73 / 28.9 (guided / guided-unbiased) and 6.29 / 8.74 there,
- * the model says 4.10 / 24.1 and 6.67 / 8.13; the model it replaces (lookups x 0.9 or 1.6,
- * + 0.5) said 1.92 / 12.3 and 3.27 / 4.85, and so gave the methods tiles at half their
- * cost. When guided-unbiased came to read two SH bands of the guide instead of eight
+ * the model says 4.10 / 24.1 and 6.67 / 8.13 (the model before said about half: the methods
+ * got tiles at half their cost). When guided-unbiased came to read two SH bands instead of eight
  * (guide.eval_bands), its two weights were fitted again on the same six scenes, the other
  * weights held (the render report's guided_paths gives the counts): flight segment 0.37 ->
  * 0.41, guided vertex 4.65 -> 3.91 lookups. On the two checks: 19.96 / 7.30 measured, 19.3 /
@@ -393,7 +392,7 @@ static void run_open(rd_select *sel, rd_select_run *u, const rd_thread *th)
     u->use = rd_select_uses(sel, th->x, th->y);
 }
 
-static uint64_t work_units(const rd_select *sel, const rd_select_work *c0, const rd_select_work *c1);
+static uint64_t work_units(const rd_select *sel, int e, const rd_select_work *c0, const rd_select_work *c1);
 
 static void run_close(rd_select *sel, rd_select_run *u)
 {
@@ -402,7 +401,7 @@ static void run_close(rd_select *sel, rd_select_run *u)
     for (int c = 0; c < 3; c++) px->sum[c] = u->sum[c], px->sum2[c] = u->sum2[c];
     px->n = u->n, px->nonzero = u->nonzero;
     rd_select_work c1 = rd_select_work_now(u->th);
-    px->cost += (double)(work_units(sel, &u->c, &c1) + u->drawn * cost_units(SEL_COST_SAMPLE)); /* exact */
+    px->cost += (double)(work_units(sel, u->use, &u->c, &c1) + u->drawn * cost_units(SEL_COST_SAMPLE)); /* exact */
     u->th = NULL;
 }
 
@@ -421,6 +420,13 @@ rd_select_work rd_select_work_now(const rd_thread *th)
                             th->beam_hits, th->counters.eq_flights};
 }
 
+/* What one PDF segment (rd_thread.cells) of estimator e costs, in lookups: the method's
+ * (cell_cost), or its second estimator's (path_cell_cost); delta's paths count none. */
+static double cells_cost(const rd_select *sel, int e)
+{
+    return sel->kind[e] == RD_SEL_PATH ? sel->path_cell_cost : sel->cell_cost;
+}
+
 /* The weighted work between two readings of a thread's counters, c0 then c1. */
 static double work_between(const rd_select_work *c0, const rd_select_work *c1, double cell_cost)
 {
@@ -436,30 +442,31 @@ double rd_select_work_cost(const rd_select_work *c0, const rd_thread *th, double
     return work_between(c0, &c1, cell_cost);
 }
 
-/* work_between in whole units of 1/RD_SELECT_COST_UNIT lookups (cost_units), the camera
- * sample's own left out. */
-static uint64_t work_units(const rd_select *sel, const rd_select_work *c0, const rd_select_work *c1)
+/* work_between in whole units of 1/RD_SELECT_COST_UNIT lookups (cost_units) for estimator e's
+ * samples, the camera sample's own left out. */
+static uint64_t work_units(const rd_select *sel, int e, const rd_select_work *c0, const rd_select_work *c1)
 {
     return (c1->lookups - c0->lookups) * cost_units(1.0) + (c1->shadow_rays - c0->shadow_rays) * cost_units(SEL_COST_SHADOW) +
-           (c1->cells - c0->cells) * cost_units(sel->cell_cost) + (c1->vertices - c0->vertices) * cost_units(SEL_COST_VERTEX) +
+           (c1->cells - c0->cells) * cost_units(cells_cost(sel, e)) + (c1->vertices - c0->vertices) * cost_units(SEL_COST_VERTEX) +
            (c1->beam_hits - c0->beam_hits) * cost_units(SEL_COST_BEAM_HIT) +
            (c1->eq_flights - c0->eq_flights) * cost_units(SEL_COST_EQ_FLIGHT);
 }
 
-/* The counted cost of one sample in units (work_units), from th's counters before it (c0) and
- * after. */
-static uint64_t sample_units(const rd_select *sel, const rd_thread *th, rd_select_work c0)
+/* The counted cost of one sample of estimator e in units (work_units), from th's counters
+ * before it (c0) and after. */
+static uint64_t sample_units(const rd_select *sel, int e, const rd_thread *th, rd_select_work c0)
 {
     rd_select_work c1 = rd_select_work_now(th);
-    return work_units(sel, &c0, &c1) + cost_units(SEL_COST_SAMPLE);
+    return work_units(sel, e, &c0, &c1) + cost_units(SEL_COST_SAMPLE);
 }
 
-/* Camera sample `smp` of ray r with estimator e (RD_SEL_*). */
+/* Camera sample `smp` of ray r with estimator e (0 .. sel->n - 1, of kind sel->kind[e]). */
 static vec3 estimate(const rd_render_ctx *ctx, const rd_select *sel, rd_thread *th, int e,
                      rd_select_fn method, ray3 r, rd_sampler *smp)
 {
-    if (e == RD_SEL_METHOD) return method(ctx, th, r, smp);
-    int mode = e == RD_SEL_DELTA_EQ ? RD_EQ_ALL : rd_eq_path_mode(ctx->scene->settings.equiangular);
+    if (sel->kind[e] == RD_SEL_METHOD) return method(ctx, th, r, smp);
+    if (sel->kind[e] == RD_SEL_PATH) return sel->path(ctx, th, r, smp);
+    int mode = sel->kind[e] == RD_SEL_DELTA_EQ ? RD_EQ_ALL : rd_eq_path_mode(ctx->scene->settings.equiangular);
     if (sel->delta) return sel->delta(ctx, th, r, smp, mode); /* the method's (its probes) */
     pcg32 rng = rd_sampler_stream(smp);
     return rd_delta_radiance_eq(ctx->scene, r, mode, &rng, &th->counters);
@@ -483,7 +490,7 @@ static void pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, const rd_select
         th->pilot = 1; /* (not an image sample: march.probes "auto" learns from those only) */
         vec3 L = estimate(ctx, sel, th, e, method, r, &smp);
         th->pilot = 0;
-        px.cost += (double)sample_units(sel, th, c0); /* (a dropped sample's work counts too) */
+        px.cost += (double)sample_units(sel, e, th, c0); /* (a dropped sample's work counts too) */
         if (v3_finite(L)) pixel_add(&px, L);
     }
     pixel_fold(st, &px);
@@ -588,7 +595,7 @@ static void pool(double *a, double *tmp, int nx, int ny, int m)
     for (int ty = 0; ty < ny; ty++)
         for (int tx = 0; tx < nx; tx++) {
             size_t k = (size_t)ty * nx + tx;
-            double sv[RD_SEL_MAX] = {0, 0, 0};
+            double sv[RD_SEL_MAX] = {0};
             int cnt = 0;
             for (int y = ty - 1; y <= ty + 1; y++)
                 for (int x = tx - 1; x <= tx + 1; x++) {
@@ -606,8 +613,9 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
 {
     memset(sel, 0, sizeof *sel);
     sel->width = width, sel->height = height, sel->cell_cost = cell_cost, sel->epochs = 1;
-    sel->n = estimators == 3 ? 3 : 2;
-    sel->paths = 1u << RD_SEL_DELTA | (sel->n == 3 ? 1u << RD_SEL_DELTA_EQ : 0u), sel->unlit = -1;
+    sel->n = estimators < 2 ? 2 : estimators > RD_SEL_MAX ? RD_SEL_MAX : estimators;
+    for (int e = 0; e < sel->n; e++) sel->kind[e] = (uint8_t)e; /* (rd_select_prepare_path renumbers) */
+    sel->paths = 1u << RD_SEL_DELTA | (sel->n >= 3 ? 1u << RD_SEL_DELTA_EQ : 0u), sel->unlit = -1;
     sel->tiles_x = (width + RD_SELECT_TILE - 1) / RD_SELECT_TILE;
     sel->tiles_y = (height + RD_SELECT_TILE - 1) / RD_SELECT_TILE;
     size_t n = (size_t)sel->tiles_x * sel->tiles_y;
@@ -661,7 +669,7 @@ static void pooled_relative_variance(const rd_select *sel, const rd_select_stats
                                      double *den)
 {
     int n = sel->tiles_x * sel->tiles_y, m = sel->n;
-    double N[RD_SEL_MAX] = {0, 0, 0}, D[RD_SEL_MAX] = {0, 0, 0};
+    double N[RD_SEL_MAX] = {0}, D[RD_SEL_MAX] = {0};
     for (int k = 0; k < n; k++) {
         const rd_select_stats *t = &st[m * k];
         double lit = 0.0;
@@ -677,7 +685,7 @@ static void pooled_relative_variance(const rd_select *sel, const rd_select_stats
     int nx = sel->tiles_x, ny = sel->tiles_y;
     for (int k = 0; k < n; k++) {
         int tx = k % nx, ty = k / nx;
-        double a[RD_SEL_MAX] = {0, 0, 0}, b[RD_SEL_MAX] = {0, 0, 0};
+        double a[RD_SEL_MAX] = {0}, b[RD_SEL_MAX] = {0};
         for (int y = ty - 1; y <= ty + 1; y++) /* the 3x3 tiles k's figures are pooled over */
             for (int x = tx - 1; x <= tx + 1; x++) {
                 if (x < 0 || y < 0 || x >= nx || y >= ny) continue;
@@ -745,7 +753,7 @@ static void choose_tiles(rd_select *sel)
         for (int c = 0; c < 3; c++) t->sum[c] = a->sum[c] + b->sum[c], t->dev2[c] = a->dev2[c] + b->dev2[c];
     }
     /* Each estimator's non-zero fraction over the lit tiles: the prior of every tile's p. */
-    double nz[RD_SEL_MAX] = {0, 0, 0}, nn[RD_SEL_MAX] = {0, 0, 0}, pbar[RD_SEL_MAX];
+    double nz[RD_SEL_MAX] = {0}, nn[RD_SEL_MAX] = {0}, pbar[RD_SEL_MAX];
     for (int k = 0; k < n; k++) {
         const rd_select_stats *st = &all[m * k];
         double lit = 0.0;
@@ -830,14 +838,26 @@ static void traced_choice(rd_select *sel)
 rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_select_delta_fn delta,
                             double cell_cost, int options, rd_select *sel, char *err, size_t errlen)
 {
+    return rd_select_prepare_path(ctx, method, delta, cell_cost, options, NULL, 0.0, sel, err, errlen);
+}
+
+rd_status rd_select_prepare_path(const rd_render_ctx *ctx, rd_select_fn method, rd_select_delta_fn delta,
+                                 double cell_cost, int options, rd_select_fn path, double path_cell_cost,
+                                 rd_select *sel, char *err, size_t errlen)
+{
     const rd_scene *s = ctx->scene;
     const rd_camera *cam = &s->camera;
     /* the third estimator: delta's path with the strategy on every flight (the head; a
      * directional beam counts only where delta's path does not connect to it, "Beams that
      * delta's path connects to") */
     int third = (options & RD_SELECT_THIRD) && s->settings.equiangular != RD_EQ_ALL && rd_eq_tiles_have_lights(s);
-    rd_status st = rd_select_init(sel, cam->width, cam->height, cell_cost, third ? 3 : 2, err, errlen);
+    rd_status st = rd_select_init(sel, cam->width, cam->height, cell_cost, 2 + third + (path != NULL), err, errlen);
     if (st != RD_OK) return st;
+    if (path) { /* the method's second estimator, the last (rd_select.kind) */
+        sel->kind[sel->n - 1] = RD_SEL_PATH;
+        sel->path = path, sel->path_cell_cost = path_cell_cost;
+        if (!third) sel->paths = 1u << RD_SEL_DELTA;
+    }
     if (options & RD_SELECT_METHOD_IS_PATH) sel->paths |= 1u << RD_SEL_METHOD;
     sel->delta = delta;
     sel->epochs = ctx->scene->settings.select != RD_SELECT_PILOT;
@@ -947,10 +967,11 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
     if (th->index < 0 || th->index >= sel->n_runs) { /* (no run for this thread: one sample's record) */
         int use = rd_select_uses(sel, th->x, th->y);
         rd_select_work c0 = rd_select_work_now(th);
-        th->delta_samples += use != RD_SEL_METHOD;
-        th->delta_eq_samples += use == RD_SEL_DELTA_EQ;
+        th->delta_samples += sel->kind[use] == RD_SEL_DELTA || sel->kind[use] == RD_SEL_DELTA_EQ;
+        th->delta_eq_samples += sel->kind[use] == RD_SEL_DELTA_EQ;
+        th->path_samples += sel->kind[use] == RD_SEL_PATH;
         vec3 L = estimate(ctx, sel, th, use, method, r, smp);
-        sel->pixels[th->pixel].cost += (double)sample_units(sel, th, c0); /* (a dropped sample's too) */
+        sel->pixels[th->pixel].cost += (double)sample_units(sel, use, th, c0); /* (a dropped sample's too) */
         if (v3_finite(L)) pixel_add(&sel->pixels[th->pixel], L);
         return L;
     }
@@ -959,8 +980,9 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
         run_close(sel, u);
         run_open(sel, u, th);
     }
-    th->delta_samples += u->use != RD_SEL_METHOD;
-    th->delta_eq_samples += u->use == RD_SEL_DELTA_EQ;
+    th->delta_samples += sel->kind[u->use] == RD_SEL_DELTA || sel->kind[u->use] == RD_SEL_DELTA_EQ;
+    th->delta_eq_samples += sel->kind[u->use] == RD_SEL_DELTA_EQ;
+    th->path_samples += sel->kind[u->use] == RD_SEL_PATH;
     vec3 L = estimate(ctx, sel, th, u->use, method, r, smp);
     u->drawn++; /* (its work is read from the counters at the run's end: run_close) */
     if (v3_finite(L)) { /* pixel_add's sums, in the same order: the same to the bit */

@@ -15,14 +15,14 @@
 rd_status rd_select_trace(rd_select *sel, long from, char *err, size_t errlen)
 {
     if (!sel->trace_path) return RD_OK;
-    static const char *const names[RD_SEL_MAX] = {"delta", "method", "delta_equiangular"};
+    static const char *const names[RD_SEL_MAX] = {"delta", "method", "delta_equiangular", "guided_path"};
     static const char *const keys[4] = {"samples", "mean", "variance", "cost"};
     int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
     size_t mn = (size_t)m * n;
     rd_text *t = &sel->trace;
     rd_text_printf(t, "{\"from_sample\": %ld, \"tile\": %d, \"tiles_x\": %d, \"tiles_y\": %d, \"estimators\": [", from,
                    RD_SELECT_TILE, nx, ny);
-    for (int e = 0; e < m; e++) rd_text_printf(t, "%s\"%s\"", e ? ", " : "", names[e]);
+    for (int e = 0; e < m; e++) rd_text_printf(t, "%s\"%s\"", e ? ", " : "", names[sel->kind[e]]);
     rd_text_printf(t, "], \"tiles\": [");
     for (int k = 0; k < n && !t->oom; k++) {
         double fig[4][RD_SEL_MAX]; /* samples, mean, variance, cost */

@@ -291,10 +291,11 @@ rd_status ld_parse_march(ld_ctx *c, const cJSON *j, rd_march_settings *m)
      * (integrators/march_equiangular.c); measured in docs/guided-marching.md */
     m->equiangular = RD_EQ_AUTO;
     m->probes = 0; /* "auto": measured in docs/guided-marching.md "Probes" */
+    m->guided_paths = 1; /* docs/guided-marching.md "guided-unbiased's paths in `guided`'s tiles" */
     if (!j) return RD_OK;
     const char *path = "march";
     LD_TRY(ld_need_object(c, j, path));
-    static const char *const keys[] = {"samples", "min_samples", "max_samples", "alpha", "ls", "detail", "paths", "equiangular", "probes", NULL};
+    static const char *const keys[] = {"samples", "min_samples", "max_samples", "alpha", "ls", "detail", "paths", "equiangular", "probes", "guided_paths", NULL};
     LD_TRY(ld_check_keys(c, j, path, keys));
     long long v;
     LD_TRY(ld_get_int(c, j, path, "samples", 0, 0, 1, 4096, &v));
@@ -314,5 +315,6 @@ rd_status ld_parse_march(ld_ctx *c, const cJSON *j, rd_march_settings *m)
     static const char *const detail[] = {"cells", "lookups", NULL};
     LD_TRY(ld_get_enum(c, j, path, "detail", 0, detail, 0, &m->detail));
     LD_TRY(parse_probes(c, j, path, &m->probes));
+    LD_TRY(ld_get_bool(c, j, path, "guided_paths", 1, &m->guided_paths));
     return parse_equiangular(c, j, path, 0, 0, &m->equiangular);
 }

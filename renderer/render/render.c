@@ -235,7 +235,7 @@ static rd_status attach_bake(rd_render_ctx *ctx, const rd_baked *given, int thre
     ctx->guide_indirect = rd_baked_indirect_guide(b);
     const char *missing = (needs & RD_NEEDS_GUIDE) && !ctx->guide ? "a guide grid"
                           : (needs & RD_NEEDS_INDIRECT) && !ctx->photons_indirect ? "an indirect photon map"
-                          : (needs & RD_NEEDS_INDIRECT_GUIDE) && !ctx->guide_indirect ? "a guide of the indirect photons"
+                          : (needs & (RD_NEEDS_INDIRECT_GUIDE | RD_NEEDS_INDIRECT_LOBE)) && !ctx->guide_indirect ? "a guide of the indirect photons"
                                                                                   : NULL;
     if (missing) {
         rd_baked_free(*own);
@@ -471,6 +471,7 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         rs->eq_samples += th[i].counters.eq_samples;
         rs->delta_samples += th[i].delta_samples;
         rs->delta_eq_samples += th[i].delta_eq_samples;
+        rs->path_samples += th[i].path_samples;
         rs->guide_vertices += th[i].guide_vertices;
         rs->beam_queries += th[i].beam_queries;
         rs->beam_hits += th[i].beam_hits;
@@ -479,25 +480,26 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
             rs->flight_segments += th[i].cells;
             continue;
         }
+        rs->flight_segments += th[i].path_cells; /* (`guided`'s guided-unbiased paths) */
         if (rs->rays_marched == 0 || (int)th[i].samples_min < rs->samples_min) rs->samples_min = (int)th[i].samples_min;
         if ((int)th[i].samples_max > rs->samples_max) rs->samples_max = (int)th[i].samples_max;
         rs->rays_marched += th[i].rays;
         samples += th[i].ray_samples;
-        cells += th[i].cells;
+        cells += th[i].cells - th[i].path_cells;
     }
     if (comm) { /* the counters of every rank (rank 0's report), as for the film */
-        uint64_t c[16] = {invalid, rs->collisions, rs->lookups, rs->shadow_rays, rs->delta_samples,
+        uint64_t c[17] = {invalid, rs->collisions, rs->lookups, rs->shadow_rays, rs->delta_samples,
                           rs->rays_marched, samples, cells, rs->flight_segments, rs->guide_vertices,
                           rs->beam_queries, rs->beam_hits, rs->delta_eq_samples, rs->eq_flights,
-                          rs->eq_samples, rs->probes};
+                          rs->eq_samples, rs->probes, rs->path_samples};
         int mm[2] = {rs->rays_marched ? -rs->samples_min : INT_MIN, rs->samples_max};
-        comm->reduce(comm->user, c, 16, RD_COMM_UINT64, RD_COMM_SUM, 0);
+        comm->reduce(comm->user, c, 17, RD_COMM_UINT64, RD_COMM_SUM, 0);
         comm->reduce(comm->user, mm, 2, RD_COMM_INT, RD_COMM_MAX, 0);
         invalid = c[0], rs->collisions = c[1], rs->lookups = c[2], rs->shadow_rays = c[3];
         rs->delta_samples = c[4], rs->rays_marched = c[5], samples = c[6], cells = c[7];
         rs->flight_segments = c[8], rs->guide_vertices = c[9];
         rs->beam_queries = c[10], rs->beam_hits = c[11], rs->delta_eq_samples = c[12];
-        rs->eq_flights = c[13], rs->eq_samples = c[14], rs->probes = c[15];
+        rs->eq_flights = c[13], rs->eq_samples = c[14], rs->probes = c[15], rs->path_samples = c[16];
         rs->samples_min = rs->rays_marched ? -mm[0] : 0, rs->samples_max = mm[1];
         rs->paths = total + invalid;
         rs->invalid = invalid;

@@ -149,6 +149,8 @@ typedef struct {
     int probes;          /* camera chains a sample takes for the light at the chain's end:
                           * M >= 1 (1: the sample's own only), or 0, "auto" (default): M per
                           * pixel from its samples (integrators/probes.c) */
+    int guided_paths;    /* guided with a tile selection: 1 (default) lets the selection give
+                          * tiles to guided-unbiased's paths too (integrators/guided.c) */
 } rd_march_settings;
 
 /* What settings.beam_connect's sampling needs, set once when the scene is loaded
