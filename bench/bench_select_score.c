@@ -14,7 +14,8 @@
  * guide.probes, and guide.equiangular false only where the scene leaves it unset. For `guided`,
  * whose delta tiles take no probes: `delta` is `--method delta --set settings.probes=1`, `method`
  * `--method guided --set settings.select="off"`, `delta_equiangular` `--method delta --set
- * settings.equiangular=true --set settings.probes=1`. For `delta` with settings.equiangular
+ * settings.equiangular=true --set settings.probes=1`, and `guided_path` (march.guided_paths)
+ * `--method guided-unbiased --set settings.select="off" --set guide.equiangular=false`. For `delta` with settings.equiangular
  * "tiles": `delta` is `--set settings.equiangular=false --set settings.probes=1` and `method`
  * `--set settings.equiangular=true --set settings.probes=1`.
  * V-stderr.exr and V.json beside V.exr give each pixel's variance a sample, se^2 spp (mean over
@@ -40,8 +41,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-enum { MAXE = 3, MAXLINES = 64 };
-static const char *const names[MAXE] = {"delta", "method", "delta_equiangular"};
+enum { MAXE = 4, MAXLINES = 64 };
+/* The estimators' names in a trace (select_trace.c; a trace lists those its selection has, in
+ * its own order): the tables are named so. */
+static const char *const names[MAXE] = {"delta", "method", "delta_equiangular", "guided_path"};
 
 typedef struct {
     int w, h;
@@ -77,7 +80,7 @@ static int load_table(const char *arg, tables *t)
         if ((size_t)(eq - arg) == strlen(names[i]) && !strncmp(arg, names[i], (size_t)(eq - arg))) e = i;
     size_t len = eq ? strlen(eq + 1) : 0;
     if (e < 0 || len < 5 || strcmp(eq + 1 + len - 4, ".exr")) {
-        fprintf(stderr, "bench_select_score: --table %s: must be delta=, method= or delta_equiangular= a .exr path\n", arg);
+        fprintf(stderr, "bench_select_score: --table %s: must be delta=, method=, delta_equiangular= or guided_path= a .exr path\n", arg);
         return 0;
     }
     char se[4096], js[4096], err[RD_ERRLEN];
@@ -118,6 +121,7 @@ static int load_table(const char *arg, tables *t)
  * costs. */
 typedef struct {
     int lines, tx, ty, m;
+    int kind[MAXE]; /* estimator e's name: names[kind[e]] */
     long from[MAXLINES];
     int *choice[MAXLINES], *trial[MAXLINES];
     double *cost; /* [tile * MAXE + e] */
@@ -168,9 +172,15 @@ static int load_trace(const char *path, trace *r)
             r->tx = tx->valueint, r->ty = ty->valueint, r->m = cJSON_GetArraySize(est), r->from[i] = (long)from->valuedouble;
             for (int e = 0; e < r->m; e++) {
                 const cJSON *name = cJSON_GetArrayItem(est, e);
-                if (!cJSON_IsString(name) || strcmp(name->valuestring, names[e])) {
-                    fprintf(stderr, "bench_select_score: %s: line %d: estimators[%d]: expected \"%s\"\n", path, i + 1, e, names[e]);
+                int kind = -1;
+                for (int q = 0; cJSON_IsString(name) && q < MAXE; q++)
+                    if (!strcmp(name->valuestring, names[q])) kind = q;
+                if (kind < 0 || (i > 0 && kind != r->kind[e])) {
+                    fprintf(stderr, "bench_select_score: %s: line %d: estimators[%d]: not one of delta, method, "
+                                    "delta_equiangular, guided_path, or not line 1's\n", path, i + 1, e);
                     ok = 0;
+                } else {
+                    r->kind[e] = kind;
                 }
             }
             r->choice[i] = malloc((size_t)n * sizeof(int)), r->trial[i] = malloc((size_t)n * sizeof(int));
@@ -207,7 +217,7 @@ static int load_trace(const char *path, trace *r)
     return ok;
 }
 
-/* The score of choices r (or, with r->lines 0, every tile on estimator fixed) against t, N
+/* The score of choices r (or, with r->lines 0, every tile on r's estimator fixed) against t, N
  * samples a pixel; *var, *cost: its two factors, *own: the method's share of the samples. 0
  * after a message when a choice has no table. */
 static int score(const trace *r, int fixed, const tables *t, long N, double *var, double *cost, double *own)
@@ -227,11 +237,12 @@ static int score(const trace *r, int fixed, const tables *t, long N, double *var
                     int c = r->choice[i][k], tr = r->trial[i][k] - 1;
                     use = tr < 0 ? c : (x + y) & 1 ? (c > tr ? c : tr) : (c < tr ? c : tr); /* rd_select_uses */
                 }
-                if (!t->v[use]) {
-                    fprintf(stderr, "bench_select_score: the choices use %s, which has no --table\n", names[use]);
+                const double *tab = t->v[r->kind[use]];
+                if (!tab) {
+                    fprintf(stderr, "bench_select_score: the choices use %s, which has no --table\n", names[r->kind[use]]);
                     return 0;
                 }
-                v += (double)(b - a) * t->v[use][(size_t)y * t->w + x];
+                v += (double)(b - a) * tab[(size_t)y * t->w + x];
                 *cost += (double)(b - a) * r->cost[k * MAXE + use];
                 *own += use == 1 ? (double)(b - a) : 0.0;
             }
@@ -285,12 +296,12 @@ int main(int argc, char **argv)
         else trace_free(&r);
     }
     for (int e = 0; e < first_trace.m; e++) {
-        if (!t.v[e]) continue;
+        if (!t.v[first_trace.kind[e]]) continue;
         trace fixed = first_trace;
         fixed.lines = 0;
         double v, c, own;
         if (!score(&fixed, e, &t, N, &v, &c, &own)) status = 1;
-        else printf("every tile on %s: score %.4g (variance %.4g x cost %.4g)\n", names[e], v * c, v, c);
+        else printf("every tile on %s: score %.4g (variance %.4g x cost %.4g)\n", names[first_trace.kind[e]], v * c, v, c);
     }
     trace_free(&first_trace);
     for (int e = 0; e < MAXE; e++) free(t.v[e]);

@@ -878,3 +878,44 @@ Test(guided_unbiased, its_paths_alone_are_its_camera_samples, .timeout = 300)
     rd_baked_free(b);
     rd_scene_free(s);
 }
+
+/* The bake for a reader of the indirect guide's direction lobe alone (RD_NEEDS_INDIRECT_LOBE:
+ * guided-unbiased, and `guided`'s paths) keeps the lobe's two SH bands, each cell's the same
+ * numbers as the first two bands of the full indirect guide (RD_NEEDS_INDIRECT_GUIDE: march.ls
+ * nee+guide), windowed for guide.bands as those are, so every lobe and image is the full
+ * guide's (bake.c; guided_unbiased.c window_bands). */
+Test(guided_unbiased, the_lobe_s_indirect_guide_is_the_full_one_s_first_two_bands, .timeout = 300)
+{
+    rd_scene *s = rt_scene("gu_lobe_bands.json", scene_json_exact(0.6, -2.5, ENV, ""));
+    cr_assert(s->guide.bands > 2, "the scene's guide has %d bands", s->guide.bands);
+    rd_baked *b[2];
+    const unsigned needs[2] = {RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT_LOBE, RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT_GUIDE};
+    for (int i = 0; i < 2; i++) {
+        char err[RD_ERRLEN];
+        rd_bake_opts bo = {.seed = -1, .threads = 2};
+        rd_bake_opts_for(&bo, needs[i]);
+        cr_assert(rd_bake(s, &bo, &b[i], err, sizeof err) == RD_OK, "%s", err);
+    }
+    const sh_guide *lobe = rd_baked_indirect_guide(b[0]), *full = rd_baked_indirect_guide(b[1]);
+    cr_assert(lobe && full, "an indirect guide is missing");
+    cr_expect(sh_guide_bands(lobe) == 2 && sh_guide_bands(full) == s->guide.bands, "bands %d and %d",
+              sh_guide_bands(lobe), sh_guide_bands(full));
+    sh_guide_stats a, c;
+    sh_guide_stats_get(lobe, &a), sh_guide_stats_get(full, &c);
+    cr_assert(a.cells == c.cells && a.cells > 0, "cells %zu and %zu", a.cells, c.cells);
+    int L = sh_guide_bands(full);
+    size_t differ = 0, nonzero = 0;
+    for (size_t k = 0; k < a.cells; k++) {
+        const float *x = sh_guide_cell_coeffs(lobe, k), *y = sh_guide_cell_coeffs(full, k);
+        for (int ch = 0; ch < 3; ch++)
+            for (int j = 0; j < 4; j++) { /* (l, m) = (0, 0), (1, -1), (1, 0), (1, 1) */
+                float u = x[ch * 4 + j], v = y[ch * L * L + j];
+                differ += !(fabsf(u - v) <= 1e-6f * fabsf(v));
+                nonzero += v != 0.0f;
+            }
+    }
+    cr_expect(differ == 0, "%zu of %zu coefficients differ", differ, a.cells * 12);
+    cr_expect(nonzero > a.cells, "only %zu non-zero coefficients", nonzero);
+    rd_baked_free(b[0]), rd_baked_free(b[1]);
+    rd_scene_free(s);
+}

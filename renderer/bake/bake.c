@@ -30,21 +30,21 @@ static void cb_sigma_s(const double x[3], void *user, double out[3])
 /* The guide's phase coefficients: HG b_l = g^l (seed 001 appendix), times the Hann window
  * w_l when guide.window is on (sh_window_hann: truncated HG at g >= 0.7 rings below zero and
  * would call a forward-scattering beam seen from the side dark). */
-static void guide_phase_coeffs(const rd_guide_settings *gs, int bands, double g, double *b)
+static void guide_phase_coeffs(const rd_guide_settings *gs, double g, double *b)
 {
     double w[SH_MAX_BANDS];
-    sh_phase_coeffs_hg(g, bands, b);
-    if (gs->window && sh_window_hann(bands, w) == SH_OK)
-        for (int l = 0; l < bands; l++) b[l] *= w[l];
+    sh_phase_coeffs_hg(g, gs->bands, b);
+    if (gs->window && sh_window_hann(gs->bands, w) == SH_OK)
+        for (int l = 0; l < gs->bands; l++) b[l] *= w[l];
 }
 
 /* Phase coefficients of the medium at x (media with different g). */
-typedef struct { const rd_scene *s; int bands; } phase_ctx;
+typedef struct { const rd_scene *s; } phase_ctx;
 static void cb_phase_at(const double x[3], void *user, double *b)
 {
     const phase_ctx *pc = user;
     const rd_medium *m = rd_scene_medium_at_point(pc->s, v3(x[0], x[1], x[2]));
-    guide_phase_coeffs(&pc->s->guide, pc->bands, m ? m->g : 0.0, b);
+    guide_phase_coeffs(&pc->s->guide, m ? m->g : 0.0, b);
 }
 
 /* rd_guide_bake with a cancel flag (rd_bake_opts.cancel; NULL: none). */
@@ -68,8 +68,10 @@ static rd_status guide_bake(const rd_scene *s, const pm_map *map, int bands, int
     /* One phase function for all media when they agree, else per cell. */
     int same_g = 1;
     for (int i = 1; i < s->n_media; i++) same_g &= s->media[i].g == s->media[0].g;
-    phase_ctx pc = {s, p.bands};
-    if (same_g) guide_phase_coeffs(gs, p.bands, s->n_media ? s->media[0].g : 0.0, p.phase_b);
+    /* (the phase coefficients of guide.bands, windowed for them, also where fewer bands are
+     * baked: the bands kept are those of a full bake, and a reader's b_1 is guide.bands's) */
+    phase_ctx pc = {s};
+    if (same_g) guide_phase_coeffs(gs, s->n_media ? s->media[0].g : 0.0, p.phase_b);
     else {
         p.phase_at = cb_phase_at;
         p.phase_user = &pc;

@@ -14,7 +14,8 @@ static vec3 march_guided(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sam
     return rd_march_radiance(ctx, th, r, smp, PLACE_GUIDED);
 }
 
-/* guided-unbiased's paths, the selection's fourth estimator (march.guided_paths). */
+/* guided-unbiased's paths, the selection's last estimator (march.guided_paths: the fourth, or
+ * the third where there is no delta path with the equiangular strategy). */
 static vec3 paths_guided(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
 {
     const march_state *mst = ctx->state;
@@ -84,7 +85,7 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
                 (s->march.ls == RD_LS_NEE_BEAMS && (sel == RD_SELECT_TILES || sel == RD_SELECT_PILOT) &&
                  !(s->hidden_share > RD_HIDDEN_SHARE));
     if (sel != RD_SELECT_OFF && mixes) {
-        /* guided-unbiased's paths as a fourth estimator (wants_paths) */
+        /* guided-unbiased's paths as one more estimator (wants_paths) */
         if (wants_paths(s) && ctx->guide) {
             st = rd_gu_paths_new(ctx, &mst->gpaths, err, errlen);
             if (st != RD_OK) {

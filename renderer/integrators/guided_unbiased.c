@@ -455,8 +455,17 @@ static double guided_density(const rd_flight_sampler *fs, double t)
  * cache holds no usable direction and the continuation is phase sampling alone. */
 #define GU_B1_MIN 0.1
 
+/* The band count whose window the lobe's guide was baked with (the window factor below is a
+ * function of it): for the indirect guide the scene's guide.bands, also where the bake keeps
+ * only the lobe's two bands (RD_NEEDS_INDIRECT_LOBE: bake.c windows them for guide.bands); for
+ * the main guide its own, which may be a loaded file's. */
+static int window_bands(const rd_render_ctx *ctx)
+{
+    return ctx->guide_indirect ? ctx->scene->guide.bands : sh_guide_bands(ctx->guide);
+}
+
 /* The guide's incident-light lobe in cell `coeffs` (3 channel-major bands^2 blocks; baked_bands
- * the L the guide was baked with, which the window factor is a function of) for a medium with
+ * the L of the window the guide was baked with, window_bands) for a medium with
  * HG g, as a von Mises-Fisher lobe (mean mu, concentration kappa) of the directions a path
  * continuing from the cell would gather it along. 0 where there is none.
  *   The bake stores c_lm = (1/V) sum_k dPhi_k b_l Y_lm(w'_k) (sh.h; w'_k the photons' travel
@@ -537,9 +546,8 @@ static void gu_vertex(const rd_flight_sampler *fs, const rd_scene *s, const rd_v
             const gu_lobe *L = &st->lobes[(size_t)mi * st->lobe_cells + (size_t)lcell];
             if (L->kappa > 0.0) lobe_product(s, L, g, st->kappa_g[mi], v->d, &out->mix);
         } else {
-            const sh_guide *baked = u->ctx->guide_indirect ? u->ctx->guide_indirect : u->ctx->guide;
             gu_lobe L;
-            if (cell_lobe(s, sh_guide_cell_coeffs(lg, (size_t)lcell), sh_guide_bands(lg), sh_guide_bands(baked), g, &L))
+            if (cell_lobe(s, sh_guide_cell_coeffs(lg, (size_t)lcell), sh_guide_bands(lg), window_bands(u->ctx), g, &L))
                 lobe_product(s, &L, g, rd_vmf_kappa(fabs(g)), v->d, &out->mix);
         }
     }
@@ -712,7 +720,6 @@ static void build_lobes(const rd_render_ctx *ctx, gu_state *st)
     const rd_scene *s = ctx->scene;
     if (!ctx->guide || !s->guide.directions || !(s->guide.direction_weight > 0.0) || s->n_media < 1) return;
     const sh_guide *lg = ctx->guide_indirect ? gu_guide_indirect(ctx) : gu_guide(ctx);
-    const sh_guide *baked = ctx->guide_indirect ? ctx->guide_indirect : ctx->guide;
     sh_guide_stats gs;
     sh_guide_stats_get(lg, &gs);
     if (gs.cells == 0 || gs.cells > GU_LOBES_MAX / (size_t)s->n_media) return;
@@ -724,7 +731,7 @@ static void build_lobes(const rd_render_ctx *ctx, gu_state *st)
         return;
     }
     st->lobe_cells = gs.cells;
-    int bands = sh_guide_bands(lg), baked_bands = sh_guide_bands(baked);
+    int bands = sh_guide_bands(lg), baked_bands = window_bands(ctx);
     for (int i = 0; i < s->n_media; i++) {
         double g = s->media[i].g;
         st->kappa_g[i] = rd_vmf_kappa(fabs(g));

@@ -19,8 +19,8 @@
  * equiangular sampling on every flight, RD_EQ_ALL (only where rd_select_prepare's options have
  * RD_SELECT_THIRD, settings.equiangular is not RD_EQ_ALL, and the scene has a light the strategy
  * samples: a point or spot light, or a directional beam that delta's path does not connect to,
- * settings.beam_connect), and a second estimator of the method's own (rd_select_setup.path:
- * `guided`'s selection holds guided-unbiased's paths, march.guided_paths). A selection's
+ * settings.beam_connect), and a second estimator of the method's own (rd_select_prepare_path's
+ * `path`: `guided`'s selection holds guided-unbiased's paths, march.guided_paths). A selection's
  * estimators are numbered 0 .. n-1 (rd_select.choice): delta's path 0 and the method 1 always,
  * then the others it has, in the order of their kinds (so RD_SEL_DELTA_EQ is estimator 2 where
  * there is one). */
@@ -60,7 +60,7 @@ typedef vec3 (*rd_select_delta_fn)(const rd_render_ctx *ctx, rd_thread *th, ray3
                                    int equiangular);
 
 typedef struct {
-    uint8_t *choice;         /* per tile, the estimator that renders it (RD_SEL_*);
+    uint8_t *choice;         /* per tile, the estimator that renders it (0 .. n-1, of kind kind[e]);
                                 NULL: the method everywhere (selection off, or not run) */
     uint8_t *trial;          /* per tile, 0, or 1 + the estimator on trial against the choice:
                                 for one epoch the tile's pixels with x + y odd use the one of the
@@ -97,7 +97,7 @@ typedef struct {
     rd_text trace;            /* the trace's lines so far */
 } rd_select;
 
-/* The estimator (RD_SEL_*) the selection gives pixel (x, y): its tile's choice, or on a tile on
+/* The estimator (0 .. n-1) the selection gives pixel (x, y): its tile's choice, or on a tile on
  * trial, the pixel's square of the checkerboard. */
 int rd_select_uses(const rd_select *sel, int x, int y);
 /* Where the render asked for a trace (sel->trace_path), add the line of the choice just made,
@@ -189,7 +189,7 @@ void rd_select_epoch(rd_select *sel, const rd_comm *comm);
 #define RD_SELECT_TRIAL_RATIO 4
 
 /* The rule: for n tiles with the per-sample variance and cost of each of the m estimators
- * (var[m k + e], cost[m k + e], e = RD_SEL_*), the choices that minimise (sum V)(sum C);
+ * (var[m k + e], cost[m k + e], e = 0 .. m-1), the choices that minimise (sum V)(sum C);
  * choice[k] the estimator of tile k. */
 void rd_select_choose(const double *var, const double *cost, int n, int m, uint8_t *choice);
 

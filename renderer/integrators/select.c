@@ -60,7 +60,7 @@
  * paths too (march.guided_paths; integrators/guided.c), the last estimator (rd_select.kind):
  * where light is broad and multiple scattering carries it (a dense, bright block; smoke lit by a
  * spot) they beat delta's path, and the marcher does not, so `guided` lost to `delta` there
- * (0.74-0.95x on six scenes) while guided-unbiased won. Its PDF segments weigh its own
+ * (0.73-0.99x on six scenes at 10 s) while guided-unbiased won. Its PDF segments weigh its own
  * cell cost (rd_select_prepare_path), and every rule below runs over the four as over three.
  *
  * The variance. Per channel, the squared deviations from each pixel's own mean, pooled over the
@@ -507,7 +507,7 @@ static double tile_mean(const rd_select_stats *tile, int m, int c)
     return k ? mu / k : 0.0;
 }
 
-/* The per-sample variance of estimator e (RD_SEL_*) in a tile whose m statistics are
+/* The per-sample variance of estimator e (0 .. m-1) in a tile whose m statistics are
  * tile[0 .. m-1] (mean over RGB): the pooled sample variance, or with r > 0 the image's
  * prediction mu^2 r (see the head, "Where the halves disagree"), bounded below by Cauchy-Schwarz
  * with mu the mean of the estimators' means (all unbiased for the tile's mean) and the non-zero
@@ -877,7 +877,7 @@ rd_status rd_select_prepare_path(const rd_render_ctx *ctx, rd_select_fn method, 
             int x0 = (k % sel->tiles_x) * RD_SELECT_TILE, y0 = (k / sel->tiles_x) * RD_SELECT_TILE;
             for (int y = y0; y < y0 + RD_SELECT_TILE && y < cam->height; y += 2)
                 for (int x = x0; x < x0 + RD_SELECT_TILE && x < cam->width; x += 2)
-                    for (int e = 0; e < sel->n; e++) /* RD_SEL_* */
+                    for (int e = 0; e < sel->n; e++) /* (of kind sel->kind[e]) */
                         pilot_pixel(ctx, t, sel, x, y, e, method, &half_stats(sel, x, y)[sel->n * k + e]);
         }
         choose_tiles(sel);

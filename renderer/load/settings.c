@@ -291,7 +291,7 @@ rd_status ld_parse_march(ld_ctx *c, const cJSON *j, rd_march_settings *m)
      * (integrators/march_equiangular.c); measured in docs/guided-marching.md */
     m->equiangular = RD_EQ_AUTO;
     m->probes = 0; /* "auto": measured in docs/guided-marching.md "Probes" */
-    m->guided_paths = 1; /* docs/guided-marching.md "guided-unbiased's paths in `guided`'s tiles" */
+    m->guided_paths = 1; /* docs/guided-marching.md "A fourth estimator" */
     if (!j) return RD_OK;
     const char *path = "march";
     LD_TRY(ld_need_object(c, j, path));

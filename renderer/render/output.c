@@ -78,7 +78,7 @@ static char *report_json(const rd_scene *s, const rd_render_opts *o, const rd_re
             cJSON_AddNumberToObject(j, "equiangular_share",
                                     st->paths && rd_eq_has_lights(s, 1) ? 1.0 - (double)st->delta_samples / (double)st->paths
                                                                      : 0.0);
-    } else if (st->rays_marched || st->delta_samples) {
+    } else if (st->rays_marched || st->delta_samples || st->path_samples) {
         cJSON_AddNumberToObject(j, "delta_share", st->paths ? (double)st->delta_samples / (double)st->paths : 0.0);
         cJSON_AddNumberToObject(j, "delta_equiangular_share",
                                 st->paths ? (double)st->delta_eq_samples / (double)st->paths : 0.0);
