@@ -999,15 +999,15 @@ Test(select, tiles_of_both_kinds_give_delta_s_image, .timeout = 300)
 }
 
 /* A small dense, bright block lit on one side by a spot and seen from the other
- * (scenes/hard-dense-block.json made small, closer and thinner: sigma_t 8, albedo 0.99), 32x24
- * pixels, settings `settings`. */
+ * (scenes/hard-dense-block.json made small and seen closer), 32x24 pixels, settings
+ * `settings`. */
 static const char *dense_block_scene(const char *settings)
 {
     static char buf[2048];
     snprintf(buf, sizeof buf,
-             "{\"camera\":{\"position\":[2.1,0.6,2.0],\"look_at\":[0,-0.05,0],\"fov\":25,\"resolution\":[32,24]},"
+             "{\"camera\":{\"position\":[2.1,0.6,2.0],\"look_at\":[0,-0.05,0],\"fov\":20,\"resolution\":[32,24]},"
              "\"media\":[{\"bounds\":{\"min\":[-0.5,-0.4,-0.4],\"max\":[0.5,0.4,0.4]},"
-             "\"density\":{\"type\":\"constant\",\"value\":1.0},\"sigma_t\":8,\"albedo\":0.99,\"g\":0.8}],"
+             "\"density\":{\"type\":\"constant\",\"value\":1.0},\"sigma_t\":12,\"albedo\":0.995,\"g\":0.8}],"
              "\"lights\":[{\"type\":\"spot\",\"position\":[-2,0.2,0],\"look_at\":[0,0,0],\"angle\":14,\"falloff\":2,"
              "\"intensity\":[40,38,34]}],\"photons\":{\"count\":40000},\"settings\":%s}",
              settings);
@@ -1017,8 +1017,12 @@ static const char *dense_block_scene(const char *settings)
 /* `guided` with march.guided_paths (the default): its selection holds guided-unbiased's paths
  * as a fourth estimator beside the marcher, delta's path and delta's path with the strategy.
  * All four are unbiased, so any mix gives delta's image (z bounds of rt_expect_same: 5 for the
- * image, 4.5 for each 8x8 region). On this dense block the paths take part of the tiles; the
- * test needs them to (asserted last, with the shares logged). */
+ * image, 4.5 for each 8x8 region). On this dense block the paths take part of the tiles (55%
+ * of the samples, delta's paths 31%, the marcher 13%, in the release build); the test needs
+ * them to (asserted last, with the shares logged). The paths' estimate scaled by 1.2 fails it
+ * (image z = -7.0), by 1.1 not: it sees a bias of the paths' of about 15% and more. Not in the
+ * sanitizer suite (Makefile ASAN_FILTER): a minute there, and clang's photons differ, and with
+ * them the selection's choices. */
 Test(select, guided_unbiased_paths_in_guided_s_tiles_give_delta_s_image, .timeout = 300)
 {
     rd_scene *s = rt_scene("selgp.json", dense_block_scene("{\"select\":\"tiles\",\"max_depth\":256}"));
