@@ -203,7 +203,8 @@ void rd_bake_opts_for(rd_bake_opts *o, unsigned needs)
     o->no_guide = !(needs & RD_NEEDS_GUIDE);
     o->indirect = (needs & (RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE | RD_NEEDS_INDIRECT_LOBE)) != 0;
     o->indirect_guide = (needs & (RD_NEEDS_INDIRECT_GUIDE | RD_NEEDS_INDIRECT_LOBE)) != 0;
-    o->indirect_bands = (needs & RD_NEEDS_INDIRECT_GUIDE) ? 0 : 2; /* (the lobe's: bands 0 and 1) */
+    /* the lobe alone reads bands 0 and 1 (else every band, and 0 where there is no indirect guide) */
+    o->indirect_bands = (needs & RD_NEEDS_INDIRECT_LOBE) && !(needs & RD_NEEDS_INDIRECT_GUIDE) ? 2 : 0;
     o->few_photons = (needs & RD_NEEDS_FEW_PHOTONS) != 0;
     o->reachable = (needs & RD_NEEDS_REACHABLE) != 0;
 }

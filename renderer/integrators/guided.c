@@ -144,11 +144,11 @@ static uint64_t marched_pixels_guided(const rd_render_ctx *ctx)
     return rd_select_method_pixels(&mst->sel, (uint64_t)cam->width * (uint64_t)cam->height);
 }
 
-/* The guided placement needs the guide (and so a photon map) whatever the source needs; the
- * paths' direction lobe the indirect guide (guided-unbiased's own needs). */
+/* The guided placement needs the guide (and so a photon map) whatever the source needs, and the
+ * paths what they need beside it. */
 static unsigned needs_guided(const rd_scene *s)
 {
-    unsigned paths = wants_paths(s) && s->guide.directions ? RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_LOBE : 0u;
+    unsigned paths = wants_paths(s) ? rd_gu_paths_needs(s) : 0u;
     return rd_march_source_needs(s) | RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | paths;
 }
 

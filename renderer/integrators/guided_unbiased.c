@@ -746,9 +746,8 @@ static void build_lobes(const rd_render_ctx *ctx, gu_state *st)
  * probes' */
 #define GU_CELL_COST RD_GU_CELL_COST
 
-/* The method's state for ctx's scene and bake, with guide.probes read as `probes` (1: none), and
- * no selection yet. */
-static rd_status gu_state_new(const rd_render_ctx *ctx, int probes, gu_state **out, char *err, size_t errlen)
+/* The method's state for ctx's scene and bake, its probes set up, and no selection yet. */
+static rd_status gu_state_new(const rd_render_ctx *ctx, gu_state **out, char *err, size_t errlen)
 {
     const rd_scene *s = ctx->scene;
     const rd_guide_settings *g = &s->guide;
@@ -810,7 +809,12 @@ static rd_status gu_state_new(const rd_render_ctx *ctx, int probes, gu_state **o
     rd_render_ctx own = *ctx; /* (build_lobes reads the guide copies through ctx->state) */
     own.state = st;
     build_lobes(&own, st);
-    rd_status ps = rd_probes_init(&st->probes, s, probes, GU_CELL_COST, err, errlen);
+    /* guide.probes, with the selection's cell cost; none with a ray-marched tracker or
+     * transmittance (the probes' estimate and the path's own must be unbiased alike, as
+     * settings.probes requires of `delta`): "auto" takes none there, and a number is refused
+     * when the scene is loaded (load/load.c) */
+    int raymarch = s->settings.tracker == RD_FP_RAYMARCH || s->settings.transmittance == RD_TR_RAYMARCH;
+    rd_status ps = rd_probes_init(&st->probes, s, raymarch ? 1 : g->probes, GU_CELL_COST, err, errlen);
     if (ps != RD_OK) {
         gu_state_free(st);
         return ps;
@@ -841,14 +845,8 @@ static void gu_release(rd_render_ctx *ctx)
 static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
 {
     const rd_scene *s = ctx->scene;
-    const rd_guide_settings *g = &s->guide;
-    /* guide.probes, with the selection's cell cost below; none with a ray-marched tracker or
-     * transmittance (the probes' estimate and the path's own must be unbiased alike, as
-     * settings.probes requires of `delta`): "auto" takes none there, and a number is refused
-     * when the scene is loaded (load/load.c) */
-    int raymarch = s->settings.tracker == RD_FP_RAYMARCH || s->settings.transmittance == RD_TR_RAYMARCH;
     gu_state *st;
-    rd_status ps = gu_state_new(ctx, raymarch ? 1 : g->probes, &st, err, errlen);
+    rd_status ps = gu_state_new(ctx, &st, err, errlen);
     if (ps != RD_OK) return ps;
     ctx->state = st;
     /* With a guide (else the method is delta's path already), the tiles where it pays. The
@@ -885,10 +883,7 @@ rd_status rd_gu_paths_new(const rd_render_ctx *ctx, rd_gu_paths **out, char *err
         snprintf(err, errlen, "out of memory for guided-unbiased's paths");
         return RD_ERR_NOMEM;
     }
-    /* guide.probes as the method takes them (gu_prepare) */
-    const rd_scene *s = ctx->scene;
-    int raymarch = s->settings.tracker == RD_FP_RAYMARCH || s->settings.transmittance == RD_TR_RAYMARCH;
-    rd_status st = gu_state_new(ctx, raymarch ? 1 : s->guide.probes, &p->st, err, errlen);
+    rd_status st = gu_state_new(ctx, &p->st, err, errlen); /* (its probes as the method's) */
     if (st != RD_OK) {
         free(p);
         return st;
@@ -922,6 +917,11 @@ void rd_gu_paths_epoch(const rd_render_ctx *ctx, rd_gu_paths *p)
     rd_probes_epoch(&own, &p->st->probes);
 }
 
+unsigned rd_gu_paths_needs(const rd_scene *s)
+{
+    return s->guide.directions ? RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_LOBE : 0u; /* (the lobe alone) */
+}
+
 void rd_gu_paths_free(rd_gu_paths *p)
 {
     if (!p) return;
@@ -941,7 +941,7 @@ static unsigned gu_needs(const rd_scene *s)
 {
     if (!s->guide.distances && !s->guide.directions && !s->guide.roulette) return 0u;
     unsigned n = RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE;
-    if (s->guide.directions) n |= RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_LOBE; /* (its lobe alone) */
+    n |= rd_gu_paths_needs(s);
     if (s->guide.photon_share < 1.0) n |= RD_NEEDS_FEW_PHOTONS; /* its guide steers, never sums */
     /* Its paths cannot find the light a delta light sends through glass (docs/surfaces.md): a
      * guide that held it would split and steer paths toward light they never reach. */

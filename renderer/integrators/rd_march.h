@@ -36,8 +36,8 @@ typedef struct {
     int n_lights;    /* entries of the scratch's lw (march.equiangular) */
     double beam_weight; /* 1 / the share of the photons kept as balls */
     rd_probes probes; /* march.probes (probes.c) */
-    rd_gu_paths *gpaths; /* guided with march.guided_paths: guided-unbiased's paths, the
-                            selection's fourth estimator (guided.c); else NULL */
+    rd_gu_paths *gpaths; /* guided with march.guided_paths: guided-unbiased's paths, one more
+                            estimator of the selection (guided.c); else NULL */
     size_t beam_r1_queries; /* balls of the last build whose r_1 took a query of its own */
 } march_state;
 

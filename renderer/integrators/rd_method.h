@@ -176,6 +176,9 @@ vec3 rd_gu_paths_radiance(const rd_render_ctx *ctx, const rd_gu_paths *p, rd_thr
 int rd_gu_paths_epoch_next(const rd_gu_paths *p, int sample);
 void rd_gu_paths_epoch(const rd_render_ctx *ctx, rd_gu_paths *p);
 void rd_gu_paths_free(rd_gu_paths *p);
+/* What the paths need baked beside the guide (RD_NEEDS_*): the indirect photons' guide for the
+ * direction lobe where guide.directions is on (RD_NEEDS_INDIRECT_LOBE). */
+unsigned rd_gu_paths_needs(const rd_scene *s);
 /* The counted cost of one of its flights' pdf segments, in density lookups (select.c, the fit). */
 #define RD_GU_CELL_COST 0.41
 

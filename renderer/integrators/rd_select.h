@@ -123,7 +123,6 @@ typedef struct {
 rd_select_work rd_select_work_now(const rd_thread *th);
 double rd_select_work_cost(const rd_select_work *c0, const rd_thread *th, double cell_cost);
 
-
 /* An empty selection among `estimators` (2 to 4: delta's path, the method, then delta's path
  * with the strategy and the method's second estimator, in that order) for a width x height
  * image (no tile's statistics yet, every tile to delta). */
@@ -144,9 +143,9 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
  * (ctx->state set: the pilot renders with the method's scratch, ctx->method->scratch_bytes). */
 rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_select_delta_fn delta,
                             double cell_cost, int options, rd_select *sel, char *err, size_t errlen);
-/* rd_select_prepare with a fourth estimator: `path`, with `path_cell_cost` a PDF segment it
- * counts in rd_thread.cells (NULL: rd_select_prepare). Every estimator must be unbiased for the
- * same image (`guided`: guided-unbiased's paths, integrators/guided.c). */
+/* rd_select_prepare with one more estimator, the last: `path`, with `path_cell_cost` a PDF
+ * segment it counts in rd_thread.cells (NULL: rd_select_prepare). Every estimator must be
+ * unbiased for the same image (`guided`: guided-unbiased's paths, integrators/guided.c). */
 rd_status rd_select_prepare_path(const rd_render_ctx *ctx, rd_select_fn method, rd_select_delta_fn delta,
                                  double cell_cost, int options, rd_select_fn path, double path_cell_cost,
                                  rd_select *sel, char *err, size_t errlen);

@@ -60,7 +60,7 @@
  * paths too (march.guided_paths; integrators/guided.c), the last estimator (rd_select.kind):
  * where light is broad and multiple scattering carries it (a dense, bright block; smoke lit by a
  * spot) they beat delta's path, and the marcher does not, so `guided` lost to `delta` there
- * (0.73-0.99x on six scenes at 10 s) while guided-unbiased won. Its PDF segments weigh its own
+ * (0.73-0.99x on five scenes at 10 s) while guided-unbiased won. Its PDF segments weigh its own
  * cell cost (rd_select_prepare_path), and every rule below runs over the four as over three.
  *
  * The variance. Per channel, the squared deviations from each pixel's own mean, pooled over the
