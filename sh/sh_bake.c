@@ -126,6 +126,12 @@ sh_status shi_bake_knn(sh_guide *g, const pm_map *map, const sh_bake_params *P, 
             double y[SH_MAX_COEFFS], b[SH_MAX_BANDS], one[SH_MAX_BANDS];
             for (int l = 0; l < L; l++)
                 one[l] = 1.0; /* b_l is applied once per cell below */
+            /* The k photons lie scattered over the photon array (the order they were stored
+             * in): their loads issued together, not one a photon behind the SH evaluation of
+             * the last (a profile of hard-dense-block's bake put 92% of this loop's own time on
+             * the first use of a photon; the guide 0.44 -> 0.36 s, the same numbers). */
+            for (int j = 0; j < n; j++)
+                __builtin_prefetch(&ph[idx[j]]);
             for (int j = 0; j < n; j++) {
                 const pm_photon *q = &ph[idx[j]];
                 double w[3] = {q->dir[0], q->dir[1], q->dir[2]};

@@ -6,6 +6,7 @@
 #include "bake/rd_photons.h"
 #include "sh.h"
 
+#include <omp.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -266,6 +267,25 @@ static rd_status bake_agree(bake_ranks *br, rd_status st, char *err, size_t errl
     return st;
 }
 
+/* Build b's photon map's index and, if it has one, its indirect map's: the two builds on two
+ * threads of `threads` (0: all) where it allows two, else one after the other. The indexes are
+ * the same either way (each build is its own, deterministic). */
+static rd_status build_maps(rd_baked *b, int threads, char *err, size_t errlen)
+{
+    pm_map *maps[2] = {b->map, b->indirect};
+    pm_status ps[2] = {PM_OK, PM_OK};
+    char why[2][RD_ERRLEN];
+    int n = b->indirect ? 2 : 1, t = threads > 0 ? threads : omp_get_max_threads();
+#pragma omp parallel for num_threads(n > 1 && t > 1 ? 2 : 1) schedule(static, 1)
+    for (int i = 0; i < n; i++) ps[i] = pm_map_build(maps[i], why[i], sizeof why[i]);
+    for (int i = 0; i < n; i++)
+        if (ps[i] != PM_OK) {
+            snprintf(err, errlen, "photon map: %s", why[i]);
+            return RD_ERR_INTERNAL;
+        }
+    return RD_OK;
+}
+
 rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char *err,
                   size_t errlen)
 {
@@ -308,17 +328,7 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
         bs->gather_seconds = ps.gather_seconds;
         bs->gather_bytes = ps.gather_bytes;
     }
-    /* 2. The FLANN kd-tree over the photons. */
-    if (pm_map_build(b->map, pmerr, sizeof pmerr) != PM_OK) {
-        snprintf(err, errlen, "photon map: %s", pmerr);
-        st = RD_ERR_INTERNAL;
-        goto fail;
-    }
-    bs->stored = pm_map_photon_count(b->map);
-    bs->segments = pm_map_segment_count(b->map);
-    bs->map_bytes = pm_map_memory_bytes(b->map);
-    bs->index_seconds = pm_map_build_seconds(b->map);
-    /* 2b. The same photons without their first flight, for multiple scattering beside
+    /* 2. The same photons without their first flight, for multiple scattering beside
      * next-event estimation (photon i follows the same path: its stream is keyed by i). */
     if (o->indirect && o->load_indirect) {
         if (pm_map_load(&b->indirect, o->load_indirect, pmerr, sizeof pmerr) != PM_OK) {
@@ -335,11 +345,14 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
             goto fail;
         }
     }
-    if (b->indirect && pm_map_build(b->indirect, pmerr, sizeof pmerr) != PM_OK) {
-        snprintf(err, errlen, "photon map: %s", pmerr);
-        st = RD_ERR_INTERNAL;
-        goto fail;
-    }
+    /* 2b. The FLANN kd-trees over the photons: the two maps' at once where there are two
+     * threads (each build is serial: FLANN's divideTree; 0.27 s each for the 2.0 and 1.9 million
+     * photons of hard-dense-block, docs/benchmarks.md "Session 51"). */
+    if ((st = build_maps(b, o->threads, err, errlen)) != RD_OK) goto fail;
+    bs->stored = pm_map_photon_count(b->map);
+    bs->segments = pm_map_segment_count(b->map);
+    bs->map_bytes = pm_map_memory_bytes(b->map);
+    bs->index_seconds = pm_map_build_seconds(b->map);
     /* (A signal during the index builds, which cannot stop part-way, is seen here.) */
     if (o->cancel && *o->cancel) {
         snprintf(err, errlen, "%s: bake interrupted", s->path);
