@@ -5,6 +5,7 @@
 
 #include <cstdio>
 #include <exception>
+#include <mutex>
 #include <new>
 
 namespace {
@@ -42,6 +43,11 @@ template <class R, class F> R guarded(pm_flann_fault *fault, R on_fault, F &&cal
 extern "C" flann_index_t pm_flann_build(float *xyz, int rows, int cols, float *speedup,
                                         struct FLANNParameters *p, pm_flann_fault *fault)
 {
+    // FLANN's process-wide log level, set to NONE (it never prints) once before the first build;
+    // every call's parameters then leave it alone (log_level -1), so two builds of different
+    // maps may run at once (photonmap.c's head, "Thread safety").
+    static std::once_flag quiet;
+    std::call_once(quiet, [] { flann_log_verbosity(FLANN_LOG_NONE); });
     return guarded<flann_index_t>(fault, nullptr, [&] { return flann_build_index_float(xyz, rows, cols, speedup, p); });
 }
 

@@ -20,9 +20,11 @@
  *    (KDTreeSingleIndex::findNeighbors) is const and keeps its result set and distance
  *    scratch on the calling thread. Each call gets its own FLANNParameters on the stack,
  *    because FLANN takes them by non-const pointer. Concurrent queries are therefore safe.
- *    The build sets the log level to NONE (so FLANN never prints): that one global int write
- *    is why building is documented as single-threaded. FLANN's distance type is a process
- *    global too; nothing in photonmarch may call flann_set_distance_type().
+ *    The log level is set to NONE (so FLANN never prints) once, before the first build
+ *    (pm_flann_build, under std::call_once), and every call passes -1 after it, so builds of
+ *    different maps may run at once too (rd_bake builds its two maps' trees so). FLANN's
+ *    distance type is a process global too; nothing in photonmarch may call
+ *    flann_set_distance_type().
  */
 #include <limits.h>
 #include <stdarg.h>
@@ -64,7 +66,7 @@ pm_map *pm_map_new(void)
 static void drop_index(pm_map *map)
 {
     if (map->index != NULL) {
-        struct FLANNParameters p = pmi_flann_params(0);
+        struct FLANNParameters p = pmi_flann_params();
         flann_free_index_float(map->index, &p);
         map->index = NULL;
     }
@@ -333,7 +335,7 @@ pm_status pm_map_build(pm_map *map, char *err, size_t errlen)
     for (size_t j = 0; j < map->nph; j++)
         memcpy(map->xyz + 3 * j, map->ph[map->perm[j]].pos, 3 * sizeof(float));
 
-    struct FLANNParameters p = pmi_flann_params(1);
+    struct FLANNParameters p = pmi_flann_params();
     float speedup = 0.0f;
     pm_flann_fault fault;
     map->index = pm_flann_build(map->xyz, (int)map->nph, 3, &speedup, &p, &fault);

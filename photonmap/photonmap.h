@@ -28,8 +28,8 @@
  *             region of volume |V| where it runs for length l is dPhi l / |V| (= fluence); a
  *             caller multiplies by its own sigma_s(x) and phase function.
  *
- * Threads: building is single-threaded (FLANN); every query function is safe to call from many
- * threads at once on a built map. Results are deterministic (exact kd-tree search, ties broken
+ * Threads: a build is single-threaded (FLANN), and builds of different maps may run at once;
+ * every query function is safe to call from many threads at once on a built map. Results are deterministic (exact kd-tree search, ties broken
  * by index).
  *
  * Errors: functions return pm_status; when `err` is non-NULL a one-line message is written

@@ -97,8 +97,9 @@ static inline int pmi_finite3d(const double v[3])
 }
 
 /* FLANN parameters for an exact single kd-tree, returned by value so that every call owns its
- * copy. log_level -1 makes init_flann_parameters() leave FLANN's global log level alone. */
-static inline struct FLANNParameters pmi_flann_params(int for_build)
+ * copy. log_level -1 makes init_flann_parameters() leave FLANN's global log level alone: it is
+ * set once, to NONE, before the first build (pm_flann_build). */
+static inline struct FLANNParameters pmi_flann_params(void)
 {
     struct FLANNParameters p;
     memset(&p, 0, sizeof p);
@@ -110,7 +111,7 @@ static inline struct FLANNParameters pmi_flann_params(int for_build)
     p.cores = 1;
     p.trees = 1;
     p.leaf_max_size = PM_LEAF_MAX_SIZE;
-    p.log_level = for_build ? FLANN_LOG_NONE : (enum flann_log_level_t)-1;
+    p.log_level = (enum flann_log_level_t)-1;
     p.random_seed = 0; /* no srand() */
     return p;
 }

@@ -97,7 +97,7 @@ static int hit_cmp(const void *a, const void *b)
  * number found and a malloc'ed array in *out, or -1 on failure. */
 static int collect_within(const pm_map *map, const float x[3], float t, pm_hit **out)
 {
-    struct FLANNParameters p = pmi_flann_params(0);
+    struct FLANNParameters p = pmi_flann_params();
     float q[3] = {x[0], x[1], x[2]};
     float rs = tie_slack(t);
     int dummy_i;
@@ -241,7 +241,7 @@ static int knn_local(const pm_map *map, const float x[3], int k, int *idx, float
     if (!scratch_get(&s, kq))
         return -1;
     fill_empty(s.fi, s.fd, (size_t)kq);
-    struct FLANNParameters p = pmi_flann_params(0);
+    struct FLANNParameters p = pmi_flann_params();
     float q[3] = {x[0], x[1], x[2]};
     int r = -1;
     if (pm_flann_knn(map->index, q, 1, s.fi, s.fd, kq, &p, NULL) == 0) {
@@ -279,7 +279,7 @@ int pm_map_radius(const pm_map *map, const double world[3], float r, int max, in
     int cap = m < count ? m + 1 : m; /* one extra to detect a tie at the max-th */
 
     pm_scratch s;
-    struct FLANNParameters p = pmi_flann_params(0);
+    struct FLANNParameters p = pmi_flann_params();
     float q[3] = {x[0], x[1], x[2]};
     int out = -1, c = -1;
     /* FLANN keeps the cap nearest photons strictly inside the slack radius, and its result set
@@ -374,7 +374,7 @@ pm_status pm_map_knn_batch(const pm_map *map, const double *queries, size_t nq, 
 #pragma omp atomic write
             failed = 1;
         }
-        struct FLANNParameters p = pmi_flann_params(0);
+        struct FLANNParameters p = pmi_flann_params();
 #pragma omp for schedule(dynamic, 1)
         for (size_t c = 0; c < nchunks; c++) {
             int bad;

@@ -6,6 +6,7 @@
 #include "bake/rd_photons.h"
 
 #include "photonmap.h"
+#include "sh.h"
 
 static pm_map *trace(const rd_scene *s, size_t n, int store_direct, int max_depth, uint64_t seed,
                      int threads, rd_photon_stats *st)
@@ -139,6 +140,62 @@ Test(photons, same_map_on_one_and_two_threads, .timeout = 60)
     cr_expect(memcmp(pm_map_photons(m1), pm_map_photons(m2), pm_map_photon_count(m1) * sizeof(pm_photon)) == 0);
     pm_map_free(m1);
     pm_map_free(m2);
+    rd_scene_free(s);
+}
+
+/* The guide's every coefficient, the same to the bit in both guides (either may be NULL: then
+ * both must be). */
+static void expect_same_guide(const sh_guide *a, const sh_guide *b, const char *which)
+{
+    cr_assert((a == NULL) == (b == NULL), "%s: one bake has it, the other not", which);
+    if (!a) return;
+    sh_guide_stats sa, sb;
+    sh_guide_stats_get(a, &sa), sh_guide_stats_get(b, &sb);
+    int L = sh_guide_bands(a);
+    cr_assert(sa.cells == sb.cells && sa.cells > 0 && L == sh_guide_bands(b), "%s: cells %zu / %zu", which, sa.cells, sb.cells);
+    size_t differ = 0;
+    for (size_t k = 0; k < sa.cells; k++)
+        differ += memcmp(sh_guide_cell_coeffs(a, k), sh_guide_cell_coeffs(b, k), 3 * (size_t)L * L * sizeof(float)) != 0;
+    cr_expect(differ == 0, "%s: %zu of %zu cells differ", which, differ, sa.cells);
+}
+
+/* rd_bake builds the photon map's and the indirect map's kd-trees at once on two threads
+ * (bake.c, build_maps): the maps, their k-NN answers and both guides baked from them are the same
+ * to the bit as a bake on one thread, where the two builds run one after the other. */
+Test(photons, the_bake_s_two_maps_and_guides_are_the_same_on_one_and_two_threads, .timeout = 120)
+{
+    rd_scene *s = rt_scene("bake_threads.json",
+                           "{\"camera\":{\"position\":[0,0,5],\"look_at\":[0,0,0],\"resolution\":[4,4]},"
+                           "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
+                           "\"density\":{\"type\":\"noise\",\"octaves\":2},\"sigma_t\":2,\"albedo\":0.8,\"g\":0.5}],"
+                           "\"lights\":[{\"type\":\"spot\",\"position\":[0,2,0],\"look_at\":[0,0,0],\"angle\":50,\"intensity\":4}],"
+                           "\"photons\":{\"count\":20000},\"guide\":{\"resolution\":[8,8,8]}}");
+    rd_baked *b[2];
+    for (int i = 0; i < 2; i++) {
+        char err[RD_ERRLEN];
+        rd_bake_opts bo = {.seed = -1, .threads = i + 1};
+        rd_bake_opts_for(&bo, RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | RD_NEEDS_INDIRECT_GUIDE);
+        cr_assert(rd_bake(s, &bo, &b[i], err, sizeof err) == RD_OK, "%s", err);
+    }
+    const pm_map *maps[2][2] = {{rd_baked_map(b[0]), rd_baked_indirect_map(b[0])}, {rd_baked_map(b[1]), rd_baked_indirect_map(b[1])}};
+    for (int m = 0; m < 2; m++) {
+        const pm_map *x = maps[0][m], *y = maps[1][m];
+        cr_assert(x && y && pm_map_photon_count(x) == pm_map_photon_count(y) && pm_map_photon_count(x) > 1000,
+                  "map %d: %zu photons", m, x ? pm_map_photon_count(x) : 0);
+        cr_expect(memcmp(pm_map_photons(x), pm_map_photons(y), pm_map_photon_count(x) * sizeof(pm_photon)) == 0, "map %d", m);
+        for (int q = 0; q < 8; q++) { /* the trees answer alike */
+            double at[3] = {-0.8 + 0.2 * q, 0.5 - 0.13 * q, 0.3 * (q % 3) - 0.3};
+            int ix[16], iy[16];
+            float dx[16], dy[16];
+            int nx = pm_map_knn(x, at, 16, ix, dx), ny = pm_map_knn(y, at, 16, iy, dy);
+            cr_expect(nx == 16 && ny == 16 && memcmp(ix, iy, sizeof ix) == 0 && memcmp(dx, dy, sizeof dx) == 0,
+                      "map %d, query %d: %d and %d found, or other photons", m, q, nx, ny);
+        }
+    }
+    expect_same_guide(rd_baked_guide(b[0]), rd_baked_guide(b[1]), "the guide");
+    expect_same_guide(rd_baked_indirect_guide(b[0]), rd_baked_indirect_guide(b[1]), "the indirect guide");
+    cr_expect(rd_baked_indirect_guide(b[0]) != NULL, "no indirect guide baked");
+    rd_baked_free(b[0]), rd_baked_free(b[1]);
     rd_scene_free(s);
 }
 

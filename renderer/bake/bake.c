@@ -267,20 +267,23 @@ static rd_status bake_agree(bake_ranks *br, rd_status st, char *err, size_t errl
     return st;
 }
 
-/* Build b's photon map's index and, if it has one, its indirect map's: the two builds on two
- * threads of `threads` (0: all) where it allows two, else one after the other. The indexes are
- * the same either way (each build is its own, deterministic). */
-static rd_status build_maps(rd_baked *b, int threads, char *err, size_t errlen)
+/* Build the kd-trees of maps a and b (either may be NULL): on two threads of `threads` (0: all)
+ * where both are there and it allows two, else one after the other (FLANN's build is serial:
+ * its divideTree; for hard-dense-block's 2.05 and 1.85 million photons 0.54 s one after the
+ * other, 0.29 s at once: docs/benchmarks.md "Session 51"). Each tree is the same either way (a
+ * build is its own, deterministic). On failure, why gets the first failed build's message. */
+static rd_status build_maps(pm_map *a, pm_map *b, int threads, char *why, size_t whylen)
 {
-    pm_map *maps[2] = {b->map, b->indirect};
+    pm_map *maps[2] = {a, b};
     pm_status ps[2] = {PM_OK, PM_OK};
-    char why[2][RD_ERRLEN];
-    int n = b->indirect ? 2 : 1, t = threads > 0 ? threads : omp_get_max_threads();
-#pragma omp parallel for num_threads(n > 1 && t > 1 ? 2 : 1) schedule(static, 1)
-    for (int i = 0; i < n; i++) ps[i] = pm_map_build(maps[i], why[i], sizeof why[i]);
-    for (int i = 0; i < n; i++)
+    char m0[RD_ERRLEN], m1[RD_ERRLEN], *msg[2] = {m0, m1};
+    int t = threads > 0 ? threads : omp_get_max_threads();
+#pragma omp parallel for num_threads(a && b && t > 1 ? 2 : 1) schedule(static, 1)
+    for (int i = 0; i < 2; i++)
+        if (maps[i]) ps[i] = pm_map_build(maps[i], msg[i], RD_ERRLEN);
+    for (int i = 0; i < 2; i++)
         if (ps[i] != PM_OK) {
-            snprintf(err, errlen, "photon map: %s", why[i]);
+            snprintf(why, whylen, "%s", msg[i]);
             return RD_ERR_INTERNAL;
         }
     return RD_OK;
@@ -345,10 +348,12 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
             goto fail;
         }
     }
-    /* 2b. The FLANN kd-trees over the photons: the two maps' at once where there are two
-     * threads (each build is serial: FLANN's divideTree; 0.27 s each for the 2.0 and 1.9 million
-     * photons of hard-dense-block, docs/benchmarks.md "Session 51"). */
-    if ((st = build_maps(b, o->threads, err, errlen)) != RD_OK) goto fail;
+    /* 2b. The FLANN kd-trees over the photons, the two maps' at once (build_maps). */
+    if (build_maps(b->map, b->indirect, o->threads, pmerr, sizeof pmerr) != RD_OK) {
+        snprintf(err, errlen, "photon map: %s", pmerr);
+        st = RD_ERR_INTERNAL;
+        goto fail;
+    }
     bs->stored = pm_map_photon_count(b->map);
     bs->segments = pm_map_segment_count(b->map);
     bs->map_bytes = pm_map_memory_bytes(b->map);
@@ -436,8 +441,7 @@ rd_status rd_bake_photon_pass(const rd_scene *s, unsigned maps, int pass, uint64
         return st;
     }
     b->stats.emitted = ps.emitted;
-    if ((b->map && pm_map_build(b->map, pmerr, sizeof pmerr) != PM_OK) ||
-        (b->indirect && pm_map_build(b->indirect, pmerr, sizeof pmerr) != PM_OK)) {
+    if (build_maps(b->map, b->indirect, threads, pmerr, sizeof pmerr) != RD_OK) {
         snprintf(err, errlen, "photon map of pass %d: %s", pass, pmerr);
         st = RD_ERR_INTERNAL;
     }
