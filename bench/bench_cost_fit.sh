@@ -52,10 +52,17 @@
 # model within 0.90-1.18 of the twelve rows, select.c's 0.82-1.38); tried in the selection and
 # not kept: no gain at 10 s, losses on the dense block and sphere-in-fog (docs/benchmarks.md
 # "Session 49").
+# FIT=relp: the same renders as rel (into the same OUT; `python3 bench/cost_fit.py relp
+# OUT/runs.txt` fits it on rel's runs without rendering again), the marched sample's weight
+# alone fitted, the PDF segment held at select.c's 1.52. Session 51: 0.22 lookups.
+# FIT=relcheck: the same renders, no fit: each scene's model over measured time with select.c's
+# weights and with session 51's rel and relp fits, for scenes the fits did not see. Session 51,
+# SCENES="homogeneous hard-narrow-spot beam": select.c's weights read guided with 16 samples on
+# every ray at 0.73, 0.46 and 0.85 of its time (docs/benchmarks.md "Session 51").
 #
 #   bench/bench_cost_fit.sh [BIN]
 #       environment: SCENES (the six below), SPP (16), RES ([160,120]), ROUNDS (3),
-#                    FIT (all, beams, gu, eq, eqs, ms or rel), OUT (bench/results/cost_fit,
+#                    FIT (all, beams, gu, eq, eqs, ms, rel, relp or relcheck), OUT (bench/results/cost_fit,
 #                    cost_fit_beams, cost_fit_gu, cost_fit_eq, cost_fit_eqs, cost_fit_ms, cost_fit_rel)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -77,7 +84,8 @@ case $FIT in
   eq) OUT=${OUT:-bench/results/cost_fit_eq} ;;
   eqs) OUT=${OUT:-bench/results/cost_fit_eqs} ;;
   ms) OUT=${OUT:-bench/results/cost_fit_ms} ;;
-  rel) OUT=${OUT:-bench/results/cost_fit_rel} ;;
+  rel|relp) OUT=${OUT:-bench/results/cost_fit_rel} ;;
+  relcheck) OUT=${OUT:-bench/results/cost_fit_relcheck} ;;
   *) OUT=${OUT:-bench/results/cost_fit} ;;
 esac
 mkdir -p "$OUT"
@@ -98,7 +106,7 @@ elif [ "$FIT" = eqs ]; then
 elif [ "$FIT" = ms ]; then
   methods="guided-n16 guided-n2"
   extra=()
-elif [ "$FIT" = rel ]; then
+elif [ "$FIT" = rel ] || [ "$FIT" = relp ] || [ "$FIT" = relcheck ]; then
   methods="delta guided guided-n16"
   extra=()
 else

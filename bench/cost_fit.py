@@ -6,7 +6,7 @@ counts L (lookups), S (shadow rays), E (equiangular set-ups), Z (equiangular sam
 (marcher segments), P (marched samples), F (flight segments), V (guided vertices), H (balls a
 beam query crossed).
 
-    bench/cost_fit.py all|beams|gu|eq|eqs|ms|rel RUNS_FILE
+    bench/cost_fit.py all|beams|gu|eq|eqs|ms|rel|relp|relcheck RUNS_FILE
 
 all    every weight, a least-squares fit of time per camera sample on every render;
 beams  the weight of a ball, the others held at select.c's;
@@ -17,6 +17,9 @@ eqs    an equiangular sample's own work (beyond its lookups and shadow ray), on 
        difference of delta with settings.equiangular "true" and "false", the set-up held;
 rel    the marcher's PDF segment and marched sample, in delta's lookups of the same scene
        (delta, guided, and guided with 16 samples on every ray);
+relp   the same runs, the marched sample alone, the PDF segment held at select.c's;
+relcheck  no fit: rel's runs on other scenes, model over measured with select.c's weights and
+       with session 51's rel and relp fits;
 ms     a marched sample's own work (beyond its lookups, shadow rays and equiangular set-ups),
        on the paired difference of guided with 16 and 2 samples on every ray, those and the
        PDF segments held.
@@ -174,11 +177,12 @@ def held_difference(setups, cells=False):
     return held
 
 
-def fit_relative_to_delta(path):
+def fit_relative_to_delta(path, hold_segment=False):
     """The marcher's PDF segment and marched sample weights, in the lookups of delta on the same
     scene: per scene k = delta's time a sample over its counted cost (select.c's weights); each
     guided row's time over k is its cost in those lookups, fitted as the held counts plus
-    w_M segments plus w_P samples (relative errors)."""
+    w_M segments plus w_P samples (relative errors). hold_segment: w_M held at select.c's,
+    w_P alone fitted (mode relp)."""
     runs = load(path, lambda j: (j['scene'], j['method']))
 
     def held(j, n):  # select.c's weights, the marcher's two left out
@@ -194,9 +198,12 @@ def fit_relative_to_delta(path):
             if (s, m) not in runs:
                 continue
             j, n, t = per_sample(runs[(s, m)])
-            rows.append(([j['M'] / n, j['P'] / n], held(j, n), t / k))
+            if hold_segment:
+                rows.append(([j['P'] / n], held(j, n) + CELL * j['M'] / n, t / k))
+            else:
+                rows.append(([j['M'] / n, j['P'] / n], held(j, n), t / k))
             shown.append((s, m, t / k, held(j, n), j['M'] / n, j['P'] / n, k))
-    a = fit_relative(rows)
+    a = [CELL] + fit_relative(rows) if hold_segment else fit_relative(rows)
     print('| weight | in delta\'s lookups of the same scene |')
     print('|---|---|')
     for nm, v in zip(['PDF segment', 'marched sample'], a):
@@ -207,6 +214,37 @@ def fit_relative_to_delta(path):
     for s, m, y, h, M, P, k in shown:
         print('| %s | %s | %.4f | %.2f | %.2f | %.2f | %.2f | %.3f | %.3f |' % (
             s, m, k, y, h, M, P, (h + a[0] * M + a[1] * P) / y, (h + CELL * M) / y))
+
+
+# Session 51's two fits on the calibration scenes (rel: segment and marched sample; relp: the
+# marched sample alone, the segment held), for relcheck.
+REL_FIT, RELP_FIT = (0.674, 1.656), (CELL, 0.223)
+
+
+def check_relative_to_delta(path):
+    """No fit: each scene's guided rows, model over measured (in delta's lookups of the scene, as
+    rel measures them) with select.c's weights, with session 51's rel fit and with its relp fit;
+    for scenes the fits did not see."""
+    runs = load(path, lambda j: (j['scene'], j['method']))
+
+    def held(j, n):
+        return (j['L'] + SHADOW * j['S'] + EQ * j['E'] + BALL * j['H']) / n + SAMPLE
+
+    print('| scene | method | delta\'s us a lookup | select.c\'s | rel %.3f, %.3f | relp %.2f, %.3f |' % (REL_FIT + RELP_FIT))
+    print('|---|---|---|---|---|---|')
+    for s in sorted({k[0] for k in runs}):
+        if (s, 'delta') not in runs:
+            continue
+        jd, nd, td = per_sample(runs[(s, 'delta')])
+        k = td / held(jd, nd)
+        for m in ('guided', 'guided-n16'):
+            if (s, m) not in runs:
+                continue
+            j, n, t = per_sample(runs[(s, m)])
+            y, h, M, P = t / k, held(j, n), j['M'] / n, j['P'] / n
+            print('| %s | %s | %.3f | %.2f | %.2f | %.2f |' % (
+                s, m, k, (h + CELL * M) / y, (h + REL_FIT[0] * M + REL_FIT[1] * P) / y,
+                (h + RELP_FIT[0] * M + RELP_FIT[1] * P) / y))
 
 
 def main():
@@ -228,10 +266,14 @@ def main():
         fit_paired(path, 'delta-auto', 'delta-off', 'E', 'equiangular set-up', held_difference(None))
     elif mode == 'rel':
         fit_relative_to_delta(path)
+    elif mode == 'relp':
+        fit_relative_to_delta(path, hold_segment=True)
+    elif mode == 'relcheck':
+        check_relative_to_delta(path)
     elif mode == 'ms':
         fit_paired(path, 'guided-n16', 'guided-n2', 'P', 'marched sample', held_difference('difference', True))
     else:
-        sys.exit('cost_fit.py: mode must be all, beams, gu, eq, eqs, ms or rel, not ' + mode)
+        sys.exit('cost_fit.py: mode must be all, beams, gu, eq, eqs, ms, rel, relp or relcheck, not ' + mode)
 
 
 if __name__ == '__main__':
