@@ -415,3 +415,8 @@ double pm_map_build_seconds(const pm_map *map)
     return map ? map->build_seconds : 0.0;
 }
 
+const int *pm_map_spatial_order(const pm_map *map)
+{
+    return map && map->built ? map->perm : NULL;
+}
+

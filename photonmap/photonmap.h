@@ -105,6 +105,11 @@ const pm_segment *pm_map_segments(const pm_map *map);
 void pm_map_bounds(const pm_map *map, float lo[3], float hi[3]);
 size_t pm_map_memory_bytes(const pm_map *map); /* photons + segments + index (approximate) */
 double pm_map_build_seconds(const pm_map *map); /* wall time of the last pm_map_build */
+/* The photon indices in a spatial order (Morton, over the photons' bounds: the kd-tree's rows),
+ * pm_map_photon_count of them; NULL until the map is built (or when it is empty). Valid until
+ * the next add/free. A caller that lays photons out in memory in this order gets neighbours
+ * near each other. */
+const int *pm_map_spatial_order(const pm_map *map);
 
 /* Every query point x is in world coordinates [m], double; the map subtracts its origin in
  * double and searches with the float offset. Distances are in metres as float.

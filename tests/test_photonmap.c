@@ -352,6 +352,39 @@ Test(photonmap, knn_equals_brute_force)
     cr_assert_eq(cases, 4 * 6 * 30 * 6);
 }
 
+/* pm_map_spatial_order: NULL until built, then a permutation of the photons in which neighbours
+ * lie near each other (what rd_beams_build lays its balls out by): consecutive photons in it
+ * are on average far closer than in the order they were added (random over the unit cube:
+ * about 0.66 apart; a Z-curve over 5000 points: about a tenth of that). */
+Test(photonmap, spatial_order_is_a_permutation_that_keeps_neighbours_near)
+{
+    const size_t n = 5000;
+    pcg32 r = pcg32_seed(77, 1);
+    pm_photon *ph = random_photons(&r, n, 0, 0);
+    pm_map *m = pm_map_new();
+    char err[256];
+    cr_assert(pm_map_add_photons(m, ph, n, err, sizeof err) == PM_OK, "%s", err);
+    cr_expect(pm_map_spatial_order(m) == NULL, "an order before the build");
+    cr_assert(pm_map_build(m, err, sizeof err) == PM_OK, "%s", err);
+    const int *order = pm_map_spatial_order(m);
+    cr_assert(order != NULL);
+    char *seen = calloc(n, 1);
+    double d_order = 0.0, d_added = 0.0;
+    for (size_t i = 0; i < n; i++) {
+        cr_assert(order[i] >= 0 && (size_t)order[i] < n && !seen[order[i]], "entry %zu: %d", i, order[i]);
+        seen[order[i]] = 1;
+        if (i == 0) continue;
+        const float *a = ph[order[i - 1]].pos, *b = ph[order[i]].pos, *c = ph[i - 1].pos, *e = ph[i].pos;
+        d_order += sqrt(pow(a[0] - b[0], 2) + pow(a[1] - b[1], 2) + pow(a[2] - b[2], 2));
+        d_added += sqrt(pow(c[0] - e[0], 2) + pow(c[1] - e[1], 2) + pow(c[2] - e[2], 2));
+    }
+    cr_expect(d_order < 0.25 * d_added, "mean step %.4f in the order, %.4f as added", d_order / (n - 1),
+              d_added / (n - 1));
+    free(seen);
+    pm_map_free(m);
+    free(ph);
+}
+
 Test(photonmap, radius_equals_brute_force)
 {
     const size_t sizes[] = {1, 7, 100, 2000};
