@@ -260,6 +260,12 @@ vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, r
     const pm_map *map = rd_beams_map(st->beams);
     const pm_photon *ph = pm_map_photons(map);
     vec3 w = v3_scale(r.d, -1.0);
+    /* The hits' photons and radii, scattered over their arrays: their loads issued together,
+     * not one a hit behind the last hit's arithmetic. */
+    for (int i = 0; i < n; i++) {
+        __builtin_prefetch(&ph[ms->hits[i].idx]);
+        __builtin_prefetch(&st->beam_radius[ms->hits[i].idx]);
+    }
     /* The picks' weights: cdf[i] = sum of lum(c_k) over the first i + 1 hits. */
     double total = 0.0;
     for (int i = 0; i < n; i++) {
