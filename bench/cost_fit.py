@@ -177,33 +177,41 @@ def held_difference(setups, cells=False):
     return held
 
 
+def held_relative(j, n):
+    """A render's counted cost a camera sample by select.c's weights, the marcher's two (PDF
+    segment, marched sample) left out."""
+    return (j['L'] + SHADOW * j['S'] + EQ * j['E'] + BALL * j['H']) / n + SAMPLE
+
+
+def relative_rows(path):
+    """Per scene with a delta render, k = delta's time a sample over its counted cost, and for
+    each guided row (s, m, y, h, M, P, k): its time in those lookups y, its held cost h, its PDF
+    segments M and marched samples P a camera sample."""
+    runs = load(path, lambda j: (j['scene'], j['method']))
+    for s in sorted({key[0] for key in runs}):
+        if (s, 'delta') not in runs:
+            continue
+        jd, nd, td = per_sample(runs[(s, 'delta')])
+        k = td / held_relative(jd, nd)
+        for m in ('guided', 'guided-n16'):
+            if (s, m) not in runs:
+                continue
+            j, n, t = per_sample(runs[(s, m)])
+            yield s, m, t / k, held_relative(j, n), j['M'] / n, j['P'] / n, k
+
+
 def fit_relative_to_delta(path, hold_segment=False):
     """The marcher's PDF segment and marched sample weights, in the lookups of delta on the same
     scene: per scene k = delta's time a sample over its counted cost (select.c's weights); each
     guided row's time over k is its cost in those lookups, fitted as the held counts plus
     w_M segments plus w_P samples (relative errors). hold_segment: w_M held at select.c's,
     w_P alone fitted (mode relp)."""
-    runs = load(path, lambda j: (j['scene'], j['method']))
-
-    def held(j, n):  # select.c's weights, the marcher's two left out
-        return (j['L'] + SHADOW * j['S'] + EQ * j['E'] + BALL * j['H']) / n + SAMPLE
-
-    rows, shown = [], []
-    for s in sorted({k[0] for k in runs}):
-        if (s, 'delta') not in runs:
-            continue
-        jd, nd, td = per_sample(runs[(s, 'delta')])
-        k = td / held(jd, nd)
-        for m in ('guided', 'guided-n16'):
-            if (s, m) not in runs:
-                continue
-            j, n, t = per_sample(runs[(s, m)])
-            if hold_segment:
-                rows.append(([j['P'] / n], held(j, n) + CELL * j['M'] / n, t / k))
-            else:
-                rows.append(([j['M'] / n, j['P'] / n], held(j, n), t / k))
-            shown.append((s, m, t / k, held(j, n), j['M'] / n, j['P'] / n, k))
-    a = [CELL] + fit_relative(rows) if hold_segment else fit_relative(rows)
+    shown = list(relative_rows(path))
+    if hold_segment:
+        rows = [([P], h + CELL * M, y) for _, _, y, h, M, P, _ in shown]
+        a = [CELL] + fit_relative(rows)
+    else:
+        a = fit_relative([([M, P], h, y) for _, _, y, h, M, P, _ in shown])
     print('| weight | in delta\'s lookups of the same scene |')
     print('|---|---|')
     for nm, v in zip(['PDF segment', 'marched sample'], a):
@@ -225,26 +233,12 @@ def check_relative_to_delta(path):
     """No fit: each scene's guided rows, model over measured (in delta's lookups of the scene, as
     rel measures them) with select.c's weights, with session 51's rel fit and with its relp fit;
     for scenes the fits did not see."""
-    runs = load(path, lambda j: (j['scene'], j['method']))
-
-    def held(j, n):
-        return (j['L'] + SHADOW * j['S'] + EQ * j['E'] + BALL * j['H']) / n + SAMPLE
-
     print('| scene | method | delta\'s us a lookup | select.c\'s | rel %.3f, %.3f | relp %.2f, %.3f |' % (REL_FIT + RELP_FIT))
     print('|---|---|---|---|---|---|')
-    for s in sorted({k[0] for k in runs}):
-        if (s, 'delta') not in runs:
-            continue
-        jd, nd, td = per_sample(runs[(s, 'delta')])
-        k = td / held(jd, nd)
-        for m in ('guided', 'guided-n16'):
-            if (s, m) not in runs:
-                continue
-            j, n, t = per_sample(runs[(s, m)])
-            y, h, M, P = t / k, held(j, n), j['M'] / n, j['P'] / n
-            print('| %s | %s | %.3f | %.2f | %.2f | %.2f |' % (
-                s, m, k, (h + CELL * M) / y, (h + REL_FIT[0] * M + REL_FIT[1] * P) / y,
-                (h + RELP_FIT[0] * M + RELP_FIT[1] * P) / y))
+    for s, m, y, h, M, P, k in relative_rows(path):
+        print('| %s | %s | %.3f | %.2f | %.2f | %.2f |' % (
+            s, m, k, (h + CELL * M) / y, (h + REL_FIT[0] * M + REL_FIT[1] * P) / y,
+            (h + RELP_FIT[0] * M + RELP_FIT[1] * P) / y))
 
 
 def main():
