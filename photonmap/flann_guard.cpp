@@ -47,8 +47,10 @@ extern "C" flann_index_t pm_flann_build(float *xyz, int rows, int cols, float *s
     // every call's parameters then leave it alone (log_level -1), so two builds of different
     // maps may run at once (photonmap.c's head, "Thread safety").
     static std::once_flag quiet;
-    std::call_once(quiet, [] { flann_log_verbosity(FLANN_LOG_NONE); });
-    return guarded<flann_index_t>(fault, nullptr, [&] { return flann_build_index_float(xyz, rows, cols, speedup, p); });
+    return guarded<flann_index_t>(fault, nullptr, [&] {
+        std::call_once(quiet, [] { flann_log_verbosity(FLANN_LOG_NONE); }); // (may throw: guarded)
+        return flann_build_index_float(xyz, rows, cols, speedup, p);
+    });
 }
 
 extern "C" int pm_flann_knn(flann_index_t index, float *queries, int nq, int *idx, float *dist2,

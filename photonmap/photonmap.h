@@ -107,8 +107,8 @@ size_t pm_map_memory_bytes(const pm_map *map); /* photons + segments + index (ap
 double pm_map_build_seconds(const pm_map *map); /* wall time of the last pm_map_build */
 /* The photon indices in a spatial order (Morton, over the photons' bounds: the kd-tree's rows),
  * pm_map_photon_count of them; NULL until the map is built (or when it is empty). Valid until
- * the next add/free. A caller that lays photons out in memory in this order gets neighbours
- * near each other. */
+ * the next pm_map_add_photons, pm_map_build or pm_map_free. A caller that lays photons out in
+ * memory in this order gets neighbours near each other. */
 const int *pm_map_spatial_order(const pm_map *map);
 
 /* Every query point x is in world coordinates [m], double; the map subtracts its origin in

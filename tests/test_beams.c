@@ -53,7 +53,10 @@ static int chord(ray3 r, vec3 c, double rad, double t0, double t1, double *ta, d
     return *tb > *ta;
 }
 
-Test(beams, cross_finds_every_ball_once)
+/* Every ball a segment crosses, once, with its chord, against brute force; on a map not built
+ * (the balls in photon order) and on a built one (in the map's spatial order, as the renders
+ * have them: rd_beams_build). */
+static void cross_finds_every_ball_once_on(int built)
 {
     enum { N = 3000, RAYS = 300, CAP = 4096 };
     pcg32 rng = pcg32_seed(1, 2, 3);
@@ -61,6 +64,10 @@ Test(beams, cross_finds_every_ball_once)
     pm_map *m = random_map(N, rad, &rng);
     rd_beams *b;
     char err[256];
+    if (built) {
+        cr_assert(pm_map_build(m, err, sizeof err) == PM_OK, "%s", err);
+        cr_assert(pm_map_spatial_order(m) != NULL);
+    }
     cr_assert(rd_beams_new(&b, 2, err, sizeof err) == RD_OK, "%s", err);
     cr_assert(rd_beams_build(b, m, rad, err, sizeof err) == RD_OK, "%s", err);
     const pm_photon *ph = pm_map_photons(m);
@@ -112,6 +119,12 @@ Test(beams, cross_finds_every_ball_once)
     cr_assert(total > 2 * RAYS, "too few crossings to test: %d", total);
     rd_beams_free(b);
     pm_map_free(m);
+}
+
+Test(beams, cross_finds_every_ball_once)
+{
+    cross_finds_every_ball_once_on(0);
+    cross_finds_every_ball_once_on(1);
 }
 
 /* Twelve balls on the x axis; a segment through all of them keeps one: each with probability

@@ -369,6 +369,7 @@ Test(photonmap, spatial_order_is_a_permutation_that_keeps_neighbours_near)
     const int *order = pm_map_spatial_order(m);
     cr_assert(order != NULL);
     char *seen = calloc(n, 1);
+    cr_assert(seen != NULL);
     double d_order = 0.0, d_added = 0.0;
     for (size_t i = 0; i < n; i++) {
         cr_assert(order[i] >= 0 && (size_t)order[i] < n && !seen[order[i]], "entry %zu: %d", i, order[i]);
@@ -380,6 +381,8 @@ Test(photonmap, spatial_order_is_a_permutation_that_keeps_neighbours_near)
     }
     cr_expect(d_order < 0.25 * d_added, "mean step %.4f in the order, %.4f as added", d_order / (n - 1),
               d_added / (n - 1));
+    cr_assert(pm_map_add_photons(m, ph, 1, err, sizeof err) == PM_OK, "%s", err);
+    cr_expect(pm_map_spatial_order(m) == NULL, "an order after an add, before the next build");
     free(seen);
     pm_map_free(m);
     free(ph);

@@ -154,9 +154,11 @@ rd_status rd_beams_build(rd_beams *b, const pm_map *map, const float *radius, ch
         return RD_ERR_NOMEM;
     }
     /* The balls in the map's spatial order (pm_map_spatial_order), so that the balls one query
-     * crosses lie near each other in Embree's buffer and in b->index (the filter reads them as
-     * Embree's traversal reports them: in photon order they were scattered over the buffer,
-     * and cross_filter spent most of its time waiting on those loads). */
+     * crosses lie near each other in Embree's buffer and in b->index (in photon order they were
+     * scattered over it): renders on glass-fog 3-8% faster, the gain in Embree's traversal
+     * (docs/benchmarks.md "Session 51"). The order Embree reports a query's balls in may
+     * change with the layout, and with it the reservoir's picks and the estimate's: the images
+     * are the same in distribution, not to the bit. */
     const int *order = pm_map_spatial_order(map);
     size_t j = 0;
     for (size_t i = 0; i < n; i++) {
