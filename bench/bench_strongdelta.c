@@ -96,6 +96,7 @@ static int split_set(const char *arg, rd_override *o)
 
 int main(int argc, char **argv)
 {
+    rd_steady_allocation(); /* every variant's render allocates as the first's (renderer.h) */
     const char *scene = NULL, *ref_path = NULL, *save_dir = NULL;
     double seconds = 10.0;
     int runs = 4, threads = 2, mask_outliers = 0;

@@ -136,6 +136,15 @@ void rd_image_free_pixels(rd_image *img);
 typedef double (*rd_clock_fn)(void *user);
 double rd_clock_monotonic(void *user); /* CLOCK_MONOTONIC in seconds; user is ignored */
 
+/* For a program that renders several times in one process (compare's runs, the benchmarks):
+ * every render's large blocks (1 MiB and up) from fresh pages, as in the process's first. glibc's
+ * malloc raises its mmap threshold each time a large block is freed, after which a later
+ * render's growing photon arrays are grown on the heap by copying: `guided`'s bake and pilot on
+ * hard-dense-block took 1.36 s after a `guided-unbiased` render in the same process against
+ * 1.24 s first (docs/benchmarks.md "Session 51"). Call once, before the first render; a no-op
+ * where the C library has no such setting. */
+void rd_steady_allocation(void);
+
 /* Several processes on one job (MPI ranks, docs/cluster.md): the plain C hooks through which a
  * render shares its work. The library never calls MPI itself; the command line's renderer/dist/
  * implements these with MPI, and a test may implement them with threads. NULL, or size <= 1:

@@ -70,6 +70,7 @@ static int run_on_ranks(int argc, char **argv, rd_dist *d)
 
 int main(int argc, char **argv)
 {
+    rd_steady_allocation(); /* (compare renders several times in one process) */
     /* MPI only when an MPI launcher started this process; a plain run never touches it. */
     rd_dist *d = NULL;
     char err[RD_ERRLEN];

@@ -24,6 +24,9 @@
 #include "integrators/rd_method.h"
 
 #include <limits.h>
+#if defined(__GLIBC__) || defined(__linux__)
+#include <malloc.h>
+#endif
 #include <omp.h>
 #include <stdlib.h>
 #include <string.h>
@@ -47,6 +50,13 @@ double rd_clock_monotonic(void *user)
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+void rd_steady_allocation(void)
+{
+#ifdef M_MMAP_THRESHOLD
+    mallopt(M_MMAP_THRESHOLD, 1 << 20); /* fixed: setting it ends glibc's dynamic threshold */
+#endif
 }
 
 /* The render's clock (rd_render_opts.clock): every time it keeps or reports is read here. */
