@@ -29,8 +29,8 @@
  *             caller multiplies by its own sigma_s(x) and phase function.
  *
  * Threads: a build is single-threaded (FLANN), and builds of different maps may run at once;
- * every query function is safe to call from many threads at once on a built map. Results are deterministic (exact kd-tree search, ties broken
- * by index).
+ * every query function is safe to call from many threads at once on a built map. Results are
+ * deterministic (exact kd-tree search, ties broken by index).
  *
  * Errors: functions return pm_status; when `err` is non-NULL a one-line message is written
  * into it (at most errlen bytes, always NUL-terminated). Nothing prints, nothing exits.

@@ -354,8 +354,9 @@ Test(photonmap, knn_equals_brute_force)
 
 /* pm_map_spatial_order: NULL until built, then a permutation of the photons in which neighbours
  * lie near each other (what rd_beams_build lays its balls out by): consecutive photons in it
- * are on average far closer than in the order they were added (random over the unit cube:
- * about 0.66 apart; a Z-curve over 5000 points: about a tenth of that). */
+ * are on average far closer than in the order they were added (this seed's 5000 points over
+ * the unit cube: 0.664 apart as added, 0.077 in the order, measured; the bound 0.25 of the first
+ * fails an order that sorts along one axis alone, or none). */
 Test(photonmap, spatial_order_is_a_permutation_that_keeps_neighbours_near)
 {
     const size_t n = 5000;
