@@ -31,9 +31,17 @@
  * common to every trace scored, so two traces (two rules, or two seeds) differ only by their
  * choices. Printed: per trace the score, its two factors and the method's share of the samples;
  * then every tile on one estimator, one line per table, with the first trace's costs.
+ * Then two figures that locate a rule's loss (docs/benchmarks.md "Session 52"): the best fixed
+ * choice, the tiles chosen by the rule itself (rd_select_choose) on the tables' variances and the
+ * first trace's costs and kept from the first sample to the last: the choice the selection would
+ * make if it knew the variances; and, per line of the first trace, each estimator's variance
+ * as the trace read it over the table's (the median over the tiles where the table's is not 0)
+ * with the samples it was read from (their mean over the tiles): a heavy-tailed estimator's
+ * sample variance reads low from a few hundred samples, and the rule then prefers it.
  * Without a trace (as `make bench` runs every tool, with --json FILE and --quick, which it
  * ignores) it says so and exits 0. */
 #include "renderer.h"
+#include "integrators/rd_select.h"
 
 #include <cjson/cJSON.h>
 #include <math.h>
@@ -124,12 +132,13 @@ typedef struct {
     int kind[MAXE]; /* estimator e's name: names[kind[e]] */
     long from[MAXLINES];
     int *choice[MAXLINES], *trial[MAXLINES];
+    double *var[MAXLINES], *samples[MAXLINES]; /* [tile * MAXE + e]: the line's figures (var < 0: null) */
     double *cost; /* [tile * MAXE + e] */
 } trace;
 
 static void trace_free(trace *r)
 {
-    for (int i = 0; i < r->lines; i++) free(r->choice[i]), free(r->trial[i]);
+    for (int i = 0; i < r->lines; i++) free(r->choice[i]), free(r->trial[i]), free(r->var[i]), free(r->samples[i]);
     free(r->cost);
 }
 
@@ -184,10 +193,11 @@ static int load_trace(const char *path, trace *r)
                 }
             }
             r->choice[i] = malloc((size_t)n * sizeof(int)), r->trial[i] = malloc((size_t)n * sizeof(int));
+            r->var[i] = calloc((size_t)n * MAXE, sizeof(double)), r->samples[i] = calloc((size_t)n * MAXE, sizeof(double));
             free(r->cost);
             r->cost = calloc((size_t)n * MAXE, sizeof *r->cost);
             r->lines++;
-            ok = ok && r->choice[i] && r->trial[i] && r->cost;
+            ok = ok && r->choice[i] && r->trial[i] && r->var[i] && r->samples[i] && r->cost;
             for (int k = 0; ok && k < n; k++) {
                 const cJSON *t = cJSON_GetArrayItem(tiles, k), *c = cJSON_GetObjectItem(t, "cost");
                 const cJSON *ch = cJSON_GetObjectItem(t, "choice"), *tr = cJSON_GetObjectItem(t, "trial");
@@ -202,6 +212,14 @@ static int load_trace(const char *path, trace *r)
                 r->choice[i][k] = ch->valueint;
                 r->trial[i][k] = tr->valueint;
                 for (int e = 0; e < r->m && e < cJSON_GetArraySize(c); e++) r->cost[k * MAXE + e] = cJSON_GetArrayItem(c, e)->valuedouble;
+                /* (the figures the rule read: for the diagnostic only, so a missing one is null) */
+                const cJSON *va = cJSON_GetObjectItem(t, "variance"), *sa = cJSON_GetObjectItem(t, "samples");
+                for (int e = 0; e < r->m; e++) {
+                    const cJSON *v = cJSON_IsArray(va) ? cJSON_GetArrayItem(va, e) : NULL;
+                    const cJSON *q = cJSON_IsArray(sa) ? cJSON_GetArrayItem(sa, e) : NULL;
+                    r->var[i][k * MAXE + e] = cJSON_IsNumber(v) ? v->valuedouble : -1.0;
+                    r->samples[i][k * MAXE + e] = cJSON_IsNumber(q) ? q->valuedouble : 0.0;
+                }
                 if (r->choice[i][k] < 0 || r->choice[i][k] >= r->m || r->trial[i][k] < 0 || r->trial[i][k] > r->m) {
                     fprintf(stderr, "bench_select_score: %s: line %d: tiles[%d]: choice or trial out of range\n", path, i + 1, k);
                     ok = 0;
@@ -250,6 +268,99 @@ static int score(const trace *r, int fixed, const tables *t, long N, double *var
         }
     *own /= (double)N * t->w * t->h;
     return 1;
+}
+
+/* Per tile k and estimator e, the sum over the tile's pixels of e's table (tv[k MAXE + e]) and the
+ * tile's pixels (px[k]). */
+static void tile_sums(const trace *r, const tables *t, double *tv, double *px)
+{
+    for (int k = 0; k < r->tx * r->ty; k++) {
+        px[k] = 0.0;
+        for (int e = 0; e < MAXE; e++) tv[k * MAXE + e] = 0.0;
+    }
+    for (int y = 0; y < t->h; y++)
+        for (int x = 0; x < t->w; x++) {
+            int k = (y / 8) * r->tx + x / 8;
+            px[k] += 1.0;
+            for (int e = 0; e < r->m; e++)
+                if (t->v[r->kind[e]]) tv[k * MAXE + e] += t->v[r->kind[e]][(size_t)y * t->w + x];
+        }
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* The best fixed choice for trace r's costs (see the head), scored as a trace of one line; 0 after
+ * a message when an estimator has no table. */
+static int best_fixed(const trace *r, const tables *t, long N)
+{
+    int n = r->tx * r->ty, m = r->m;
+    for (int e = 0; e < m; e++)
+        if (!t->v[r->kind[e]]) {
+            printf("best fixed choice: none (%s has no --table)\n", names[r->kind[e]]);
+            return 1;
+        }
+    double *tv = malloc((size_t)n * MAXE * sizeof *tv), *px = malloc((size_t)n * sizeof *px);
+    double *var = malloc((size_t)n * m * sizeof *var), *cost = malloc((size_t)n * m * sizeof *cost);
+    uint8_t *ch = malloc((size_t)n);
+    trace b = *r;
+    b.lines = 1, b.from[0] = 0;
+    b.choice[0] = malloc((size_t)n * sizeof(int)), b.trial[0] = calloc((size_t)n, sizeof(int));
+    int ok = tv && px && var && cost && ch && b.choice[0] && b.trial[0];
+    if (ok) {
+        tile_sums(r, t, tv, px);
+        for (int k = 0; k < n; k++)
+            for (int e = 0; e < m; e++) var[m * k + e] = tv[k * MAXE + e], cost[m * k + e] = px[k] * r->cost[k * MAXE + e];
+        rd_select_choose(var, cost, n, m, ch);
+        int count[MAXE] = {0};
+        for (int k = 0; k < n; k++) b.choice[0][k] = ch[k], count[ch[k]]++;
+        double v, c, own;
+        ok = score(&b, 0, t, N, &v, &c, &own);
+        if (ok) {
+            printf("best fixed choice: score %.4g (variance %.4g x cost %.4g), the method's share %.3f; tiles:", v * c, v, c, own);
+            for (int e = 0; e < m; e++) printf(" %s %d", names[r->kind[e]], count[e]);
+            printf("\n");
+        }
+    } else {
+        fprintf(stderr, "bench_select_score: out of memory\n");
+    }
+    free(tv), free(px), free(var), free(cost), free(ch), free(b.choice[0]), free(b.trial[0]);
+    return ok;
+}
+
+/* Per line of trace r, each estimator's variance as the line read it over its table's (see the
+ * head). */
+static void read_over_table(const trace *r, const tables *t)
+{
+    int n = r->tx * r->ty;
+    double *tv = malloc((size_t)n * MAXE * sizeof *tv), *px = malloc((size_t)n * sizeof *px);
+    double *q = malloc((size_t)n * sizeof *q);
+    if (!tv || !px || !q) {
+        free(tv), free(px), free(q);
+        return;
+    }
+    tile_sums(r, t, tv, px);
+    printf("the first trace's variances over the tables' (median over tiles; mean samples a tile):\n");
+    for (int i = 0; i < r->lines; i++) {
+        printf("  from sample %ld:", r->from[i]);
+        for (int e = 0; e < r->m; e++) {
+            int c = 0;
+            double ns = 0.0;
+            for (int k = 0; k < n; k++) {
+                double tab = px[k] > 0.0 ? tv[k * MAXE + e] / px[k] : 0.0, v = r->var[i][k * MAXE + e];
+                ns += r->samples[i][k * MAXE + e];
+                if (t->v[r->kind[e]] && tab > 0.0 && v >= 0.0 && r->samples[i][k * MAXE + e] > 1.0) q[c++] = v / tab;
+            }
+            qsort(q, (size_t)c, sizeof *q, cmp_double);
+            if (c) printf("  %s %.3f (%.0f)", names[r->kind[e]], c % 2 ? q[c / 2] : 0.5 * (q[c / 2 - 1] + q[c / 2]), ns / n);
+            else printf("  %s -", names[r->kind[e]]);
+        }
+        printf("\n");
+    }
+    free(tv), free(px), free(q);
 }
 
 int main(int argc, char **argv)
@@ -303,6 +414,8 @@ int main(int argc, char **argv)
         if (!score(&fixed, e, &t, N, &v, &c, &own)) status = 1;
         else printf("every tile on %s: score %.4g (variance %.4g x cost %.4g)\n", names[first_trace.kind[e]], v * c, v, c);
     }
+    if (!best_fixed(&first_trace, &t, N)) status = 1;
+    read_over_table(&first_trace, &t);
     trace_free(&first_trace);
     for (int e = 0; e < MAXE; e++) free(t.v[e]);
     return status;
