@@ -33,11 +33,15 @@
  * then every tile on one estimator, one line per table, with the first trace's costs.
  * Then two figures that locate a rule's loss (docs/benchmarks.md "Session 52"): the best fixed
  * choice, the tiles chosen by the rule itself (rd_select_choose) on the tables' variances and the
- * first trace's costs and kept from the first sample to the last: the choice the selection would
- * make if it knew the variances; and, per line of the first trace, each estimator's variance
- * as the trace read it over the table's (the median over the tiles where the table's is not 0)
- * with the samples it was read from (their mean over the tiles): a heavy-tailed estimator's
- * sample variance reads low from a few hundred samples, and the rule then prefers it.
+ * first trace's costs and kept from the first sample to the last (the rule alone: none of the
+ * selection's pooling, halves, trials or priors); and, per line of the first trace, each
+ * estimator's variance in a tile as the trace gives it (the tile's own figure, which the
+ * selection pools with its neighbours' before the rule reads it) over the table's mean over the
+ * tile's pixels: the median over the tiles where both are known (the table's not 0, the trace's
+ * not null) and the median of those tiles' samples. A heavy-tailed estimator's sample variance
+ * reads low from a few hundred samples, and the rule then prefers it. (The pilot samples a
+ * quarter of a tile's pixels, the table every pixel: where the variance sits in a few pixels,
+ * part of a low reading at the pilot is that.)
  * Without a trace (as `make bench` runs every tool, with --json FILE and --quick, which it
  * ignores) it says so and exits 0. */
 #include "renderer.h"
@@ -293,8 +297,8 @@ static int cmp_double(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-/* The best fixed choice for trace r's costs (see the head), scored as a trace of one line; 0 after
- * a message when an estimator has no table. */
+/* The best fixed choice for trace r's costs (see the head), scored as a trace of one line. An
+ * estimator without a table: says there is none and returns 1; 0 when out of memory. */
 static int best_fixed(const trace *r, const tables *t, long N)
 {
     int n = r->tx * r->ty, m = r->m;
@@ -337,30 +341,34 @@ static void read_over_table(const trace *r, const tables *t)
 {
     int n = r->tx * r->ty;
     double *tv = malloc((size_t)n * MAXE * sizeof *tv), *px = malloc((size_t)n * sizeof *px);
-    double *q = malloc((size_t)n * sizeof *q);
-    if (!tv || !px || !q) {
-        free(tv), free(px), free(q);
+    double *q = malloc((size_t)n * sizeof *q), *ns = malloc((size_t)n * sizeof *ns);
+    if (!tv || !px || !q || !ns) {
+        fprintf(stderr, "bench_select_score: out of memory (the variances read over the tables' left out)\n");
+        free(tv), free(px), free(q), free(ns);
         return;
     }
     tile_sums(r, t, tv, px);
-    printf("the first trace's variances over the tables' (median over tiles; mean samples a tile):\n");
+    printf("the first trace's variances over the tables' (median over the tiles; the median of their samples):\n");
     for (int i = 0; i < r->lines; i++) {
         printf("  from sample %ld:", r->from[i]);
         for (int e = 0; e < r->m; e++) {
             int c = 0;
-            double ns = 0.0;
             for (int k = 0; k < n; k++) {
                 double tab = px[k] > 0.0 ? tv[k * MAXE + e] / px[k] : 0.0, v = r->var[i][k * MAXE + e];
-                ns += r->samples[i][k * MAXE + e];
-                if (t->v[r->kind[e]] && tab > 0.0 && v >= 0.0 && r->samples[i][k * MAXE + e] > 1.0) q[c++] = v / tab;
+                if (t->v[r->kind[e]] && tab > 0.0 && v >= 0.0 && r->samples[i][k * MAXE + e] > 1.0)
+                    ns[c] = r->samples[i][k * MAXE + e], q[c++] = v / tab;
             }
             qsort(q, (size_t)c, sizeof *q, cmp_double);
-            if (c) printf("  %s %.3f (%.0f)", names[r->kind[e]], c % 2 ? q[c / 2] : 0.5 * (q[c / 2 - 1] + q[c / 2]), ns / n);
-            else printf("  %s -", names[r->kind[e]]);
+            qsort(ns, (size_t)c, sizeof *ns, cmp_double);
+            if (c)
+                printf("  %s %.3f (%.0f)", names[r->kind[e]], c % 2 ? q[c / 2] : 0.5 * (q[c / 2 - 1] + q[c / 2]),
+                       c % 2 ? ns[c / 2] : 0.5 * (ns[c / 2 - 1] + ns[c / 2]));
+            else
+                printf("  %s -", names[r->kind[e]]);
         }
         printf("\n");
     }
-    free(tv), free(px), free(q);
+    free(tv), free(px), free(q), free(ns);
 }
 
 int main(int argc, char **argv)

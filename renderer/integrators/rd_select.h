@@ -3,8 +3,8 @@
  * marcher samples with it; for `guided-unbiased` always: rd_select_prepare) (settings.select =
  * "tiles"; integrators/select.c); and `delta`'s own between its path without and with that
  * strategy (settings.equiangular "tiles": the "method" is the
- * path with it; integrators/delta.c). Internal to integrators/ (tests include
- * it). */
+ * path with it; integrators/delta.c). Internal to integrators/ (tests and
+ * bench/bench_select_score include it). */
 #ifndef RD_SELECT_H
 #define RD_SELECT_H
 
