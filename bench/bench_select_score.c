@@ -216,7 +216,7 @@ static int load_trace(const char *path, trace *r)
                 r->choice[i][k] = ch->valueint;
                 r->trial[i][k] = tr->valueint;
                 for (int e = 0; e < r->m && e < cJSON_GetArraySize(c); e++) r->cost[k * MAXE + e] = cJSON_GetArrayItem(c, e)->valuedouble;
-                /* (the figures the rule read: for the diagnostic only, so a missing one is null) */
+                /* (the tile's own figures as traced: for the diagnostic only, so a missing one is null) */
                 const cJSON *va = cJSON_GetObjectItem(t, "variance"), *sa = cJSON_GetObjectItem(t, "samples");
                 for (int e = 0; e < r->m; e++) {
                     const cJSON *v = cJSON_IsArray(va) ? cJSON_GetArrayItem(va, e) : NULL;
@@ -297,6 +297,13 @@ static int cmp_double(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+/* The median of a[0 .. c-1] (c > 0), which it sorts. */
+static double median(double *a, int c)
+{
+    qsort(a, (size_t)c, sizeof *a, cmp_double);
+    return c % 2 ? a[c / 2] : 0.5 * (a[c / 2 - 1] + a[c / 2]);
+}
+
 /* The best fixed choice for trace r's costs (see the head), scored as a trace of one line. An
  * estimator without a table: says there is none and returns 1; 0 when out of memory. */
 static int best_fixed(const trace *r, const tables *t, long N)
@@ -335,7 +342,7 @@ static int best_fixed(const trace *r, const tables *t, long N)
     return ok;
 }
 
-/* Per line of trace r, each estimator's variance as the line read it over its table's (see the
+/* Per line of trace r, each estimator's variance as the line gives it over its table's (see the
  * head). */
 static void read_over_table(const trace *r, const tables *t)
 {
@@ -358,11 +365,8 @@ static void read_over_table(const trace *r, const tables *t)
                 if (t->v[r->kind[e]] && tab > 0.0 && v >= 0.0 && r->samples[i][k * MAXE + e] > 1.0)
                     ns[c] = r->samples[i][k * MAXE + e], q[c++] = v / tab;
             }
-            qsort(q, (size_t)c, sizeof *q, cmp_double);
-            qsort(ns, (size_t)c, sizeof *ns, cmp_double);
             if (c)
-                printf("  %s %.3f (%.0f)", names[r->kind[e]], c % 2 ? q[c / 2] : 0.5 * (q[c / 2 - 1] + q[c / 2]),
-                       c % 2 ? ns[c / 2] : 0.5 * (ns[c / 2 - 1] + ns[c / 2]));
+                printf("  %s %.3f (%.0f)", names[r->kind[e]], median(q, c), median(ns, c));
             else
                 printf("  %s -", names[r->kind[e]]);
         }
