@@ -441,6 +441,9 @@ rd_status rd_bake_photon_pass(const rd_scene *s, unsigned maps, int pass, uint64
         return st;
     }
     b->stats.emitted = ps.emitted;
+    b->stats.collisions_per_photon = ps.emitted ? (double)ps.collisions / ps.emitted : 0.0;
+    /* (a pass's `stored`: the photons of both its maps, which its kd-trees index) */
+    b->stats.stored = (b->map ? pm_map_photon_count(b->map) : 0) + (b->indirect ? pm_map_photon_count(b->indirect) : 0);
     if (build_maps(b->map, b->indirect, threads, pmerr, sizeof pmerr) != RD_OK) {
         snprintf(err, errlen, "photon map of pass %d: %s", pass, pmerr);
         st = RD_ERR_INTERNAL;

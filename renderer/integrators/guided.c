@@ -96,8 +96,10 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
         /* (delta's tiles without the marcher's probes: with them, tried in session 36, `guided`
          * lost 0-10% against `delta` with probes on the calibration scenes; the marcher wins the
          * light's tiles without that: docs/guided-unbiased.md "Probes") */
-        st = rd_select_prepare_path(ctx, march_guided, NULL, RD_MARCH_CELL_COST,
-                                    s->march.equiangular != RD_EQ_OFF ? RD_SELECT_THIRD : 0,
+        /* (the beams' samples consume the progressive photon passes: RD_SELECT_PASSES) */
+        int options = (s->march.equiangular != RD_EQ_OFF ? RD_SELECT_THIRD : 0) |
+                      (s->march.ls == RD_LS_NEE_BEAMS && ctx->pass_emitted > 0.0 ? RD_SELECT_PASSES : 0);
+        st = rd_select_prepare_path(ctx, march_guided, NULL, RD_MARCH_CELL_COST, options,
                                     mst->gpaths ? paths_guided : NULL, RD_GU_CELL_COST, &mst->sel, err, errlen);
         if (st != RD_OK) rd_march_release(ctx);
     }

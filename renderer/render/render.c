@@ -268,9 +268,13 @@ static rd_status photon_pass(rd_render_ctx *ctx, unsigned maps, int pass, rd_bak
     rd_baked *next = NULL;
     rd_status st = rd_bake_photon_pass(s, maps, pass, ctx->seed, ctx->threads, cancel, ctx->comm, &next, err, errlen);
     if (st != RD_OK) return st;
+    const rd_bake_stats *bs = rd_baked_stats(next);
     if (pass == 1) {
         ctx->photons_first = rd_baked_map(next);
         ctx->photons_indirect_first = rd_baked_indirect_map(next);
+        ctx->pass_emitted = (double)bs->emitted;
+        ctx->pass_lookups = (double)bs->emitted * bs->collisions_per_photon;
+        ctx->pass_stored = (double)bs->stored;
     } else if (*cur != first) {
         rd_baked_free(*cur);
     }
@@ -279,7 +283,6 @@ static rd_status photon_pass(rd_render_ctx *ctx, unsigned maps, int pass, rd_bak
     if (maps & RD_NEEDS_INDIRECT) ctx->photons_indirect = rd_baked_indirect_map(next);
     ctx->photon_pass = pass;
     ctx->radius_scale = rd_ppm_radius_scale(pass, s->photons.alpha);
-    const rd_bake_stats *bs = rd_baked_stats(next);
     rs->photon_passes = pass;
     rs->photons_traced += bs->emitted;
     rs->photon_seconds += bs->seconds;
