@@ -404,7 +404,8 @@ void rd_bake_opts_for(rd_bake_opts *opts, unsigned needs);
 typedef struct {
     /* photon map */
     int loaded;                /* 1 when read from load_photons */
-    size_t emitted, stored, segments; /* (a progressive pass's stored: both its maps' photons) */
+    size_t emitted, stored, segments;
+    size_t indexed;            /* photons in all the bake's maps (main and indirect), indexed */
     double trace_seconds, index_seconds;
     double collisions_per_photon;
     size_t map_bytes;          /* photons, segments and index */

@@ -357,7 +357,7 @@ Test(select, a_costlier_estimator_takes_a_tile_only_when_both_halves_want_it)
     rd_select_free(&sel);
 }
 
-/* The method's share of the progressive photon passes (rd_select.method_extra, RD_SELECT_PASSES)
+/* The method's share of the progressive photon passes (rd_select.method_pass_cost, RD_SELECT_PASSES)
  * is a cost of each of its samples: delta (variance 4, cost 1) against the method (variance 1,
  * cost 2) in both halves gives the method the tile (V C 2 < 4); 3 lookups more a sample for the
  * passes make its V C 5 and give delta the tile. A rule that leaves the passes out keeps the
@@ -368,7 +368,7 @@ Test(select, the_method_s_share_of_the_photon_passes_counts_in_its_cost)
         rd_select sel;
         char err[RD_ERRLEN];
         cr_assert(rd_select_init(&sel, 8, 8, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
-        sel.method_extra = extra ? 3.0 : 0.0;
+        sel.method_pass_cost = extra ? 3.0 : 0.0;
         for (int h = 0; h < 2; h++) {
             add_half(&sel, h, RD_SEL_DELTA, 8, 8, 1.0, 4.0, 1.0, 1.0);
             add_half(&sel, h, RD_SEL_METHOD, 8, 8, 1.0, 1.0, 1.0, 2.0);
@@ -584,33 +584,29 @@ Test(select, the_pilot_puts_half_of_each_tile_s_pixels_in_each_half)
     rd_scene_free(s);
 }
 
-/* rd_select_prepare with RD_SELECT_PASSES: the method's share of a pass a sample is the pass's
- * counted work (pass 1's photons emitted, their tentative collisions and the photons stored,
- * from the render context) over the samples a pass serves, photons.pass_spp x the image's
- * pixels: linear in the pass's work, inverse in pass_spp, and nothing without the option. */
+/* rd_select_prepare with RD_SELECT_PASSES: the method's share of a pass a sample is pass 1's
+ * work (photons emitted, their tentative collisions, the photons indexed, from the render
+ * context, at rd_select.h's weights) over the samples a pass serves, photons.pass_spp x the
+ * image's 32 x 24 pixels; nothing without the option. Each field alone, then all three. */
 Test(select, a_pass_s_work_is_shared_by_the_samples_it_serves)
 {
     rd_scene *s = rt_scene("selpass.json", select_scene("{\"select\":\"tiles\"}"));
-    rd_render_ctx ctx = {.scene = s, .method = rd_method_find("delta"), .threads = 1,
-                         .pass_emitted = 1000.0, .pass_lookups = 9000.0, .pass_stored = 4000.0};
+    rd_render_ctx ctx = {.scene = s, .method = rd_method_find("delta"), .threads = 1};
     char err[RD_ERRLEN];
-    double extra[4];
-    for (int i = 0; i < 4; i++) {
-        ctx.pass_emitted = i == 2 ? 2000.0 : 1000.0, ctx.pass_lookups = i == 2 ? 18000.0 : 9000.0;
-        ctx.pass_stored = i == 2 ? 8000.0 : 4000.0;
-        s->photons.pass_spp = i == 3 ? 4 : 1;
+    const double w[3] = {RD_SELECT_COST_EMITTED, RD_SELECT_COST_COLLISION, RD_SELECT_COST_INDEXED};
+    const double work[5][3] = {{1000, 0, 0}, {0, 9000, 0}, {0, 0, 4000}, {1000, 9000, 4000}, {1000, 9000, 4000}};
+    for (int i = 0; i < 6; i++) {
+        const double *f = work[i < 5 ? i : 4];
+        ctx.pass_emitted = f[0], ctx.pass_collisions = f[1], ctx.pass_indexed = f[2];
+        s->photons.pass_spp = i == 4 ? 4 : 1;
         rd_select sel;
-        cr_assert(rd_select_prepare(&ctx, unit_method, NULL, 1.0, i == 0 ? 0 : RD_SELECT_PASSES, &sel, err, sizeof err) == RD_OK,
+        cr_assert(rd_select_prepare(&ctx, unit_method, NULL, 1.0, i == 5 ? 0 : RD_SELECT_PASSES, &sel, err, sizeof err) == RD_OK,
                   "%s", err);
-        extra[i] = sel.method_extra;
+        double want = i == 5 ? 0.0 : (w[0] * f[0] + w[1] * f[1] + w[2] * f[2]) / (s->photons.pass_spp * 32.0 * 24.0);
+        cr_assert(fabs(sel.method_pass_cost - want) <= 1e-12 * want, "case %d: a sample's share %.17g, not %.17g", i,
+                  sel.method_pass_cost, want);
         rd_select_free(&sel);
     }
-    cr_assert(extra[0] == 0.0, "without RD_SELECT_PASSES the method's samples carry %g", extra[0]);
-    /* a pass of 1000 photons, 9000 collisions and 4000 stored, over 32 x 24 samples: a few
-     * lookups a sample (the weights are select.c's fit, each between 0.1 and 10 lookups) */
-    cr_assert(extra[1] > 14000.0 * 0.1 / 768.0 && extra[1] < 14000.0 * 10.0 / 768.0, "a sample's share %g", extra[1]);
-    cr_assert(fabs(extra[2] / extra[1] - 2.0) < 1e-12, "twice the pass's work: %g times the share", extra[2] / extra[1]);
-    cr_assert(fabs(extra[1] / extra[3] - 4.0) < 1e-12, "four samples a pixel a pass: %g times less", extra[1] / extra[3]);
     rd_scene_free(s);
 }
 

@@ -355,6 +355,7 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
         goto fail;
     }
     bs->stored = pm_map_photon_count(b->map);
+    bs->indexed = bs->stored + (b->indirect ? pm_map_photon_count(b->indirect) : 0);
     bs->segments = pm_map_segment_count(b->map);
     bs->map_bytes = pm_map_memory_bytes(b->map);
     bs->index_seconds = pm_map_build_seconds(b->map);
@@ -442,8 +443,8 @@ rd_status rd_bake_photon_pass(const rd_scene *s, unsigned maps, int pass, uint64
     }
     b->stats.emitted = ps.emitted;
     b->stats.collisions_per_photon = ps.emitted ? (double)ps.collisions / ps.emitted : 0.0;
-    /* (a pass's `stored`: the photons of both its maps, which its kd-trees index) */
-    b->stats.stored = (b->map ? pm_map_photon_count(b->map) : 0) + (b->indirect ? pm_map_photon_count(b->indirect) : 0);
+    b->stats.stored = b->map ? pm_map_photon_count(b->map) : 0;
+    b->stats.indexed = b->stats.stored + (b->indirect ? pm_map_photon_count(b->indirect) : 0);
     if (build_maps(b->map, b->indirect, threads, pmerr, sizeof pmerr) != RD_OK) {
         snprintf(err, errlen, "photon map of pass %d: %s", pass, pmerr);
         st = RD_ERR_INTERNAL;

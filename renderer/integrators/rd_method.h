@@ -70,9 +70,9 @@ typedef struct rd_render_ctx {
     const struct pm_map *photons_first;          /* pass 1's maps: r_1 from their nearest photons */
     const struct pm_map *photons_indirect_first;
     /* Pass 1's photon work (0 without passes): the photons emitted, their tentative collisions
-     * (density lookups) and the photons stored, from which the selection counts what a sample's
-     * share of the passes costs (RD_SELECT_PASSES). Every pass emits as many as pass 1. */
-    double pass_emitted, pass_lookups, pass_stored;
+     * and the photons its kd-trees index (rd_bake_stats.indexed), from which the selection
+     * counts a sample's share of the passes (RD_SELECT_PASSES). Every pass emits as many. */
+    double pass_emitted, pass_collisions, pass_indexed;
     uint64_t seed;
     int threads;
     /* Several ranks on one image (rd_render_opts.comm; NULL: one process): a method that learns

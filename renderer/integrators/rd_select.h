@@ -81,9 +81,9 @@ typedef struct {
                                 in density lookups (select.c) */
     rd_select_fn path;       /* the RD_SEL_PATH estimator (NULL: none), */
     double path_cell_cost;   /* and its cost per PDF segment */
-    double method_extra;     /* per camera sample of the method, work its thread's counters do
-                                not see, in density lookups: its share of the progressive
-                                photon passes (RD_SELECT_PASSES); 0: none */
+    double method_pass_cost; /* per camera sample of the method, its share of the progressive
+                                photon passes, which no thread's counters see, in density
+                                lookups (RD_SELECT_PASSES); 0: none */
     rd_select_stats *stats;  /* per half h of the samples (select.c, "Replication"), tile k
                                 and estimator e, [n (tiles h + k) + e], tiles = tiles_x
                                 tiles_y: a tile's samples are the sum of its two halves' */
@@ -124,7 +124,6 @@ typedef struct {
     uint64_t lookups, shadow_rays, cells, vertices, beam_hits, eq_flights;
 } rd_select_work;
 rd_select_work rd_select_work_now(const rd_thread *th);
-
 double rd_select_work_cost(const rd_select_work *c0, const rd_thread *th, double cell_cost);
 
 /* An empty selection among `estimators` (2 to 4: delta's path, the method, then delta's path
@@ -155,10 +154,16 @@ rd_status rd_select_prepare_path(const rd_render_ctx *ctx, rd_select_fn method, 
                                  rd_select *sel, char *err, size_t errlen);
 /* rd_select_prepare's options (bits): the third estimator wanted (above); the method is delta's
  * own path with the strategy on every flight (`delta`'s "tiles": one of delta's paths,
- * rd_select.paths); the method's samples consume the progressive photon passes (ctx's
- * pass_lookups, pass_stored: each pass serves photons.pass_spp x the image's pixels of them),
- * whose share a sample the rule counts as the method's cost too (rd_select.method_extra). */
+ * rd_select.paths); the method's samples consume the progressive photon passes (a pass serves
+ * photons.pass_spp x the image's pixels of them): each adds its share of pass 1's work to its
+ * cost (rd_select.method_pass_cost: ctx's pass_emitted, pass_collisions and pass_indexed, at
+ * the weights below; select.c, "The photon passes"). */
 enum { RD_SELECT_THIRD = 1, RD_SELECT_METHOD_IS_PATH = 2, RD_SELECT_PASSES = 4 };
+/* A progressive pass's work, in density lookups: a photon emitted, a tentative collision, a
+ * photon indexed (stored and built into a kd-tree). */
+#define RD_SELECT_COST_EMITTED 0.87
+#define RD_SELECT_COST_COLLISION 0.64
+#define RD_SELECT_COST_INDEXED 2.75
 void rd_select_free(rd_select *sel);
 /* The camera sample of `th->pixel` (column th->x, row th->y): `method` where the selection
  * gives it the pixel's tile, the method's second estimator where it gives it that (rd_select.path),

@@ -174,13 +174,15 @@
  * hetero-forward 1.03x (0.99, 1.08), cloud 0.99x, sphere-in-fog 0.98x; beam 1.21x (one round);
  * hard-lens-caustic 0.95x (0.87-1.04, four rounds: 6-13% of its samples on the method's paths
  * against 5-7%, a loss there within the rounds' spread or a little beyond). Two earlier forms
- * (r over all the lit tiles; r without the tile alone, pooled): the dense block 1.17x and 1.14x,
- * 0.99-1.07x elsewhere but beam-vdb, beam and the narrow spot 1.19-1.37x. Tried and not kept (docs/benchmarks.md "Session 40", "Session 41", "Session
- * 53"): r read everywhere, as a prior of nu pseudo-samples or by empirical Bayes (tiles truly
- * differ, and a figure for the whole image overrode tiles whose halves agreed: sphere-in-fog
- * 0.72x, beam-vdb 0.74x; scored without the images' noise in session 53, sphere-in-fog 0.65x);
- * as a veto on moves to a costlier estimator (beam-vdb and the dense block 0.76-0.85x); the 3x3
- * pooling weakened as a tile's own samples grow (beam-vdb 0.89-0.92x, beam 0.66-1.07x).
+ * (r over all the lit tiles; r without the tile alone, pooled): the dense block 1.17x and
+ * 1.14x, 0.99-1.07x elsewhere, the second's beam-vdb, beam and narrow spot 1.19-1.37x. Tried
+ * and not kept (docs/benchmarks.md "Session 40", "41", "53"): r read everywhere, as a prior of
+ * nu pseudo-samples (dense block 1.36-1.43x, sphere-in-fog 0.72x in one round of two; scored
+ * without the images' noise in session 53, sphere-in-fog 0.65x) or by empirical Bayes (dense
+ * block 1.22x, beam-vdb 0.74x): tiles truly differ, and a figure for the whole image overrode
+ * tiles whose halves agreed; as a veto on moves to a costlier estimator (beam-vdb and the dense
+ * block 0.76-0.85x); the 3x3 pooling weakened as a tile's own samples grow (beam-vdb
+ * 0.89-0.92x, beam 0.66-1.07x: neighbours' fireflies likely show tails a tile's own had not).
  *
  * Tiles no sample has lit (session 42). Where no estimator has drawn a non-zero sample in a
  * tile or its neighbours, every variance the rule reads there is 0 and it gives the tile the
@@ -239,10 +241,11 @@
  * were right (beam.json: the beam's tiles went to delta, variance per sample 1.8e-4 against
  * 8.5e-5 without it, 32 spp, 160x120).
  *
- * The photon passes (session 53). A progressive pass is traced and indexed for every
- * photons.pass_spp x (all pixels) samples of the beams (render.c), time no counter sees: each
- * method sample carries its share of pass 1's counted work (RD_SELECT_PASSES, method_extra),
- * SEL_COST_PHOTON_* fitted on the calibration scenes (docs/benchmarks.md "Session 53").
+ * The photon passes (session 53). A pass is traced and indexed for every pass_spp x (all pixels)
+ * samples of the beams (render.c), time no counter sees: each method sample carries its share of
+ * pass 1's counted work (RD_SELECT_PASSES; weights fitted on the calibration scenes,
+ * docs/benchmarks.md "Session 53"). Not counted: the beams' set-up a pass (~14% of its work on
+ * sphere-in-fog), its one-thread kd-tree build, and on R ranks each one's whole index (R x).
  *
  * The rule. At equal time the image's MSE is (sum_k V_k)(sum_k C_k) / time for the choices
  * m_k of the tiles k, so the best choices minimise the product. Its stationary point is where
@@ -305,9 +308,6 @@
 #define SEL_COST_VERTEX 3.91   /* a guided-unbiased vertex that read the guide */
 #define SEL_COST_BEAM_HIT 0.60 /* a ball a segment's query crossed (march.ls nee+beams) */
 #define SEL_COST_EQ_FLIGHT 0.40 /* a flight's equiangular set-up (its choice of lights) */
-#define SEL_COST_PHOTON_EMITTED 0.87 /* a progressive pass's photon emitted, */
-#define SEL_COST_PHOTON_LOOKUP 0.64  /* its tentative collision, */
-#define SEL_COST_PHOTON_STORED 2.75  /* a photon stored and indexed (the head, "The photon passes") */
 #define SEL_ROUNDS 32       /* fixed-point rounds at most */
 #define SEL_TIE 1e-9        /* relative margin below which the method does not beat delta */
 #define SEL_EPOCH_FIRST 4   /* the first epoch ends at sample 4 of every pixel, */
@@ -648,7 +648,7 @@ static void figures(const rd_select *sel, const rd_select_stats *st, const doubl
              * tile's prior"): its own zeros are in p already */
             const double dim = fmin(1.0, (z - s->nonzero + 1.0) / (x - s->n * pbar[e] + 1.0));
             if (var) var[m * k + e] = pixels * tile_variance(&st[m * k], m, e, pbar[e] * dim, r ? r[m * k + e] : 0.0);
-            double extra = sel->kind[e] == RD_SEL_METHOD ? sel->method_extra : 0.0; /* (its passes) */
+            double extra = sel->kind[e] == RD_SEL_METHOD ? sel->method_pass_cost : 0.0; /* (its passes) */
             if (cost) cost[m * k + e] = s->n > 0.0 ? pixels * (s->cost / s->n + extra) : 0.0;
         }
     }
@@ -856,9 +856,9 @@ rd_status rd_select_prepare_path(const rd_render_ctx *ctx, rd_select_fn method, 
     }
     if (options & RD_SELECT_METHOD_IS_PATH) sel->paths |= 1u << RD_SEL_METHOD;
     if (options & RD_SELECT_PASSES) /* the method's share of a pass's work, a sample (the head) */
-        sel->method_extra = (SEL_COST_PHOTON_EMITTED * ctx->pass_emitted + SEL_COST_PHOTON_LOOKUP * ctx->pass_lookups +
-                             SEL_COST_PHOTON_STORED * ctx->pass_stored) /
-                            ((double)s->photons.pass_spp * cam->width * cam->height);
+        sel->method_pass_cost = (RD_SELECT_COST_EMITTED * ctx->pass_emitted + RD_SELECT_COST_COLLISION * ctx->pass_collisions +
+                                 RD_SELECT_COST_INDEXED * ctx->pass_indexed) /
+                                ((double)s->photons.pass_spp * cam->width * cam->height);
     sel->delta = delta;
     sel->epochs = ctx->scene->settings.select != RD_SELECT_PILOT;
     sel->trace_path = ctx->select_trace && (!ctx->comm || ctx->comm->rank == 0) ? ctx->select_trace : NULL;

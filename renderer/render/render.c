@@ -273,8 +273,8 @@ static rd_status photon_pass(rd_render_ctx *ctx, unsigned maps, int pass, rd_bak
         ctx->photons_first = rd_baked_map(next);
         ctx->photons_indirect_first = rd_baked_indirect_map(next);
         ctx->pass_emitted = (double)bs->emitted;
-        ctx->pass_lookups = (double)bs->emitted * bs->collisions_per_photon;
-        ctx->pass_stored = (double)bs->stored;
+        ctx->pass_collisions = (double)bs->emitted * bs->collisions_per_photon;
+        ctx->pass_indexed = (double)bs->indexed;
     } else if (*cur != first) {
         rd_baked_free(*cur);
     }
