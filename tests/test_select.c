@@ -357,29 +357,6 @@ Test(select, a_costlier_estimator_takes_a_tile_only_when_both_halves_want_it)
     rd_select_free(&sel);
 }
 
-/* The method's share of the progressive photon passes (rd_select.method_pass_cost, RD_SELECT_PASSES)
- * is a cost of each of its samples: delta (variance 4, cost 1) against the method (variance 1,
- * cost 2) in both halves gives the method the tile (V C 2 < 4); 3 lookups more a sample for the
- * passes make its V C 5 and give delta the tile. A rule that leaves the passes out keeps the
- * method. */
-Test(select, the_method_s_share_of_the_photon_passes_counts_in_its_cost)
-{
-    for (int extra = 0; extra < 2; extra++) {
-        rd_select sel;
-        char err[RD_ERRLEN];
-        cr_assert(rd_select_init(&sel, 8, 8, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
-        sel.method_pass_cost = extra ? 3.0 : 0.0;
-        for (int h = 0; h < 2; h++) {
-            add_half(&sel, h, RD_SEL_DELTA, 8, 8, 1.0, 4.0, 1.0, 1.0);
-            add_half(&sel, h, RD_SEL_METHOD, 8, 8, 1.0, 1.0, 1.0, 2.0);
-        }
-        rd_select_epoch(&sel, NULL); /* no samples: the choice from these statistics */
-        cr_assert(sel.choice[0] == (extra ? RD_SEL_DELTA : RD_SEL_METHOD) && sel.trial[0] == 0,
-                  "passes costing %d a sample: estimator %d took the tile", extra ? 3 : 0, sel.choice[0]);
-        rd_select_free(&sel);
-    }
-}
-
 /* ---- Where the halves disagree, the image decides ---------------------------------------------- */
 
 /* A row of eight tiles (64x8 pixels) whose halves show delta (cost 1) with variance v0[k] and
@@ -587,7 +564,9 @@ Test(select, the_pilot_puts_half_of_each_tile_s_pixels_in_each_half)
 /* rd_select_prepare with RD_SELECT_PASSES: the method's share of a pass a sample is pass 1's
  * work (photons emitted, their tentative collisions, the photons indexed, from the render
  * context, at rd_select.h's weights) over the samples a pass serves, photons.pass_spp x the
- * image's 32 x 24 pixels; nothing without the option. Each field alone, then all three. */
+ * image's 32 x 24 pixels; nothing without the option. Each field alone, then all three; and the
+ * share is in the method's recorded cost, pilot and image (which a rule that left the passes
+ * out, or added them to delta's samples, fails). */
 Test(select, a_pass_s_work_is_shared_by_the_samples_it_serves)
 {
     rd_scene *s = rt_scene("selpass.json", select_scene("{\"select\":\"tiles\"}"));
@@ -605,6 +584,30 @@ Test(select, a_pass_s_work_is_shared_by_the_samples_it_serves)
         double want = i == 5 ? 0.0 : (w[0] * f[0] + w[1] * f[1] + w[2] * f[2]) / (s->photons.pass_spp * 32.0 * 24.0);
         cr_assert(fabs(sel.method_pass_cost - want) <= 1e-12 * want, "case %d: a sample's share %.17g, not %.17g", i,
                   sel.method_pass_cost, want);
+        /* It is in every recorded sample of the method (the stand-in does no counted work): the
+         * pilot's, 2.18 + the share a sample within the records' unit, and the image's (a tile
+         * given to the method, one sample of each of its pixels), where the rule reads it. */
+        int tiles = sel.tiles_x * sel.tiles_y;
+        size_t mn = (size_t)sel.n * tiles;
+        for (int k = 0; k < tiles; k++)
+            for (int h = 0; h < 2; h++) {
+                const rd_select_stats *st = &sel.stats[h * mn + (size_t)sel.n * k + RD_SEL_METHOD];
+                cr_assert(fabs(st->cost / st->n - (RD_SELECT_COST_SAMPLE + want)) < 2.0 / RD_SELECT_COST_UNIT,
+                          "case %d, tile %d, half %d: the pilot's cost %g a sample, not %g", i, k, h, st->cost / st->n,
+                          RD_SELECT_COST_SAMPLE + want);
+            }
+        sel.choice[0] = RD_SEL_METHOD, sel.trial[0] = 0;
+        rd_thread th = {0};
+        for (int y = 0; y < 8; y++)
+            for (int x = 0; x < 8; x++) {
+                th.pixel = (uint64_t)y * 32 + x, th.x = x, th.y = y;
+                rd_sampler smp = rd_sampler_start(th.pixel, 0, 7);
+                rd_select_radiance(&ctx, &sel, unit_method, &th, (ray3){v3(0, 0, 3), v3(0, 0, -1)}, &smp);
+                rd_select_pixel_done(&sel, &th);
+                double c = sel.pixels[th.pixel].cost / RD_SELECT_COST_UNIT;
+                cr_assert(fabs(c - (RD_SELECT_COST_SAMPLE + want)) < 2.0 / RD_SELECT_COST_UNIT,
+                          "case %d, pixel (%d, %d): the image's sample cost %g, not %g", i, x, y, c, RD_SELECT_COST_SAMPLE + want);
+            }
         rd_select_free(&sel);
     }
     rd_scene_free(s);

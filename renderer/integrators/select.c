@@ -176,13 +176,12 @@
  * against 5-7%, a loss there within the rounds' spread or a little beyond). Two earlier forms
  * (r over all the lit tiles; r without the tile alone, pooled): the dense block 1.17x and
  * 1.14x, 0.99-1.07x elsewhere, the second's beam-vdb, beam and narrow spot 1.19-1.37x. Tried
- * and not kept (docs/benchmarks.md "Session 40", "41", "53"): r read everywhere, as a prior of
- * nu pseudo-samples (dense block 1.36-1.43x, sphere-in-fog 0.72x in one round of two; scored
- * without the images' noise in session 53, sphere-in-fog 0.65x) or by empirical Bayes (dense
- * block 1.22x, beam-vdb 0.74x): tiles truly differ, and a figure for the whole image overrode
- * tiles whose halves agreed; as a veto on moves to a costlier estimator (beam-vdb and the dense
- * block 0.76-0.85x); the 3x3 pooling weakened as a tile's own samples grow (beam-vdb
- * 0.89-0.92x, beam 0.66-1.07x: neighbours' fireflies likely show tails a tile's own had not).
+ * and not kept (docs/benchmarks.md "Session 40", "41", "53"): r read everywhere, as a prior of nu
+ * pseudo-samples (dense block 1.36-1.43x, sphere-in-fog 0.72x in one round of two, 0.65x scored
+ * offline in session 53) or by empirical Bayes (dense block 1.22x, beam-vdb 0.74x): tiles differ,
+ * and a figure for the whole image overrode tiles whose halves agreed; as a veto on moves to a
+ * costlier estimator (beam-vdb, dense block 0.76-0.85x); the 3x3 pooling weakened as a tile's
+ * samples grow (beam-vdb 0.89-0.92x, beam 0.66-1.07x: neighbours' fireflies show tails sooner).
  *
  * Tiles no sample has lit (session 42). Where no estimator has drawn a non-zero sample in a
  * tile or its neighbours, every variance the rule reads there is 0 and it gives the tile the
@@ -235,17 +234,15 @@
  * marched pixel takes more samples per pass when tiles go to delta, render.c); the choice
  * leans toward the beams by that much. Tried and not kept: counting the bias,
  * estimated in the pilot from the two means' difference beyond three standard errors, against
- * the method at the next epoch's sample count: delta's pilot mean is low where its paths
- * rarely find the light (a tail its 128 samples a tile do not show, out of the Cauchy-Schwarz
- * bound's reach where the tile is lit otherwise too), so the gap read as bias where the beams
- * were right (beam.json: the beam's tiles went to delta, variance per sample 1.8e-4 against
- * 8.5e-5 without it, 32 spp, 160x120).
+ * the method at the next epoch's sample count: delta's pilot mean is low where its paths rarely
+ * find the light (a tail its 128 samples a tile do not show, out of the Cauchy-Schwarz bound's
+ * reach where the tile is lit otherwise too), so the gap read as bias where the beams were right
+ * (beam.json: the beam's tiles went to delta, variance a sample 1.8e-4 against 8.5e-5, 32 spp).
  *
- * The photon passes (session 53). A pass is traced and indexed for every pass_spp x (all pixels)
- * samples of the beams (render.c), time no counter sees: each method sample carries its share of
- * pass 1's counted work (RD_SELECT_PASSES; weights fitted on the calibration scenes,
- * docs/benchmarks.md "Session 53"). Not counted: the beams' set-up a pass (~14% of its work on
- * sphere-in-fog), its one-thread kd-tree build, and on R ranks each one's whole index (R x).
+ * The photon passes (session 53). A pass is traced for every pass_spp x (all pixels) beam samples
+ * (render.c), time no counter sees: each method sample's cost carries its share of pass 1's work
+ * (RD_SELECT_PASSES, sample_fixed_units; weights fitted on the calibration scenes, docs/benchmarks.md
+ * "Session 53"; not counted: the beams' set-up a pass, ~14%, the one-thread kd-tree, R ranks' R x).
  *
  * The rule. At equal time the image's MSE is (sum_k V_k)(sum_k C_k) / time for the choices
  * m_k of the tiles k, so the best choices minimise the product. Its stationary point is where
@@ -324,6 +321,11 @@ static uint64_t cost_units(double w)
 {
     return (uint64_t)llround(w * RD_SELECT_COST_UNIT);
 }
+/* A sample of e beyond the counters: its rays and set-up, the method's share of the passes. */
+static uint64_t sample_fixed_units(const rd_select *sel, int e)
+{
+    return cost_units(SEL_COST_SAMPLE + (sel->kind[e] == RD_SEL_METHOD ? sel->method_pass_cost : 0.0));
+}
 
 /* Add one finite sample L to a pixel's record (its cost is added apart: the work of the
  * samples the film drops counts too). */
@@ -396,7 +398,7 @@ static void run_close(rd_select *sel, rd_select_run *u)
     for (int c = 0; c < 3; c++) px->sum[c] = u->sum[c], px->sum2[c] = u->sum2[c];
     px->n = u->n, px->nonzero = u->nonzero;
     rd_select_work c1 = rd_select_work_now(u->th);
-    px->cost += (double)(work_units(sel, u->use, &u->c, &c1) + u->drawn * cost_units(SEL_COST_SAMPLE)); /* exact */
+    px->cost += (double)(work_units(sel, u->use, &u->c, &c1) + u->drawn * sample_fixed_units(sel, u->use)); /* exact */
     u->th = NULL;
 }
 
@@ -447,12 +449,11 @@ static uint64_t work_units(const rd_select *sel, int e, const rd_select_work *c0
            (c1->eq_flights - c0->eq_flights) * cost_units(SEL_COST_EQ_FLIGHT);
 }
 
-/* The counted cost of one sample of estimator e in units (work_units), from th's counters
- * before it (c0) and after. */
+/* One sample of estimator e's counted cost in units, from th's counters before it (c0) and after. */
 static uint64_t sample_units(const rd_select *sel, int e, const rd_thread *th, rd_select_work c0)
 {
     rd_select_work c1 = rd_select_work_now(th);
-    return work_units(sel, e, &c0, &c1) + cost_units(SEL_COST_SAMPLE);
+    return work_units(sel, e, &c0, &c1) + sample_fixed_units(sel, e);
 }
 
 /* Camera sample `smp` of ray r with estimator e (0 .. sel->n - 1, of kind sel->kind[e]). */
@@ -648,8 +649,7 @@ static void figures(const rd_select *sel, const rd_select_stats *st, const doubl
              * tile's prior"): its own zeros are in p already */
             const double dim = fmin(1.0, (z - s->nonzero + 1.0) / (x - s->n * pbar[e] + 1.0));
             if (var) var[m * k + e] = pixels * tile_variance(&st[m * k], m, e, pbar[e] * dim, r ? r[m * k + e] : 0.0);
-            double extra = sel->kind[e] == RD_SEL_METHOD ? sel->method_pass_cost : 0.0; /* (its passes) */
-            if (cost) cost[m * k + e] = s->n > 0.0 ? pixels * (s->cost / s->n + extra) : 0.0;
+            if (cost) cost[m * k + e] = s->n > 0.0 ? pixels * s->cost / s->n : 0.0;
         }
     }
     if (var && !r) pool(var, tmp, nx, ny, m); /* (r's predictions are pooled over the image already) */

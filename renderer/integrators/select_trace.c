@@ -31,8 +31,7 @@ rd_status rd_select_trace(rd_select *sel, long from, char *err, size_t errlen)
             double N = a->n + b->n, dof = a->dof + b->dof, s = 0.0, d = 0.0;
             for (int ch = 0; ch < 3; ch++) s += a->sum[ch] + b->sum[ch], d += a->dev2[ch] + b->dev2[ch];
             fig[0][e] = N, fig[1][e] = N > 0.0 ? s / (3.0 * N) : 0.0, fig[2][e] = dof > 0.0 ? d / (3.0 * dof) : 0.0;
-            /* (with the method's share of the photon passes, as the rule counts it) */
-            fig[3][e] = N > 0.0 ? (a->cost + b->cost) / N + (sel->kind[e] == RD_SEL_METHOD ? sel->method_pass_cost : 0.0) : 0.0;
+            fig[3][e] = N > 0.0 ? (a->cost + b->cost) / N : 0.0;
         }
         rd_text_printf(t, "%s{\"choice\": %d, \"trial\": %d", k ? ", " : "", sel->choice[k], sel->trial[k]);
         for (int f = 0; f < 4; f++) {
