@@ -219,6 +219,48 @@ int rd_march_build_pdf(const rd_render_ctx *ctx, placement place, const march_sc
 
 static double phase_cb(double cos_theta, void *user) { return rd_hg_eval(*(const double *)user, cos_theta); }
 
+/* The share of a kernel ball's volume that lies where photons can be: a ball of radius r about
+ * x inside a box medium, cut by the faces of the box that open onto empty space (no medium just
+ * past the face). Near such a face the sample-point estimate averages the photons' density over
+ * the ball, and the part of the ball outside holds none: the estimate is low by the share cut
+ * off, an O(r) bias (a constant density at a distance h < r from the face reads
+ * G(h / r) of its value). Dividing by that share leaves the O(r^2) bias of the interior. Per
+ * axis, the share of the unit ball's volume whose coordinate lies in [-a, b] is
+ * G(b) - G(-a), G(s) = 1/2 + 3 s / 4 - s^3 / 4 (the coordinate's marginal density is
+ * 3 (1 - s^2) / 4); the three axes' shares are multiplied, which is exact wherever x lies on a
+ * face, an edge or a corner of the box or within r of one face only, and reads the share at
+ * most 1.5% high near an edge (tests/test_beams.c). Only constant-density
+ * box media (their photons fill the box to its faces); a medium bound by surfaces, or whose
+ * density falls off by itself, gets 1. */
+static double ball_cdf(double s)
+{
+    s = fmax(-1.0, fmin(1.0, s));
+    return 0.5 + 0.75 * s - 0.25 * s * s * s;
+}
+
+double rd_march_support_share(const rd_scene *s, int region, const rd_medium *m, vec3 x, double r)
+{
+    if (m->kind != RD_DENSITY_CONSTANT || m->bound || !(r > 0.0)) return 1.0;
+    const double xs[3] = {x.x, x.y, x.z};
+    const double lo[3] = {m->bmin.x, m->bmin.y, m->bmin.z}, hi[3] = {m->bmax.x, m->bmax.y, m->bmax.z};
+    double share = 1.0;
+    for (int a = 0; a < 3; a++) {
+        double dl = (xs[a] - lo[a]) / r, dh = (hi[a] - xs[a]) / r;
+        if (dl >= 1.0 && dh >= 1.0) continue;
+        /* A face counts only where empty space lies past it (a medium there has photons too). */
+        for (int side = 0; side < 2; side++) {
+            double *d = side ? &dh : &dl;
+            if (*d >= 1.0) continue;
+            double p[3] = {xs[0], xs[1], xs[2]};
+            p[a] = side ? hi[a] + 1e-6 * r : lo[a] - 1e-6 * r;
+            const rd_medium *o = rd_scene_medium_at(s, region, v3(p[0], p[1], p[2]));
+            if (o && rd_medium_sigma_t(o, v3(p[0], p[1], p[2])) > 0.0) *d = 1.0;
+        }
+        share *= ball_cdf(dh) - ball_cdf(-dl);
+    }
+    return share;
+}
+
 #define MAX_GATHER RD_MAX_GATHER
 
 /* sigma_s L_s(x, w) from the photons around x (THEORY.md §3, pm_map_radiance):
@@ -231,14 +273,19 @@ static double phase_cb(double cos_theta, void *user) { return rd_hg_eval(*(const
  * gathering them by position alone would carry that region's light across the surface (a halo
  * around the shape: tests/test_surface_photon_leak.c). The sphere of radius r keeps its full
  * volume, so a sample within r of a surface is underestimated by the share of the sphere
- * beyond it (the usual boundary bias of density estimation, now on the dark side). */
-static vec3 photon_estimate(const rd_scene *s, const pm_map *map, vec3 x, vec3 w, double g, int k,
-                            double r_fixed)
+ * beyond it (the usual boundary bias of density estimation, now on the dark side). At the faces
+ * of a constant-density box medium that open onto empty space the same bias is divided out
+ * (rd_march_support_share, above). */
+static vec3 photon_estimate(const rd_scene *s, const pm_map *map, const rd_medium *m, int region, vec3 x,
+                            vec3 w, int k, double r_fixed)
 {
-    double xd[3] = {x.x, x.y, x.z};
+    double xd[3] = {x.x, x.y, x.z}, g = m->g;
     float wf[3] = {(float)w.x, (float)w.y, (float)w.z}, out[3];
     if (!map) return v3(0, 0, 0);
-    if (!s->geom && r_fixed <= 0.0) {
+    /* FLANN's own estimate, but where the ball's share inside a box medium (divided out below,
+     * rd_march_support_share) needs the radius. */
+    int box_face = m->kind == RD_DENSITY_CONSTANT && !m->bound;
+    if (!s->geom && r_fixed <= 0.0 && !box_face) {
         if (pm_map_radiance(map, xd, wf, k, phase_cb, &g, out) < 0) return v3(0, 0, 0);
         return v3(out[0], out[1], out[2]);
     }
@@ -271,7 +318,7 @@ static vec3 photon_estimate(const rd_scene *s, const pm_map *map, vec3 x, vec3 w
      * k = MAX_GATHER), not the whole radius, whose volume would count the missing ones as none. */
     double r = r_fixed > 0.0 && n < MAX_GATHER ? r_fixed : sqrt((double)d2[n - 1]);
     if (!(r > 0.0)) return v3(0, 0, 0);
-    return v3_scale(sum, 1.0 / (4.0 / 3.0 * M_PI * r * r * r));
+    return v3_scale(sum, 1.0 / (4.0 / 3.0 * M_PI * r * r * r * rd_march_support_share(s, region, m, x, r)));
 }
 
 /* The gather radius of the current progressive pass at x (bake/passes.c): r_1(x), pass 1's
@@ -296,7 +343,7 @@ vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, v
     switch (s->march.ls) {
     case RD_LS_PHOTONS: {
         double r = pass_radius(ctx, ctx->photons_first, x);
-        return r < 0.0 ? v3(0, 0, 0) : photon_estimate(s, ctx->photons, x, w, m->g, s->guide.k, r);
+        return r < 0.0 ? v3(0, 0, 0) : photon_estimate(s, ctx->photons, m, region, x, w, s->guide.k, r);
     }
     case RD_LS_NEE_GUIDE: {
         /* Multiple scattering read from the guide of the indirect photons: one cell lookup
@@ -333,7 +380,7 @@ vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, v
         return v3_mul(v3_scale(m->albedo, sigma_t), rd_nee_split(s, region, x, d, m->g, light_w, rng, c));
     case RD_LS_NEE_PHOTONS: {
         double r = pass_radius(ctx, ctx->photons_indirect_first, x);
-        if (r >= 0.0) S = photon_estimate(s, ctx->photons_indirect, x, w, m->g, s->guide.k, r);
+        if (r >= 0.0) S = photon_estimate(s, ctx->photons_indirect, m, region, x, w, s->guide.k, r);
     }
         /* add the direct light: */
         /* fall through */

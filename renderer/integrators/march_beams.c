@@ -247,7 +247,12 @@ rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen)
  * the balls kept) is unbiased too. Segments that cross at most
  * BEAM_PICKS balls take every ball once (P = 1). c_k's phase is that of the medium at the
  * chord's middle; the pick re-weights by the phase at x(u_j). With shapes, ball k counts at
- * u_j only when no surface lies between x(u_j) and the photon (the point gather's rule). */
+ * u_j only when no surface lies between x(u_j) and the photon (the point gather's rule). Near a
+ * face of a constant-density box medium that opens onto empty space, ball k's term at x(u_j) is
+ * divided by the share of the ball of radius r_k about x(u_j) inside the box
+ * (rd_march_support_share, march.c): the kernel's boundary bias, -2.6% of homogeneous's image
+ * and -6.5% of the dense block's before, -0.4% and -1.2% after (docs/benchmarks.md
+ * "Session 54"). */
 vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, ray3 r, int region,
                              double t0, double t1, pcg32 *rng, rd_track_counters *c, int *crossed)
 {
@@ -331,6 +336,7 @@ vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, r
         double rk = st->beam_radius[h->idx];
         double cw = fmin(1.0, fmax(-1.0, p->dir[0] * w.x + p->dir[1] * w.y + p->dir[2] * w.z));
         double f = rd_hg_eval(m->g, cw) * (h->tb - h->ta) / (4.0 / 3.0 * M_PI * rk * rk * rk);
+        f /= rd_march_support_share(s, region, m, x, rk);
         sum = v3_madd(sum, v3(p->power[0], p->power[1], p->power[2]), f * T * pw[j]);
     }
     return v3_scale(sum, wgt * st->beam_weight);
