@@ -280,7 +280,7 @@ Test(beams, estimate_equals_the_exact_point_gather, .timeout = 300)
  * edge, the product of the axes' shares is exact and must agree within 4.5 standard errors. Off
  * an edge (x within r of two faces, on neither) the product is an approximation: there it may
  * read the share high by at most 1.5% (1.4% at distances r / 2 from both faces, the worst of
- * those measured), and never low. A face that opens onto another medium cuts nothing. */
+ * those measured), and never low. A face that opens onto another medium counts its density. */
 Test(beams, support_share_is_the_ball_s_volume_inside_the_box)
 {
     rd_scene *s = rt_scene("beams.json", scene_json());
@@ -319,18 +319,23 @@ Test(beams, support_share_is_the_ball_s_volume_inside_the_box)
                       "point %zu (off an edge): share %.5f, the ball's volume inside %.5f +- %.5f", k, got, p, se);
     }
     rd_scene_free(s);
-    /* Two boxes sharing the face z = 0: that face cuts nothing from either side; the outer
-     * face z = 1 of the upper box still does. */
+    /* Two boxes sharing the face z = 0, sigma_t 1 below and 4 above: the part of the ball past
+     * that face counts the density there relative to x's (the photons there are 4x or 1/4x as
+     * dense), G(h / r) + w (1 - G(h / r)) at h = r / 4 from it, w = 4 below and 1/4 above; the
+     * outer face z = 1 of the upper box opens onto empty space (w = 0). */
     s = rt_scene("two-boxes.json",
                  "{\"camera\":{\"position\":[0,0,5],\"look_at\":[0,0,0],\"fov\":30,\"resolution\":[8,8]},"
                  "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,0]},\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1},"
                  "{\"bounds\":{\"min\":[-1,-1,0],\"max\":[1,1,1]},\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":4}],"
                  "\"lights\":[{\"type\":\"point\",\"position\":[0,0,3],\"intensity\":1}]}");
-    vec3 below = v3(0, 0, -0.05), above = v3(0, 0, 0.05), top = v3(0, 0, 0.95);
-    cr_expect(rd_march_support_share(s, s->fill_medium, rd_scene_medium_at(s, s->fill_medium, below), below, r) == 1.0);
-    cr_expect(rd_march_support_share(s, s->fill_medium, rd_scene_medium_at(s, s->fill_medium, above), above, r) == 1.0);
-    double g = 0.5 + 0.75 * 0.25 - 0.25 * 0.25 * 0.25 * 0.25; /* G(h / r) at h = r / 4 */
-    double got = rd_march_support_share(s, s->fill_medium, rd_scene_medium_at(s, s->fill_medium, top), top, r);
-    cr_expect(fabs(got - g) < 1e-12, "the open face of the upper box: share %.6f, want %.6f", got, g);
+    const double G = 0.5 + 0.75 * 0.25 - 0.25 * 0.25 * 0.25 * 0.25; /* G(1/4) */
+    const struct { vec3 x; double want; } face[] = {
+        {{0, 0, -0.05}, G + 4.0 * (1.0 - G)}, {{0, 0, 0.05}, G + 0.25 * (1.0 - G)}, {{0, 0, 0.95}, G}};
+    for (int k = 0; k < 3; k++) {
+        const rd_medium *mk = rd_scene_medium_at(s, s->fill_medium, face[k].x);
+        cr_assert(mk != NULL);
+        double got = rd_march_support_share(s, s->fill_medium, mk, face[k].x, r);
+        cr_expect(fabs(got - face[k].want) < 1e-12, "two boxes, point %d: share %.6f, want %.6f", k, got, face[k].want);
+    }
     rd_scene_free(s);
 }

@@ -219,18 +219,22 @@ int rd_march_build_pdf(const rd_render_ctx *ctx, placement place, const march_sc
 
 static double phase_cb(double cos_theta, void *user) { return rd_hg_eval(*(const double *)user, cos_theta); }
 
-/* The share of a kernel ball's volume that lies where photons can be: a ball of radius r about
- * x inside a box medium, cut by the faces of the box that open onto empty space (no medium just
- * past the face). Near such a face the sample-point estimate averages the photons' density over
- * the ball, and the part of the ball outside holds none: the estimate is low by the share cut
- * off, an O(r) bias (a constant density at a distance h < r from the face reads
- * G(h / r) of its value). Dividing by that share leaves the O(r^2) bias of the interior. Per
- * axis, the share of the unit ball's volume whose coordinate lies in [-a, b] is
- * G(b) - G(-a), G(s) = 1/2 + 3 s / 4 - s^3 / 4 (the coordinate's marginal density is
- * 3 (1 - s^2) / 4); the three axes' shares are multiplied, which is exact wherever x lies on a
- * face, an edge or a corner of the box or within r of one face only, and reads the share at
- * most 1.5% high near an edge (tests/test_beams.c). Only constant-density
- * box media (their photons fill the box to its faces); a medium bound by surfaces, or whose
+/* The share of a kernel ball's volume that holds photons, weighted by their density: a ball of
+ * radius r about x inside a box medium whose faces open onto empty space or onto another medium.
+ * The photons are stored at collisions, so their density is sigma_t(y) phi(y), and the
+ * sample-point estimate at x averages it over the ball. Where the ball reaches past a face, that
+ * part holds the density of what lies beyond, sigma_o phi (none in empty space), and with the
+ * fluence phi continuous across the face the estimate reads its value at x times
+ *     m = share inside + (sigma_o / sigma_t(x)) share beyond,
+ * an O(r) bias (low in a box in empty space or in a thinner medium, high beside a denser one)
+ * where the interior's is O(r^2); the photon estimates divide by m. Per axis, the share of the
+ * unit ball's volume whose coordinate lies in [-a, b] is G(b) - G(-a),
+ * G(s) = 1/2 + 3 s / 4 - s^3 / 4 (the coordinate's marginal density is 3 (1 - s^2) / 4), and the
+ * parts below and above the faces G(-a) and 1 - G(b); the three axes' factors are multiplied,
+ * which is exact wherever x lies within r of one face only or on a face, an edge or a corner,
+ * and near an edge reads the share inside at most 1.5% high (tests/test_beams.c). Only
+ * constant-density box media (their photons fill the box to its faces; sigma_o is read just
+ * past the face, at the foot of the perpendicular from x); a medium bound by surfaces, or whose
  * density falls off by itself, gets 1. */
 static double ball_cdf(double s)
 {
@@ -241,22 +245,26 @@ static double ball_cdf(double s)
 double rd_march_support_share(const rd_scene *s, int region, const rd_medium *m, vec3 x, double r)
 {
     if (m->kind != RD_DENSITY_CONSTANT || m->bound || !(r > 0.0)) return 1.0;
+    double sig = rd_medium_sigma_t(m, x);
+    if (!(sig > 0.0)) return 1.0;
     const double xs[3] = {x.x, x.y, x.z};
     const double lo[3] = {m->bmin.x, m->bmin.y, m->bmin.z}, hi[3] = {m->bmax.x, m->bmax.y, m->bmax.z};
     double share = 1.0;
     for (int a = 0; a < 3; a++) {
         double dl = (xs[a] - lo[a]) / r, dh = (hi[a] - xs[a]) / r;
         if (dl >= 1.0 && dh >= 1.0) continue;
-        /* A face counts only where empty space lies past it (a medium there has photons too). */
+        double below = ball_cdf(-dl), above = 1.0 - ball_cdf(dh), f = 1.0 - below - above;
+        /* The density past each face the ball reaches, relative to x's (0: empty space). */
         for (int side = 0; side < 2; side++) {
-            double *d = side ? &dh : &dl;
-            if (*d >= 1.0) continue;
+            if ((side ? dh : dl) >= 1.0) continue;
             double p[3] = {xs[0], xs[1], xs[2]};
             p[a] = side ? hi[a] + 1e-6 * r : lo[a] - 1e-6 * r;
-            const rd_medium *o = rd_scene_medium_at(s, region, v3(p[0], p[1], p[2]));
-            if (o && rd_medium_sigma_t(o, v3(p[0], p[1], p[2])) > 0.0) *d = 1.0;
+            vec3 q = v3(p[0], p[1], p[2]);
+            const rd_medium *o = rd_scene_medium_at(s, region, q);
+            double w = o && o != m ? rd_medium_sigma_t(o, q) / sig : 0.0;
+            f += w * (side ? above : below);
         }
-        share *= ball_cdf(dh) - ball_cdf(-dl);
+        share *= f;
     }
     return share;
 }
