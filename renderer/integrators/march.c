@@ -219,56 +219,6 @@ int rd_march_build_pdf(const rd_render_ctx *ctx, placement place, const march_sc
 
 static double phase_cb(double cos_theta, void *user) { return rd_hg_eval(*(const double *)user, cos_theta); }
 
-/* The share of a kernel ball's volume that holds photons, weighted by their density: a ball of
- * radius r about x inside a box medium whose faces open onto empty space or onto another medium.
- * The photons are stored at collisions, so their density is sigma_t(y) phi(y), and the
- * sample-point estimate at x averages it over the ball. Where the ball reaches past a face, that
- * part holds the density of what lies beyond, sigma_o phi (none in empty space), and with the
- * fluence phi continuous across the face the estimate reads its value at x times
- *     m = share inside + (sigma_o / sigma_t(x)) share beyond,
- * an O(r) bias (low in a box in empty space or in a thinner medium, high beside a denser one)
- * where the interior's is O(r^2); the photon estimates divide by m. Per axis, the share of the
- * unit ball's volume whose coordinate lies in [-a, b] is G(b) - G(-a),
- * G(s) = 1/2 + 3 s / 4 - s^3 / 4 (the coordinate's marginal density is 3 (1 - s^2) / 4), and the
- * parts below and above the faces G(-a) and 1 - G(b); the three axes' factors are multiplied,
- * which is exact wherever x lies within r of one face only or on a face, an edge or a corner,
- * and near an edge reads the share inside at most 1.5% high (tests/test_beams.c). Only
- * constant-density box media (their photons fill the box to its faces; sigma_o is read just
- * past the face, at the foot of the perpendicular from x); a medium bound by surfaces, or whose
- * density falls off by itself, gets 1. */
-static double ball_cdf(double s)
-{
-    s = fmax(-1.0, fmin(1.0, s));
-    return 0.5 + 0.75 * s - 0.25 * s * s * s;
-}
-
-double rd_march_support_share(const rd_scene *s, int region, const rd_medium *m, vec3 x, double r)
-{
-    if (m->kind != RD_DENSITY_CONSTANT || m->bound || !(r > 0.0)) return 1.0;
-    double sig = rd_medium_sigma_t(m, x);
-    if (!(sig > 0.0)) return 1.0;
-    const double xs[3] = {x.x, x.y, x.z};
-    const double lo[3] = {m->bmin.x, m->bmin.y, m->bmin.z}, hi[3] = {m->bmax.x, m->bmax.y, m->bmax.z};
-    double share = 1.0;
-    for (int a = 0; a < 3; a++) {
-        double dl = (xs[a] - lo[a]) / r, dh = (hi[a] - xs[a]) / r;
-        if (dl >= 1.0 && dh >= 1.0) continue;
-        double below = ball_cdf(-dl), above = 1.0 - ball_cdf(dh), f = 1.0 - below - above;
-        /* The density past each face the ball reaches, relative to x's (0: empty space). */
-        for (int side = 0; side < 2; side++) {
-            if ((side ? dh : dl) >= 1.0) continue;
-            double p[3] = {xs[0], xs[1], xs[2]};
-            p[a] = side ? hi[a] + 1e-6 * r : lo[a] - 1e-6 * r;
-            vec3 q = v3(p[0], p[1], p[2]);
-            const rd_medium *o = rd_scene_medium_at(s, region, q);
-            double w = o && o != m ? rd_medium_sigma_t(o, q) / sig : 0.0;
-            f += w * (side ? above : below);
-        }
-        share *= f;
-    }
-    return share;
-}
-
 #define MAX_GATHER RD_MAX_GATHER
 
 /* sigma_s L_s(x, w) from the photons around x (THEORY.md §3, pm_map_radiance):
@@ -283,7 +233,7 @@ double rd_march_support_share(const rd_scene *s, int region, const rd_medium *m,
  * volume, so a sample within r of a surface is underestimated by the share of the sphere
  * beyond it (the usual boundary bias of density estimation, now on the dark side). At the faces
  * of a constant-density box medium that open onto empty space the same bias is divided out
- * (rd_march_support_share, above). */
+ * (rd_march_support_share, march_share.c). */
 static vec3 photon_estimate(const rd_scene *s, const pm_map *map, const rd_medium *m, int region, vec3 x,
                             vec3 w, int k, double r_fixed)
 {

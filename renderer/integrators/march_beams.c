@@ -250,7 +250,7 @@ rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen)
  * u_j only when no surface lies between x(u_j) and the photon (the point gather's rule). Near a
  * face of a constant-density box medium that opens onto empty space, ball k's term at x(u_j) is
  * divided by the share of the ball of radius r_k about x(u_j) inside the box
- * (rd_march_support_share, march.c): the kernel's boundary bias, -2.6% of homogeneous's image
+ * (rd_march_support_share, march_share.c): the kernel's boundary bias, -2.6% of homogeneous's image
  * and -6.5% of the dense block's before, -0.4% and -1.2% after (docs/benchmarks.md
  * "Session 54"). */
 vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, ray3 r, int region,
