@@ -241,7 +241,7 @@ Test(beams, estimate_equals_the_exact_point_gather, .timeout = 300)
             if (!(rk > 0.0) || !chord(r, c, rk, t0, t1, &ta, &tb)) continue;
             double cw = ph[i].dir[0] * w.x + ph[i].dir[1] * w.y + ph[i].dir[2] * w.z;
             /* The chord's integral of exp(-sigma_t (t - t0)) / share(x(t)): near the box's
-             * faces the estimate divides by the ball's share inside (march.c), so the
+             * faces the estimate divides by the ball's share inside (march_share.c), so the
              * integral is taken by the midpoint rule, 256 points a chord. */
             double Tint = 0.0;
             const double lo[3] = {C[0] - 1, C[1] - 1, C[2] - 1}, hi[3] = {C[0] + 1, C[1] + 1, C[2] + 1};

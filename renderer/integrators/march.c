@@ -232,8 +232,8 @@ static double phase_cb(double cos_theta, void *user) { return rd_hg_eval(*(const
  * around the shape: tests/test_surface_photon_leak.c). The sphere of radius r keeps its full
  * volume, so a sample within r of a surface is underestimated by the share of the sphere
  * beyond it (the usual boundary bias of density estimation, now on the dark side). At the faces
- * of a constant-density box medium that open onto empty space the same bias is divided out
- * (rd_march_support_share, march_share.c). */
+ * of a constant-density box medium the same bias (or, at a face onto another medium, the
+ * difference of the two densities) is divided out (rd_march_support_share, march_share.c). */
 static vec3 photon_estimate(const rd_scene *s, const pm_map *map, const rd_medium *m, int region, vec3 x,
                             vec3 w, int k, double r_fixed)
 {

@@ -248,8 +248,8 @@ rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen)
  * BEAM_PICKS balls take every ball once (P = 1). c_k's phase is that of the medium at the
  * chord's middle; the pick re-weights by the phase at x(u_j). With shapes, ball k counts at
  * u_j only when no surface lies between x(u_j) and the photon (the point gather's rule). Near a
- * face of a constant-density box medium that opens onto empty space, ball k's term at x(u_j) is
- * divided by the share of the ball of radius r_k about x(u_j) inside the box
+ * face of a constant-density box medium, ball k's term at x(u_j) is divided by the share of the
+ * ball of radius r_k about x(u_j) that holds photons, weighted by their density
  * (rd_march_support_share, march_share.c): the kernel's boundary bias, -2.6% of homogeneous's image
  * and -6.5% of the dense block's before, -0.4% and -1.2% after (docs/benchmarks.md
  * "Session 54"). */

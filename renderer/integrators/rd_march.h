@@ -75,7 +75,7 @@ vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, v
 /* The share of the kernel ball of radius r about x (in medium m of `region`) that holds photons,
  * weighted by their density relative to x's: within r of a constant-density box medium's face,
  * the part beyond it counts sigma_t there over sigma_t(x) (0 in empty space); 1 elsewhere. The
- * photon estimates divide by it (march.c says why). */
+ * photon estimates divide by it (march_share.c says why). */
 double rd_march_support_share(const rd_scene *s, int region, const rd_medium *m, vec3 x, double r);
 /* march.ls = nee+beams: the beam radiance estimate of the indirect in-scattering along [t0, t1]
  * of r in `region` (the balls of the indirect photons, state's beams; march_beams.c says how), the
