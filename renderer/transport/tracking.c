@@ -4,19 +4,22 @@
 #include "scene/rd_geom.h"
 #include "transport/rd_transport.h"
 
+#include <stdlib.h>
 #include <string.h>
 
 typedef rd_interval interval;
 
 #define MAX_IV RD_MAX_INTERVALS
 
-static void insert_sorted(interval *out, int *n, double t0, double t1, const rd_medium *m)
+/* Intervals in order of entry distance; among equal t0 (a zero-length interval at another's
+ * entry) in the list's order, which is the order of their media in s->media. qsort: a ray along
+ * a stack of box media meets them in the reverse of the list's order as often as not, and an
+ * insertion sort made that O(n^2) copies (64 media: 2016 a call). */
+static int by_entry(const void *a, const void *b)
 {
-    int k = (*n)++;
-    while (k > 0 && out[k - 1].t0 > t0) { out[k] = out[k - 1]; k--; }
-    out[k].t0 = t0;
-    out[k].t1 = t1;
-    out[k].m = m;
+    const interval *x = a, *y = b;
+    if (x->t0 != y->t0) return x->t0 < y->t0 ? -1 : 1;
+    return x->m < y->m ? -1 : x->m > y->m;
 }
 
 /* A bound region: its one medium, clipped to the medium's bounds. The open region: the box
@@ -33,15 +36,16 @@ int rd_media_intervals(const rd_scene *s, int region, ray3 r, double tmin, doubl
         if (region < 0 || region >= s->n_media) return 0;
         const rd_medium *m = &s->media[region];
         if (m->sigma_maj > 0.0 && rd_box_intersect(m->bmin, m->bmax, r, tmin, tmax, &t0, &t1))
-            insert_sorted(out, &n, t0, t1, m);
+            out[n++] = (interval){t0, t1, m};
         return n;
     }
     for (int i = 0; i < s->n_media && n < 64; i++) {
         const rd_medium *m = &s->media[i];
         if (m->bound) continue;
         if (!rd_box_intersect(m->bmin, m->bmax, r, tmin, tmax, &t0, &t1)) continue;
-        insert_sorted(out, &n, t0, t1, m);
+        out[n++] = (interval){t0, t1, m};
     }
+    if (n > 1) qsort(out, (size_t)n, sizeof *out, by_entry);
     const rd_medium *f = s->fill_medium >= 0 ? &s->media[s->fill_medium] : NULL;
     if (f && f->sigma_maj > 0.0 && rd_box_intersect(f->bmin, f->bmax, r, tmin, tmax, &t0, &t1)) {
         /* The scene-wide medium over [t0, t1] minus the box intervals. */
@@ -52,12 +56,13 @@ int rd_media_intervals(const rd_scene *s, int region, ray3 r, double tmin, doubl
             if (b > a) out[n++] = (interval){a, b, f};
             if (k < nb) a = fmax(a, out[k].t1);
         }
-        /* re-sort the appended gaps into place (insertion sort: few elements) */
-        for (int i = 1; i < n; i++) {
-            interval v = out[i];
-            int k = i;
-            while (k > 0 && out[k - 1].t0 > v.t0) { out[k] = out[k - 1]; k--; }
-            out[k] = v;
+        /* merge the gaps (made in order) into place among the boxes; on a tie the box first */
+        if (n > nb && nb > 0) {
+            interval merged[MAX_IV];
+            int i = 0, j = nb, k = 0;
+            while (i < nb || j < n)
+                merged[k++] = j >= n || (i < nb && out[i].t0 <= out[j].t0) ? out[i++] : out[j++];
+            memcpy(out, merged, (size_t)n * sizeof *out);
         }
     }
     /* the clear holes (above) only cut the gaps */
