@@ -155,7 +155,7 @@ static void render_on_ranks(const rd_scene *s, const rd_render_opts *o, int n, f
 /* test_select.c's scene (rt_spot_fog_json) at 48x24: 3x2 render tiles, so with three ranks each
  * holds two tiles and part of the medium. guided's marcher against delta's path, no third
  * estimator (march.equiangular false): with the third, every tile here takes delta's path with
- * the strategy since session 42 (select.c, "Tiles no sample has lit"), and the selection would
+ * the strategy since session 42 (select_rule.c, "Tiles no sample has lit"), and the selection would
  * mix nothing. */
 static const char *ranks_scene(void)
 {

@@ -835,7 +835,7 @@ Test(select, a_tile_of_2x2_pixels_at_the_edge_takes_the_choice_of_its_one_half)
      * whose 4 pixels' delta variance is 1000: half 0 wants the method there (and, pooled, in
      * its neighbours), half 1, which has no samples of the corner, delta. The corner takes its
      * one half's method; its neighbours' halves differ, and the image beyond their 3x3 tiles
-     * (which leaves the corner out: select.c, "Where the halves disagree") predicts delta's
+     * (which leaves the corner out: select_rule.c, "Where the halves disagree") predicts delta's
      * variance 1 there, so they keep delta with no trial. A prediction that kept the corner in
      * (delta's pooled relative variance about 7.5) would put tile 10 on trial toward the
      * method. */

@@ -71,8 +71,8 @@ typedef struct {
                                 RD_SEL_DELTA_EQ; in delta's own selection its "method" too) */
     int unlit;               /* the estimator of a tile no sample has lit yet, where the rule
                                 gives it plain delta and there are two paths: the one the
-                                pilot's samples prefer for the whole image (select.c, "Tiles no
-                                sample has lit"); -1 until the pilot's choice */
+                                pilot's samples prefer for the whole image (select_rule.c,
+                                "Tiles no sample has lit"); -1 until the pilot's choice */
     int tiles_x, tiles_y, width, height;
     int epochs;              /* choose again at the epochs (settings.select "pilot": 0; every
                                 other value 1: the guided methods select only with "tiles" or
@@ -84,7 +84,7 @@ typedef struct {
     double method_pass_cost; /* per camera sample of the method, its share of the progressive
                                 photon passes, which no thread's counters see, in density
                                 lookups (RD_SELECT_PASSES); 0: none */
-    rd_select_stats *stats;  /* per half h of the samples (select.c, "Replication"), tile k
+    rd_select_stats *stats;  /* per half h of the samples (select_rule.c, "Replication"), tile k
                                 and estimator e, [n (tiles h + k) + e], tiles = tiles_x
                                 tiles_y: a tile's samples are the sum of its two halves' */
     rd_select_pixel *pixels; /* per pixel, the current epoch's samples */
@@ -192,7 +192,7 @@ int rd_select_epoch_next(const rd_select *sel, int sample);
  * pixel's), so every rank folds the same statistics and makes the same choice as one process.
  * Collective then: every rank calls it at the same epoch. comm NULL: this process alone. */
 void rd_select_epoch(rd_select *sel, const rd_comm *comm);
-/* The trial (see select.c, "Evidence of unequal size"): a tile's choice moves to another
+/* The trial (see select_rule.c, "Evidence of unequal size"): a tile's choice moves to another
  * estimator at once only when that estimator's samples in the tile are at least
  * 1 / RD_SELECT_TRIAL_RATIO of the current one's; else the tile goes on trial for one epoch
  * first. */
@@ -202,5 +202,10 @@ void rd_select_epoch(rd_select *sel, const rd_comm *comm);
  * (var[m k + e], cost[m k + e], e = 0 .. m-1), the choices that minimise (sum V)(sum C);
  * choice[k] the estimator of tile k. */
 void rd_select_choose(const double *var, const double *cost, int n, int m, uint8_t *choice);
+
+/* Every tile's estimator (sel->choice, sel->trial, and sel->unlit at the first call) from the
+ * statistics of its two halves so far, sel->stats (select_rule.c): at the pilot's end and at
+ * each epoch. Out of memory: the choices stay as they are. */
+void rd_select_choose_tiles(rd_select *sel);
 
 #endif /* RD_SELECT_H */

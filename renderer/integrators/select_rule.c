@@ -1,0 +1,462 @@
+/* select_rule.c: how the tile selection (select.c) chooses each tile's estimator from the
+ * statistics its samples left, the pilot's and the epochs' (rd_select_stats, in two halves of
+ * each tile): the variance a sample and its lower bound, the prior of the non-zero probability,
+ * the trial that evidence of unequal size calls for, the halves and the image's prediction where
+ * they disagree, the tiles no sample has lit, and the rule that weighs variance against cost
+ * over the image. select.c draws the samples, counts their cost and calls this at the pilot's
+ * end and at every epoch (rd_select_choose_tiles).
+ *
+ * The variance. Per channel, the squared deviations from each pixel's own mean, pooled over the
+ * tile's pixels (the image's squared error sums the pixels' variances). It is bounded below by
+ * Cauchy-Schwarz: a non-negative X with mean mu that is non-zero with probability p has
+ * E[X^2] >= mu^2 / p, so Var X >= mu^2 (1/p - 1). The bound is what sees a narrow beam that
+ * delta's path never finds: its samples are all zero, sample variance 0, but mu, the mean of
+ * the two estimators' means (both unbiased for the tile's mean), is not, and p falls as the
+ * zeros pile up. p is the posterior mean of the tile's non-zero probability under a Beta prior
+ * of two pseudo-samples, Beta(2 pbar, 2 (1 - pbar)), centred on the estimator's non-zero
+ * fraction over the image's lit tiles (empirical Bayes),
+ *     p = (non-zero + 2 pbar) / (n + 2),   pbar = (sum of non-zero + 1) / (sum of n + 2)
+ * over the tiles where either estimator saw a non-zero sample. Until session 22 it was
+ * Laplace's rule (pbar = 1/2), which in a tile of 128 zeros puts p at 1/130 whatever the rest
+ * of the image shows: on hard-narrow-spot `delta`'s samples are non-zero once in a thousand
+ * (39 of the pilot's 38400 over the whole image), so its variance there was read as 14x the
+ * marcher's where it is about 150x, and 85% of the samples went to `delta`
+ * (docs/guided-marching.md, "The equiangular sample"). A tile's own non-zero samples outweigh the prior as they come. The
+ * sums include the epochs' samples, so the tiles already given to an estimator weigh most in
+ * its pbar (not measured: a pbar from the pilot's counts alone would avoid it).
+ *
+ * A dim tile's prior (session 48). The image's pbar is mostly the bright tiles' fraction: in a
+ * dim tile every estimator finds light less often, and an estimator that saw nothing there
+ * (plain `delta` beside a narrow beam's faint glow) was read as far less heavy-tailed than it
+ * is. On hard-narrow-spot such a tile went to plain `delta` at the pilot and one of its samples
+ * found the beam: a quarter of the image's squared error in one pixel. So an estimator's prior
+ * centre in a tile is pbar times how dim the tile is to the other estimators: the hits they saw
+ * there over the hits the image's fractions expect from their samples, (sum of non-zero + 1) /
+ * (sum of n pbar + 1) over the others (one pseudo-hit each side), capped at 1. The estimator's
+ * own count is left out: its zeros are in p already, and a tile bright to the others where it
+ * alone saw nothing is not dim. The scale only ever makes a bound stronger, for an estimator
+ * with few hits in a tile the others find dimmer than the image's lit tiles on average. A tile
+ * no estimator has lit has mu = 0 and no bound either way.
+ *
+ * Evidence of unequal size. At an epoch the tile's current estimator has the image's thousands of
+ * samples and the other only its pilot's hundred or so. A heavy tail is seen in proportion to
+ * the samples drawn, so the comparison favours the estimator with fewer: where both carry the
+ * same rare firefly (the lens caustic's path through the glass to the small light, which the
+ * method's paths find no more often than delta's), delta's thousands show it and the method's
+ * hundred do not, and the tile went to the method at 3x the cost for no less variance
+ * (docs/benchmarks.md, "Session 13"). So a tile moves to the other estimator at once only when
+ * that estimator's samples in the tile are at least 1 / RD_SELECT_TRIAL_RATIO of the current
+ * one's (4, the epochs' own growth: an epoch's choice never rests on evidence more lopsided
+ * than one epoch's growth); else the tile goes on trial: for the next epoch half its pixels (a
+ * checkerboard) take the other estimator, whose samples then grow as fast as the current
+ * one's, and the next epoch decides by the rule alone, on evidence of comparable size (a trial
+ * from the epoch at 16 ends at 64 with about 26 samples a pixel against 42: 2 + 24 against
+ * 2 + 16 + 24, the pilot's and the image's). Where the other estimator is truly better (a
+ * narrow beam that delta's paths rarely find), the trial shows it and the tile moves one epoch
+ * later; where it only looked better, the trial shows its tail too.
+ *
+ * Replication (session 27). The rule takes in each tile the estimator whose figures came out
+ * least, and where they are noisy that is in part the one whose noise ran low: a costlier
+ * estimator then takes a tile for a variance gain that was noise, and pays its cost for sure.
+ * Heavy tails make this common, and the pool spreads one tile's outlier over nine. On
+ * hard-dense-block (`delta` with "tiles", 160x120), a pilot of 256 samples a pixel instead of
+ * SEL_SPP (4096 a tile and estimator; a scratch switch, not kept) read delta's V over its V
+ * with the strategy at 0.08 to 73 across the lit tiles, where over the whole image it is 1.36
+ * (0.230 against 0.169 a sample, 512 spp); the rule gave 30-41 tiles the strategy at 1.6x the
+ * counted cost (1.9x the time), and "tiles" made 0.85x plain `delta`'s efficiency where every
+ * tile forced to delta's path made 0.956x (a debug switch, not kept). One of those tiles kept
+ * the strategy with its own 128 delta samples at V 0.0013 against the strategy's 27.7: its
+ * neighbour's delta pilot read 1604. On hard-narrow-spot one pilot firefly of the strategy held
+ * nine tiles on guided-unbiased's paths at 2.7x its cost (docs/benchmarks.md "Session 26").
+ *
+ * So each tile's samples are kept in two halves, by 2x2 blocks of pixels in a checkerboard
+ * (half_stats: each half holds half of a tile's pilot pixels and half of a trial's squares),
+ * the rule runs on each half alone, and a tile takes the estimator both halves want; where they
+ * differ, the cheaper of the two by the counted cost of all the tile's samples, pooled as the
+ * rule's figures are (cost is counted, so nearly exact; the noise is in the variance; an exact
+ * tie goes to the lower index, as in `least`). A real gain shows in both halves, one firefly in
+ * one. A move the halves do not agree on goes on trial first, whatever the evidence's size: one
+ * half's word is weak evidence, and taken at once it can strand a tile. On a 24x16 view of thin
+ * fog (the compare tests' scene, sigma_t 0.25, seed 2, "tiles") one firefly of the strategy's
+ * own in one half at the first epoch sent all six tiles to plain delta for good, where the
+ * strategy is 1.8x plain delta's efficiency; with the trial, six seeds of six keep the strategy
+ * (as without the halves). The prior pbar and the trial's evidence are all the tile's samples'.
+ * A tile of at most 2x2 pixels (at the image's right and bottom edges) lies in one half: the
+ * other half's figures for it are zero and its choice is the half that has samples.
+ *
+ * Measured at 10 s, medians of four alternating rounds (docs/benchmarks.md "Session 27": each
+ * scene's figures before and after): within the rounds' spread or a gain on the calibration
+ * scenes and the benchmark's; the dense block's lit tiles on the strategy went from 30-41 to
+ * 7-23, and "tiles" there from 0.851x to 0.913x plain `delta`.
+ *
+ * Where the halves disagree, the image decides (session 40). Until then the cheaper of the two
+ * took such a tile, and on hard-dense-block that was most of the lit tiles at the first epochs
+ * (the halves of 45, 50 and 64 of about 75 disagreed at the pilot and the epochs at 4 and 16),
+ * where `delta`'s heavy tail shows only at thousands of samples a tile: its variance a sample
+ * read 0.0005 from a tile's pilot, 0.13 from 1152 samples, about 1.0 from 10^4, against the
+ * method's 0.014-0.09 at 8-12x the cost; the tiles moved late, and a pixel's mean keeps the
+ * samples drawn before a move (docs/benchmarks.md "Session 39"). Pooled over the lit tiles the
+ * tail shows at once: a scratch print of every tile's statistics (guided-unbiased, 160x120, seed
+ * 8) read `delta`'s variance a sample 1.16 from the pilot's 9472 samples and 0.69 from the
+ * 594048 of the epochs up to 256, where the median tile read 0.015 and 0.41; the method's pooled
+ * 0.127 and 0.22. So where the halves disagree, each estimator's variance in the tile is read as
+ * the rest of the image predicts it, mu^2 r, with mu the tile's mean (as in the bound above) and
+ *     r = sum of dev2 / sum of (dof mu^2) over the lit tiles outside the tile's 3x3,
+ * the estimator's relative variance pooled over the image but the 3x3 tiles whose samples the
+ * tile's own figures pool (so the prediction is evidence besides the halves': one tile's
+ * firefly, which the pooling spreads into one half of its neighbours, is not in their r; and a
+ * one-tile image keeps the halves' rule exactly), and the rule on those figures (not pooled
+ * over 3x3 tiles, which would bring the neighbours' predictions back; the tiles' own costs,
+ * pooled as always) picks between the halves' two (if it wants neither,
+ * or an estimator has no prediction, r 0, the cheaper, as before). The move still goes on trial
+ * first, and where the halves agree nothing changes. Measured, 10 s, paired rounds against the
+ * build before (docs/benchmarks.md "Session 40"; rounds spread widely there, so read the
+ * figures as "no loss" or "a gain", not as their digits): guided-unbiased's efficiency on
+ * hard-dense-block 1.33x (1.16-1.70, four rounds), over plain `delta` 1.41 (1.36-1.68) against
+ * 1.05 (1.00-1.19) in the same rounds; the calibration scenes beam-vdb 1.21x (two rounds),
+ * hetero-forward 1.03x (0.99, 1.08), cloud 0.99x, sphere-in-fog 0.98x; beam 1.21x (one round);
+ * hard-lens-caustic 0.95x (0.87-1.04, four rounds: 6-13% of its samples on the method's paths
+ * against 5-7%, a loss there within the rounds' spread or a little beyond). Two earlier forms
+ * (r over all the lit tiles; r without the tile alone, pooled): the dense block 1.17x and
+ * 1.14x, 0.99-1.07x elsewhere, the second's beam-vdb, beam and narrow spot 1.19-1.37x. Tried
+ * and not kept (docs/benchmarks.md "Session 40", "41", "53"): r read everywhere, as a prior of nu
+ * pseudo-samples (dense block 1.36-1.43x, sphere-in-fog 0.72x in one round of two, 0.65x scored
+ * offline in session 53) or by empirical Bayes (dense block 1.22x, beam-vdb 0.74x): tiles differ,
+ * and a figure for the whole image overrode tiles whose halves agreed; as a veto on moves to a
+ * costlier estimator (beam-vdb, dense block 0.76-0.85x); the 3x3 pooling weakened as a tile's
+ * samples grow (beam-vdb 0.89-0.92x, beam 0.66-1.07x: neighbours' fireflies show tails sooner).
+ *
+ * Tiles no sample has lit (session 42). Where no estimator has drawn a non-zero sample in a
+ * tile or its neighbours, every variance the rule reads there is 0 and it gives the tile the
+ * cheapest estimator: of delta's two paths, the one without the strategy. On hard-narrow-spot
+ * that is the faint glow around the beam (over the lit tiles plain delta's samples are non-zero
+ * once in a thousand, above): a tile that saw nothing in the pilot took plain delta, drew its
+ * first firefly after 64-1024 samples a pixel, and moved
+ * to the strategy at the next epoch, but its pixels keep the firefly. `delta` with "tiles",
+ * 1024 spp, 160x120, seeds 1-3: its squared error 1.42x that of `true` (the strategy
+ * everywhere) at equal samples, 98% of the excess in 15 of the 300 tiles; of the 8 largest
+ * (seed 1), 5 were unlit at the pilot. So a tile no sample has lit, where the rule gives it
+ * plain delta and delta has two paths (sel->paths: the third estimator, or delta's own
+ * "tiles"), takes the path the rule picks for the whole image from the pilot's samples summed
+ * over the lit tiles (image_path; the pilot draws the same number of each estimator in every
+ * tile, so the sums compare like with like). It moves there at once, without a trial: there is
+ * no evidence to weigh. Where the image prefers plain delta (the dense block, default, cloud,
+ * hetero-forward) nothing changes; where it prefers the strategy (the narrow spot, the window
+ * beam, homogeneous, glass-fog) a tile that stays dark pays the strategy's set-up on flights
+ * that find nothing. Measured on new seeds (11-14, the same 1024 spp; docs/benchmarks.md
+ * "Session 42"): the squared error of "tiles" 1.71e-6 -> 1.49e-6 and of guided-unbiased 1.56e-6
+ * -> 1.48e-6, against `true`'s 1.45e-6; at 10 s (two paired rounds on six scenes) within the
+ * rounds' spread everywhere, the gain spread over 4000 samples a pixel.
+ *
+ * The rule. At equal time the image's MSE is (sum_k V_k)(sum_k C_k) / time for the choices
+ * m_k of the tiles k, so the best choices minimise the product. Its stationary point is where
+ * every tile takes the m minimising V_k,m + lambda C_k,m with lambda = sum V / sum C of the
+ * choices themselves (d(VC) = C dV + V dC = 0): the fixed point is found by iterating from
+ * each tile's own best V C, a few rounds; then single flips that lower the product itself are
+ * made until none does (rd_select_choose). */
+#include "integrators/rd_select.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define SEL_ROUNDS 32 /* fixed-point rounds at most */
+#define SEL_TIE 1e-9  /* relative margin below which the method does not beat delta */
+
+/* Channel c of a tile's mean, from its m statistics tile[0 .. m-1]: the mean of the estimators'
+ * means (all unbiased for it), over those with samples; 0 if none has. */
+static double tile_mean(const rd_select_stats *tile, int m, int c)
+{
+    double mu = 0.0;
+    int k = 0;
+    for (int j = 0; j < m; j++)
+        if (tile[j].n > 0.0) mu += tile[j].sum[c] / tile[j].n, k++;
+    return k ? mu / k : 0.0;
+}
+
+/* The per-sample variance of estimator e (0 .. m-1) in a tile whose m statistics are
+ * tile[0 .. m-1] (mean over RGB): the pooled sample variance, or with r > 0 the image's
+ * prediction mu^2 r (see the head, "Where the halves disagree"), bounded below by Cauchy-Schwarz
+ * with mu the mean of the estimators' means (all unbiased for the tile's mean) and the non-zero
+ * probability p from the tile's count and a prior centred on pbar, e's fraction over the lit
+ * tiles, times the tile's dimness (see the head; figures). */
+static double tile_variance(const rd_select_stats *tile, int m, int e, double pbar, double r)
+{
+    const rd_select_stats *st = &tile[e];
+    if (!(st->n > 0.0)) return 0.0;
+    double p = (st->nonzero + 2.0 * pbar) / (st->n + 2.0), v = 0.0;
+    for (int c = 0; c < 3; c++) {
+        double mu = tile_mean(tile, m, c);
+        double sv = r > 0.0 ? r * mu * mu : st->dof > 0.0 ? st->dev2[c] / st->dof : 0.0;
+        v += fmax(sv, mu > 0.0 ? mu * mu * (1.0 / p - 1.0) : 0.0);
+    }
+    return v / 3.0;
+}
+
+/* The estimator of a tile (m of them, figures f[0 .. m-1]) that minimises f: a later estimator
+ * must beat the best so far by more than rounding, so a tie goes to the lower index (delta; a
+ * tile the camera sees no medium in costs every estimator the same, summed over different
+ * numbers of samples). */
+static uint8_t least(const double *f, int m)
+{
+    int b = 0;
+    for (int e = 1; e < m; e++)
+        if (f[e] < f[b] * (1.0 - SEL_TIE)) b = e;
+    return (uint8_t)b;
+}
+
+void rd_select_choose(const double *var, const double *cost, int n, int m, uint8_t *choice)
+{
+    double f[RD_SEL_MAX];
+    for (int k = 0; k < n; k++) { /* start: each tile's own best V C */
+        for (int e = 0; e < m; e++) f[e] = var[m * k + e] * cost[m * k + e];
+        choice[k] = least(f, m);
+    }
+    for (int round = 0; round < SEL_ROUNDS; round++) {
+        double V = 0.0, C = 0.0;
+        for (int k = 0; k < n; k++) V += var[m * k + choice[k]], C += cost[m * k + choice[k]];
+        if (!(C > 0.0)) return;
+        double lambda = V / C;
+        int changed = 0;
+        for (int k = 0; k < n; k++) {
+            for (int e = 0; e < m; e++) f[e] = var[m * k + e] + lambda * cost[m * k + e];
+            uint8_t u = least(f, m);
+            changed += u != choice[k];
+            choice[k] = u;
+        }
+        if (!changed) break;
+    }
+    /* The fixed point is stationary for the linearised objective, but a tile whose move trades
+     * variance for cost can still lower the product itself (the cross term dV dC < 0): move such
+     * tiles, one at a time, to the first other estimator that lowers it, until no single move
+     * helps. */
+    double V = 0.0, C = 0.0;
+    for (int k = 0; k < n; k++) V += var[m * k + choice[k]], C += cost[m * k + choice[k]];
+    for (int round = 0, changed = 1; changed && round < SEL_ROUNDS; round++) {
+        changed = 0;
+        for (int k = 0; k < n; k++)
+            for (int e = 0; e < m; e++) {
+                int o = choice[k];
+                if (e == o) continue;
+                double V2 = V - var[m * k + o] + var[m * k + e], C2 = C - cost[m * k + o] + cost[m * k + e];
+                if (V2 * C2 < V * C * (1.0 - 1e-12)) {
+                    choice[k] = (uint8_t)e;
+                    V = V2, C = C2;
+                    changed = 1;
+                }
+            }
+    }
+}
+
+/* Each tile's figures a[m k + e] (one per estimator) replaced by the mean over its 3x3
+ * neighbourhood (clipped at the image's edge), in tmp's room of m nx ny doubles. A tile's own
+ * pilot has 16 pixels x SEL_SPP (select.c) samples (8 pixels in each half), and delta's variance is
+ * heavy-tailed (a rare path that finds the light): alone, one tile's estimate swings the choice
+ * from seed to seed; nine tiles' pooled steady it, at the price of a one-tile blur of the map,
+ * and of one tile's outlier moving nine tiles' figures (which the halves check: the head,
+ * "Replication"). */
+static void pool(double *a, double *tmp, int nx, int ny, int m)
+{
+    size_t n = (size_t)nx * ny;
+    memcpy(tmp, a, (size_t)m * n * sizeof *tmp);
+    for (int ty = 0; ty < ny; ty++)
+        for (int tx = 0; tx < nx; tx++) {
+            size_t k = (size_t)ty * nx + tx;
+            double sv[RD_SEL_MAX] = {0};
+            int cnt = 0;
+            for (int y = ty - 1; y <= ty + 1; y++)
+                for (int x = tx - 1; x <= tx + 1; x++) {
+                    if (x < 0 || y < 0 || x >= nx || y >= ny) continue;
+                    size_t j = (size_t)y * nx + x;
+                    for (int e = 0; e < m; e++) sv[e] += tmp[m * j + e];
+                    cnt++;
+                }
+            for (int e = 0; e < m; e++) a[m * k + e] = sv[e] / cnt;
+        }
+}
+
+/* The rule's figures from statistics st ([m k + e], one set of m per tile): each tile's V and C
+ * (as sums over its pixels, which is what the image's error and time add up), pooled over 3x3
+ * tiles (pool), with each estimator's non-zero prior centred on pbar[e] times the tile's dimness
+ * to the other estimators (see the head, "A dim tile's prior"); with r (unless NULL) each tile's
+ * V is the prediction from the estimator's relative variance beyond the tile's 3x3, r[m k + e],
+ * not pooled (pooling would bring back the neighbours' predictions, which hold the tile's own
+ * samples). var or cost may be NULL. */
+static void figures(const rd_select *sel, const rd_select_stats *st, const double *pbar, const double *r,
+                    double *var, double *cost, double *tmp)
+{
+    int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
+    for (int k = 0; k < n; k++) {
+        int tx = k % nx, ty = k / nx;
+        int w = sel->width - tx * RD_SELECT_TILE, h = sel->height - ty * RD_SELECT_TILE;
+        double pixels = (double)(w < RD_SELECT_TILE ? w : RD_SELECT_TILE) * (h < RD_SELECT_TILE ? h : RD_SELECT_TILE);
+        /* The hits the tile's estimators saw, and those the image's fractions expect of them */
+        double z = 0.0, x = 0.0;
+        for (int e = 0; e < m; e++) z += st[m * k + e].nonzero, x += st[m * k + e].n * pbar[e];
+        for (int e = 0; e < m; e++) {
+            const rd_select_stats *s = &st[m * k + e];
+            /* e's prior centre scaled by how dim the others find the tile (see the head, "A dim
+             * tile's prior"): its own zeros are in p already */
+            const double dim = fmin(1.0, (z - s->nonzero + 1.0) / (x - s->n * pbar[e] + 1.0));
+            if (var) var[m * k + e] = pixels * tile_variance(&st[m * k], m, e, pbar[e] * dim, r ? r[m * k + e] : 0.0);
+            if (cost) cost[m * k + e] = s->n > 0.0 ? pixels * s->cost / s->n : 0.0;
+        }
+    }
+    if (var && !r) pool(var, tmp, nx, ny, m); /* (r's predictions are pooled over the image already) */
+    if (cost) pool(cost, tmp, nx, ny, m);
+}
+
+/* For each tile k and estimator e, e's relative variance pooled over the lit tiles of statistics
+ * st (all of the tiles' samples) outside the 3x3 tiles k's figures are pooled over,
+ * r[m k + e] = sum dev2 / sum (dof mu^2) over them, mu per channel as in tile_variance; 0 where
+ * they have no deviation of e's (see the head, "Where the halves disagree"). num and den: room
+ * for m n doubles each. */
+static void pooled_relative_variance(const rd_select *sel, const rd_select_stats *st, double *r, double *num,
+                                     double *den)
+{
+    int n = sel->tiles_x * sel->tiles_y, m = sel->n;
+    double N[RD_SEL_MAX] = {0}, D[RD_SEL_MAX] = {0};
+    for (int k = 0; k < n; k++) {
+        const rd_select_stats *t = &st[m * k];
+        double lit = 0.0;
+        for (int e = 0; e < m; e++) lit += t[e].nonzero, num[m * k + e] = den[m * k + e] = 0.0;
+        if (!(lit > 0.0)) continue;
+        for (int c = 0; c < 3; c++) {
+            double mu = tile_mean(t, m, c);
+            for (int e = 0; e < m; e++)
+                if (t[e].dof > 0.0) num[m * k + e] += t[e].dev2[c], den[m * k + e] += t[e].dof * mu * mu;
+        }
+        for (int e = 0; e < m; e++) N[e] += num[m * k + e], D[e] += den[m * k + e];
+    }
+    int nx = sel->tiles_x, ny = sel->tiles_y;
+    for (int k = 0; k < n; k++) {
+        int tx = k % nx, ty = k / nx;
+        double a[RD_SEL_MAX] = {0}, b[RD_SEL_MAX] = {0};
+        for (int y = ty - 1; y <= ty + 1; y++) /* the 3x3 tiles k's figures are pooled over */
+            for (int x = tx - 1; x <= tx + 1; x++) {
+                if (x < 0 || y < 0 || x >= nx || y >= ny) continue;
+                for (int e = 0; e < m; e++) a[e] += num[m * (y * nx + x) + e], b[e] += den[m * (y * nx + x) + e];
+            }
+        for (int e = 0; e < m; e++) {
+            double d = D[e] - b[e];
+            r[m * k + e] = d > 0.0 ? fmax(0.0, N[e] - a[e]) / d : 0.0;
+        }
+    }
+}
+
+/* Of delta's paths (sel->paths), the one the rule picks for the image as one tile: the least
+ * V C, with the samples all[m k + e] summed over the lit tiles and each estimator's non-zero
+ * prior pbar[e] (see the head, "Tiles no sample has lit"). */
+static int image_path(const rd_select *sel, const rd_select_stats *all, const double *pbar)
+{
+    int n = sel->tiles_x * sel->tiles_y, m = sel->n;
+    rd_select_stats sum[RD_SEL_MAX];
+    memset(sum, 0, sizeof sum);
+    for (int k = 0; k < n; k++) {
+        const rd_select_stats *st = &all[m * k];
+        double lit = 0.0;
+        for (int e = 0; e < m; e++) lit += st[e].nonzero;
+        if (!(lit > 0.0)) continue;
+        for (int e = 0; e < m; e++) {
+            rd_select_stats *t = &sum[e];
+            t->n += st[e].n, t->nonzero += st[e].nonzero, t->dof += st[e].dof, t->cost += st[e].cost;
+            for (int c = 0; c < 3; c++) t->sum[c] += st[e].sum[c], t->dev2[c] += st[e].dev2[c];
+        }
+    }
+    int best = RD_SEL_DELTA;
+    double fbest = 0.0;
+    for (int e = 0; e < m; e++) {
+        if (!(sel->paths >> e & 1u) || !(sum[e].n > 0.0)) continue;
+        double f = tile_variance(sum, m, e, pbar[e], 0.0) * sum[e].cost / sum[e].n;
+        if (e == RD_SEL_DELTA || f < fbest * (1.0 - SEL_TIE)) best = e, fbest = f;
+    }
+    return best;
+}
+
+/* Choose every tile's estimator from the statistics so far: the rule on each half of the
+ * samples alone, the estimator both halves want, or else the rule's on the image's predicted
+ * variances if it is one of their two, else the cheaper of their two (see the head, "Replication"
+ * and "Where the halves disagree"); a move to the estimator with far fewer samples goes on trial
+ * first ("Evidence of unequal size"). */
+void rd_select_choose_tiles(rd_select *sel)
+{
+    int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
+    size_t mn = (size_t)m * n;
+    rd_select_stats *all = malloc(mn * sizeof *all);
+    double *buf = malloc(7 * mn * sizeof *buf);
+    uint8_t *want = malloc(3 * (size_t)n); /* the two halves', and the image's (image_want) */
+    if (!all || !buf || !want) { /* the choices stay as they are */
+        free(all), free(buf), free(want);
+        return;
+    }
+    double *var = buf, *cost = buf + mn, *all_cost = buf + 2 * mn, *tmp = buf + 3 * mn, *r = buf + 4 * mn;
+    const rd_select_stats *half[2] = {sel->stats, sel->stats + mn};
+    for (size_t i = 0; i < mn; i++) { /* a tile's samples: its two halves' */
+        const rd_select_stats *a = &half[0][i], *b = &half[1][i];
+        rd_select_stats *t = &all[i];
+        t->n = a->n + b->n, t->nonzero = a->nonzero + b->nonzero, t->dof = a->dof + b->dof;
+        t->cost = a->cost + b->cost;
+        for (int c = 0; c < 3; c++) t->sum[c] = a->sum[c] + b->sum[c], t->dev2[c] = a->dev2[c] + b->dev2[c];
+    }
+    /* Each estimator's non-zero fraction over the lit tiles: the prior of every tile's p. */
+    double nz[RD_SEL_MAX] = {0}, nn[RD_SEL_MAX] = {0}, pbar[RD_SEL_MAX];
+    for (int k = 0; k < n; k++) {
+        const rd_select_stats *st = &all[m * k];
+        double lit = 0.0;
+        for (int e = 0; e < m; e++) lit += st[e].nonzero;
+        if (!(lit > 0.0)) continue;
+        for (int e = 0; e < m; e++) nz[e] += st[e].nonzero, nn[e] += st[e].n;
+    }
+    for (int e = 0; e < m; e++) pbar[e] = (nz[e] + 1.0) / (nn[e] + 2.0);
+    if (sel->unlit < 0) sel->unlit = image_path(sel, all, pbar); /* the pilot's samples */
+    int two_paths = (sel->paths & (sel->paths - 1u)) != 0u;
+    for (int h = 0; h < 2; h++) {
+        figures(sel, half[h], pbar, NULL, var, cost, tmp);
+        rd_select_choose(var, cost, n, m, want + (size_t)h * n);
+    }
+    figures(sel, all, pbar, NULL, NULL, all_cost, tmp);
+    /* What the tiles beyond a tile's pooling predict, for the tiles whose halves disagree (see
+     * the head); a tile for which any estimator has no prediction (r 0: no deviation of its
+     * samples beyond the 3x3 tiles) has no such choice (RD_SEL_MAX), and a split goes to the
+     * cheaper of the two. */
+    uint8_t *image_want = want + 2 * (size_t)n;
+    pooled_relative_variance(sel, all, r, r + mn, r + 2 * mn);
+    figures(sel, all, pbar, r, var, cost, tmp);
+    rd_select_choose(var, cost, n, m, image_want);
+    for (int k = 0; k < n; k++)
+        for (int e = 0; e < m; e++)
+            if (!(r[m * k + e] > 0.0)) image_want[k] = RD_SEL_MAX;
+    /* The evidence is the tile's own samples (its neighbours, committed to one estimator,
+     * would outweigh its trial in a pooled count for ever). A trial lasts one epoch: then the
+     * rule decides. */
+    for (int k = 0; k < n; k++) {
+        int a = want[k], b = want[n + k], w = a;
+        double na = 0.0, nb = 0.0, ca = all_cost[m * k + a], cb = all_cost[m * k + b];
+        for (int e = 0; e < m; e++) na += half[0][m * k + e].n, nb += half[1][m * k + e].n;
+        int split = a != b && na > 0.0 && nb > 0.0; /* they differ and both have samples */
+        if (split) /* the image's choice between the two, or else the cheaper of them */
+            w = image_want[k] == a || image_want[k] == b ? image_want[k] : ca < cb || (ca == cb && a < b) ? a : b;
+        else if (!(na > 0.0)) w = b;
+        int cur = sel->choice[k];
+        const rd_select_stats *st = &all[m * k];
+        double lit = 0.0;
+        for (int e = 0; e < m; e++) lit += st[e].nonzero;
+        if (two_paths && !(lit > 0.0) && w == RD_SEL_DELTA) { /* no evidence to weigh: no trial */
+            sel->choice[k] = (uint8_t)sel->unlit;
+            sel->trial[k] = 0;
+            continue;
+        }
+        /* after a trial, only the estimator on trial is taken without the ratio's test: with
+         * three, the rule may want the one that was not on trial, on its pilot's samples alone;
+         * a move the halves do not agree on always goes on trial first */
+        int on_trial = sel->trial[k] && w == sel->trial[k] - 1;
+        if (w == cur || on_trial || (!split && st[w].n * RD_SELECT_TRIAL_RATIO >= st[cur].n)) {
+            sel->choice[k] = (uint8_t)w; /* the same, after its trial, or on comparable evidence */
+            sel->trial[k] = 0;
+        } else {
+            sel->trial[k] = (uint8_t)(1 + w); /* lopsided evidence, or halves that differ: half
+                                                 the pixels try w for an epoch */
+        }
+    }
+    free(all), free(buf), free(want);
+}
