@@ -76,6 +76,7 @@ static void drop_index(pm_map *map)
     map->perm = NULL;
     map->index_bytes = 0;
     map->built = 0;
+    map->ordered = 0;
 }
 
 void pm_map_free(pm_map *map)
@@ -307,6 +308,26 @@ static int spatial_order(pm_map *map)
     return 1;
 }
 
+pm_status pm_map_order(pm_map *map, char *err, size_t errlen)
+{
+    if (map == NULL) {
+        pmi_set_err(err, errlen, "pm_map_order: NULL map");
+        return PM_ERR_ARG;
+    }
+    drop_index(map);
+    if (map->nph > 0) {
+        map->perm = malloc(map->nph * sizeof(int));
+        if (map->perm == NULL || !spatial_order(map)) {
+            free(map->perm);
+            map->perm = NULL;
+            pmi_set_err(err, errlen, "pm_map_order: out of memory for the order of %zu photons", map->nph);
+            return PM_ERR_NOMEM;
+        }
+    }
+    map->ordered = 1;
+    return PM_OK;
+}
+
 pm_status pm_map_build(pm_map *map, char *err, size_t errlen)
 {
     if (map == NULL) {
@@ -417,6 +438,6 @@ double pm_map_build_seconds(const pm_map *map)
 
 const int *pm_map_spatial_order(const pm_map *map)
 {
-    return map && map->built ? map->perm : NULL;
+    return map && (map->built || map->ordered) ? map->perm : NULL;
 }
 

@@ -105,10 +105,14 @@ const pm_segment *pm_map_segments(const pm_map *map);
 void pm_map_bounds(const pm_map *map, float lo[3], float hi[3]);
 size_t pm_map_memory_bytes(const pm_map *map); /* photons + segments + index (approximate) */
 double pm_map_build_seconds(const pm_map *map); /* wall time of the last pm_map_build */
+/* The spatial order alone (pm_map_spatial_order), without the kd-tree: for a caller that reads
+ * the photons in that order and asks the map no query (they fail as on a map not built). A
+ * fraction of pm_map_build's time: the tree's build is FLANN's, on one thread. */
+pm_status pm_map_order(pm_map *map, char *err, size_t errlen);
 /* The photon indices in a spatial order (Morton, over the photons' bounds: the kd-tree's rows),
- * pm_map_photon_count of them; NULL until the map is built (or when it is empty). Valid until
- * the next pm_map_add_photons, pm_map_build or pm_map_free. A caller that lays photons out in
- * memory in this order gets neighbours near each other. */
+ * pm_map_photon_count of them; NULL until the map is built or ordered (pm_map_order), or when it
+ * is empty. Valid until the next pm_map_add_photons, pm_map_build, pm_map_order or pm_map_free. A
+ * caller that lays photons out in memory in this order gets neighbours near each other. */
 const int *pm_map_spatial_order(const pm_map *map);
 
 /* Every query point x is in world coordinates [m], double; the map subtracts its origin in

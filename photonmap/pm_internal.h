@@ -49,10 +49,12 @@ struct pm_map {
     size_t nseg, capseg;
     float lo[3], hi[3]; /* bounds of photon positions; zeros while nph == 0 */
     int built;          /* 1 after pm_map_build, back to 0 after any photon add */
+    int ordered;        /* 1 after pm_map_order (perm only, no index), back to 0 as built */
     float *xyz;         /* nph x 3 positions handed to FLANN, row j = photon perm[j]; lives
                          * as long as index */
     int *perm;          /* nph: FLANN's row j is photon perm[j] (a spatial order, see
-                         * pm_map_build); lives as long as index */
+                         * pm_map_build); lives as long as index, or from pm_map_order to the
+                         * next photon add or build */
     flann_index_t index; /* NULL when not built or when the map has no photons */
     size_t index_bytes;  /* approximate memory of index + xyz */
     double build_seconds;

@@ -389,6 +389,42 @@ Test(photonmap, spatial_order_is_a_permutation_that_keeps_neighbours_near)
     free(ph);
 }
 
+/* pm_map_order: the built map's order without its kd-tree (what nee+beams' passes after the
+ * first take: rd_method.pass_maps, RD_PASS_NO_INDEX). The same permutation as pm_map_build's, no
+ * query answered (k-NN and radius say not built), an add drops it, a build after it serves
+ * queries; an empty map orders to NULL. */
+Test(photonmap, order_alone_is_the_build_s_order_and_answers_no_query)
+{
+    const size_t n = 3000;
+    pcg32 r = pcg32_seed(78, 1);
+    pm_photon *ph = random_photons(&r, n, 0, 0);
+    pm_map *a = pm_map_new(), *b = pm_map_new();
+    char err[256];
+    cr_assert(pm_map_add_photons(a, ph, n, err, sizeof err) == PM_OK, "%s", err);
+    cr_assert(pm_map_add_photons(b, ph, n, err, sizeof err) == PM_OK, "%s", err);
+    cr_assert(pm_map_build(a, err, sizeof err) == PM_OK, "%s", err);
+    cr_assert(pm_map_order(b, err, sizeof err) == PM_OK, "%s", err);
+    const int *oa = pm_map_spatial_order(a), *ob = pm_map_spatial_order(b);
+    cr_assert(oa != NULL && ob != NULL);
+    cr_expect(memcmp(oa, ob, n * sizeof *oa) == 0, "the order alone differs from the build's");
+    const double x[3] = {0.5, 0.5, 0.5};
+    int idx[8];
+    float d2[8];
+    cr_expect(pm_map_knn(b, x, 8, idx, d2) == -1, "an ordered map answered a k-NN query");
+    cr_expect(pm_map_knn(a, x, 8, idx, d2) == 8);
+    cr_assert(pm_map_add_photons(b, ph, 1, err, sizeof err) == PM_OK, "%s", err);
+    cr_expect(pm_map_spatial_order(b) == NULL, "an order after an add");
+    cr_assert(pm_map_build(b, err, sizeof err) == PM_OK, "%s", err);
+    cr_expect(pm_map_knn(b, x, 8, idx, d2) == 8, "a build after the order answers");
+    pm_map *e = pm_map_new();
+    cr_expect(pm_map_order(e, err, sizeof err) == PM_OK && pm_map_spatial_order(e) == NULL, "an empty map's order");
+    cr_expect(pm_map_order(NULL, err, sizeof err) == PM_ERR_ARG);
+    pm_map_free(e);
+    pm_map_free(a);
+    pm_map_free(b);
+    free(ph);
+}
+
 Test(photonmap, radius_equals_brute_force)
 {
     const size_t sizes[] = {1, 7, 100, 2000};

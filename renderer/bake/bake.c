@@ -445,7 +445,14 @@ rd_status rd_bake_photon_pass(const rd_scene *s, unsigned maps, int pass, uint64
     b->stats.collisions_per_photon = ps.emitted ? (double)ps.collisions / ps.emitted : 0.0;
     b->stats.stored = b->map ? pm_map_photon_count(b->map) : 0;
     b->stats.indexed = b->stats.stored + (b->indirect ? pm_map_photon_count(b->indirect) : 0);
-    if (build_maps(b->map, b->indirect, threads, pmerr, sizeof pmerr) != RD_OK) {
+    if (maps & RD_PASS_NO_INDEX) { /* the spatial order alone (rd_method.pass_maps) */
+        pm_map *m[2] = {b->map, b->indirect};
+        for (int i = 0; i < 2 && st == RD_OK; i++)
+            if (m[i] && pm_map_order(m[i], pmerr, sizeof pmerr) != PM_OK) {
+                snprintf(err, errlen, "photon map of pass %d: %s", pass, pmerr);
+                st = RD_ERR_NOMEM;
+            }
+    } else if (build_maps(b->map, b->indirect, threads, pmerr, sizeof pmerr) != RD_OK) {
         snprintf(err, errlen, "photon map of pass %d: %s", pass, pmerr);
         st = RD_ERR_INTERNAL;
     }

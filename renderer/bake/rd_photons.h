@@ -142,7 +142,8 @@ uint64_t rd_ppm_pass_seed(uint64_t photon_seed, uint64_t render_seed, int pass);
 /* The photon maps of one progressive pass: `maps` (RD_NEEDS_PHOTONS: the map of every stored
  * collision; RD_NEEDS_INDIRECT: the map without first flights) traced with
  * photons.pass_count (else photons.count) photons and rd_ppm_pass_seed(photons.seed,
- * render_seed, pass), and indexed; no guide. *out is freed with rd_baked_free; its stats say
+ * render_seed, pass), and indexed (with RD_PASS_NO_INDEX in maps only put in spatial order,
+ * pm_map_order: no query may be asked of them); no guide. *out is freed with rd_baked_free; its stats say
  * the photons emitted and the seconds. cancel (NULL: none) is polled while tracing:
  * RD_ERR_CANCELLED. comm (NULL: alone): the ranks trace the pass together (rd_photon_opts.comm)
  * and return the same status on every rank. */

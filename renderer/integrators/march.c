@@ -602,8 +602,10 @@ unsigned rd_march_pass_maps(const rd_scene *s)
 {
     switch (s->march.ls) {
     case RD_LS_PHOTONS: return RD_NEEDS_PHOTONS;
-    case RD_LS_NEE_PHOTONS:
-    case RD_LS_NEE_BEAMS: return RD_NEEDS_INDIRECT;
+    case RD_LS_NEE_PHOTONS: return RD_NEEDS_INDIRECT;
+    /* the beams read a pass's photons in spatial order and ask it no query (march_beams.c: the
+     * radii from pass 1's map) */
+    case RD_LS_NEE_BEAMS: return RD_NEEDS_INDIRECT | RD_PASS_NO_INDEX;
     default: return 0u;
     }
 }

@@ -340,7 +340,9 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
     rd_baked *pass_bake = NULL, *first_bake = NULL;
     ctx.radius_scale = 1.0;
     if (pass_maps) {
-        if ((st = photon_pass(&ctx, pass_maps, 1, &pass_bake, NULL, o->cancel, &res->stats, err, errlen)) != RD_OK) {
+        /* (pass 1 indexed whatever pass_maps says: its map answers the k-NN queries) */
+        if ((st = photon_pass(&ctx, pass_maps & ~(unsigned)RD_PASS_NO_INDEX, 1, &pass_bake, NULL, o->cancel, &res->stats,
+                              err, errlen)) != RD_OK) {
             rd_baked_free(own);
             return st;
         }
