@@ -564,9 +564,10 @@ Test(select, the_pilot_puts_half_of_each_tile_s_pixels_in_each_half)
 /* rd_select_prepare with RD_SELECT_PASSES: the method's share of a pass a sample is pass 1's
  * work (photons emitted, their tentative collisions, the photons indexed, from the render
  * context, at rd_select.h's weights) over the samples a pass serves, photons.pass_spp x the
- * image's 32 x 24 pixels; nothing without the option. Each field alone, then all three; and the
- * share is in the method's recorded cost, pilot and image (which a rule that left the passes
- * out, or added them to delta's samples, fails). */
+ * image's 32 x 24 pixels; nothing without the option; with RD_SELECT_PASSES_ORDERED the photons
+ * at RD_SELECT_COST_ORDERED's weight instead of RD_SELECT_COST_INDEXED's. Each field alone, then
+ * all three; and the share is in the method's recorded cost, pilot and image (which a rule that
+ * left the passes out, or added them to delta's samples, fails). */
 Test(select, a_pass_s_work_is_shared_by_the_samples_it_serves)
 {
     rd_scene *s = rt_scene("selpass.json", select_scene("{\"select\":\"tiles\"}"));
@@ -574,14 +575,15 @@ Test(select, a_pass_s_work_is_shared_by_the_samples_it_serves)
     char err[RD_ERRLEN];
     const double w[3] = {RD_SELECT_COST_EMITTED, RD_SELECT_COST_COLLISION, RD_SELECT_COST_INDEXED};
     const double work[5][3] = {{1000, 0, 0}, {0, 9000, 0}, {0, 0, 4000}, {1000, 9000, 4000}, {1000, 9000, 4000}};
-    for (int i = 0; i < 6; i++) {
-        const double *f = work[i < 5 ? i : 4];
+    for (int i = 0; i < 7; i++) { /* 5: no option; 6: the passes ordered, not indexed */
+        const double *f = work[i < 5 ? i : i == 5 ? 4 : 3];
         ctx.pass_emitted = f[0], ctx.pass_collisions = f[1], ctx.pass_indexed = f[2];
         s->photons.pass_spp = i == 4 ? 4 : 1;
         rd_select sel;
-        cr_assert(rd_select_prepare(&ctx, unit_method, NULL, 1.0, i == 5 ? 0 : RD_SELECT_PASSES, &sel, err, sizeof err) == RD_OK,
-                  "%s", err);
-        double want = i == 5 ? 0.0 : (w[0] * f[0] + w[1] * f[1] + w[2] * f[2]) / (s->photons.pass_spp * 32.0 * 24.0);
+        int options = i == 5 ? 0 : i == 6 ? RD_SELECT_PASSES | RD_SELECT_PASSES_ORDERED : RD_SELECT_PASSES;
+        cr_assert(rd_select_prepare(&ctx, unit_method, NULL, 1.0, options, &sel, err, sizeof err) == RD_OK, "%s", err);
+        double w2 = i == 6 ? RD_SELECT_COST_ORDERED : w[2];
+        double want = i == 5 ? 0.0 : (w[0] * f[0] + w[1] * f[1] + w2 * f[2]) / (s->photons.pass_spp * 32.0 * 24.0);
         cr_assert(fabs(sel.method_pass_cost - want) <= 1e-12 * want, "case %d: a sample's share %.17g, not %.17g", i,
                   sel.method_pass_cost, want);
         /* It is in every recorded sample of the method (the stand-in does no counted work): the

@@ -98,7 +98,8 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
          * light's tiles without that: docs/guided-unbiased.md "Probes") */
         /* (the beams' samples consume the progressive photon passes: RD_SELECT_PASSES) */
         int options = (s->march.equiangular != RD_EQ_OFF ? RD_SELECT_THIRD : 0) |
-                      (s->march.ls == RD_LS_NEE_BEAMS && ctx->pass_emitted > 0.0 ? RD_SELECT_PASSES : 0);
+                      (s->march.ls == RD_LS_NEE_BEAMS && ctx->pass_emitted > 0.0 ? RD_SELECT_PASSES : 0) |
+                      (rd_march_pass_maps(s) & RD_PASS_NO_INDEX ? RD_SELECT_PASSES_ORDERED : 0);
         st = rd_select_prepare_path(ctx, march_guided, NULL, RD_MARCH_CELL_COST, options,
                                     mst->gpaths ? paths_guided : NULL, RD_GU_CELL_COST, &mst->sel, err, errlen);
         if (st != RD_OK) rd_march_release(ctx);

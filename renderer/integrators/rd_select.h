@@ -157,13 +157,18 @@ rd_status rd_select_prepare_path(const rd_render_ctx *ctx, rd_select_fn method, 
  * rd_select.paths); the method's samples consume the progressive photon passes (a pass serves
  * photons.pass_spp x the image's pixels of them): each adds its share of pass 1's work to its
  * cost (rd_select.method_pass_cost: ctx's pass_emitted, pass_collisions and pass_indexed, at
- * the weights below; select.c, "The photon passes"). */
-enum { RD_SELECT_THIRD = 1, RD_SELECT_METHOD_IS_PATH = 2, RD_SELECT_PASSES = 4 };
+ * the weights below; select.c, "The photon passes"); with RD_SELECT_PASSES_ORDERED too, the
+ * passes after the first put their photons in spatial order without a kd-tree (RD_PASS_NO_INDEX:
+ * nee+beams), and a photon counts RD_SELECT_COST_ORDERED instead of RD_SELECT_COST_INDEXED. */
+enum { RD_SELECT_THIRD = 1, RD_SELECT_METHOD_IS_PATH = 2, RD_SELECT_PASSES = 4, RD_SELECT_PASSES_ORDERED = 8 };
 /* A progressive pass's work, in density lookups: a photon emitted, a tentative collision, a
- * photon indexed (stored and built into a kd-tree). */
+ * photon indexed (stored and built into a kd-tree), a photon stored and put in order alone (the
+ * indexed photon's weight less what the kd-tree cost on the calibration scenes: 0.152 us of
+ * 0.450, docs/benchmarks.md "Session 56"). */
 #define RD_SELECT_COST_EMITTED 0.87
 #define RD_SELECT_COST_COLLISION 0.64
 #define RD_SELECT_COST_INDEXED 2.75
+#define RD_SELECT_COST_ORDERED 1.82
 void rd_select_free(rd_select *sel);
 /* The camera sample of `th->pixel` (column th->x, row th->y): `method` where the selection
  * gives it the pixel's tile, the method's second estimator where it gives it that (rd_select.path),

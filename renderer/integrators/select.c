@@ -107,6 +107,9 @@
  * (render.c), time no counter sees: each method sample's cost carries its share of pass 1's work
  * (RD_SELECT_PASSES, sample_fixed_units; weights fitted on the calibration scenes, docs/benchmarks.md
  * "Session 53"; not counted: the beams' set-up a pass, ~14%, the one-thread kd-tree, R ranks' R x).
+ * Since session 56 the beams' passes after the first build no kd-tree (RD_PASS_NO_INDEX, their
+ * photons only put in spatial order), and their photons count RD_SELECT_COST_ORDERED
+ * (RD_SELECT_PASSES_ORDERED; pass 1's counts stand for every pass's).
  *
  * The cost. Time is not deterministic, and the choice must be (for one build, the same seed
  * gives the same image on any machine and thread count), so C is counted: the work a sample
@@ -414,7 +417,8 @@ rd_status rd_select_prepare_path(const rd_render_ctx *ctx, rd_select_fn method, 
     if (options & RD_SELECT_METHOD_IS_PATH) sel->paths |= 1u << RD_SEL_METHOD;
     if (options & RD_SELECT_PASSES) /* the method's share of a pass's work, a sample (the head) */
         sel->method_pass_cost = (RD_SELECT_COST_EMITTED * ctx->pass_emitted + RD_SELECT_COST_COLLISION * ctx->pass_collisions +
-                                 RD_SELECT_COST_INDEXED * ctx->pass_indexed) /
+                                 (options & RD_SELECT_PASSES_ORDERED ? RD_SELECT_COST_ORDERED : RD_SELECT_COST_INDEXED) *
+                                     ctx->pass_indexed) /
                                 ((double)s->photons.pass_spp * cam->width * cam->height);
     sel->delta = delta;
     sel->epochs = ctx->scene->settings.select != RD_SELECT_PILOT;
