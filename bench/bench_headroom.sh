@@ -15,9 +15,9 @@
 set -euo pipefail
 scene=${1:?usage: bench/bench_headroom.sh SCENE REFERENCE.exr [OUT_DIR] [SECONDS]}
 ref=${2:?usage: bench/bench_headroom.sh SCENE REFERENCE.exr [OUT_DIR] [SECONDS]}
-out=${3:-bench/results/headroom}
-sec=${4:-40}
 here=$(cd "$(dirname "$0")/.." && pwd)
+out=${3:-$here/bench/results/headroom}
+sec=${4:-40}
 bin=$here/build/photonmarch
 name=$(basename "$scene" .json)
 mkdir -p "$out"

@@ -53,7 +53,7 @@ def rule(V, C, allowed):
     n = len(next(iter(V.values())))
     Vm = np.array([[V[a][k] for a in allowed] for k in range(n)])
     Cm = np.array([[C[a][k] for a in allowed] for k in range(n)])
-    ch = np.argmin(Vm * Cm, axis=1)
+    ch = np.argmin(Vm * Cm, axis=1)  # (a cost the trace left null is inf: never chosen)
     for _ in range(32):
         lam = Vm[range(n), ch].sum() / Cm[range(n), ch].sum()
         new = np.argmin(Vm + lam * Cm, axis=1)
@@ -61,9 +61,9 @@ def rule(V, C, allowed):
             break
         ch = new
     Vs, Cs = Vm[range(n), ch].sum(), Cm[range(n), ch].sum()
-    changed = True
-    while changed:
-        changed = False
+    changed, rounds = Cs > 0, 0
+    while changed and rounds < 32:  # (rd_select_choose's bound)
+        changed, rounds = False, rounds + 1
         for k in range(n):
             for e in range(len(allowed)):
                 o = ch[k]
@@ -94,10 +94,10 @@ def main():
         for e, nm in enumerate(tr[-1]["estimators"]):
             if beams and nm != "method":
                 continue
-            cost = [t["cost"][e] if t["cost"][e] is not None else np.nan for t in tr[-1]["tiles"]]
+            cost = [t["cost"][e] if t["cost"][e] is not None else np.inf for t in tr[-1]["tiles"]]
             C["beams" if beams else nm] = np.array(cost) * pix
     avail = [nm for nm in NAMES if nm in C]
-    R, RSE = img(ref), img(ref.replace(".exr", "-stderr.exr"))
+    R, RSE = img(ref), img(ref[:-len(".exr")] + "-stderr.exr")
     B2 = np.maximum(tiles_sum(((M["beams"] - R) ** 2 - SE["beams"] ** 2 - RSE ** 2).mean(axis=2), ty, tx), 0.0)
     tau = REP["delta"]["render_seconds"] / (REP["delta"]["spp"] * C["delta"].sum())
 

@@ -314,6 +314,7 @@ pm_status pm_map_order(pm_map *map, char *err, size_t errlen)
         pmi_set_err(err, errlen, "pm_map_order: NULL map");
         return PM_ERR_ARG;
     }
+    double t0 = now_seconds();
     drop_index(map);
     if (map->nph > 0) {
         map->perm = malloc(map->nph * sizeof(int));
@@ -325,6 +326,8 @@ pm_status pm_map_order(pm_map *map, char *err, size_t errlen)
         }
     }
     map->ordered = 1;
+    map->index_bytes = map->nph * sizeof(int); /* the order, for pm_map_memory_bytes */
+    map->build_seconds = now_seconds() - t0;
     return PM_OK;
 }
 

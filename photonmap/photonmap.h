@@ -104,7 +104,7 @@ const pm_segment *pm_map_segments(const pm_map *map);
  * so that every photon lies inside; 0 if there are none. */
 void pm_map_bounds(const pm_map *map, float lo[3], float hi[3]);
 size_t pm_map_memory_bytes(const pm_map *map); /* photons + segments + index (approximate) */
-double pm_map_build_seconds(const pm_map *map); /* wall time of the last pm_map_build */
+double pm_map_build_seconds(const pm_map *map); /* wall time of the last pm_map_build or pm_map_order */
 /* The spatial order alone (pm_map_spatial_order), without the kd-tree: for a caller that reads
  * the photons in that order and asks the map no query (they fail as on a map not built). A
  * fraction of pm_map_build's time: the tree's build is FLANN's, on one thread. */

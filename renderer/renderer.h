@@ -107,10 +107,6 @@ double rd_scene_hidden_light(const rd_scene *scene);
  * asks for all of them. */
 enum { RD_NEEDS_PHOTONS = 1, RD_NEEDS_GUIDE = 2, RD_NEEDS_INDIRECT = 4, RD_NEEDS_INDIRECT_GUIDE = 8,
        RD_NEEDS_FEW_PHOTONS = 16, RD_NEEDS_REACHABLE = 32, RD_NEEDS_INDIRECT_LOBE = 64 };
-/* Beside a progressive photon pass's maps (rd_method.pass_maps): the passes after the first are
- * read photon by photon in spatial order and asked no query, so they get that order without the
- * kd-tree (pm_map_order; nee+beams, whose k-NN radii come from pass 1's map). */
-enum { RD_PASS_NO_INDEX = 128 };
 int rd_method_count(void);
 /* Name, one-line summary and needs of method i (0 <= i < rd_method_count()). */
 const char *rd_method_name(int i);

@@ -22,6 +22,7 @@
 
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 static const double ORIGIN[3] = {10.0, -3.0, 2.0};
 
@@ -344,5 +345,35 @@ Test(beams, support_share_is_the_ball_s_volume_inside_the_box)
         double got = rd_march_support_share(s, s->fill_medium, mk, face[k].x, r);
         cr_expect(fabs(got - face[k].want) < 1e-12, "two boxes, point %d: share %.6f, want %.6f", k, got, face[k].want);
     }
+    rd_scene_free(s);
+}
+
+/* The beams' passes after the first (rd_march_pass_maps: RD_PASS_NO_INDEX): rd_bake_photon_pass
+ * puts the pass's indirect photons in spatial order and builds no kd-tree, so the map answers no
+ * k-NN query and gives the order the built map of the same pass gives (the same photons: the
+ * pass's seed). Pass 1 is built whatever the flag says (render.c strips it): its map serves the
+ * radii's k-NN, which a render whose pass 1 were only ordered would find nothing in. */
+Test(beams, later_passes_are_ordered_not_indexed)
+{
+    rd_scene *s = rt_scene("beams.json", scene_json());
+    cr_assert(rd_march_pass_maps(s) == (RD_NEEDS_INDIRECT | RD_PASS_NO_INDEX));
+    char err[RD_ERRLEN];
+    rd_baked *ordered = NULL, *built = NULL;
+    cr_assert(rd_bake_photon_pass(s, rd_march_pass_maps(s), 2, 7, 1, NULL, NULL, &ordered, err, sizeof err) == RD_OK,
+              "%s", err);
+    cr_assert(rd_bake_photon_pass(s, RD_NEEDS_INDIRECT, 2, 7, 1, NULL, NULL, &built, err, sizeof err) == RD_OK, "%s", err);
+    const pm_map *a = rd_baked_indirect_map(ordered), *b = rd_baked_indirect_map(built);
+    size_t n = pm_map_photon_count(a);
+    cr_assert(n > 100 && n == pm_map_photon_count(b), "%zu and %zu photons", n, pm_map_photon_count(b));
+    const int *oa = pm_map_spatial_order(a), *ob = pm_map_spatial_order(b);
+    cr_assert(oa != NULL && ob != NULL);
+    cr_expect(memcmp(oa, ob, n * sizeof *oa) == 0, "the ordered pass's order differs from the built one's");
+    const double x[3] = {3.0, -2.0, 1.0};
+    int idx[4];
+    float d2[4];
+    cr_expect(pm_map_knn(a, x, 4, idx, d2) == -1, "the ordered pass answered a k-NN query");
+    cr_expect(pm_map_knn(b, x, 4, idx, d2) == 4);
+    rd_baked_free(ordered);
+    rd_baked_free(built);
     rd_scene_free(s);
 }

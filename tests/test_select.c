@@ -1,4 +1,5 @@
-/* The guided methods' tile selection (settings.select = "tiles", renderer/integrators/select.c):
+/* The guided methods' tile selection (settings.select = "tiles", renderer/integrators/select.c and
+ * select_rule.c):
  * a pilot gives each 8x8 tile to the method (guided's marcher, guided-unbiased's paths) or to
  * delta's path, whichever the rule says pays.
  *  - the rule: dominance (a tile where one estimator has both less variance and less cost gets
@@ -113,7 +114,7 @@ Test(select, a_tie_goes_to_delta)
 
 /* ---- The epochs: the image's samples correct the pilot -------------------------------------- */
 
-/* Statistics i = n k + e (tile k, estimator e) of half h of the samples (select.c,
+/* Statistics i = n k + e (tile k, estimator e) of half h of the samples (select_rule.c,
  * "Replication"): what `pixels` pixels x `spp` samples each would have shown, with per-sample
  * variance v, mean mu, non-zero rate p and cost c, added to what the half holds. */
 static void add_half(rd_select *sel, int h, int i, double pixels, double spp, double mu, double v, double p,
@@ -135,7 +136,7 @@ static void fake_pilot(rd_select *sel, int i, double mu, double v, double p, dou
     }
 }
 
-/* Statistics i = n k + e of all of a tile's samples: its two halves' (select.c). */
+/* Statistics i = n k + e of all of a tile's samples: its two halves' (select_rule.c). */
 static rd_select_stats tile_stats(const rd_select *sel, int i)
 {
     const rd_select_stats *a = &sel->stats[i], *b = &sel->stats[(size_t)sel->n * sel->tiles_x * sel->tiles_y + i];
@@ -899,7 +900,7 @@ Test(select, a_beam_across_the_tiles_still_goes_to_the_method)
  * lit[k]: there its samples are mu / q with probability q = hits / 128 (mean 1, variance
  * 1/q - 1). In an all-zero tile delta's variance is the Cauchy-Schwarz bound mu^2 (1/p - 1),
  * mu = 1/2 (the two means' mean), with p from the tile's count and delta's non-zero fraction
- * over the lit tiles (select.c's head); the choice pools each figure over 3x3 windows. */
+ * over the lit tiles (select_rule.c's head); the choice pools each figure over 3x3 windows. */
 static void prior_scene(rd_select *sel, const int *lit, int hits, double c_m)
 {
     char err[RD_ERRLEN];
@@ -944,7 +945,7 @@ Test(select, a_tile_of_zeros_goes_by_how_often_delta_sees_light_elsewhere)
     rd_select_free(&sel);
 }
 
-/* A 5x5-tile selection, columns 0-1 dim and 2-4 bright (session 48, select.c's head "A dim
+/* A 5x5-tile selection, columns 0-1 dim and 2-4 bright (session 48, select_rule.c's head "A dim
  * tile's prior"). In the bright tiles delta (cost 1) finds the light in 8 of 128 pilot samples
  * (mean 1, variance 15), the method (cost 3) in every one (variance 0.5). In the dim tiles the
  * method finds it once in 128 (mean mu_d, variance mu_d^2 x 127) and delta never: its variance

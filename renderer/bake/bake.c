@@ -444,6 +444,7 @@ rd_status rd_bake_photon_pass(const rd_scene *s, unsigned maps, int pass, uint64
     b->stats.emitted = ps.emitted;
     b->stats.collisions_per_photon = ps.emitted ? (double)ps.collisions / ps.emitted : 0.0;
     b->stats.stored = b->map ? pm_map_photon_count(b->map) : 0;
+    /* (with RD_PASS_NO_INDEX: the photons put in order; only pass 1's count is read, and pass 1 is indexed) */
     b->stats.indexed = b->stats.stored + (b->indirect ? pm_map_photon_count(b->indirect) : 0);
     if (maps & RD_PASS_NO_INDEX) { /* the spatial order alone (rd_method.pass_maps) */
         pm_map *m[2] = {b->map, b->indirect};

@@ -139,7 +139,9 @@ rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen)
  * (nee+photons), and the indirect guide (nee+guide). */
 unsigned rd_march_source_needs(const rd_scene *s);
 /* The photon map a progressive pass must trace anew for the scene's source (rd_method.pass_maps):
- * the map for march.ls = photons, the indirect map for nee+photons, none for nee and nee+guide. */
+ * the map for march.ls = photons, the indirect map for nee+photons, the indirect map for nee+beams
+ * with RD_PASS_NO_INDEX (after pass 1 its photons are read in order, never queried), none for
+ * nee, nee+paths, nee+delta and nee+guide. */
 unsigned rd_march_pass_maps(const rd_scene *s);
 /* Every bake a marcher may need (the methods' `needs`). */
 #define RD_MARCH_NEEDS (RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | RD_NEEDS_INDIRECT | RD_NEEDS_INDIRECT_GUIDE | RD_NEEDS_INDIRECT_LOBE)

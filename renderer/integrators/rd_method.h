@@ -57,7 +57,10 @@ typedef struct rd_render_ctx {
     const rd_scene *scene;
     const struct rd_method *method;
     const struct pm_map *photons;   /* built photon map, when the method needs it */
-    const struct pm_map *photons_indirect; /* photons stored without their first flight */
+    const struct pm_map *photons_indirect; /* photons stored without their first flight (with
+                                              progressive passes: the pass's; only put in spatial
+                                              order, no queries, after pass 1 where pass_maps has
+                                              RD_PASS_NO_INDEX) */
     const struct sh_guide *guide;   /* guide grid, when the method needs it */
     const struct sh_guide *guide_indirect; /* guide of the indirect map (march.ls nee+guide) */
     void *state;                    /* the method's own, from prepare (freed by release) */
@@ -90,6 +93,12 @@ typedef struct rd_select_report {
     char err[RD_ERRLEN]; /* the trace's first failed write, or "" */
 } rd_select_report;
 
+/* Beside a progressive pass's maps (rd_method.pass_maps; a bit no RD_NEEDS_* flag of
+ * renderer.h uses): the passes after the first are read photon by photon in spatial order and
+ * asked no query, so they get that order without the kd-tree (pm_map_order; nee+beams, whose
+ * k-NN radii come from pass 1's map, which is built whatever this says). */
+enum { RD_PASS_NO_INDEX = 1u << 16 };
+
 typedef struct rd_method {
     const char *name;
     const char *summary;   /* one line, for --help and the report */
@@ -98,7 +107,8 @@ typedef struct rd_method {
     unsigned (*needs_for)(const rd_scene *scene);
     /* Optional: the photon maps a progressive photon pass must trace anew for this scene
      * (RD_NEEDS_PHOTONS, RD_NEEDS_INDIRECT; 0 = none: the method's estimate uses no map, and
-     * photons.progressive changes nothing). NULL = none. */
+     * photons.progressive changes nothing), with RD_PASS_NO_INDEX where the passes after the
+     * first are only read in spatial order (above). NULL = none. */
     unsigned (*pass_maps)(const rd_scene *scene);
     /* Optional: called when a progressive photon pass has put new maps into ctx (between the
      * render's passes, after prepare; not for pass 1, whose maps prepare sees). */

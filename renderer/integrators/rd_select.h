@@ -1,9 +1,9 @@
 /* rd_select.h: the guided methods' choice, per tile of the image, between the method and
  * delta's path, and delta's path with equiangular sampling on every flight (where `guided`'s
  * marcher samples with it; for `guided-unbiased` always: rd_select_prepare) (settings.select =
- * "tiles"; integrators/select.c); and `delta`'s own between its path without and with that
- * strategy (settings.equiangular "tiles": the "method" is the
- * path with it; integrators/delta.c). Internal to integrators/ (tests and
+ * "tiles"; integrators/select.c, the rule in select_rule.c); and `delta`'s own between its path
+ * without and with that strategy (settings.equiangular "tiles": the "method" is the path with
+ * it; integrators/delta.c). Internal to integrators/ (tests and
  * bench/bench_select_score include it). */
 #ifndef RD_SELECT_H
 #define RD_SELECT_H
