@@ -53,7 +53,8 @@ def rule(V, C, allowed):
     n = len(next(iter(V.values())))
     Vm = np.array([[V[a][k] for a in allowed] for k in range(n)])
     Cm = np.array([[C[a][k] for a in allowed] for k in range(n)])
-    ch = np.argmin(Vm * Cm, axis=1)  # (a cost the trace left null is inf: never chosen)
+    # (a cost the trace left null is inf: never chosen, even where V is 0 and V C would be nan)
+    ch = np.argmin(np.where(np.isinf(Cm), np.inf, Vm * Cm), axis=1)
     for _ in range(32):
         lam = Vm[range(n), ch].sum() / Cm[range(n), ch].sum()
         new = np.argmin(Vm + lam * Cm, axis=1)
