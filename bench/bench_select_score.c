@@ -53,10 +53,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-enum { MAXE = 4, MAXLINES = 64 };
+enum { MAXE = 5, MAXLINES = 64 };
 /* The estimators' names in a trace (select_trace.c; a trace lists those its selection has, in
  * its own order): the tables are named so. */
-static const char *const names[MAXE] = {"delta", "method", "delta_equiangular", "guided_path"};
+static const char *const names[MAXE] = {"delta", "method", "delta_equiangular", "guided_path", "beams"};
 
 typedef struct {
     int w, h;

@@ -258,6 +258,9 @@ typedef struct {
     /* `guided` with march.guided_paths: the camera samples its selection gave to
      * guided-unbiased's paths (their guide reads are in flight_segments and guide_vertices). */
     uint64_t path_samples;
+    /* `guided` with march.beams: the camera samples its selection gave to the marcher with the
+     * nee+beams source (integrators/guided.c). */
+    uint64_t beams_samples;
     /* guided-unbiased: distance-pdf segments its flights built (guide cells crossed) and path
      * vertices whose policy read the guide: with lookups and shadow rays, what a sample costs
      * (the selection's counted cost, integrators/select.c). 0 for the other methods. */

@@ -356,6 +356,8 @@ Test(beams, support_share_is_the_ball_s_volume_inside_the_box)
 Test(beams, later_passes_are_ordered_not_indexed)
 {
     rd_scene *s = rt_scene("beams.json", scene_json());
+    cr_assert(rd_march_pass_maps(s) == 0u, "one fixed map (photons.progressive false): no pass");
+    s->photons.progressive = 1;
     cr_assert(rd_march_pass_maps(s) == (RD_NEEDS_INDIRECT | RD_PASS_NO_INDEX));
     char err[RD_ERRLEN];
     rd_baked *ordered = NULL, *built = NULL;

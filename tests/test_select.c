@@ -667,7 +667,7 @@ Test(select, the_method_s_second_estimator_is_sampled_and_costed_with_its_own_we
             }
         cr_expect(th.path_samples == 32 * 24 && th.delta_samples == 0, "%llu path samples, %llu delta samples",
                   (unsigned long long)th.path_samples, (unsigned long long)th.delta_samples);
-        cr_expect(rd_select_method_pixels(&sel, 32 * 24) == 0, "the method renders no pixel");
+        cr_expect(rd_select_pass_pixels(&sel, 32 * 24) == 0, "the method renders no pixel");
         rd_select_free(&sel);
     }
     rd_scene_free(s);
@@ -1573,4 +1573,136 @@ Test(select, pilot_keeps_the_pilot_s_choice_and_tiles_chooses_again, .timeout = 
     for (int i = 0; i < 4; i++) rd_render_result_free(&r[i]);
     rd_scene_free(sp);
     rd_scene_free(st);
+}
+
+/* ---- The beams estimator (march.beams) ---------------------------------------------------- */
+
+/* A stand-in beams estimator (rd_select_more's `beams`): always 4, with 3 PDF segments a sample. */
+static vec3 beams_stand_in(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
+{
+    (void)ctx, (void)r, (void)smp;
+    th->cells += 3;
+    return v3(4, 4, 4);
+}
+
+/* The beams estimator is the selection's last, after the third and the method's second (the
+ * order of the kinds), not one of delta's paths; with RD_SELECT_PASSES its samples, not the
+ * method's, carry the passes' share (a pass serves pass_spp x all pixels of them: render.c),
+ * its PDF segments weigh the method's cell cost, and the pixels given to it are the ones that
+ * pace the passes (rd_select_pass_pixels). Fails with the share left on the method, the
+ * segments at the path's weight, or the pacing pixels counted from the method's tiles. */
+Test(select, the_beams_estimator_is_the_last_and_carries_the_passes_share)
+{
+    rd_scene *s = rt_scene("selbeams.json", select_scene("{\"select\":\"tiles\"}"));
+    rd_render_ctx ctx = {.scene = s, .method = rd_method_find("delta"), .threads = 1};
+    ctx.pass_emitted = 1000, ctx.pass_collisions = 9000, ctx.pass_indexed = 4000;
+    const double share = (RD_SELECT_COST_EMITTED * 1000 + RD_SELECT_COST_COLLISION * 9000 + RD_SELECT_COST_ORDERED * 4000) /
+                         (32.0 * 24.0);
+    char err[RD_ERRLEN];
+    for (int third = 0; third < 2; third++)
+        for (int path = 0; path < 2; path++) {
+            rd_select sel;
+            const rd_select_more more = {.path = path ? path_stand_in : NULL, .path_cell_cost = 0.5, .beams = beams_stand_in};
+            int options = RD_SELECT_PASSES | RD_SELECT_PASSES_ORDERED | (third ? RD_SELECT_THIRD : 0);
+            cr_assert(rd_select_prepare_more(&ctx, unit_method, NULL, 7.0, options, &more, &sel, err, sizeof err) == RD_OK,
+                      "%s", err);
+            int n = 3 + third + path, b = n - 1, tiles = sel.tiles_x * sel.tiles_y;
+            cr_assert(sel.n == n && sel.kind[b] == RD_SEL_BEAMS && sel.pass_kind == RD_SEL_BEAMS,
+                      "third %d, path %d: %d estimators, the last of kind %d", third, path, sel.n, sel.kind[b]);
+            cr_expect(!path || sel.kind[b - 1] == RD_SEL_PATH, "the method's second estimator before the beams");
+            cr_expect(sel.paths == (1u << RD_SEL_DELTA | (third ? 1u << RD_SEL_DELTA_EQ : 0u)), "delta's paths 0x%x", sel.paths);
+            size_t mn = (size_t)sel.n * tiles;
+            for (int k = 0; k < tiles; k++)
+                for (int h = 0; h < 2; h++) {
+                    const rd_select_stats *st = &sel.stats[h * mn + (size_t)sel.n * k];
+                    double cb = st[b].cost / st[b].n, cm = st[RD_SEL_METHOD].cost / st[RD_SEL_METHOD].n;
+                    cr_expect(st[b].n == 64 && st[b].sum[0] == 256.0, "tile %d: %g beams samples, sum %g", k, st[b].n,
+                              st[b].sum[0]);
+                    cr_expect(fabs(cb - (RD_SELECT_COST_SAMPLE + 3 * 7.0 + share)) < 1e-4,
+                              "tile %d, half %d: the beams' cost %g a sample, not %g", k, h, cb,
+                              RD_SELECT_COST_SAMPLE + 3 * 7.0 + share);
+                    cr_expect(fabs(cm - RD_SELECT_COST_SAMPLE) < 1e-4, "tile %d, half %d: the method's cost %g carries a share",
+                              k, h, cm);
+                }
+            /* the left half of the tiles to the beams, the rest to the method */
+            for (int k = 0; k < tiles; k++)
+                sel.choice[k] = (uint8_t)(k % sel.tiles_x < sel.tiles_x / 2 ? b : RD_SEL_METHOD), sel.trial[k] = 0;
+            rd_thread th = {0};
+            for (int y = 0; y < 24; y++)
+                for (int x = 0; x < 32; x++) {
+                    th.pixel = (uint64_t)y * 32 + x, th.x = x, th.y = y;
+                    rd_sampler smp = rd_sampler_start(th.pixel, 0, 7);
+                    vec3 L = rd_select_radiance(&ctx, &sel, unit_method, &th, (ray3){v3(0, 0, 3), v3(0, 0, -1)}, &smp);
+                    cr_expect(L.x == (x < 16 ? 4.0 : 1.0), "pixel (%d, %d): %g", x, y, L.x);
+                    rd_select_pixel_done(&sel, &th);
+                }
+            cr_expect(th.beams_samples == 16 * 24 && th.path_samples == 0 && th.delta_samples == 0,
+                      "%llu beams samples, %llu path, %llu delta", (unsigned long long)th.beams_samples,
+                      (unsigned long long)th.path_samples, (unsigned long long)th.delta_samples);
+            cr_expect(rd_select_pass_pixels(&sel, 32 * 24) == 16 * 24, "%llu pixels pace the passes, not the beams' 384",
+                      (unsigned long long)rd_select_pass_pixels(&sel, 32 * 24));
+            rd_select_free(&sel);
+        }
+    rd_scene_free(s);
+}
+
+/* The selection scene with guided's default source and march.beams `beams` (progressive passes
+ * of 4000 photons, 1 spp a pass; the marcher's equiangular sample off, as delta's is). */
+static const char *beams_estimator_scene(const char *beams)
+{
+    static char extra[256];
+    snprintf(extra, sizeof extra,
+             "\"photons\":{\"count\":40000,\"pass_count\":4000,\"pass_spp\":1},"
+             "\"march\":{\"equiangular\":false%s%s}",
+             beams ? ",\"beams\":" : "", beams ? beams : "");
+    return rt_spot_fog_json_with(32, 24, "{\"select\":\"tiles\"}", extra);
+}
+
+/* guided with march.beams on the selection scene: the selection gives the beams some of the
+ * samples and they gather balls; the photon passes follow the beams' samples (a pass per
+ * pass_spp x all pixels of them: passes by the image's samples would be 20) though
+ * photons.progressive is not set; the image is the same on one thread and two. Without the key
+ * (the default), or with settings.select off, no sample is the beams' and no pass is traced. */
+Test(select, the_beams_estimator_takes_tiles_and_paces_its_own_passes, .timeout = 300)
+{
+    rd_scene *s0 = rt_scene("selbe0.json", beams_estimator_scene(NULL));
+    cr_assert(!s0->march.beams && !s0->photons.progressive, "march.beams is off by default");
+    rd_render_opts o = {.method = "guided", .spp = 6, .seed = 5, .threads = 2};
+    rd_render_result r0;
+    char err[RD_ERRLEN];
+    cr_assert(rd_render(s0, &o, &r0, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(r0.stats.beams_samples == 0 && r0.stats.beam_queries == 0 && r0.stats.photon_passes == 0,
+              "without march.beams: %llu beams samples, %d passes", (unsigned long long)r0.stats.beams_samples,
+              r0.stats.photon_passes);
+    rd_render_result_free(&r0);
+    rd_scene_free(s0);
+    /* with settings.select off there is no selection to hold the beams: no beams, no passes */
+    const char *j = beams_estimator_scene("true");
+    char joff[2048];
+    const char *at = strstr(j, "\"select\":\"tiles\"");
+    cr_assert(at != NULL && strlen(j) < sizeof joff);
+    snprintf(joff, sizeof joff, "%.*s\"select\":\"off\"%s", (int)(at - j), j, at + strlen("\"select\":\"tiles\""));
+    rd_scene *soff = rt_scene("selbeoff.json", joff);
+    cr_assert(rd_render(soff, &o, &r0, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(r0.stats.beams_samples == 0 && r0.stats.beam_queries == 0 && r0.stats.photon_passes == 0,
+              "select off: %llu beams samples, %d passes", (unsigned long long)r0.stats.beams_samples,
+              r0.stats.photon_passes);
+    rd_render_result_free(&r0);
+    rd_scene_free(soff);
+    rd_scene *s = rt_scene("selbe.json", beams_estimator_scene("true"));
+    rd_render_result r[2];
+    render_on_1_and_2_threads(s, "guided", 20, 5, r);
+    double M = (double)r[0].stats.beams_samples, share = M / (double)r[0].stats.paths, per_pass = 32.0 * 24.0;
+    int p = r[0].stats.photon_passes;
+    cr_log_info("march.beams: the beams render %.0f%% of the samples; %d photon passes for %.0f of them", 100.0 * share,
+                p, M);
+    cr_assert(share > 0.0 && share < 1.0 && r[0].stats.beam_queries > 0, "the beams' share %g (%llu queries)", share,
+              (unsigned long long)r[0].stats.beam_queries);
+    cr_assert((p - 1) * per_pass < M && M <= p * per_pass + per_pass, "%d passes for %.0f samples of the beams", p, M);
+    cr_assert(r[0].stats.beams_samples == r[1].stats.beams_samples && r[0].stats.beam_hits == r[1].stats.beam_hits,
+              "the tiles differ with the threads");
+    cr_assert(memcmp(r[0].image.rgb, r[1].image.rgb, sizeof(float) * 3 * r[0].image.w * r[0].image.h) == 0,
+              "one thread and two give different images");
+    for (int i = 0; i < 2; i++) rd_render_result_free(&r[i]);
+    rd_scene_free(s);
 }

@@ -14,7 +14,14 @@ static vec3 march_guided(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sam
     return rd_march_radiance(ctx, th, r, smp, PLACE_GUIDED);
 }
 
-/* guided-unbiased's paths, the selection's last estimator (march.guided_paths: the fourth, or
+/* The marcher with the nee+beams source at every pixel its tile gives it (march.beams: the
+ * selection's beams estimator, wants_beams). */
+static vec3 march_beams(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
+{
+    return rd_march_radiance_ls(ctx, th, r, smp, PLACE_GUIDED, RD_LS_NEE_BEAMS);
+}
+
+/* guided-unbiased's paths, the selection's fourth estimator (march.guided_paths: the fourth, or
  * the third where there is no delta path with the equiangular strategy). */
 static vec3 paths_guided(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
 {
@@ -37,11 +44,29 @@ static int wants_paths(const rd_scene *s)
            (g->distances || g->directions || g->roulette) && !(s->hidden_share > RD_HIDDEN_SHARE);
 }
 
+/* Whether the selection holds the beams estimator (march.beams): beside an unbiased source that
+ * mixes with delta's path, the marcher with the nee+beams source on progressive photon passes of
+ * its own, paced by its samples (render.c; consistent: its kernel's bias shrinks with them),
+ * not where light reaches the media through glass from a delta light (delta's tiles would lack
+ * it: rd_scene.hidden_share, as for nee+beams's own tiles). */
+static int wants_beams(const rd_scene *s)
+{
+    return s->march.beams && s->settings.select != RD_SELECT_OFF &&
+           (s->march.ls == RD_LS_NEE_PATHS || s->march.ls == RD_LS_NEE_DELTA) && !(s->hidden_share > RD_HIDDEN_SHARE);
+}
+
+/* The maps a photon pass traces: the source's (with photons.progressive), or the beams
+ * estimator's indirect map, in spatial order after pass 1 (RD_PASS_NO_INDEX; always progressive). */
+static unsigned pass_maps_guided(const rd_scene *s)
+{
+    return wants_beams(s) ? RD_NEEDS_INDIRECT | RD_PASS_NO_INDEX : rd_march_pass_maps(s);
+}
+
 /* The pilot pass of eq. 17: mean I_ray over a sparse grid of camera rays through pixel centres
  * (every 4th pixel each way) that enter the media. Costs a guide walk per ray, no tracking. */
 static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
 {
-    rd_status st = rd_march_prepare(ctx, err, errlen);
+    rd_status st = rd_march_prepare_beams(ctx, wants_beams(ctx->scene), err, errlen);
     if (st != RD_OK) return st;
     march_state *mst = ctx->state;
     const rd_scene *s = ctx->scene;
@@ -96,12 +121,15 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
         /* (delta's tiles without the marcher's probes: with them, tried in session 36, `guided`
          * lost 0-10% against `delta` with probes on the calibration scenes; the marcher wins the
          * light's tiles without that: docs/guided-unbiased.md "Probes") */
-        /* (the beams' samples consume the progressive photon passes: RD_SELECT_PASSES) */
+        /* (the beams' samples consume the progressive photon passes: RD_SELECT_PASSES; the
+         * beams estimator's where there is one) */
+        int beams = wants_beams(s);
         int options = (s->march.equiangular != RD_EQ_OFF ? RD_SELECT_THIRD : 0) |
-                      (s->march.ls == RD_LS_NEE_BEAMS && ctx->pass_emitted > 0.0 ? RD_SELECT_PASSES : 0) |
-                      (rd_march_pass_maps(s) & RD_PASS_NO_INDEX ? RD_SELECT_PASSES_ORDERED : 0);
-        st = rd_select_prepare_path(ctx, march_guided, NULL, RD_MARCH_CELL_COST, options,
-                                    mst->gpaths ? paths_guided : NULL, RD_GU_CELL_COST, &mst->sel, err, errlen);
+                      ((s->march.ls == RD_LS_NEE_BEAMS || beams) && ctx->pass_emitted > 0.0 ? RD_SELECT_PASSES : 0) |
+                      (pass_maps_guided(s) & RD_PASS_NO_INDEX ? RD_SELECT_PASSES_ORDERED : 0);
+        const rd_select_more more = {.path = mst->gpaths ? paths_guided : NULL, .path_cell_cost = RD_GU_CELL_COST,
+                                     .beams = beams ? march_beams : NULL};
+        st = rd_select_prepare_more(ctx, march_guided, NULL, RD_MARCH_CELL_COST, options, &more, &mst->sel, err, errlen);
         if (st != RD_OK) rd_march_release(ctx);
     }
     return st;
@@ -139,12 +167,13 @@ static void epoch_guided(rd_render_ctx *ctx, int sample)
     if (mst->gpaths && rd_gu_paths_epoch_next(mst->gpaths, sample - 1) == sample) rd_gu_paths_epoch(ctx, mst->gpaths);
 }
 
-/* The pixels the marcher renders (the rest are delta's): they pace the photon passes. */
+/* The pixels whose samples consume the photon passes (the marcher's, or the beams estimator's
+ * where there is one): they pace the passes. */
 static uint64_t marched_pixels_guided(const rd_render_ctx *ctx)
 {
     const march_state *mst = ctx->state;
     const rd_camera *cam = &ctx->scene->camera;
-    return rd_select_method_pixels(&mst->sel, (uint64_t)cam->width * (uint64_t)cam->height);
+    return rd_select_pass_pixels(&mst->sel, (uint64_t)cam->width * (uint64_t)cam->height);
 }
 
 /* The guided placement needs the guide (and so a photon map) whatever the source needs, and the
@@ -152,7 +181,8 @@ static uint64_t marched_pixels_guided(const rd_render_ctx *ctx)
 static unsigned needs_guided(const rd_scene *s)
 {
     unsigned paths = wants_paths(s) ? rd_gu_paths_needs(s) : 0u;
-    return rd_march_source_needs(s) | RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | paths;
+    unsigned beams = wants_beams(s) ? RD_NEEDS_INDIRECT : 0u; /* (pass 1's map, render.c) */
+    return rd_march_source_needs(s) | RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | paths | beams;
 }
 
 /* The marcher's scratch, or the paths' where they need more (a sample uses one of the two). */
@@ -168,7 +198,7 @@ const rd_method rd_method_guided = {
     .summary = "seed 001: ray marching with samples placed by the photon-map SH guide (eq. 16-17)",
     .needs = RD_MARCH_NEEDS,
     .needs_for = needs_guided,
-    .pass_maps = rd_march_pass_maps,
+    .pass_maps = pass_maps_guided,
     .photons_changed = rd_march_photons_changed,
     .marched_pixels = marched_pixels_guided,
     .scratch_bytes = scratch_bytes_guided,

@@ -291,14 +291,14 @@ static double pass_radius(const rd_render_ctx *ctx, const pm_map *first, vec3 x)
     return r < 0.0 ? -1.0 : r * ctx->radius_scale;
 }
 
-vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, vec3 x, vec3 d,
-                     double sigma_t, int event, double q_path, const double *light_w, pcg32 *rng,
+vec3 rd_march_source(const rd_render_ctx *ctx, rd_ls_kind ls, const rd_medium *m, int region, vec3 x,
+                     vec3 d, double sigma_t, int event, double q_path, const double *light_w, pcg32 *rng,
                      rd_track_counters *c)
 {
     const rd_scene *s = ctx->scene;
     vec3 S = v3(0, 0, 0);
     vec3 w = v3_scale(d, -1.0);
-    switch (s->march.ls) {
+    switch (ls) {
     case RD_LS_PHOTONS: {
         double r = pass_radius(ctx, ctx->photons_first, x);
         return r < 0.0 ? v3(0, 0, 0) : photon_estimate(s, ctx->photons, m, region, x, w, s->guide.k, r);
@@ -361,7 +361,7 @@ vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, v
  * (the surface events before the segment + 1); past settings.max_depth the segment gives the
  * transmittance alone, as `delta` scatters no more there either. */
 static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int region,
-                          double t_end, placement place, double u, int event, int need_T,
+                          double t_end, placement place, rd_ls_kind ls, double u, int event, int need_T,
                           pcg32 *rng, double *T_out)
 {
     const rd_scene *s = ctx->scene;
@@ -411,18 +411,18 @@ static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int r
         c->lookups++;
         if (sigma_t <= 0.0) continue;
         if (eq_n > 0) rd_march_eq_weights(&eq, ms.t[n], ms.lw);
-        vec3 S = rd_march_source(ctx, m, region, x, r.d, sigma_t, event, q_path, light_w, rng, c);
+        vec3 S = rd_march_source(ctx, ls, m, region, x, r.d, sigma_t, event, q_path, light_w, rng, c);
         L = v3_madd(L, S, T / (N * ms.p[n]));
     }
     if (eq_n > 0) L = v3_add(L, rd_march_eq_sample(s, &eq, t0, rng, c));
     /* nee+delta: the samples estimated the single scattering's next-event part; one path of
      * delta's along the segment adds everything else that scatters on it (rd_delta_scattered:
      * 0 when its flight passes, so it costs a delta path only where one would scatter). */
-    if (s->march.ls == RD_LS_NEE_DELTA)
+    if (ls == RD_LS_NEE_DELTA)
         L = v3_add(L, rd_delta_scattered(s, r, region, event - 1, s->march.equiangular, rng, c));
     /* nee+beams: the samples estimated the direct light; the photons' balls along the whole
      * segment give the rest (rd_march_beam_estimate). */
-    if (s->march.ls == RD_LS_NEE_BEAMS) {
+    if (ls == RD_LS_NEE_BEAMS) {
         int crossed;
         L = v3_add(L, rd_march_beam_estimate(ctx, &ms, r, region, t0, t1, rng, c, &crossed));
         th->beam_queries++;
@@ -439,7 +439,7 @@ static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int r
 /* One camera sample's chain: returns I, what the chain's media segments and a diffuse surface
  * at its end give, and *E, the light the chain sees at its end (probes.c). */
 static vec3 march_chain(const rd_render_ctx *ctx, rd_thread *th, ray3 r, double u, pcg32 *rng,
-                        placement place, vec3 *E)
+                        placement place, rd_ls_kind ls, vec3 *E)
 {
     const rd_scene *s = ctx->scene;
     rd_track_counters *c = &th->counters;
@@ -450,7 +450,7 @@ static vec3 march_chain(const rd_render_ctx *ctx, rd_thread *th, ray3 r, double 
         double t_light;
         int hit_light = rd_scene_hit_light(s, r, INFINITY, -1, &t_light);
         vec3 Lb = rd_scene_behind(s, hit_light);
-        vec3 L = march_segment(ctx, th, r, s->fill_medium, t_light, place, u, 1, v3_maxc(Lb) > 0.0, rng, &T);
+        vec3 L = march_segment(ctx, th, r, s->fill_medium, t_light, place, ls, u, 1, v3_maxc(Lb) > 0.0, rng, &T);
         *E = v3_scale(Lb, T);
         return L;
     }
@@ -470,7 +470,7 @@ static vec3 march_chain(const rd_render_ctx *ctx, rd_thread *th, ray3 r, double 
          * delta's path loop (settings.max_depth bounds both alike). */
         /* T of the segment matters when a surface follows it or something bright lies behind. */
         int need_T = (got && h.light < 0) || v3_maxc(rd_scene_behind(s, got ? h.light : -1)) > 0.0;
-        vec3 Ls = march_segment(ctx, th, r, region, got ? h.t : INFINITY, place, u, depth + 1, need_T, rng, &T);
+        vec3 Ls = march_segment(ctx, th, r, region, got ? h.t : INFINITY, place, ls, u, depth + 1, need_T, rng, &T);
         L = v3_add(L, v3_mul(beta, Ls));
         beta = v3_scale(beta, T);
         if (!got || h.light >= 0) {
@@ -506,16 +506,22 @@ static vec3 march_chain(const rd_render_ctx *ctx, rd_thread *th, ray3 r, double 
 vec3 rd_march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp,
                        placement place)
 {
+    return rd_march_radiance_ls(ctx, th, r, smp, place, ctx->scene->march.ls);
+}
+
+vec3 rd_march_radiance_ls(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp,
+                          placement place, rd_ls_kind ls)
+{
     march_state *st = ctx->state;
     double u = rd_sampler_1d(smp);
     pcg32 rng = rd_sampler_stream(smp);
     vec3 E;
     if (!rd_probes_on(&st->probes)) { /* no probes: the chain's own E */
-        vec3 I = march_chain(ctx, th, r, u, &rng, place, &E);
+        vec3 I = march_chain(ctx, th, r, u, &rng, place, ls, &E);
         return v3_add(I, E);
     }
     rd_select_work w0 = rd_select_work_now(th);
-    vec3 I = march_chain(ctx, th, r, u, &rng, place, &E);
+    vec3 I = march_chain(ctx, th, r, u, &rng, place, ls, &E);
     return rd_probes_add(ctx, &st->probes, th, I, E, rd_probes_cost(&st->probes, &w0, th), &rng);
 }
 
@@ -541,6 +547,11 @@ size_t rd_march_scratch_bytes(const rd_render_ctx *ctx)
 }
 
 rd_status rd_march_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
+{
+    return rd_march_prepare_beams(ctx, 0, err, errlen);
+}
+
+rd_status rd_march_prepare_beams(rd_render_ctx *ctx, int beams, char *err, size_t errlen)
 {
     const rd_march_settings *m = &ctx->scene->march;
     rd_status st = rd_guide_sampler_check(m->alpha, m->min_samples, m->max_samples, err, errlen);
@@ -576,7 +587,8 @@ rd_status rd_march_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
         ms->piece_cap = ms->seg_cap + ms->k_steps;
         ms->seg_cap = ms->piece_cap + 2;
     }
-    ms->beam_cap = ctx->scene->march.ls == RD_LS_NEE_BEAMS ? RD_BEAM_CAP : 0;
+    ms->beam_source = ctx->scene->march.ls == RD_LS_NEE_BEAMS || beams;
+    ms->beam_cap = ms->beam_source ? RD_BEAM_CAP : 0;
     ms->n_lights = ctx->scene->march.equiangular != RD_EQ_OFF ? ctx->scene->n_lights : 0;
     ctx->state = ms;
     rd_status bs = rd_probes_init(&ms->probes, ctx->scene, m->probes, RD_MARCH_CELL_COST, err, errlen);
@@ -600,6 +612,7 @@ void rd_march_release(rd_render_ctx *ctx)
 
 unsigned rd_march_pass_maps(const rd_scene *s)
 {
+    if (!s->photons.progressive) return 0u; /* one fixed map */
     switch (s->march.ls) {
     case RD_LS_PHOTONS: return RD_NEEDS_PHOTONS;
     case RD_LS_NEE_PHOTONS: return RD_NEEDS_INDIRECT;

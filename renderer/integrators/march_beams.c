@@ -180,7 +180,7 @@ void rd_march_beams_free(march_state *st)
 rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen)
 {
     march_state *st = ctx->state;
-    if (!st || ctx->scene->march.ls != RD_LS_NEE_BEAMS) return RD_OK;
+    if (!st || !st->beam_source) return RD_OK;
     const pm_map *map = ctx->photons_indirect;
     const pm_map *first = ctx->photon_pass >= 1 ? ctx->photons_indirect_first : map;
     double scale = ctx->photon_pass >= 1 ? ctx->radius_scale : 1.0;

@@ -98,7 +98,7 @@ rd_status rd_march_explain(const rd_render_ctx *ctx, ray3 r, int n, uint64_t see
         if (m && sig > 0.0) {
             int draws = s->march.ls == RD_LS_PHOTONS ? 1 : 16;
             for (int k = 0; k < draws; k++)
-                S = v3_add(S, rd_march_source(ctx, m, region, x, r.d, sig, 1, 1.0, NULL, &rng, &c));
+                S = v3_add(S, rd_march_source(ctx, s->march.ls, m, region, x, r.d, sig, 1, 1.0, NULL, &rng, &c));
             S = v3_scale(S, 1.0 / draws);
         }
         e->t[i] = t;

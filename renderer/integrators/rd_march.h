@@ -26,8 +26,10 @@ typedef struct {
                       * detail lattice), over the placements */
     int piece_cap;   /* entries of the tb/f/sig tables: k_steps, or cells + k_steps (detail) */
     rd_select sel;   /* guided with settings.select: the tiles it marches (integrators/select.c) */
-    /* march.ls = nee+beams: the indirect photons as balls (rebuilt for every photon pass by
-     * rd_march_photons_changed), their radii, and the balls a segment keeps at most. */
+    /* march.ls = nee+beams, or guided's beams estimator (march.beams): beam_source 1, the
+     * indirect photons as balls (rebuilt for every photon pass by rd_march_photons_changed),
+     * their radii, and the balls a segment keeps at most. */
+    int beam_source;
     rd_beams *beams;
     struct beam_field *beam_field; /* r_1 on cells of pass 1 (march_beams.c) */
     float *beam_radius;
@@ -65,12 +67,13 @@ void rd_march_build_guided(const rd_render_ctx *ctx, const march_scratch *ms, in
 int rd_march_build_pdf(const rd_render_ctx *ctx, placement place, const march_scratch *ms,
                        int region, ray3 r, double t0, double t1, rd_guide_pdf *pdf,
                        rd_track_counters *c);
-/* The in-scattered radiance source S = sigma_s L_s at x toward -d, from march.ls; `event` is
+/* The in-scattered radiance source S = sigma_s L_s at x toward -d, from source `ls` (the scene's
+ * march.ls, or the beams estimator's nee+beams: rd_march_radiance_ls); `event` is
  * the scattering event x would be (1 on the camera's first segment): nee+paths's path from x
  * counts its events on from there, as delta's does, and is taken with probability q_path.
  * light_w: each light's weight in the next-event part (NULL: 1; march_equiangular.c). */
-vec3 rd_march_source(const rd_render_ctx *ctx, const rd_medium *m, int region, vec3 x, vec3 d,
-                     double sigma_t, int event, double q_path, const double *light_w, pcg32 *rng,
+vec3 rd_march_source(const rd_render_ctx *ctx, rd_ls_kind ls, const rd_medium *m, int region, vec3 x,
+                     vec3 d, double sigma_t, int event, double q_path, const double *light_w, pcg32 *rng,
                      rd_track_counters *c);
 /* The share of the kernel ball of radius r about x (in medium m of `region`) that holds photons,
  * weighted by their density relative to x's: within r of a constant-density box medium's face,
@@ -115,13 +118,20 @@ vec3 rd_march_eq_sample(const rd_scene *s, const rd_march_eq *eq, double t0, pcg
 /* The method table's epoch hooks for a marcher without a selection (uniform, transmittance). */
 int rd_march_epoch_next(const rd_render_ctx *ctx, int sample);
 void rd_march_epoch(rd_render_ctx *ctx, int sample);
-/* Radiance along camera ray r with the samples of `place` (the estimator of THEORY.md §6). */
+/* Radiance along camera ray r with the samples of `place` (the estimator of THEORY.md §6), the
+ * source march.ls; rd_march_radiance_ls: with source `ls` instead (nee+beams needs the balls:
+ * march_state.beam_source). */
 vec3 rd_march_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp,
                        placement place);
+vec3 rd_march_radiance_ls(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp,
+                          placement place, rd_ls_kind ls);
 /* The method table's hooks, shared by the three methods: scratch size, the common prepare
  * (march_state from the scene's march settings; guided adds its pilot pass), release. */
 size_t rd_march_scratch_bytes(const rd_render_ctx *ctx);
 rd_status rd_march_prepare(rd_render_ctx *ctx, char *err, size_t errlen);
+/* rd_march_prepare, with the photon balls built (and rebuilt at every pass) also where `beams`
+ * says so though march.ls is not nee+beams: `guided`'s beams estimator (march.beams, guided.c). */
+rd_status rd_march_prepare_beams(rd_render_ctx *ctx, int beams, char *err, size_t errlen);
 void rd_march_release(rd_render_ctx *ctx);
 /* Balls a segment keeps at most (rd_beams_cross samples them beyond). */
 #define RD_BEAM_CAP 4096
@@ -132,13 +142,14 @@ void rd_march_release(rd_render_ctx *ctx);
 double rd_march_knn_bandwidth(const pm_map *first, int k, vec3 x);
 /* Free the beam source's parts of st (march_beams.c). */
 void rd_march_beams_free(march_state *st);
-/* The method table's photons_changed hook: with march.ls = nee+beams, the balls of the
- * indirect photons ctx holds now, with their radii (a no-op for the other sources). */
+/* The method table's photons_changed hook: with the balls on (march_state.beam_source), the balls
+ * of the indirect photons ctx holds now, with their radii (a no-op otherwise). */
 rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen);
 /* What the scene's source needs baked: the photon map (photons) or its indirect part
  * (nee+photons), and the indirect guide (nee+guide). */
 unsigned rd_march_source_needs(const rd_scene *s);
-/* The photon map a progressive pass must trace anew for the scene's source (rd_method.pass_maps):
+/* The photon map a progressive pass must trace anew for the scene's source (rd_method.pass_maps;
+ * none without photons.progressive):
  * the map for march.ls = photons, the indirect map for nee+photons, the indirect map for nee+beams
  * with RD_PASS_NO_INDEX (after pass 1 its photons are read in order, never queried), none for
  * nee, nee+paths, nee+delta and nee+guide. */

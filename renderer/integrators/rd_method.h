@@ -48,6 +48,8 @@ typedef struct rd_thread {
     uint64_t path_samples;  /* `guided`'s selection: camera samples given to guided-unbiased's
                              * paths (march.guided_paths), */
     uint64_t path_cells;    /* ... and their flights' pdf segments (counted in `cells` too) */
+    uint64_t beams_samples; /* `guided`'s selection: camera samples given to its beams
+                             * estimator (march.beams) */
     void *scratch;
     size_t scratch_bytes;
 } rd_thread;

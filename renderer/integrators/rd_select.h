@@ -20,11 +20,13 @@
  * RD_SELECT_THIRD, settings.equiangular is not RD_EQ_ALL, and the scene has a light the strategy
  * samples: a point or spot light, or a directional beam that delta's path does not connect to,
  * settings.beam_connect), and a second estimator of the method's own (rd_select_prepare_path's
- * `path`: `guided`'s selection holds guided-unbiased's paths, march.guided_paths). A selection's
- * estimators are numbered 0 .. n-1 (rd_select.choice): delta's path 0 and the method 1 always,
- * then the others it has, in the order of their kinds (so RD_SEL_DELTA_EQ is estimator 2 where
- * there is one). */
-enum { RD_SEL_DELTA = 0, RD_SEL_METHOD = 1, RD_SEL_DELTA_EQ = 2, RD_SEL_PATH = 3, RD_SEL_MAX = 4 };
+ * `path`: `guided`'s selection holds guided-unbiased's paths, march.guided_paths), and the
+ * method's beams estimator (rd_select_more's `beams`: `guided`'s marcher with the nee+beams
+ * source, march.beams), whose samples consume the progressive photon passes in the method's
+ * stead. A selection's estimators are numbered 0 .. n-1 (rd_select.choice): delta's path 0 and
+ * the method 1 always, then the others it has, in the order of their kinds (so RD_SEL_DELTA_EQ
+ * is estimator 2 where there is one). */
+enum { RD_SEL_DELTA = 0, RD_SEL_METHOD = 1, RD_SEL_DELTA_EQ = 2, RD_SEL_PATH = 3, RD_SEL_BEAMS = 4, RD_SEL_MAX = 5 };
 
 /* One estimator's samples in one half of one tile (rd_select.stats), from the pilot and the
  * image's epochs so far: the count, the count with any channel non-zero, per channel the sum
@@ -65,7 +67,7 @@ typedef struct {
     uint8_t *trial;          /* per tile, 0, or 1 + the estimator on trial against the choice:
                                 for one epoch the tile's pixels with x + y odd use the one of the
                                 two with the higher index, the others the lower (rd_select_uses) */
-    int n;                   /* estimators compared: 2 (delta, the method) to 4 */
+    int n;                   /* estimators compared: 2 (delta, the method) to 5 */
     uint8_t kind[RD_SEL_MAX]; /* estimator e's kind (RD_SEL_*) */
     unsigned paths;          /* bit e set: estimator e is one of delta's paths (RD_SEL_DELTA,
                                 RD_SEL_DELTA_EQ; in delta's own selection its "method" too) */
@@ -81,7 +83,11 @@ typedef struct {
                                 in density lookups (select.c) */
     rd_select_fn path;       /* the RD_SEL_PATH estimator (NULL: none), */
     double path_cell_cost;   /* and its cost per PDF segment */
-    double method_pass_cost; /* per camera sample of the method, its share of the progressive
+    rd_select_fn beams;      /* the RD_SEL_BEAMS estimator (NULL: none; its PDF segments cost
+                                cell_cost, the method's) */
+    int pass_kind;           /* the kind whose samples consume the progressive photon passes:
+                                RD_SEL_BEAMS where there is one, else RD_SEL_METHOD */
+    double method_pass_cost; /* per camera sample of pass_kind, its share of the progressive
                                 photon passes, which no thread's counters see, in density
                                 lookups (RD_SELECT_PASSES); 0: none */
     rd_select_stats *stats;  /* per half h of the samples (select_rule.c, "Replication"), tile k
@@ -111,9 +117,10 @@ int rd_select_uses(const rd_select *sel, int x, int y);
  * degrees of freedom) and their counted cost a sample in density lookups. Errors: RD_ERR_NOMEM,
  * or rd_write_atomic's naming the path. */
 rd_status rd_select_trace(rd_select *sel, long from, char *err, size_t errlen);
-/* How many pixels the selection gives to the method now (all of them without a selection:
- * `all`). */
-uint64_t rd_select_method_pixels(const rd_select *sel, uint64_t all);
+/* How many pixels the selection gives to the estimator whose samples consume the photon passes
+ * now (rd_select.pass_kind: the beams estimator where there is one, else the method; without a
+ * selection the method has them all: `all`). */
+uint64_t rd_select_pass_pixels(const rd_select *sel, uint64_t all);
 
 /* The counted cost (select.c's head): a camera sample's own rays, shapes and set-up, in density
  * lookups; th's work counters now; and what the work since reading c0 cost, weighted (a PDF
@@ -126,8 +133,8 @@ typedef struct {
 rd_select_work rd_select_work_now(const rd_thread *th);
 double rd_select_work_cost(const rd_select_work *c0, const rd_thread *th, double cell_cost);
 
-/* An empty selection among `estimators` (2 to 4: delta's path, the method, then delta's path
- * with the strategy and the method's second estimator, in that order) for a width x height
+/* An empty selection among `estimators` (2 to 5: delta's path, the method, then delta's path
+ * with the strategy, the method's second estimator and the beams, in that order) for a width x height
  * image (no tile's statistics yet, every tile to delta). */
 rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost, int estimators,
                          char *err, size_t errlen);
@@ -152,6 +159,18 @@ rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_se
 rd_status rd_select_prepare_path(const rd_render_ctx *ctx, rd_select_fn method, rd_select_delta_fn delta,
                                  double cell_cost, int options, rd_select_fn path, double path_cell_cost,
                                  rd_select *sel, char *err, size_t errlen);
+/* The method's further estimators (NULL: none): `path` (RD_SEL_PATH, its PDF segments at
+ * path_cell_cost) and `beams` (RD_SEL_BEAMS, consistent: the same image up to the kernel's bias,
+ * which shrinks with the passes; its PDF segments at the method's cell_cost; with RD_SELECT_PASSES
+ * its samples, not the method's, carry the passes' share). */
+typedef struct {
+    rd_select_fn path;
+    double path_cell_cost;
+    rd_select_fn beams;
+} rd_select_more;
+rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, rd_select_delta_fn delta,
+                                 double cell_cost, int options, const rd_select_more *more, rd_select *sel,
+                                 char *err, size_t errlen);
 /* rd_select_prepare's options (bits): the third estimator wanted (above); the method is delta's
  * own path with the strategy on every flight (`delta`'s "tiles": one of delta's paths,
  * rd_select.paths); the method's samples consume the progressive photon passes (a pass serves

@@ -103,6 +103,13 @@
  * reach where the tile is lit otherwise too), so the gap read as bias where the beams were right
  * (beam.json: the beam's tiles went to delta, variance a sample 1.8e-4 against 8.5e-5, 32 spp).
  *
+ * A fifth estimator: the beams (session 57). With march.beams `guided`'s selection holds, last,
+ * the marcher with the nee+beams source (rd_select_more's `beams`, RD_SEL_BEAMS; guided.c), on
+ * photon passes of its own: its samples, not the method's, consume them (rd_select.pass_kind:
+ * they carry the passes' share and their pixels pace the passes, rd_select_pass_pixels). It is
+ * consistent, as the nee+beams marcher is (below), and the rule weighs it as it weighs the others
+ * (docs/guided-marching.md "The beams beside the marcher": where it loses, and a bias term tried).
+ *
  * The photon passes (session 53). A pass is traced for every pass_spp x (all pixels) beam samples
  * (render.c), time no counter sees: each method sample's cost carries its share of pass 1's work
  * (RD_SELECT_PASSES, sample_fixed_units; weights fitted on the calibration scenes, docs/benchmarks.md
@@ -182,7 +189,7 @@ static uint64_t cost_units(double w)
 /* A sample of e beyond the counters: its rays and set-up, the method's share of the passes. */
 static uint64_t sample_fixed_units(const rd_select *sel, int e)
 {
-    return cost_units(SEL_COST_SAMPLE + (sel->kind[e] == RD_SEL_METHOD ? sel->method_pass_cost : 0.0));
+    return cost_units(SEL_COST_SAMPLE + (sel->kind[e] == sel->pass_kind ? sel->method_pass_cost : 0.0));
 }
 
 /* Add one finite sample L to a pixel's record (its cost is added apart: the work of the
@@ -320,6 +327,7 @@ static vec3 estimate(const rd_render_ctx *ctx, const rd_select *sel, rd_thread *
 {
     if (sel->kind[e] == RD_SEL_METHOD) return method(ctx, th, r, smp);
     if (sel->kind[e] == RD_SEL_PATH) return sel->path(ctx, th, r, smp);
+    if (sel->kind[e] == RD_SEL_BEAMS) return sel->beams(ctx, th, r, smp);
     int mode = sel->kind[e] == RD_SEL_DELTA_EQ ? RD_EQ_ALL : rd_eq_path_mode(ctx->scene->settings.equiangular);
     if (sel->delta) return sel->delta(ctx, th, r, smp, mode); /* the method's (its probes) */
     pcg32 rng = rd_sampler_stream(smp);
@@ -358,6 +366,7 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
     sel->n = estimators < 2 ? 2 : estimators > RD_SEL_MAX ? RD_SEL_MAX : estimators;
     for (int e = 0; e < sel->n; e++) sel->kind[e] = (uint8_t)e; /* (rd_select_prepare_path renumbers) */
     sel->paths = 1u << RD_SEL_DELTA | (sel->n >= 3 ? 1u << RD_SEL_DELTA_EQ : 0u), sel->unlit = -1;
+    sel->pass_kind = RD_SEL_METHOD;
     sel->tiles_x = (width + RD_SELECT_TILE - 1) / RD_SELECT_TILE;
     sel->tiles_y = (height + RD_SELECT_TILE - 1) / RD_SELECT_TILE;
     size_t n = (size_t)sel->tiles_x * sel->tiles_y;
@@ -401,19 +410,31 @@ rd_status rd_select_prepare_path(const rd_render_ctx *ctx, rd_select_fn method, 
                                  double cell_cost, int options, rd_select_fn path, double path_cell_cost,
                                  rd_select *sel, char *err, size_t errlen)
 {
+    const rd_select_more more = {.path = path, .path_cell_cost = path_cell_cost};
+    return rd_select_prepare_more(ctx, method, delta, cell_cost, options, &more, sel, err, errlen);
+}
+
+rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, rd_select_delta_fn delta,
+                                 double cell_cost, int options, const rd_select_more *more, rd_select *sel,
+                                 char *err, size_t errlen)
+{
     const rd_scene *s = ctx->scene;
+    rd_select_fn path = more ? more->path : NULL, beams = more ? more->beams : NULL;
     const rd_camera *cam = &s->camera;
     /* the third estimator: delta's path with the strategy on every flight (the head; a
      * directional beam counts only where delta's path does not connect to it, "Beams that
      * delta's path connects to") */
     int third = (options & RD_SELECT_THIRD) && s->settings.equiangular != RD_EQ_ALL && rd_eq_tiles_have_lights(s);
-    rd_status st = rd_select_init(sel, cam->width, cam->height, cell_cost, 2 + third + (path != NULL), err, errlen);
+    rd_status st = rd_select_init(sel, cam->width, cam->height, cell_cost, 2 + third + (path != NULL) + (beams != NULL),
+                                  err, errlen);
     if (st != RD_OK) return st;
-    if (path) { /* the method's second estimator, the last (rd_select.kind) */
-        sel->kind[sel->n - 1] = RD_SEL_PATH;
-        sel->path = path, sel->path_cell_cost = path_cell_cost;
-        if (!third) sel->paths = 1u << RD_SEL_DELTA;
-    }
+    /* the estimators in the order of their kinds (rd_select.kind): delta's path, the method, then
+     * those of the others there are */
+    int next = 2;
+    if (third) sel->kind[next++] = RD_SEL_DELTA_EQ;
+    if (path) sel->kind[next++] = RD_SEL_PATH, sel->path = path, sel->path_cell_cost = more->path_cell_cost;
+    if (beams) sel->kind[next++] = RD_SEL_BEAMS, sel->beams = beams, sel->pass_kind = RD_SEL_BEAMS;
+    if (!third) sel->paths = 1u << RD_SEL_DELTA;
     if (options & RD_SELECT_METHOD_IS_PATH) sel->paths |= 1u << RD_SEL_METHOD;
     if (options & RD_SELECT_PASSES) /* the method's share of a pass's work, a sample (the head) */
         sel->method_pass_cost = (RD_SELECT_COST_EMITTED * ctx->pass_emitted + RD_SELECT_COST_COLLISION * ctx->pass_collisions +
@@ -473,12 +494,12 @@ int rd_select_uses(const rd_select *sel, int x, int y)
     return (x + y) & 1 ? hi : lo;
 }
 
-uint64_t rd_select_method_pixels(const rd_select *sel, uint64_t all)
+uint64_t rd_select_pass_pixels(const rd_select *sel, uint64_t all)
 {
     if (!sel->choice) return all;
     uint64_t n = 0;
     for (int y = 0; y < sel->height; y++)
-        for (int x = 0; x < sel->width; x++) n += rd_select_uses(sel, x, y) == RD_SEL_METHOD;
+        for (int x = 0; x < sel->width; x++) n += sel->kind[rd_select_uses(sel, x, y)] == sel->pass_kind;
     return n;
 }
 
@@ -531,6 +552,7 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
         th->delta_samples += sel->kind[use] == RD_SEL_DELTA || sel->kind[use] == RD_SEL_DELTA_EQ;
         th->delta_eq_samples += sel->kind[use] == RD_SEL_DELTA_EQ;
         th->path_samples += sel->kind[use] == RD_SEL_PATH;
+        th->beams_samples += sel->kind[use] == RD_SEL_BEAMS;
         vec3 L = estimate(ctx, sel, th, use, method, r, smp);
         sel->pixels[th->pixel].cost += (double)sample_units(sel, use, th, c0); /* (a dropped sample's too) */
         if (v3_finite(L)) pixel_add(&sel->pixels[th->pixel], L);
@@ -544,6 +566,7 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
     th->delta_samples += sel->kind[u->use] == RD_SEL_DELTA || sel->kind[u->use] == RD_SEL_DELTA_EQ;
     th->delta_eq_samples += sel->kind[u->use] == RD_SEL_DELTA_EQ;
     th->path_samples += sel->kind[u->use] == RD_SEL_PATH;
+    th->beams_samples += sel->kind[u->use] == RD_SEL_BEAMS;
     vec3 L = estimate(ctx, sel, th, u->use, method, r, smp);
     u->drawn++; /* (its work is read from the counters at the run's end: run_close) */
     if (v3_finite(L)) { /* pixel_add's sums, in the same order: the same to the bit */

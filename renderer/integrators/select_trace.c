@@ -15,7 +15,7 @@
 rd_status rd_select_trace(rd_select *sel, long from, char *err, size_t errlen)
 {
     if (!sel->trace_path) return RD_OK;
-    static const char *const names[RD_SEL_MAX] = {"delta", "method", "delta_equiangular", "guided_path"};
+    static const char *const names[RD_SEL_MAX] = {"delta", "method", "delta_equiangular", "guided_path", "beams"};
     static const char *const keys[4] = {"samples", "mean", "variance", "cost"};
     int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
     size_t mn = (size_t)m * n;

@@ -85,6 +85,9 @@ static char *report_json(const rd_scene *s, const rd_render_opts *o, const rd_re
         if (m && strcmp(m->name, "guided") == 0) /* march.guided_paths: guided-unbiased's paths' */
             cJSON_AddNumberToObject(j, "guided_path_share",
                                     st->paths ? (double)st->path_samples / (double)st->paths : 0.0);
+        if (m && strcmp(m->name, "guided") == 0 && s->march.beams) /* march.beams: the beams estimator's */
+            cJSON_AddNumberToObject(j, "beams_share",
+                                    st->paths ? (double)st->beams_samples / (double)st->paths : 0.0);
     }
     if (st->flight_segments || st->guide_vertices) { /* guided-unbiased's guide reads */
         cJSON *gp = cJSON_AddObjectToObject(j, "guided_paths");

@@ -336,7 +336,7 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
      * [(i - 1), i) x photons.pass_spp x (all pixels) (below: with every pixel the method's,
      * samples [(i - 1) pass_spp, i pass_spp) of every pixel), so an image does not depend on
      * how the render's passes fall in time. */
-    unsigned pass_maps = s->photons.progressive && m->pass_maps ? m->pass_maps(s) : 0u;
+    unsigned pass_maps = m->pass_maps ? m->pass_maps(s) : 0u; /* (0: one fixed map) */
     rd_baked *pass_bake = NULL, *first_bake = NULL;
     ctx.radius_scale = 1.0;
     if (pass_maps) {
@@ -487,6 +487,7 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         rs->delta_samples += th[i].delta_samples;
         rs->delta_eq_samples += th[i].delta_eq_samples;
         rs->path_samples += th[i].path_samples;
+        rs->beams_samples += th[i].beams_samples;
         rs->guide_vertices += th[i].guide_vertices;
         rs->beam_queries += th[i].beam_queries;
         rs->beam_hits += th[i].beam_hits;
@@ -503,18 +504,19 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         cells += th[i].cells - th[i].path_cells;
     }
     if (comm) { /* the counters of every rank (rank 0's report), as for the film */
-        uint64_t c[17] = {invalid, rs->collisions, rs->lookups, rs->shadow_rays, rs->delta_samples,
+        uint64_t c[18] = {invalid, rs->collisions, rs->lookups, rs->shadow_rays, rs->delta_samples,
                           rs->rays_marched, samples, cells, rs->flight_segments, rs->guide_vertices,
                           rs->beam_queries, rs->beam_hits, rs->delta_eq_samples, rs->eq_flights,
-                          rs->eq_samples, rs->probes, rs->path_samples};
+                          rs->eq_samples, rs->probes, rs->path_samples, rs->beams_samples};
         int mm[2] = {rs->rays_marched ? -rs->samples_min : INT_MIN, rs->samples_max};
-        comm->reduce(comm->user, c, 17, RD_COMM_UINT64, RD_COMM_SUM, 0);
+        comm->reduce(comm->user, c, 18, RD_COMM_UINT64, RD_COMM_SUM, 0);
         comm->reduce(comm->user, mm, 2, RD_COMM_INT, RD_COMM_MAX, 0);
         invalid = c[0], rs->collisions = c[1], rs->lookups = c[2], rs->shadow_rays = c[3];
         rs->delta_samples = c[4], rs->rays_marched = c[5], samples = c[6], cells = c[7];
         rs->flight_segments = c[8], rs->guide_vertices = c[9];
         rs->beam_queries = c[10], rs->beam_hits = c[11], rs->delta_eq_samples = c[12];
         rs->eq_flights = c[13], rs->eq_samples = c[14], rs->probes = c[15], rs->path_samples = c[16];
+        rs->beams_samples = c[17];
         rs->samples_min = rs->rays_marched ? -mm[0] : 0, rs->samples_max = mm[1];
         rs->paths = total + invalid;
         rs->invalid = invalid;

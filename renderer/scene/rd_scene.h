@@ -151,6 +151,10 @@ typedef struct {
                           * pixel from its samples (integrators/probes.c) */
     int guided_paths;    /* guided with a tile selection: 1 (default) lets the selection give
                           * tiles to guided-unbiased's paths too (integrators/guided.c) */
+    int beams;           /* guided with a tile selection and march.ls nee+paths or nee+delta: 1
+                          * lets the selection give tiles to the marcher with the nee+beams
+                          * source too, on progressive photon passes of its own (the beams
+                          * estimator, integrators/guided.c); 0 (default): not */
 } rd_march_settings;
 
 /* What settings.beam_connect's sampling needs, set once when the scene is loaded
