@@ -271,7 +271,8 @@ typedef struct {
     /* march.probes and settings.probes: the camera chains the samples added for the light at a
      * chain's end (integrators/probes.c). */
     uint64_t probes;
-    /* Progressive photon passes (photons.progressive; 0 passes with one fixed map): passes
+    /* Progressive photon passes (photons.progressive, or `guided`'s march.beams; 0 passes with
+     * one fixed map): passes
      * traced, photons emitted over them, seconds spent tracing and indexing them (part of
      * `seconds`), and the last pass's gather radius relative to the first pass's. */
     int photon_passes;

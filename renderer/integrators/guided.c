@@ -21,8 +21,8 @@ static vec3 march_beams(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_samp
     return rd_march_radiance_ls(ctx, th, r, smp, PLACE_GUIDED, RD_LS_NEE_BEAMS);
 }
 
-/* guided-unbiased's paths, the selection's fourth estimator (march.guided_paths: the fourth, or
- * the third where there is no delta path with the equiangular strategy). */
+/* guided-unbiased's paths, an estimator of the selection (march.guided_paths): after delta's
+ * path with the equiangular strategy where there is one, before the beams where they are. */
 static vec3 paths_guided(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp)
 {
     const march_state *mst = ctx->state;
@@ -181,8 +181,8 @@ static uint64_t marched_pixels_guided(const rd_render_ctx *ctx)
 static unsigned needs_guided(const rd_scene *s)
 {
     unsigned paths = wants_paths(s) ? rd_gu_paths_needs(s) : 0u;
-    unsigned beams = wants_beams(s) ? RD_NEEDS_INDIRECT : 0u; /* (pass 1's map, render.c) */
-    return rd_march_source_needs(s) | RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | paths | beams;
+    /* (the beams read pass 1's indirect map, traced by render.c, not the bake's) */
+    return rd_march_source_needs(s) | RD_NEEDS_PHOTONS | RD_NEEDS_GUIDE | paths;
 }
 
 /* The marcher's scratch, or the paths' where they need more (a sample uses one of the two). */

@@ -185,7 +185,7 @@ rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen)
     const pm_map *first = ctx->photon_pass >= 1 ? ctx->photons_indirect_first : map;
     double scale = ctx->photon_pass >= 1 ? ctx->radius_scale : 1.0;
     if (!map || !first) {
-        snprintf(err, errlen, "march.ls nee+beams: no indirect photon map");
+        snprintf(err, errlen, "the photon beams (march.ls nee+beams, march.beams): no indirect photon map");
         return RD_ERR_INTERNAL;
     }
     int k = ctx->scene->guide.k;

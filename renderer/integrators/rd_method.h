@@ -108,15 +108,16 @@ typedef struct rd_method {
     /* Optional: what this scene's settings need (a subset of `needs`); NULL = `needs`. */
     unsigned (*needs_for)(const rd_scene *scene);
     /* Optional: the photon maps a progressive photon pass must trace anew for this scene
-     * (RD_NEEDS_PHOTONS, RD_NEEDS_INDIRECT; 0 = none: the method's estimate uses no map, and
-     * photons.progressive changes nothing), with RD_PASS_NO_INDEX where the passes after the
+     * (RD_NEEDS_PHOTONS, RD_NEEDS_INDIRECT; 0 = none: no passes, the hook's to decide from the
+     * scene, photons.progressive or `guided`'s march.beams), with RD_PASS_NO_INDEX where the passes after the
      * first are only read in spatial order (above). NULL = none. */
     unsigned (*pass_maps)(const rd_scene *scene);
     /* Optional: called when a progressive photon pass has put new maps into ctx (between the
      * render's passes, after prepare; not for pass 1, whose maps prepare sees). */
     rd_status (*photons_changed)(rd_render_ctx *ctx, char *err, size_t errlen);
-    /* Optional: how many of the image's pixels the method's own estimate renders now (its tile
-     * selection may give the rest to delta's path), at most all of them, constant between
+    /* Optional: how many of the image's pixels the estimate that reads the passes' photons
+     * renders now (the method's own, or `guided`'s beams estimator; its tile selection gives the
+     * rest to other estimators), at most all of them, constant between
      * epochs and the same on every rank (the photon passes are collective). Progressive photon
      * passes are paced by these pixels' samples: a pass per photons.pass_spp x (all pixels)
      * samples of the method, so that no pass is traced for samples that do not use it. NULL =

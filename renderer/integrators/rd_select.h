@@ -87,7 +87,7 @@ typedef struct {
                                 cell_cost, the method's) */
     int pass_kind;           /* the kind whose samples consume the progressive photon passes:
                                 RD_SEL_BEAMS where there is one, else RD_SEL_METHOD */
-    double method_pass_cost; /* per camera sample of pass_kind, its share of the progressive
+    double method_pass_cost; /* per camera sample of pass_kind (the method's, or the beams'), its share of the progressive
                                 photon passes, which no thread's counters see, in density
                                 lookups (RD_SELECT_PASSES); 0: none */
     rd_select_stats *stats;  /* per half h of the samples (select_rule.c, "Replication"), tile k
@@ -173,9 +173,9 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
                                  char *err, size_t errlen);
 /* rd_select_prepare's options (bits): the third estimator wanted (above); the method is delta's
  * own path with the strategy on every flight (`delta`'s "tiles": one of delta's paths,
- * rd_select.paths); the method's samples consume the progressive photon passes (a pass serves
- * photons.pass_spp x the image's pixels of them): each adds its share of pass 1's work to its
- * cost (rd_select.method_pass_cost: ctx's pass_emitted, pass_collisions and pass_indexed, at
+ * rd_select.paths); the samples of rd_select.pass_kind (the beams estimator where there is
+ * one, else the method) consume the progressive photon passes (a pass serves photons.pass_spp x
+ * the image's pixels of them): each adds its share of pass 1's work to its cost (rd_select.method_pass_cost: ctx's pass_emitted, pass_collisions and pass_indexed, at
  * the weights below; select.c, "The photon passes"); with RD_SELECT_PASSES_ORDERED too, the
  * passes after the first put their photons in spatial order without a kd-tree (RD_PASS_NO_INDEX:
  * nee+beams), and a photon counts RD_SELECT_COST_ORDERED instead of RD_SELECT_COST_INDEXED. */
@@ -190,8 +190,8 @@ enum { RD_SELECT_THIRD = 1, RD_SELECT_METHOD_IS_PATH = 2, RD_SELECT_PASSES = 4, 
 #define RD_SELECT_COST_ORDERED 1.82
 void rd_select_free(rd_select *sel);
 /* The camera sample of `th->pixel` (column th->x, row th->y): `method` where the selection
- * gives it the pixel's tile, the method's second estimator where it gives it that (rd_select.path),
- * else delta's path in the estimator's equiangular mode (counted in th->delta_samples, and
+ * gives it the pixel's tile, the method's second estimator or the beams where it gives it those
+ * (rd_select.path, rd_select.beams; counted in th->path_samples, th->beams_samples), else delta's path in the estimator's equiangular mode (counted in th->delta_samples, and
  * th->delta_eq_samples for RD_SEL_DELTA_EQ). The sample is recorded
  * for the next epoch (rd_select_pixel_done): sel is written at th->pixel only, which one
  * thread renders at a time, in sample order. */

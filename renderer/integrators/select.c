@@ -57,7 +57,7 @@
  * samples it then draws count as the lookups and shadow rays they are.
  *
  * A second estimator of the method's (session 50). `guided`'s selection holds guided-unbiased's
- * paths too (march.guided_paths; integrators/guided.c), the last estimator (rd_select.kind):
+ * paths too (march.guided_paths; integrators/guided.c), after the third (rd_select.kind):
  * where light is broad and multiple scattering carries it (a dense, bright block; smoke lit by a
  * spot) they beat delta's path, and the marcher does not, so `guided` lost to `delta` there
  * (0.73-0.99x on five scenes at 10 s) while guided-unbiased won. Its PDF segments weigh its own
@@ -111,7 +111,7 @@
  * (docs/guided-marching.md "The beams beside the marcher": where it loses, and a bias term tried).
  *
  * The photon passes (session 53). A pass is traced for every pass_spp x (all pixels) beam samples
- * (render.c), time no counter sees: each method sample's cost carries its share of pass 1's work
+ * (render.c), time no counter sees: each beam sample's cost carries its share of pass 1's work
  * (RD_SELECT_PASSES, sample_fixed_units; weights fitted on the calibration scenes, docs/benchmarks.md
  * "Session 53"; not counted: the beams' set-up a pass, ~14%, the one-thread kd-tree, R ranks' R x).
  * Since session 56 the beams' passes after the first build no kd-tree (RD_PASS_NO_INDEX, their
@@ -186,7 +186,8 @@ static uint64_t cost_units(double w)
 {
     return (uint64_t)llround(w * RD_SELECT_COST_UNIT);
 }
-/* A sample of e beyond the counters: its rays and set-up, the method's share of the passes. */
+/* A sample of e beyond the counters: its rays and set-up, and for the kind whose samples consume
+ * the photon passes (rd_select.pass_kind) its share of them. */
 static uint64_t sample_fixed_units(const rd_select *sel, int e)
 {
     return cost_units(SEL_COST_SAMPLE + (sel->kind[e] == sel->pass_kind ? sel->method_pass_cost : 0.0));
@@ -364,7 +365,7 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
     memset(sel, 0, sizeof *sel);
     sel->width = width, sel->height = height, sel->cell_cost = cell_cost, sel->epochs = 1;
     sel->n = estimators < 2 ? 2 : estimators > RD_SEL_MAX ? RD_SEL_MAX : estimators;
-    for (int e = 0; e < sel->n; e++) sel->kind[e] = (uint8_t)e; /* (rd_select_prepare_path renumbers) */
+    for (int e = 0; e < sel->n; e++) sel->kind[e] = (uint8_t)e; /* (rd_select_prepare_more renumbers) */
     sel->paths = 1u << RD_SEL_DELTA | (sel->n >= 3 ? 1u << RD_SEL_DELTA_EQ : 0u), sel->unlit = -1;
     sel->pass_kind = RD_SEL_METHOD;
     sel->tiles_x = (width + RD_SELECT_TILE - 1) / RD_SELECT_TILE;

@@ -332,7 +332,8 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
     rd_status st = attach_bake(&ctx, o->baked, o->threads, o->cancel, &own, err, errlen);
     if (st != RD_OK) return st;
     /* Progressive photon passes: pass 1's maps are traced here (the bake's own maps serve its
-     * guide); the passes go on between render passes, pass i for the method's samples
+     * guide); the passes go on between render passes, pass i for the samples of the estimate
+     * that reads them (the method's, or `guided`'s beams estimator: rd_method.marched_pixels)
      * [(i - 1), i) x photons.pass_spp x (all pixels) (below: with every pixel the method's,
      * samples [(i - 1) pass_spp, i pass_spp) of every pixel), so an image does not depend on
      * how the render's passes fall in time. */
@@ -384,9 +385,9 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
      * promptly. */
     uint64_t invalid = 0;
     int done = 0, pass = 1, curve_cap = 0;
-    /* The photon passes' clock: samples of the method's own estimate, in pixel-samples (the
-     * samples before s0 counted as if every pixel's were the method's). Pass i serves the
-     * method's samples [(i - 1), i) x photons.pass_spp x npix: with every pixel marched, pass i
+    /* The photon passes' clock: samples of the estimate that reads the passes (the method's
+     * own, or guided's beams: rd_method.marched_pixels), in pixel-samples (the samples before
+     * s0 counted as if every pixel's were its). Pass i serves its samples [(i - 1), i) x photons.pass_spp x npix: with every pixel marched, pass i
      * is samples [(i - 1) pass_spp, i pass_spp) of every pixel, as before; with mp < npix a
      * pass ends at the first whole sample of every marched pixel past its share. */
     uint64_t marched = (uint64_t)s0 * npix, per_pass = (uint64_t)s->photons.pass_spp * npix;
@@ -399,13 +400,14 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         if (stop[0]) { res->stats.cancelled = 1; break; }
         if (stop[1]) { res->stats.timed_out = 1; break; }
         int n = pass < o->spp - done ? pass : o->spp - done;
-        uint64_t mp = npix; /* the pixels the method renders in this pass */
+        uint64_t mp = npix; /* the pixels whose samples read the passes, in this pass */
         if (pass_maps) {
             mp = m->marched_pixels ? m->marched_pixels(&ctx) : npix;
             if (mp > npix) mp = npix; /* (a pass per per_pass >= npix samples: none skipped) */
             /* Samples [done, done + n) stay within one photon pass. */
             int ip = (int)(marched / per_pass) + 1;
-            if (ip != ctx.photon_pass &&
+            /* (no pass while no pixel would read it: the selection gave those pixels away) */
+            if (ip != ctx.photon_pass && mp > 0 &&
                 (st = photon_pass(&ctx, pass_maps, ip, &pass_bake, first_bake, o->cancel, &res->stats, err, errlen)) != RD_OK) {
                 /* A cancel while tracing a later pass ends the render with what it has. */
                 if (st != RD_ERR_CANCELLED) goto done;

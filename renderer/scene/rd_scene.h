@@ -81,8 +81,9 @@ typedef struct {
     int progressive;     /* 0 (default): one fixed map (seed 001) */
     size_t pass_count;   /* photons emitted per pass (0: count) */
     int pass_spp;        /* samples per pixel rendered with each pass's photons, >= 1 (with a
-                          * tile selection, pass_spp x all pixels samples of the method's, so a
-                          * marched pixel takes more: rd_method.marched_pixels) */
+                          * tile selection, pass_spp x all pixels samples of the estimate that
+                          * reads them, the method's or guided's beams, so such a pixel takes
+                          * more: rd_method.marched_pixels) */
     double alpha;        /* the schedule's alpha in (0, 1); 4/7 minimises the asymptotic MSE of
                           * a 3-D kernel (bake/passes.c derives it) */
     double aim;          /* the share of each light's photons sent toward the glass, in [0, 1)
