@@ -625,6 +625,19 @@ static vec3 path_stand_in(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sa
     return v3(2, 2, 2);
 }
 
+/* One sample of every pixel of a 32x24 selection scene through rd_select_radiance (with
+ * unit_method as the method), each recorded (rd_select_pixel_done); Lx[y 32 + x] gets its red. */
+static void sample_every_pixel(const rd_render_ctx *ctx, rd_select *sel, rd_thread *th, double *Lx)
+{
+    for (int y = 0; y < 24; y++)
+        for (int x = 0; x < 32; x++) {
+            th->pixel = (uint64_t)y * 32 + x, th->x = x, th->y = y;
+            rd_sampler smp = rd_sampler_start(th->pixel, 0, 7);
+            Lx[th->pixel] = rd_select_radiance(ctx, sel, unit_method, th, (ray3){v3(0, 0, 3), v3(0, 0, -1)}, &smp).x;
+            rd_select_pixel_done(sel, th);
+        }
+}
+
 /* The method's second estimator (`guided`'s guided-unbiased paths) is the selection's last: the
  * fourth with the third, else the third, and not one of delta's paths (the unlit tiles' choice).
  * The pilot samples it as the others (64 samples in each half of each tile), its cost counts its
@@ -657,14 +670,10 @@ Test(select, the_method_s_second_estimator_is_sampled_and_costed_with_its_own_we
         /* every tile given to it: every pixel's sample is its */
         for (int k = 0; k < tiles; k++) sel.choice[k] = (uint8_t)e, sel.trial[k] = 0;
         rd_thread th = {0};
-        for (int y = 0; y < 24; y++)
-            for (int x = 0; x < 32; x++) {
-                th.pixel = (uint64_t)y * 32 + x, th.x = x, th.y = y;
-                rd_sampler smp = rd_sampler_start(th.pixel, 0, 7);
-                vec3 L = rd_select_radiance(&ctx, &sel, unit_method, &th, (ray3){v3(0, 0, 3), v3(0, 0, -1)}, &smp);
-                cr_expect(L.x == 2.0, "pixel (%d, %d): %g, not the second estimator's 2", x, y, L.x);
-                rd_select_pixel_done(&sel, &th);
-            }
+        double Lx[32 * 24];
+        sample_every_pixel(&ctx, &sel, &th, Lx);
+        for (int i = 0; i < 32 * 24; i++)
+            cr_expect(Lx[i] == 2.0, "pixel (%d, %d): %g, not the second estimator's 2", i % 32, i / 32, Lx[i]);
         cr_expect(th.path_samples == 32 * 24 && th.delta_samples == 0, "%llu path samples, %llu delta samples",
                   (unsigned long long)th.path_samples, (unsigned long long)th.delta_samples);
         cr_expect(rd_select_pass_pixels(&sel, 32 * 24) == 0, "the method renders no pixel");
@@ -1106,6 +1115,18 @@ static void render_on_1_and_2_threads(const rd_scene *s, const char *method, int
     }
 }
 
+/* The two renders of render_on_1_and_2_threads gave the same tiles (the samples of each kind,
+ * the balls gathered) and the same image bit for bit; frees them. */
+static void expect_one_and_two_threads_alike(rd_render_result r[2])
+{
+    const rd_render_stats *a = &r[0].stats, *b = &r[1].stats;
+    cr_assert(a->delta_samples == b->delta_samples && a->beams_samples == b->beams_samples && a->beam_hits == b->beam_hits,
+              "the tiles differ with the threads");
+    cr_assert(memcmp(r[0].image.rgb, r[1].image.rgb, sizeof(float) * 3 * r[0].image.w * r[0].image.h) == 0,
+              "one thread and two give different images");
+    for (int i = 0; i < 2; i++) rd_render_result_free(&r[i]);
+}
+
 /* The selection scene with the fog filling the whole view (hard-narrow-spot made small), the
  * settings object `settings`. */
 static const char *full_fog_scene(const char *settings)
@@ -1538,11 +1559,7 @@ Test(select, beams_mix_only_when_asked_and_the_choice_does_not_depend_on_the_thr
     int p = r[0].stats.photon_passes;
     cr_log_info("nee+beams: %d photon passes for %.0f beam samples (%.2f a pass of %.0f)", p, M, M / per_pass, per_pass);
     cr_assert((p - 1) * per_pass < M && M <= p * per_pass + per_pass, "%d passes for %.0f samples of the beams", p, M);
-    cr_assert(r[0].stats.delta_samples == r[1].stats.delta_samples && r[0].stats.beam_hits == r[1].stats.beam_hits,
-              "the tiles differ with the threads");
-    cr_assert(memcmp(r[0].image.rgb, r[1].image.rgb, sizeof(float) * 3 * r[0].image.w * r[0].image.h) == 0,
-              "one thread and two give different images");
-    for (int i = 0; i < 2; i++) rd_render_result_free(&r[i]);
+    expect_one_and_two_threads_alike(r);
     rd_scene_free(s);
 }
 
@@ -1627,14 +1644,10 @@ Test(select, the_beams_estimator_is_the_last_and_carries_the_passes_share)
             /* the left column of tiles to the beams (192 pixels), the rest to the method (576) */
             for (int k = 0; k < tiles; k++) sel.choice[k] = (uint8_t)(k % sel.tiles_x == 0 ? b : RD_SEL_METHOD), sel.trial[k] = 0;
             rd_thread th = {0};
-            for (int y = 0; y < 24; y++)
-                for (int x = 0; x < 32; x++) {
-                    th.pixel = (uint64_t)y * 32 + x, th.x = x, th.y = y;
-                    rd_sampler smp = rd_sampler_start(th.pixel, 0, 7);
-                    vec3 L = rd_select_radiance(&ctx, &sel, unit_method, &th, (ray3){v3(0, 0, 3), v3(0, 0, -1)}, &smp);
-                    cr_expect(L.x == (x < 8 ? 4.0 : 1.0), "pixel (%d, %d): %g", x, y, L.x);
-                    rd_select_pixel_done(&sel, &th);
-                }
+            double Lx[32 * 24];
+            sample_every_pixel(&ctx, &sel, &th, Lx);
+            for (int i = 0; i < 32 * 24; i++)
+                cr_expect(Lx[i] == (i % 32 < 8 ? 4.0 : 1.0), "pixel (%d, %d): %g", i % 32, i / 32, Lx[i]);
             cr_expect(th.beams_samples == 8 * 24 && th.path_samples == 0 && th.delta_samples == 0,
                       "%llu beams samples, %llu path, %llu delta", (unsigned long long)th.beams_samples,
                       (unsigned long long)th.path_samples, (unsigned long long)th.delta_samples);
@@ -1645,16 +1658,33 @@ Test(select, the_beams_estimator_is_the_last_and_carries_the_passes_share)
     rd_scene_free(s);
 }
 
-/* The selection scene with guided's default source and march.beams `beams` (progressive passes
- * of 4000 photons, 1 spp a pass; the marcher's equiangular sample off, as delta's is). */
-static const char *beams_estimator_scene(const char *beams)
+/* The selection scene with guided's default source, settings.select `select` and march.beams
+ * `beams` (absent: NULL; progressive passes of 4000 photons, 1 spp a pass; the marcher's
+ * equiangular sample off, as delta's is). */
+static const char *beams_estimator_scene(const char *select, const char *beams)
 {
-    static char extra[256];
+    static char extra[256], settings[64];
     snprintf(extra, sizeof extra,
              "\"photons\":{\"count\":40000,\"pass_count\":4000,\"pass_spp\":1},"
              "\"march\":{\"equiangular\":false%s%s}",
              beams ? ",\"beams\":" : "", beams ? beams : "");
-    return rt_spot_fog_json_with(32, 24, "{\"select\":\"tiles\"}", extra);
+    snprintf(settings, sizeof settings, "{\"select\":\"%s\"}", select);
+    return rt_spot_fog_json_with(32, 24, settings, extra);
+}
+
+/* A guided render of scene `json` (6 spp) in which no sample is the beams' and no photon pass is
+ * traced. */
+static void expect_no_beams(const char *name, const char *json, const char *what)
+{
+    rd_scene *s = rt_scene(name, json);
+    rd_render_opts o = {.method = "guided", .spp = 6, .seed = 5, .threads = 2};
+    rd_render_result r;
+    char err[RD_ERRLEN];
+    cr_assert(rd_render(s, &o, &r, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(r.stats.beams_samples == 0 && r.stats.beam_queries == 0 && r.stats.photon_passes == 0,
+              "%s: %llu beams samples, %d passes", what, (unsigned long long)r.stats.beams_samples, r.stats.photon_passes);
+    rd_render_result_free(&r);
+    rd_scene_free(s);
 }
 
 /* A dense, nearly white box under a point light (sigma_t 10, albedo 0.99), 32x24, with
@@ -1691,30 +1721,14 @@ static void expect_passes_paced_by(const rd_render_result *r, double per_pass, c
  * and two. */
 Test(select, the_beams_estimator_takes_tiles_and_paces_its_own_passes, .timeout = 300)
 {
-    rd_scene *s0 = rt_scene("selbe0.json", beams_estimator_scene(NULL));
+    rd_scene *s0 = rt_scene("selbe0.json", beams_estimator_scene("tiles", NULL));
     cr_assert(!s0->march.beams && !s0->photons.progressive, "march.beams is off by default");
-    rd_render_opts o = {.method = "guided", .spp = 6, .seed = 5, .threads = 2};
+    rd_scene_free(s0);
+    expect_no_beams("selbe0.json", beams_estimator_scene("tiles", NULL), "without march.beams");
+    /* with settings.select off there is no selection to hold the beams */
+    expect_no_beams("selbeoff.json", beams_estimator_scene("off", "true"), "select off");
     rd_render_result r0;
     char err[RD_ERRLEN];
-    cr_assert(rd_render(s0, &o, &r0, err, sizeof err) == RD_OK, "%s", err);
-    cr_assert(r0.stats.beams_samples == 0 && r0.stats.beam_queries == 0 && r0.stats.photon_passes == 0,
-              "without march.beams: %llu beams samples, %d passes", (unsigned long long)r0.stats.beams_samples,
-              r0.stats.photon_passes);
-    rd_render_result_free(&r0);
-    rd_scene_free(s0);
-    /* with settings.select off there is no selection to hold the beams: no beams, no passes */
-    const char *j = beams_estimator_scene("true");
-    char joff[2048];
-    const char *at = strstr(j, "\"select\":\"tiles\"");
-    cr_assert(at != NULL && strlen(j) < sizeof joff);
-    snprintf(joff, sizeof joff, "%.*s\"select\":\"off\"%s", (int)(at - j), j, at + strlen("\"select\":\"tiles\""));
-    rd_scene *soff = rt_scene("selbeoff.json", joff);
-    cr_assert(rd_render(soff, &o, &r0, err, sizeof err) == RD_OK, "%s", err);
-    cr_assert(r0.stats.beams_samples == 0 && r0.stats.beam_queries == 0 && r0.stats.photon_passes == 0,
-              "select off: %llu beams samples, %d passes", (unsigned long long)r0.stats.beams_samples,
-              r0.stats.photon_passes);
-    rd_render_result_free(&r0);
-    rd_scene_free(soff);
     /* the dense box: most samples on the beams */
     rd_scene *sd = rt_scene("selbed.json", dense_beams_scene());
     rd_render_opts od = {.method = "guided", .spp = 20, .seed = 5, .threads = 2};
@@ -1726,14 +1740,10 @@ Test(select, the_beams_estimator_takes_tiles_and_paces_its_own_passes, .timeout 
     rd_render_result_free(&r0);
     rd_scene_free(sd);
     /* the selection scene */
-    rd_scene *s = rt_scene("selbe.json", beams_estimator_scene("true"));
+    rd_scene *s = rt_scene("selbe.json", beams_estimator_scene("tiles", "true"));
     rd_render_result r[2];
     render_on_1_and_2_threads(s, "guided", 20, 5, r);
     expect_passes_paced_by(&r[0], 32.0 * 24, "the selection scene");
-    cr_assert(r[0].stats.beams_samples == r[1].stats.beams_samples && r[0].stats.beam_hits == r[1].stats.beam_hits,
-              "the tiles differ with the threads");
-    cr_assert(memcmp(r[0].image.rgb, r[1].image.rgb, sizeof(float) * 3 * r[0].image.w * r[0].image.h) == 0,
-              "one thread and two give different images");
-    for (int i = 0; i < 2; i++) rd_render_result_free(&r[i]);
+    expect_one_and_two_threads_alike(r);
     rd_scene_free(s);
 }
