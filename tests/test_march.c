@@ -172,6 +172,30 @@ Test(march, explain_agrees_with_the_renderer_on_one_ray, .timeout = 300)
     rd_scene_free(s);
 }
 
+/* explain prepares `guided` without photon passes: with march.beams (and nothing else asking the
+ * bake for the indirect map: guided_paths off) it explains the scene's own source and does not
+ * ask for the beams' balls, which only the passes' maps feed (guided.c). */
+Test(march, explain_with_the_beams_estimator_needs_no_pass, .timeout = 120)
+{
+    rd_scene *s = rt_scene("explain_beams.json",
+        "{\"camera\":{\"position\":[0,0,4],\"look_at\":[0,0,0],\"fov\":30,\"resolution\":[5,5]},"
+        "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":1.2,\"albedo\":0.8,\"g\":0.5}],"
+        "\"lights\":[{\"type\":\"point\",\"position\":[0,1.6,0.5],\"intensity\":4}],"
+        "\"photons\":{\"count\":20000},\"march\":{\"beams\":true,\"guided_paths\":false},\"settings\":{\"select\":\"tiles\"}}");
+    char err[RD_ERRLEN];
+    rd_baked *b = NULL; /* the bake `photonmarch explain` makes: what guided needs for the scene */
+    rd_bake_opts bo = {.seed = -1};
+    rd_bake_opts_for(&bo, rd_method_needs_for("guided", s));
+    cr_assert(rd_bake(s, &bo, &b, err, sizeof err) == RD_OK, "%s", err);
+    rd_explain_opts eo = {.px = 2, .py = 2, .baked = b, .n = 200, .seed = 9};
+    rd_explain_result e;
+    cr_assert(rd_explain(s, &eo, &e, err, sizeof err) == RD_OK, "%s", err);
+    cr_expect(e.hits_media && e.I > 0.0, "the centre ray must see lit medium");
+    rd_explain_result_free(&e);
+    rd_baked_free(b);
+    rd_scene_free(s);
+}
+
 Test(march, each_placement_takes_its_own_default_samples_per_ray, .timeout = 120)
 {
     /* Without march.samples each placement takes its calibrated N_mean (integrators/march.c,

@@ -66,7 +66,10 @@ static unsigned pass_maps_guided(const rd_scene *s)
  * (every 4th pixel each way) that enter the media. Costs a guide walk per ray, no tracking. */
 static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
 {
-    rd_status st = rd_march_prepare_beams(ctx, wants_beams(ctx->scene), err, errlen);
+    /* The beams estimator reads the photon passes' maps: none where no pass was traced (explain
+     * prepares without them; pass_maps_guided has render trace pass 1 whenever it is wanted). */
+    const int beams = wants_beams(ctx->scene) && ctx->photon_pass >= 1;
+    rd_status st = rd_march_prepare_beams(ctx, beams, err, errlen);
     if (st != RD_OK) return st;
     march_state *mst = ctx->state;
     const rd_scene *s = ctx->scene;
@@ -123,7 +126,6 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
          * light's tiles without that: docs/guided-unbiased.md "Probes") */
         /* (the beams' samples consume the progressive photon passes: RD_SELECT_PASSES; the
          * beams estimator's where there is one) */
-        int beams = wants_beams(s);
         int options = (s->march.equiangular != RD_EQ_OFF ? RD_SELECT_THIRD : 0) |
                       ((s->march.ls == RD_LS_NEE_BEAMS || beams) && ctx->pass_emitted > 0.0 ? RD_SELECT_PASSES : 0) |
                       (pass_maps_guided(s) & RD_PASS_NO_INDEX ? RD_SELECT_PASSES_ORDERED : 0);
