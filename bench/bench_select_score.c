@@ -15,7 +15,8 @@
  * whose delta tiles take no probes: `delta` is `--method delta --set settings.probes=1`, `method`
  * `--method guided --set settings.select="off"`, `delta_equiangular` `--method delta --set
  * settings.equiangular=true --set settings.probes=1`, and `guided_path` (march.guided_paths)
- * `--method guided-unbiased --set settings.select="off" --set guide.equiangular=false`. For `delta` with settings.equiangular
+ * `--method guided-unbiased --set settings.select="off" --set guide.equiangular=false`; with march.beams, `beams` `--method
+ * guided --set march.ls=nee+beams --set photons.progressive=true --set settings.select="off"`. For `delta` with settings.equiangular
  * "tiles": `delta` is `--set settings.equiangular=false --set settings.probes=1` and `method`
  * `--set settings.equiangular=true --set settings.probes=1`.
  * V-stderr.exr and V.json beside V.exr give each pixel's variance a sample, se^2 spp (mean over
@@ -92,7 +93,7 @@ static int load_table(const char *arg, tables *t)
         if ((size_t)(eq - arg) == strlen(names[i]) && !strncmp(arg, names[i], (size_t)(eq - arg))) e = i;
     size_t len = eq ? strlen(eq + 1) : 0;
     if (e < 0 || len < 5 || strcmp(eq + 1 + len - 4, ".exr")) {
-        fprintf(stderr, "bench_select_score: --table %s: must be delta=, method=, delta_equiangular= or guided_path= a .exr path\n", arg);
+        fprintf(stderr, "bench_select_score: --table %s: must be delta=, method=, delta_equiangular=, guided_path= or beams= a .exr path\n", arg);
         return 0;
     }
     char se[4096], js[4096], err[RD_ERRLEN];
@@ -190,7 +191,7 @@ static int load_trace(const char *path, trace *r)
                     if (!strcmp(name->valuestring, names[q])) kind = q;
                 if (kind < 0 || (i > 0 && kind != r->kind[e])) {
                     fprintf(stderr, "bench_select_score: %s: line %d: estimators[%d]: not one of delta, method, "
-                                    "delta_equiangular, guided_path, or not line 1's\n", path, i + 1, e);
+                                    "delta_equiangular, guided_path, beams, or not line 1's\n", path, i + 1, e);
                     ok = 0;
                 } else {
                     r->kind[e] = kind;
