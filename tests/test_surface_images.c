@@ -770,15 +770,76 @@ Test(surface_images, auto_probes_search_finds_the_model_s_least)
     cr_expect(one > 0 && cap > 0 && negative > 0, "regimes not reached: M = 1 %d, M = %d %d, M > 1 with cov < 0 %d",
               one, RD_PROBES_MAX, cap, negative);
     const rd_probes_model by_hand[] = {
-        {0.5, 0.0, 0.0, 0.0, 10.0, 1.0},      /* no light at the chain's end: M = 1 */
-        {0.0, -3.0, 1.0, 0.01, 10.0, 0.001},  /* cov past sqrt(vI v0): V(1) = -5 */
-        {1.0, -0.2, 0.01, 100.0, 10.0, 0.01}, /* a probe 1e4 x noisier than the own chain */
+        {0.5, 0.0, 0.0, 0.0, 10.0, 1.0, 0.0},      /* no light at the chain's end: M = 1 */
+        {0.0, -3.0, 1.0, 0.01, 10.0, 0.001, 0.0},  /* cov past sqrt(vI v0): V(1) = -5 */
+        {1.0, -0.2, 0.01, 100.0, 10.0, 0.01, 0.0}, /* a probe 1e4 x noisier than the own chain */
     };
     for (size_t i = 0; i < sizeof by_hand / sizeof by_hand[0]; i++)
         for (double lambda = 1e-6; lambda < 1e3; lambda *= 3.0) {
             int M = rd_probes_best_m(&by_hand[i], lambda), full = t9_full_search(&by_hand[i], lambda);
             cr_expect(M == full, "model %zu, lambda %g: M %d, the full search's %d", i, lambda, M, full);
         }
-    rd_probes_model m = {1.0, -0.5, 1.0, 1.0, 1.0, 1.0};
+    rd_probes_model m = {1.0, -0.5, 1.0, 1.0, 1.0, 1.0, 0.0};
     cr_expect(rd_probes_best_m(&m, 0.0) == 1, "lambda 0: no probes");
+}
+
+/* "auto" where a pixel has seen no light (probes.c, "Where a pixel has seen no light"): a
+ * pixel whose model has no variance of E takes the M the search finds for the variance that a
+ * light as bright as the scene's brightest may still hide after its chains, p (1 - p) b^2 with
+ * p = 1 / (chains + 2), but no more than the probes that cost an eighth of its sample,
+ * 1 + floor(c / (8 cp)) chains; one that has seen light takes the search's M alone. Then a
+ * render: a sphere light no camera chain can see (above the view), `guided`'s samples costing
+ * more than eight chains that end on nothing, takes probes beyond the first two samples' one
+ * each (without the rule it takes exactly those). */
+Test(surface_images, auto_probes_look_for_a_light_no_chain_has_seen)
+{
+    const rd_probes_model unseen[] = {
+        {0.5, 0.0, 0.0, 0.0, 40.0, 1.0, 8.0},   /* c = 40 cp: 1 + 5 chains */
+        {0.5, 0.0, 0.0, 0.0, 7.9, 1.0, 8.0},    /* a sample under 8 probes: none */
+        {0.5, 0.0, 0.0, 0.0, 1000.0, 1.0, 8.0}, /* the cap */
+    };
+    const int want[] = {6, 1, RD_PROBES_MAX};
+    for (int i = 0; i < 3; i++)
+        for (double lambda = 1e-4; lambda < 1e-1; lambda *= 10.0) {
+            cr_expect(rd_probes_best_m(&unseen[i], lambda) == 1, "model %d: the search wants probes", i);
+            /* a light 1000 bright: p (1 - p) b^2 = 9e4 asks for every chain the budget allows */
+            int M = rd_probes_choose_m(&unseen[i], lambda, 1000.0);
+            cr_expect(M == want[i], "model %d, lambda %g: M %d, the budget's %d", i, lambda, M, want[i]);
+            /* a dim one (b = 0.01: 9e-6) asks for none; nothing to see, none */
+            cr_expect(rd_probes_choose_m(&unseen[i], lambda, 0.01) == 1, "model %d, lambda %g: probes for a dim light", i,
+                      lambda);
+            cr_expect(rd_probes_choose_m(&unseen[i], lambda, 0.0) == 1, "model %d, lambda %g: probes for no light", i,
+                      lambda);
+        }
+    /* between: b = 1 after 8 chains (p (1 - p) = 0.09) at lambda 0.01, cp 1: the search's
+     * M for that variance (2 here), below the budget's 6 */
+    rd_probes_model mid = unseen[0];
+    mid.v0 = mid.vp = 0.09;
+    int m_mid = rd_probes_best_m(&mid, 0.01);
+    cr_expect(m_mid > 1 && m_mid < 6 && rd_probes_choose_m(&unseen[0], 0.01, 1.0) == m_mid,
+              "b = 1: M %d, the search's for the unseen variance %d", rd_probes_choose_m(&unseen[0], 0.01, 1.0), m_mid);
+    /* more chains that missed, less to look for: after 10^6 none */
+    rd_probes_model many = unseen[0];
+    many.chains = 1e6;
+    cr_expect(rd_probes_choose_m(&many, 0.01, 1.0) == 1, "10^6 chains missed a light of 1: still probes");
+    /* light seen (a variance of E): the search's M, below the budget's 6 here */
+    rd_probes_model seen = {0.5, 0.0, 1e-4, 1e-4, 40.0, 1.0, 8.0};
+    for (double lambda = 1e-6; lambda < 1e3; lambda *= 10.0)
+        cr_expect(rd_probes_choose_m(&seen, lambda, 1000.0) == rd_probes_best_m(&seen, lambda),
+                  "lambda %g: not the search's M", lambda);
+    cr_expect(rd_probes_best_m(&seen, 1.0) < 6, "the seen model's search reaches the budget: no check");
+
+    rd_scene *s = rt_scene("t11.json",
+                           "{\"camera\":{\"position\":[0,0,3],\"look_at\":[0,0,0],\"fov\":24,\"resolution\":[12,9]},"
+                           "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},\"density\":1,\"sigma_t\":1,"
+                           "\"albedo\":0.8}],"
+                           "\"lights\":[{\"type\":\"sphere\",\"center\":[0,4,0],\"radius\":0.2,\"radiance\":[50,50,50]}],"
+                           "\"photons\":{\"count\":2000},\"march\":{\"ls\":\"nee+paths\",\"samples\":32,\"min_samples\":32,\"probes\":\"auto\"},"
+                           "\"settings\":{\"select\":\"off\"}}");
+    rd_render_result m = rt_render(s, "guided", 8, 631, NULL);
+    uint64_t first = 2 * (uint64_t)(m.image.w * m.image.h);
+    cr_expect(m.stats.probes > 2 * first, "%llu probes, the first two samples' %llu", (unsigned long long)m.stats.probes,
+              (unsigned long long)first);
+    rd_render_result_free(&m);
+    rd_scene_free(s);
 }

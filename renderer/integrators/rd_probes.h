@@ -12,6 +12,8 @@ typedef struct {
     int M;                  /* 0: "auto" (px), else M >= 1 chains on every sample (1: none) */
     struct rd_probe_px *px; /* "auto": per pixel, what chooses M, and the M chosen */
     double cell_cost;       /* the method's PDF segment in the counted cost (rd_select.h) */
+    double bright;          /* the brightest light a chain can end on (the mean of its channels):
+                               a sphere light, or the background with the environment lights */
 } rd_probes;
 
 /* Set up p from the setting (0 "auto", M >= 1) for scene s: no probes (M = 1) where no chain
@@ -39,9 +41,10 @@ vec3 rd_probes_add(const rd_render_ctx *ctx, rd_probes *p, rd_thread *th, vec3 I
  *   V(M) = vI + 2 cov / M + (v0 + (M - 1) vp) / M^2
  * (v0, vp: the variances of the sample's own E_0 and of a probe's E, equal for a marcher, and
  * for `delta` its pass-or-stop E_0 against the probes' transmittance estimate; cov the
- * covariance of I and E_0, the probes being independent of both) at the cost c + (M - 1) cp. */
+ * covariance of I and E_0, the probes being independent of both) at the cost c + (M - 1) cp;
+ * chains: the chains the pixel's samples and probes have taken. */
 typedef struct {
-    double vI, cov, v0, vp, c, cp;
+    double vI, cov, v0, vp, c, cp, chains;
 } rd_probes_model;
 /* Chains a sample takes at most under "auto" (M <= RD_PROBES_MAX) */
 #define RD_PROBES_MAX 32
@@ -49,6 +52,13 @@ typedef struct {
  * lambda <= 0). Needs v0, vp >= 0 and cp >= 0, as every model from a pixel's samples has (its
  * search stops early on a bound that holds only then). */
 int rd_probes_best_m(const rd_probes_model *m, double lambda);
+/* The M a pixel takes under "auto" until the next epoch: rd_probes_best_m's; where the model
+ * has no variance of E (v0 = vp = 0: its chains have seen no light, or the same light every
+ * time), at least the M the search finds for the variance an unseen light of radiance `bright`
+ * may still hide after the model's chains, but no more than the probes that cost an eighth of
+ * the sample's own c (probes.c's head, "Where a pixel has seen no light"). cp > 0, as model_of
+ * makes it. */
+int rd_probes_choose_m(const rd_probes_model *m, double lambda, double bright);
 /* delta's path along camera ray r, its flights in equiangular mode `equiangular`, with p's
  * probes (rd_probes_add; without probes rd_delta_radiance_eq's sample, bit for bit): `delta`'s
  * own sample under settings.probes, and the guided methods' delta tiles under theirs
