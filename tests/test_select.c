@@ -1608,6 +1608,36 @@ static vec3 beams_stand_in(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_s
  * its PDF segments weigh the method's cell cost, and the pixels given to it are the ones that
  * pace the passes (rd_select_pass_pixels). Fails with the share left on the method, the
  * segments at the path's weight, or the pacing pixels counted from the method's tiles. */
+/* With the beams, the bound's tile mean is the beams' mean (select_rule.c's head, "The bound's
+ * tile mean with the beams"). A 5x5-tile selection of delta (cost 1) with a firefly in every
+ * tile (mean 0.73, non-zero once in 128, variance 0.73^2 x 127), the method (cost 12: mean 0.12,
+ * non-zero in a quarter of its samples, the rest its pixels that see no light, variance 0.02
+ * about its pixels' means) and a third at 120 (mean 0.12, never zero, variance 0.023). With the
+ * mean of the three means, 0.323, the method's bound is 0.323^2 x 3 = 0.31 a sample (V C 3.8)
+ * against the third's 0.023 x 120 = 2.8: the third takes every tile, as estimator 2 of kind
+ * RD_SEL_DELTA_EQ it still does. As the beams, whose mean 0.12 is the centre, the method's bound
+ * is 0.043 (V C 0.52): the method takes every tile (the narrow spot's apex, docs/guided-marching.md
+ * "The beams beside the marcher"). */
+Test(select, with_the_beams_the_bound_s_tile_mean_is_the_beams_mean)
+{
+    for (int beams = 0; beams < 2; beams++) {
+        rd_select sel;
+        char err[RD_ERRLEN];
+        cr_assert(rd_select_init(&sel, 40, 40, 1.0, 3, err, sizeof err) == RD_OK, "%s", err);
+        if (beams) sel.kind[2] = RD_SEL_BEAMS;
+        for (int k = 0; k < 25; k++) {
+            fake_pilot(&sel, 3 * k, 0.73, 0.73 * 0.73 * 127.0, 1.0 / 128.0, 1.0);
+            fake_pilot(&sel, 3 * k + 1, 0.12, 0.02, 0.25, 12.0);
+            fake_pilot(&sel, 3 * k + 2, 0.12, 0.023, 1.0, 120.0);
+        }
+        rd_select_epoch(&sel, NULL); /* no samples: the choice from these statistics */
+        for (int k = 0; k < 25; k++)
+            cr_expect(sel.choice[k] == (beams ? 1 : 2), "%s: tile %d took estimator %d", beams ? "beams" : "no beams", k,
+                      sel.choice[k]);
+        rd_select_free(&sel);
+    }
+}
+
 Test(select, the_beams_estimator_is_the_last_and_carries_the_passes_share)
 {
     rd_scene *s = rt_scene("selbeams.json", select_scene("{\"select\":\"tiles\"}"));

@@ -148,6 +148,25 @@
  * -> 1.48e-6, against `true`'s 1.45e-6; at 10 s (two paired rounds on six scenes) within the
  * rounds' spread everywhere, the gain spread over 4000 samples a pixel.
  *
+ * The bound's tile mean with the beams (session 58). The mean of the estimators' means is
+ * unbiased, but one estimator's firefly lifts it, and with it every other estimator's bound:
+ * near the narrow spot's apex `delta`'s and guided-unbiased's paths each drew one (tile means
+ * 0.73 against the others' 0.12), and the marcher's and delta-with-the-strategy's bounds read
+ * 9-76 a tile against their own samples' 0.014-0.033 a sample (their zeros are the tile's
+ * pixels that see no light): four tiles stayed on the beams, 1.3% of the samples and 2/3 of
+ * the time (docs/guided-marching.md "The beams beside the marcher"). The beams' own mean has no
+ * such tail (every sample gathers the photons about the whole ray: never zero, variance a
+ * sample 0.02 there), so where the selection holds the beams their tile mean is the centre of
+ * every bound (bound_centre). It carries the kernel's bias, which a bound can bear: the bound is
+ * a floor under a variance, not an estimate of the image. The median of the means, tried in
+ * session 57, vanished where most estimators saw only zeros (beam.json: 2.05x plain `delta`
+ * against 17.3 in one round); the beams see the light wherever a photon does. Measured at 10 s,
+ * four rounds, `guided` with march.beams over plain `delta` before -> after (docs/benchmarks.md
+ * "Session 58"): the narrow spot 170 (5.7-326) -> 445 (143-803), beam 4.9 (0.087-17.6) -> 21.3
+ * (0.66-23.6), default 2.65 -> 2.98, homogeneous 5.12 -> 5.27; the dense block 0.86 (0.20-1.36)
+ * -> 0.60 (0.23-1.23), paired 0.61-1.17, its error in a few tiles' outliers either way and the
+ * beams' share the same (21%); without the beams nothing changes.
+ *
  * The rule. At equal time the image's MSE is (sum_k V_k)(sum_k C_k) / time for the choices
  * m_k of the tiles k, so the best choices minimise the product. Its stationary point is where
  * every tile takes the m minimising V_k,m + lambda C_k,m with lambda = sum V / sum C of the
@@ -163,10 +182,13 @@
 #define SEL_ROUNDS 32 /* fixed-point rounds at most */
 #define SEL_TIE 1e-9  /* relative margin below which the method does not beat delta */
 
-/* Channel c of a tile's mean, from its m statistics tile[0 .. m-1]: the mean of the estimators'
- * means (all unbiased for it), over those with samples; 0 if none has. */
-static double tile_mean(const rd_select_stats *tile, int m, int c)
+/* Channel c of a tile's mean, from its m statistics tile[0 .. m-1]: estimator centre's mean
+ * where centre >= 0 has samples (the beams: see the head, "The bound's tile mean with the
+ * beams"), else the mean of the estimators' means (all unbiased for it), over those with
+ * samples; 0 if none has. */
+static double tile_mean(const rd_select_stats *tile, int m, int c, int centre)
 {
+    if (centre >= 0 && tile[centre].n > 0.0) return tile[centre].sum[c] / tile[centre].n;
     double mu = 0.0;
     int k = 0;
     for (int j = 0; j < m; j++)
@@ -174,19 +196,26 @@ static double tile_mean(const rd_select_stats *tile, int m, int c)
     return k ? mu / k : 0.0;
 }
 
+/* The estimator whose mean is the bound's tile mean: the beams where the selection holds them
+ * (last), else -1 (the mean of all the estimators' means). */
+static int bound_centre(const rd_select *sel)
+{
+    return sel->n > 0 && sel->kind[sel->n - 1] == RD_SEL_BEAMS ? sel->n - 1 : -1;
+}
+
 /* The per-sample variance of estimator e (0 .. m-1) in a tile whose m statistics are
  * tile[0 .. m-1] (mean over RGB): the pooled sample variance, or with r > 0 the image's
  * prediction mu^2 r (see the head, "Where the halves disagree"), bounded below by Cauchy-Schwarz
- * with mu the mean of the estimators' means (all unbiased for the tile's mean) and the non-zero
+ * with mu the tile's mean (tile_mean, with the centre `centre`) and the non-zero
  * probability p from the tile's count and a prior centred on pbar, e's fraction over the lit
  * tiles, times the tile's dimness (see the head; figures). */
-static double tile_variance(const rd_select_stats *tile, int m, int e, double pbar, double r)
+static double tile_variance(const rd_select_stats *tile, int m, int e, double pbar, double r, int centre)
 {
     const rd_select_stats *st = &tile[e];
     if (!(st->n > 0.0)) return 0.0;
     double p = (st->nonzero + 2.0 * pbar) / (st->n + 2.0), v = 0.0;
     for (int c = 0; c < 3; c++) {
-        double mu = tile_mean(tile, m, c);
+        double mu = tile_mean(tile, m, c, centre);
         double sv = r > 0.0 ? r * mu * mu : st->dof > 0.0 ? st->dev2[c] / st->dof : 0.0;
         v += fmax(sv, mu > 0.0 ? mu * mu * (1.0 / p - 1.0) : 0.0);
     }
@@ -285,6 +314,7 @@ static void pool(double *a, double *tmp, int nx, int ny, int m)
 static void figures(const rd_select *sel, const rd_select_stats *st, const double *pbar, const double *r,
                     double *var, double *cost, double *tmp)
 {
+    const int centre = bound_centre(sel);
     int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
     for (int k = 0; k < n; k++) {
         int tx = k % nx, ty = k / nx;
@@ -298,7 +328,7 @@ static void figures(const rd_select *sel, const rd_select_stats *st, const doubl
             /* e's prior centre scaled by how dim the others find the tile (see the head, "A dim
              * tile's prior"): its own zeros are in p already */
             const double dim = fmin(1.0, (z - s->nonzero + 1.0) / (x - s->n * pbar[e] + 1.0));
-            if (var) var[m * k + e] = pixels * tile_variance(&st[m * k], m, e, pbar[e] * dim, r ? r[m * k + e] : 0.0);
+            if (var) var[m * k + e] = pixels * tile_variance(&st[m * k], m, e, pbar[e] * dim, r ? r[m * k + e] : 0.0, centre);
             if (cost) cost[m * k + e] = s->n > 0.0 ? pixels * s->cost / s->n : 0.0;
         }
     }
@@ -314,6 +344,7 @@ static void figures(const rd_select *sel, const rd_select_stats *st, const doubl
 static void pooled_relative_variance(const rd_select *sel, const rd_select_stats *st, double *r, double *num,
                                      double *den)
 {
+    const int centre = bound_centre(sel);
     int n = sel->tiles_x * sel->tiles_y, m = sel->n;
     double N[RD_SEL_MAX] = {0}, D[RD_SEL_MAX] = {0};
     for (int k = 0; k < n; k++) {
@@ -322,7 +353,7 @@ static void pooled_relative_variance(const rd_select *sel, const rd_select_stats
         for (int e = 0; e < m; e++) lit += t[e].nonzero, num[m * k + e] = den[m * k + e] = 0.0;
         if (!(lit > 0.0)) continue;
         for (int c = 0; c < 3; c++) {
-            double mu = tile_mean(t, m, c);
+            double mu = tile_mean(t, m, c, centre);
             for (int e = 0; e < m; e++)
                 if (t[e].dof > 0.0) num[m * k + e] += t[e].dev2[c], den[m * k + e] += t[e].dof * mu * mu;
         }
@@ -349,6 +380,7 @@ static void pooled_relative_variance(const rd_select *sel, const rd_select_stats
  * prior pbar[e] (see the head, "Tiles no sample has lit"). */
 static int image_path(const rd_select *sel, const rd_select_stats *all, const double *pbar)
 {
+    const int centre = bound_centre(sel);
     int n = sel->tiles_x * sel->tiles_y, m = sel->n;
     rd_select_stats sum[RD_SEL_MAX];
     memset(sum, 0, sizeof sum);
@@ -367,7 +399,7 @@ static int image_path(const rd_select *sel, const rd_select_stats *all, const do
     double fbest = 0.0;
     for (int e = 0; e < m; e++) {
         if (!(sel->paths >> e & 1u) || !(sum[e].n > 0.0)) continue;
-        double f = tile_variance(sum, m, e, pbar[e], 0.0) * sum[e].cost / sum[e].n;
+        double f = tile_variance(sum, m, e, pbar[e], 0.0, centre) * sum[e].cost / sum[e].n;
         if (e == RD_SEL_DELTA || f < fbest * (1.0 - SEL_TIE)) best = e, fbest = f;
     }
     return best;
