@@ -789,8 +789,9 @@ Test(surface_images, auto_probes_search_finds_the_model_s_least)
  * p = 1 / (chains + 2), but no more than the probes that cost an eighth of its sample,
  * 1 + floor(c / (8 cp)) chains; one that has seen light takes the search's M alone. Then a
  * render: a sphere light no camera chain can see (above the view), `guided`'s samples costing
- * more than eight chains that end on nothing, takes probes beyond the first two samples' one
- * each (without the rule it takes exactly those). */
+ * more than eight chains that end on nothing, takes more than twice the probes of the first two
+ * samples' one each (without the rule it takes exactly those; at 8 spp the samples after the
+ * epoch at 4 take the rule's M, so most pixels must have M >= 2). */
 Test(surface_images, auto_probes_look_for_a_light_no_chain_has_seen)
 {
     const rd_probes_model unseen[] = {
@@ -812,7 +813,7 @@ Test(surface_images, auto_probes_look_for_a_light_no_chain_has_seen)
                       lambda);
         }
     /* between: b = 1 after 8 chains (p (1 - p) = 0.09) at lambda 0.01, cp 1: the search's
-     * M for that variance (2 here), below the budget's 6 */
+     * M for that variance (3 here), below the budget's 6 */
     rd_probes_model mid = unseen[0];
     mid.v0 = mid.vp = 0.09;
     int m_mid = rd_probes_best_m(&mid, 0.01);
@@ -822,7 +823,8 @@ Test(surface_images, auto_probes_look_for_a_light_no_chain_has_seen)
     rd_probes_model many = unseen[0];
     many.chains = 1e6;
     cr_expect(rd_probes_choose_m(&many, 0.01, 1.0) == 1, "10^6 chains missed a light of 1: still probes");
-    /* light seen (a variance of E): the search's M, below the budget's 6 here */
+    /* light seen (a variance of E): the search's M at every lambda (at lambda 1 it is below
+     * the budget's 6, where a rule that ignored the light seen would differ) */
     rd_probes_model seen = {0.5, 0.0, 1e-4, 1e-4, 40.0, 1.0, 8.0};
     for (double lambda = 1e-6; lambda < 1e3; lambda *= 10.0)
         cr_expect(rd_probes_choose_m(&seen, lambda, 1000.0) == rd_probes_best_m(&seen, lambda),

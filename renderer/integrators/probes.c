@@ -52,9 +52,10 @@
  * v0 = vp = 0, the search takes M = 1, and the pixel never learns otherwise. Where samples are
  * costly the chains are few: on hard-lens-caustic `guided` with march.beams gives the beams'
  * tiles about 30 samples a pixel in 10 s, and the small light's image through the glass ball
- * (a reference of 10 in two pixels, E non-zero on a few chains in a hundred) came out 0.15 in
- * both, 97% of the image's squared error (docs/guided-marching.md "Where a pixel has seen no
- * light"). So where a pixel's model has no variance of E, it takes at least the M the search
+ * (a reference of 10.3 and 9.4 in two pixels, E non-zero on a few chains in a hundred) came
+ * out 0.15 and 0.21, 97% of the image's squared error (docs/guided-marching.md "Where a pixel has seen no
+ * light"). So where a pixel's model has no variance of E (its chains have seen no light, or the
+ * same light every time), it takes at least the M the search
  * finds for the variance a light it has not seen may still hide: a light as bright as the
  * scene's brightest, b (a sphere light's radiance, or the background with the environment
  * lights), on which a chain ends with probability p = 1 / (chains + 2), the posterior mean
@@ -257,7 +258,7 @@ int rd_probes_best_m(const rd_probes_model *m, double lambda)
 int rd_probes_choose_m(const rd_probes_model *m, double lambda, double bright)
 {
     int best = rd_probes_best_m(m, lambda);
-    if (m->v0 > 0.0 || m->vp > 0.0 || !(bright > 0.0)) return best;
+    if (m->v0 > 0.0 || m->vp > 0.0 || !(bright > 0.0) || !(m->cp > 0.0)) return best;
     /* the unseen light's variance: a chain ends on it with probability p, the posterior mean
      * after the model's chains all missed it (a uniform prior), and sees `bright` there */
     double p = 1.0 / (m->chains + 2.0);

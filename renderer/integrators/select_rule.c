@@ -156,7 +156,7 @@
  * pixels that see no light): four tiles stayed on the beams, 1.3% of the samples and 2/3 of
  * the time (docs/guided-marching.md "The beams beside the marcher"). The beams' own mean has no
  * such tail (every sample gathers the photons about the whole ray: never zero, variance a
- * sample 0.02 there), so where the selection holds the beams their tile mean is the centre of
+ * sample 0.023 there), so where the selection holds the beams their tile mean is the centre of
  * every bound (bound_centre). It carries the kernel's bias, which a bound can bear: the bound is
  * a floor under a variance, not an estimate of the image. The median of the means, tried in
  * session 57, vanished where most estimators saw only zeros (beam.json: 2.05x plain `delta`
