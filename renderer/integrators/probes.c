@@ -143,20 +143,9 @@ vec3 rd_probes_chain(const rd_scene *s, ray3 r, pcg32 *rng, rd_track_counters *c
     }
 }
 
-/* Whether anything the scene holds can be seen at a chain's end: a sphere or environment light,
- * or a background that is not black. */
-static int scene_shows_light(const rd_scene *s)
-{
-    if (v3_maxc(s->background) > 0.0) return 1;
-    for (int i = 0; i < s->n_lights; i++)
-        if ((s->lights[i].kind == RD_LIGHT_SPHERE || s->lights[i].kind == RD_LIGHT_ENVIRONMENT) &&
-            v3_maxc(s->lights[i].value) > 0.0)
-            return 1;
-    return 0;
-}
-
 /* The brightest light a chain can end on, as the mean of its channels: a sphere light, or what
- * lies behind everything (the background and the environment lights, rd_scene_behind). */
+ * lies behind everything (the background and the environment lights, rd_scene_behind). 0
+ * exactly where no chain can end on light (radiances are >= 0: the loader's bounds). */
 static double brightest(const rd_scene *s)
 {
     vec3 b = rd_scene_behind(s, -1);
@@ -174,7 +163,7 @@ rd_status rd_probes_init(rd_probes *p, const rd_scene *s, int setting, double ce
     p->px = NULL;
     p->cell_cost = cell_cost;
     p->bright = brightest(s);
-    if (!scene_shows_light(s)) {
+    if (!(p->bright > 0.0)) {
         p->M = 1; /* E is 0 on every chain: nothing to probe */
         return RD_OK;
     }
