@@ -167,6 +167,26 @@
  * -> 0.60 (0.23-1.23), paired 0.61-1.17, its error in a few tiles' outliers either way and the
  * beams' share the same (21%); without the beams nothing changes.
  *
+ * A mean that lags the beams' (session 59). The Cauchy-Schwarz bound reads a tail from the zeros
+ * an estimator draws; an estimator whose samples are never zero but mostly far too small shows
+ * none, and its sample variance is its body's alone. On hard-dense-block the marcher's samples
+ * at the block's dim edge are all non-zero, and its tile means read 0.42 of the reference's at
+ * the median over the lit tiles, the beams' 1.00 (`guided` with march.beams, 10 s, seed 951, the
+ * selection's trace): one tile took the marcher at the epoch at 4 on a variance of 0.0001 a
+ * sample at a mean of 0.0005 where the beams' read 0.006, and one of its samples then put 2.5 in
+ * a pixel of 0.019, 67% of the render's squared error. For a non-negative X of mean mu whose n
+ * samples show a mean m, the part d = mu - m is held by draws none of the n were, of some
+ * probability q, so Var X >= d^2 (1/q - 1), and after n misses q = 1/(n + 2) (Laplace's rule,
+ * as the bound's p without a prior): Var X >= d^2 (n + 1). Where the selection holds the beams,
+ * their mean is the mu, as for the bound's centre; they carry the kernel's bias, so only the part
+ * of d beyond half their mean counts (SEL_LAG_SLACK: a bias up to a doubling of the tile's mean,
+ * a bound, not fitted), and only where it exceeds three standard errors of the two means
+ * (SEL_LAG_SIGMA). A tile's 128 pilot samples of the beams read a dim tile's mean to ~20%, so
+ * the lag is read over the tile's 3x3 neighbourhood, the rule's pooling (lag_floor: each mean the
+ * mean of the tiles' means, so that a trial's or a choice's samples weigh no tile more), and it
+ * floors the pooled figure. Without the beams nothing changes: the mean of the means is lifted
+ * by one estimator's firefly, and every other estimator would lag it.
+ *
  * The rule. At equal time the image's MSE is (sum_k V_k)(sum_k C_k) / time for the choices
  * m_k of the tiles k, so the best choices minimise the product. Its stationary point is where
  * every tile takes the m minimising V_k,m + lambda C_k,m with lambda = sum V / sum C of the
@@ -181,6 +201,8 @@
 
 #define SEL_ROUNDS 32 /* fixed-point rounds at most */
 #define SEL_TIE 1e-9  /* relative margin below which the method does not beat delta */
+#define SEL_LAG_SLACK 0.5 /* the beams' mean may be twice the truth (their kernel's bias) */
+#define SEL_LAG_SIGMA 3.0 /* a lag within three standard errors of the means is noise */
 
 /* Channel c of a tile's mean, from its m statistics tile[0 .. m-1]: estimator centre's mean
  * where centre >= 0 has samples (the beams: see the head, "The bound's tile mean with the
@@ -304,6 +326,50 @@ static void pool(double *a, double *tmp, int nx, int ny, int m)
         }
 }
 
+/* The squared standard error of channel c of the mean of statistics st (0 without a deviation). */
+static double mean_se2(const rd_select_stats *st, int c)
+{
+    return st->dof > 0.0 && st->n > 0.0 ? st->dev2[c] / st->dof / st->n : 0.0;
+}
+
+/* The lag bound (see the head, "A mean that lags the beams'"): each tile's figure var[m k + e]
+ * raised to pixels x the variance a sample that the lag of e's mean behind the beams' (estimator
+ * centre) implies over the tile's 3x3 neighbourhood of statistics st. Per channel, with each
+ * mean the mean of the tiles' means over the neighbours where both have samples (the tiles
+ * alike, whatever samples each holds), the part d of the beams' mean mu (1 - SEL_LAG_SLACK) that
+ * e's samples have not shown, where it exceeds SEL_LAG_SIGMA standard errors of the two means,
+ * is held by a tail none of e's n samples there drew, with probability q = 1 / (n + 2)
+ * (Laplace's, after n misses): d^2 (1/q - 1) = d^2 (n + 1). */
+static void lag_floor(const rd_select *sel, const rd_select_stats *st, int centre, double *var)
+{
+    int nx = sel->tiles_x, ny = sel->tiles_y, m = sel->n;
+    for (int k = 0; k < nx * ny; k++) {
+        int tx = k % nx, ty = k / nx;
+        int w = sel->width - tx * RD_SELECT_TILE, h = sel->height - ty * RD_SELECT_TILE;
+        double pixels = (double)(w < RD_SELECT_TILE ? w : RD_SELECT_TILE) * (h < RD_SELECT_TILE ? h : RD_SELECT_TILE);
+        for (int e = 0; e < m; e++) {
+            if (e == centre) continue;
+            double n = 0.0, tiles = 0.0, me[3] = {0}, mc[3] = {0}, se2[3] = {0};
+            for (int y = ty - 1; y <= ty + 1; y++)
+                for (int x = tx - 1; x <= tx + 1; x++) {
+                    if (x < 0 || y < 0 || x >= nx || y >= ny) continue;
+                    const rd_select_stats *a = &st[m * (y * nx + x) + e], *b = &st[m * (y * nx + x) + centre];
+                    if (!(a->n > 0.0 && b->n > 0.0)) continue;
+                    n += a->n, tiles += 1.0;
+                    for (int c = 0; c < 3; c++)
+                        me[c] += a->sum[c] / a->n, mc[c] += b->sum[c] / b->n, se2[c] += mean_se2(a, c) + mean_se2(b, c);
+                }
+            if (!(tiles > 0.0)) continue;
+            double v = 0.0;
+            for (int c = 0; c < 3; c++) {
+                double d = (mc[c] * (1.0 - SEL_LAG_SLACK) - me[c]) / tiles;
+                if (d > SEL_LAG_SIGMA * sqrt(se2[c]) / tiles) v += d * d * (n + 1.0);
+            }
+            var[m * k + e] = fmax(var[m * k + e], pixels * v / 3.0);
+        }
+    }
+}
+
 /* The rule's figures from statistics st ([m k + e], one set of m per tile): each tile's V and C
  * (as sums over its pixels, which is what the image's error and time add up), pooled over 3x3
  * tiles (pool), with each estimator's non-zero prior centred on pbar[e] times the tile's dimness
@@ -333,6 +399,7 @@ static void figures(const rd_select *sel, const rd_select_stats *st, const doubl
         }
     }
     if (var && !r) pool(var, tmp, nx, ny, m); /* (r's predictions are pooled over the image already) */
+    if (var && centre >= 0) lag_floor(sel, st, centre, var);
     if (cost) pool(cost, tmp, nx, ny, m);
 }
 
