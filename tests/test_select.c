@@ -1634,33 +1634,41 @@ Test(select, with_the_beams_the_bound_s_tile_mean_is_the_beams_mean)
 
 /* A mean that lags the beams' (select_rule.c's head): a 5x5-tile selection of delta (cost 5:
  * mean 0.0031, non-zero in half its samples, variance 0.0018), the method (cost 14: never zero,
- * mean 0.0003, variance 0.00005, as the marcher read at the dense block's dim edge) and a third
- * (cost 285: mean 0.006, variance 0.00005). The method's V C is 0.0007 against delta's 0.009 and
- * the third's 0.014: it takes every tile as long as nothing reads its lag. As the beams, the third's
- * mean is the centre: the method shows 0.0003 of its half, 0.003, a lag of 0.0027, over three
- * standard errors in every tile's 3x3 (in a corner's, in one half, 4 tiles of 64 samples:
- * 3 x sqrt(4 x 1e-4 / 64) / 4 = 0.0019), so its variance is at least 0.0027^2 x 257 = 0.0019 a
- * sample (V C 0.026): delta takes every tile. A method whose mean is 0.6 of the beams' lies within
- * the slack and keeps every tile. Fails with the lag bound removed (the method keeps the tiles)
- * or without the slack. */
+ * variance 0.00005, like the marcher at the dense block's dim edge) and a third (cost 285: mean
+ * 0.008, variance 0.00005). The method's V C is 0.0007 against delta's 0.009 and the third's
+ * 0.014: it takes every tile as long as nothing reads a lag. As the beams, the third's mean is
+ * the centre, and the method's lag is 0.004 (half of theirs) less its mean, less three standard
+ * errors of the two means over a tile's 3x3 in one half (64 samples a tile each: in a corner's 4
+ * tiles 3 sqrt(4 x 1e-4 / 64) / 4 = 0.0019, an edge's 6 0.0015, the middle's 9 0.0013):
+ * - mean 0.0001: a lag of 0.0039, so at least (0.0039 - 0.0019)^2 x 257 = 0.0010 a sample in a
+ *   corner (V C 0.015, the middle's 0.057): delta takes every tile;
+ * - mean 0.0019: a lag of 0.0021, just past three standard errors: at most (0.0021 - 0.0013)^2 x
+ *   577 = 0.0004 (V C 0.0058): the method keeps every tile (a floor of d^2 (n + 1) from the gate on
+ *   would give delta every tile);
+ * - mean 0.0048, 0.6 of the beams': within the slack, the method keeps every tile (without the
+ *   slack the middle's floor is 0.0022, V C 0.031: delta).
+ * Without the beams (the third as DELTA_EQ) the method takes every tile in all three. Fails with
+ * the bound removed, without the slack, or without the standard errors taken off the lag. */
 Test(select, with_the_beams_a_mean_that_lags_theirs_reads_a_tail)
 {
+    const double mean[3] = {0.0001, 0.0019, 0.0048};
     for (int beams = 0; beams < 2; beams++)
-        for (int within = 0; within < 2; within++) {
+        for (int i = 0; i < 3; i++) {
             rd_select sel;
             char err[RD_ERRLEN];
             cr_assert(rd_select_init(&sel, 40, 40, 1.0, 3, err, sizeof err) == RD_OK, "%s", err);
             if (beams) sel.kind[2] = RD_SEL_BEAMS, sel.paths &= ~(1u << 2);
             for (int k = 0; k < 25; k++) {
                 fake_pilot(&sel, 3 * k, 0.0031, 0.0018, 0.5, 5.0);
-                fake_pilot(&sel, 3 * k + 1, within ? 0.0036 : 0.0003, 0.00005, 1.0, 14.0);
-                fake_pilot(&sel, 3 * k + 2, 0.006, 0.00005, 1.0, 285.0);
+                fake_pilot(&sel, 3 * k + 1, mean[i], 0.00005, 1.0, 14.0);
+                fake_pilot(&sel, 3 * k + 2, 0.008, 0.00005, 1.0, 285.0);
             }
             rd_select_epoch(&sel, NULL);
-            int want = beams && !within ? RD_SEL_DELTA : RD_SEL_METHOD;
+            int want = beams && i == 0 ? RD_SEL_DELTA : RD_SEL_METHOD;
             for (int k = 0; k < 25; k++)
-                cr_expect(sel.choice[k] == want, "%s, the method's mean %s: tile %d took estimator %d, not %d",
-                          beams ? "beams" : "no beams", within ? "0.6 of theirs" : "0.05 of theirs", k, sel.choice[k], want);
+                cr_expect(sel.choice[k] == want && sel.trial[k] == 0,
+                          "%s, the method's mean %g: tile %d took estimator %d (trial %d), not %d",
+                          beams ? "beams" : "no beams", mean[i], k, sel.choice[k], sel.trial[k], want);
             rd_select_free(&sel);
         }
 }

@@ -180,12 +180,24 @@
  * as the bound's p without a prior): Var X >= d^2 (n + 1). Where the selection holds the beams,
  * their mean is the mu, as for the bound's centre; they carry the kernel's bias, so only the part
  * of d beyond half their mean counts (SEL_LAG_SLACK: a bias up to a doubling of the tile's mean,
- * a bound, not fitted), and only where it exceeds three standard errors of the two means
- * (SEL_LAG_SIGMA). A tile's 128 pilot samples of the beams read a dim tile's mean to ~20%, so
- * the lag is read over the tile's 3x3 neighbourhood, the rule's pooling (lag_floor: each mean the
- * mean of the tiles' means, so that a trial's or a choice's samples weigh no tile more), and it
- * floors the pooled figure. Without the beams nothing changes: the mean of the means is lifted
- * by one estimator's firefly, and every other estimator would lag it.
+ * a bound, not fitted), less three standard errors of the two means (SEL_LAG_SIGMA; the beams'
+ * counted whole, where half of it would do: a margin), so that a lag at the noise's size floors
+ * nothing and the floor grows from zero as the lag clears it. A half's 64 pilot samples of the
+ * beams read a dim tile's mean to ~30%, so the lag is read over the tile's 3x3 neighbourhood, the
+ * rule's pooling (lag_floor: each mean the mean of the tiles' means, so that a trial's or a
+ * choice's samples weigh no tile more), and it floors the rule's figure (pooled, or the image's
+ * prediction where the halves disagree, which reads all the tile's samples; not image_path's
+ * figure for the tiles no sample has lit, where there is no mean to lag). This is the other
+ * reading of the gap select.c's head tried as the beams' bias ("A consistent method"), which
+ * lost where the beams were right: there delta's pilot mean was low for a tail it had not drawn.
+ * The slack bounds the bias it allows; where the beams are more than twice the truth (their
+ * kernel's blur into a dark tile beside a bright one) the floor holds the others off, more so as
+ * their samples grow (a risk, not a loss seen in the rounds measured). Without the beams nothing
+ * changes: the mean of the means is lifted by one estimator's firefly, and every other estimator
+ * would lag it. Measured at 10 s, four rounds, gB over plain `delta` (docs/benchmarks.md "Session
+ * 59"): the dense block 1.02 (0.65-1.46) -> 1.30 (0.94-1.66); default, beam, sphere-in-fog,
+ * cloud and the lens caustic within their rounds' spread. At 60 s the dense block's beams still
+ * lose to the marcher without them (their passes' shared noise, which their spread does not show).
  *
  * The rule. At equal time the image's MSE is (sum_k V_k)(sum_k C_k) / time for the choices
  * m_k of the tiles k, so the best choices minimise the product. Its stationary point is where
@@ -326,6 +338,13 @@ static void pool(double *a, double *tmp, int nx, int ny, int m)
         }
 }
 
+/* The pixels of tile (tx, ty): RD_SELECT_TILE^2, fewer at the image's right and bottom edges. */
+static double tile_pixels(const rd_select *sel, int tx, int ty)
+{
+    int w = sel->width - tx * RD_SELECT_TILE, h = sel->height - ty * RD_SELECT_TILE;
+    return (double)(w < RD_SELECT_TILE ? w : RD_SELECT_TILE) * (h < RD_SELECT_TILE ? h : RD_SELECT_TILE);
+}
+
 /* The squared standard error of channel c of the mean of statistics st (0 without a deviation). */
 static double mean_se2(const rd_select_stats *st, int c)
 {
@@ -337,33 +356,32 @@ static double mean_se2(const rd_select_stats *st, int c)
  * centre) implies over the tile's 3x3 neighbourhood of statistics st. Per channel, with each
  * mean the mean of the tiles' means over the neighbours where both have samples (the tiles
  * alike, whatever samples each holds), the part d of the beams' mean mu (1 - SEL_LAG_SLACK) that
- * e's samples have not shown, where it exceeds SEL_LAG_SIGMA standard errors of the two means,
- * is held by a tail none of e's n samples there drew, with probability q = 1 / (n + 2)
- * (Laplace's, after n misses): d^2 (1/q - 1) = d^2 (n + 1). */
+ * e's samples have not shown, less SEL_LAG_SIGMA standard errors of the two means, is held by a
+ * tail none of e's n samples there drew, with probability q = 1 / (n + 2) (Laplace's, after n
+ * misses): d^2 (1/q - 1) = d^2 (n + 1). */
 static void lag_floor(const rd_select *sel, const rd_select_stats *st, int centre, double *var)
 {
     int nx = sel->tiles_x, ny = sel->tiles_y, m = sel->n;
     for (int k = 0; k < nx * ny; k++) {
         int tx = k % nx, ty = k / nx;
-        int w = sel->width - tx * RD_SELECT_TILE, h = sel->height - ty * RD_SELECT_TILE;
-        double pixels = (double)(w < RD_SELECT_TILE ? w : RD_SELECT_TILE) * (h < RD_SELECT_TILE ? h : RD_SELECT_TILE);
+        const double pixels = tile_pixels(sel, tx, ty);
         for (int e = 0; e < m; e++) {
             if (e == centre) continue;
-            double n = 0.0, tiles = 0.0, me[3] = {0}, mc[3] = {0}, se2[3] = {0};
+            double samples = 0.0, tiles = 0.0, me[3] = {0}, mc[3] = {0}, se2[3] = {0};
             for (int y = ty - 1; y <= ty + 1; y++)
                 for (int x = tx - 1; x <= tx + 1; x++) {
                     if (x < 0 || y < 0 || x >= nx || y >= ny) continue;
                     const rd_select_stats *a = &st[m * (y * nx + x) + e], *b = &st[m * (y * nx + x) + centre];
                     if (!(a->n > 0.0 && b->n > 0.0)) continue;
-                    n += a->n, tiles += 1.0;
+                    samples += a->n, tiles += 1.0;
                     for (int c = 0; c < 3; c++)
                         me[c] += a->sum[c] / a->n, mc[c] += b->sum[c] / b->n, se2[c] += mean_se2(a, c) + mean_se2(b, c);
                 }
             if (!(tiles > 0.0)) continue;
             double v = 0.0;
             for (int c = 0; c < 3; c++) {
-                double d = (mc[c] * (1.0 - SEL_LAG_SLACK) - me[c]) / tiles;
-                if (d > SEL_LAG_SIGMA * sqrt(se2[c]) / tiles) v += d * d * (n + 1.0);
+                double d = (mc[c] * (1.0 - SEL_LAG_SLACK) - me[c] - SEL_LAG_SIGMA * sqrt(se2[c])) / tiles;
+                if (d > 0.0) v += d * d * (samples + 1.0);
             }
             var[m * k + e] = fmax(var[m * k + e], pixels * v / 3.0);
         }
@@ -384,8 +402,7 @@ static void figures(const rd_select *sel, const rd_select_stats *st, const doubl
     int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
     for (int k = 0; k < n; k++) {
         int tx = k % nx, ty = k / nx;
-        int w = sel->width - tx * RD_SELECT_TILE, h = sel->height - ty * RD_SELECT_TILE;
-        double pixels = (double)(w < RD_SELECT_TILE ? w : RD_SELECT_TILE) * (h < RD_SELECT_TILE ? h : RD_SELECT_TILE);
+        const double pixels = tile_pixels(sel, tx, ty);
         /* The hits the tile's estimators saw, and those the image's fractions expect of them */
         double z = 0.0, x = 0.0;
         for (int e = 0; e < m; e++) z += st[m * k + e].nonzero, x += st[m * k + e].n * pbar[e];
