@@ -214,7 +214,7 @@
 #define SEL_ROUNDS 32 /* fixed-point rounds at most */
 #define SEL_TIE 1e-9  /* relative margin below which the method does not beat delta */
 #define SEL_LAG_SLACK 0.5 /* the beams' mean may be twice the truth (their kernel's bias) */
-#define SEL_LAG_SIGMA 3.0 /* a lag within three standard errors of the means is noise */
+#define SEL_LAG_SIGMA 3.0 /* standard errors of the two means taken off a lag: its noise */
 
 /* Channel c of a tile's mean, from its m statistics tile[0 .. m-1]: estimator centre's mean
  * where centre >= 0 has samples (the beams: see the head, "The bound's tile mean with the
