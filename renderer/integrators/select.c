@@ -12,7 +12,8 @@
  * What the choice is made from. Per tile of RD_SELECT_TILE x RD_SELECT_TILE pixels and per
  * estimator, the samples' statistics (rd_select_stats): their variance V per sample and their
  * cost C per sample. They come first from a pilot, on random numbers of its own: every other
- * pixel each way, SEL_SPP samples of each estimator. Then the image itself teaches: at samples
+ * pixel each way, SEL_SPP samples of each estimator (the beams fewer where they contend for
+ * nothing: below, "The beams' pilot in two stages"). Then the image itself teaches: at samples
  * 4, 16, 64, ... of every pixel (the epochs) the samples the image took since the last epoch,
  * each pixel's of the estimator its tile gave it (rd_select_uses), are added to that
  * estimator's statistics and the choice is made again. A pilot of a few hundred samples a tile
@@ -110,6 +111,23 @@
  * consistent, as the nee+beams marcher is (below), and the rule weighs it as it weighs the others
  * (docs/guided-marching.md "The beams beside the marcher": where it loses, and a bias term tried).
  *
+ * The beams' pilot in two stages (session 60). A beams sample marches the whole ray and queries
+ * the photon balls along it: ~50 us of one thread on sphere-in-fog, where the pilot's 38400 of
+ * them (SEL_SPP a pilot pixel) took ~1 s of a 10-s render's 2 threads for tiles the beams then
+ * won none of: `guided` with march.beams made 0.69-0.82x `guided` without there (docs/benchmarks.md
+ * "Session 60"). So the beams draw SEL_SPP_BEAMS_FIRST samples of every pilot pixel first; the
+ * rule runs on what the pilot has then (beams_contend), and the beams draw the rest of their
+ * SEL_SPP only in the tiles it gives them or puts them on trial in, and those tiles' 3x3
+ * neighbours (the reach of the rule's pooling); then the rule chooses as always. A tile whose
+ * beams pilot is whole has the statistics of a pilot of one stage, to the bit (the records are
+ * kept in the image's pixel records until folded, in the same order); elsewhere the beams enter
+ * the image's first choice with 16 samples a half tile instead of 64, and the trial's evidence
+ * ratio then sends a move to them through a trial first. Their samples count in the others'
+ * dim-tile prior too (select_rule.c: the hits a tile's estimators saw against those expected), so
+ * where the beams contend for no tile the others' choices can differ from a pilot of one stage
+ * (hard-window-beam's pilot: 94 tiles to plain delta against 60, 200 to delta with the strategy
+ * against 233).
+ *
  * The photon passes (session 53). A pass is traced for every pass_spp x (all pixels) beam samples
  * (render.c), time no counter sees: each beam sample's cost carries its share of pass 1's work
  * (RD_SELECT_PASSES, sample_fixed_units; weights fitted on the calibration scenes, docs/benchmarks.md
@@ -166,6 +184,7 @@
 #include <string.h>
 
 #define SEL_SPP 8           /* pilot samples per pixel and estimator */
+#define SEL_SPP_BEAMS_FIRST 2 /* the beams' pilot samples per pixel in every tile (the head) */
 /* The cost weights, in density lookups (see the head): */
 #define SEL_COST_SHADOW 1.96   /* a shadow ray (its own lookups are counted as lookups) */
 #define SEL_COST_SAMPLE RD_SELECT_COST_SAMPLE /* a camera sample: its rays, shapes and set-up */
@@ -335,15 +354,14 @@ static vec3 estimate(const rd_render_ctx *ctx, const rd_select *sel, rd_thread *
     return rd_delta_radiance_eq(ctx->scene, r, mode, &rng, &th->counters);
 }
 
-/* One pixel's pilot with estimator e: SEL_SPP samples, added to the tile's statistics. */
-static void pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, const rd_select *sel, int x, int y,
-                        int e, rd_select_fn method, rd_select_stats *st)
+/* Pilot samples [i0, i1) of pixel (x, y) with estimator e, added to the record px. */
+static void pilot_samples(const rd_render_ctx *ctx, rd_thread *th, const rd_select *sel, int x, int y,
+                          int e, rd_select_fn method, int i0, int i1, rd_select_pixel *px)
 {
     const rd_scene *s = ctx->scene;
     const rd_camera *cam = &s->camera;
     uint64_t pix = (uint64_t)y * cam->width + x;
-    rd_select_pixel px = {0};
-    for (int i = 0; i < SEL_SPP; i++) {
+    for (int i = i0; i < i1; i++) {
         rd_sampler smp = rd_sampler_start(pix, (uint64_t)i, ctx->seed + SEL_SEED_SHIFT);
         double jx = rd_sampler_1d(&smp), jy = rd_sampler_1d(&smp);
         if (!cam->jitter) jx = jy = 0.5;
@@ -353,11 +371,96 @@ static void pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, const rd_select
         th->pilot = 1; /* (not an image sample: march.probes "auto" learns from those only) */
         vec3 L = estimate(ctx, sel, th, e, method, r, &smp);
         th->pilot = 0;
-        px.cost += (double)sample_units(sel, e, th, c0); /* (a dropped sample's work counts too) */
-        if (v3_finite(L)) pixel_add(&px, L);
+        px->cost += (double)sample_units(sel, e, th, c0); /* (a dropped sample's work counts too) */
+        if (v3_finite(L)) pixel_add(px, L);
     }
+}
+
+/* One pixel's pilot with estimator e: SEL_SPP samples, added to the tile's statistics. */
+static void pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, const rd_select *sel, int x, int y,
+                        int e, rd_select_fn method, rd_select_stats *st)
+{
+    rd_select_pixel px = {0};
+    pilot_samples(ctx, th, sel, x, y, e, method, 0, SEL_SPP, &px);
     pixel_fold(st, &px);
 }
+
+/* Pilot pixel (x, y) of tile k (every other pixel each way: pilot_tile) as its record's index in
+ * sel->pixels, which holds the beams' pilot samples until they are folded (beams_pilot_fold). */
+static rd_select_pixel *pilot_record(rd_select *sel, int x, int y)
+{
+    return &sel->pixels[(size_t)y * sel->width + x];
+}
+
+/* Tile k's pilot: every other pixel each way, SEL_SPP samples of each estimator into its
+ * statistics; estimator b (the beams, -1: none) only its first SEL_SPP_BEAMS_FIRST, kept in the
+ * pixels' records (see the head, "The beams' pilot in two stages"). */
+static void pilot_tile(const rd_render_ctx *ctx, rd_thread *th, rd_select *sel, int k, rd_select_fn method, int b)
+{
+    int x0 = (k % sel->tiles_x) * RD_SELECT_TILE, y0 = (k / sel->tiles_x) * RD_SELECT_TILE;
+    for (int y = y0; y < y0 + RD_SELECT_TILE && y < sel->height; y += 2)
+        for (int x = x0; x < x0 + RD_SELECT_TILE && x < sel->width; x += 2)
+            for (int e = 0; e < sel->n; e++) { /* (of kind sel->kind[e]) */
+                if (e == b) pilot_samples(ctx, th, sel, x, y, e, method, 0, SEL_SPP_BEAMS_FIRST, pilot_record(sel, x, y));
+                else pilot_pixel(ctx, th, sel, x, y, e, method, &half_stats(sel, x, y)[sel->n * k + e]);
+            }
+}
+
+/* The rest of the beams' pilot samples, SEL_SPP_BEAMS_FIRST .. SEL_SPP, in tile k. */
+static void pilot_tile_beams_rest(const rd_render_ctx *ctx, rd_thread *th, rd_select *sel, int k, rd_select_fn method, int b)
+{
+    int x0 = (k % sel->tiles_x) * RD_SELECT_TILE, y0 = (k / sel->tiles_x) * RD_SELECT_TILE;
+    for (int y = y0; y < y0 + RD_SELECT_TILE && y < sel->height; y += 2)
+        for (int x = x0; x < x0 + RD_SELECT_TILE && x < sel->width; x += 2)
+            pilot_samples(ctx, th, sel, x, y, b, method, SEL_SPP_BEAMS_FIRST, SEL_SPP, pilot_record(sel, x, y));
+}
+
+/* The beams' pilot records (estimator b) folded into their tiles' statistics, in pilot_tile's
+ * order (so the sums are those of a pilot of one stage, to the bit); with `clear` the records
+ * emptied for the image. */
+static void beams_pilot_fold(rd_select *sel, int b, int clear)
+{
+    for (int k = 0; k < sel->tiles_x * sel->tiles_y; k++) {
+        int x0 = (k % sel->tiles_x) * RD_SELECT_TILE, y0 = (k / sel->tiles_x) * RD_SELECT_TILE;
+        for (int y = y0; y < y0 + RD_SELECT_TILE && y < sel->height; y += 2)
+            for (int x = x0; x < x0 + RD_SELECT_TILE && x < sel->width; x += 2) {
+                rd_select_pixel *px = pilot_record(sel, x, y);
+                pixel_fold(&half_stats(sel, x, y)[sel->n * k + b], px);
+                if (clear) memset(px, 0, sizeof *px);
+            }
+    }
+}
+
+/* Which tiles the beams (estimator b) contend for after their pilot's first stage: the rule on
+ * the statistics so far gives them the tile or puts them on trial there, or in one of its 3x3
+ * neighbours (the rule's pooling); contend[k] 1 for those. The selection's choices, statistics
+ * and unlit estimator are as before the call. Out of memory: every tile contends. */
+static void beams_contend(rd_select *sel, int b, uint8_t *contend)
+{
+    int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny;
+    size_t bytes = 2 * (size_t)sel->n * n * sizeof *sel->stats;
+    rd_select_stats *keep = malloc(bytes);
+    if (!keep) {
+        memset(contend, 1, (size_t)n);
+        return;
+    }
+    memcpy(keep, sel->stats, bytes);
+    beams_pilot_fold(sel, b, 0);
+    rd_select_choose_tiles(sel);
+    memset(contend, 0, (size_t)n);
+    for (int k = 0; k < n; k++) {
+        if (sel->choice[k] != b && sel->trial[k] != 1 + b) continue;
+        int tx = k % nx, ty = k / nx;
+        for (int y = ty - 1; y <= ty + 1; y++)
+            for (int x = tx - 1; x <= tx + 1; x++)
+                if (x >= 0 && y >= 0 && x < nx && y < ny) contend[y * nx + x] = 1;
+    }
+    memcpy(sel->stats, keep, bytes);
+    free(keep);
+    memset(sel->choice, RD_SEL_DELTA, (size_t)n), memset(sel->trial, 0, (size_t)n); /* (rd_select_init's) */
+    sel->unlit = -1;
+}
+
 
 rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost, int estimators,
                          char *err, size_t errlen)
@@ -454,14 +557,17 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
     int ok = th != NULL && sel->runs != NULL;
     if (ok) {
         /* One thread a tile: its statistics are summed in pixel order whatever the threads. */
+        const int b = beams ? sel->n - 1 : -1; /* (the beams' pilot in two stages: the head) */
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 1)
-        for (int k = 0; k < n; k++) {
-            rd_thread *t = &th[omp_get_thread_num()];
-            int x0 = (k % sel->tiles_x) * RD_SELECT_TILE, y0 = (k / sel->tiles_x) * RD_SELECT_TILE;
-            for (int y = y0; y < y0 + RD_SELECT_TILE && y < cam->height; y += 2)
-                for (int x = x0; x < x0 + RD_SELECT_TILE && x < cam->width; x += 2)
-                    for (int e = 0; e < sel->n; e++) /* (of kind sel->kind[e]) */
-                        pilot_pixel(ctx, t, sel, x, y, e, method, &half_stats(sel, x, y)[sel->n * k + e]);
+        for (int k = 0; k < n; k++) pilot_tile(ctx, &th[omp_get_thread_num()], sel, k, method, b);
+        if (b >= 0) {
+            uint8_t *contend = malloc((size_t)n);
+            if (contend) beams_contend(sel, b, contend);
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 1)
+            for (int k = 0; k < n; k++)
+                if (!contend || contend[k]) pilot_tile_beams_rest(ctx, &th[omp_get_thread_num()], sel, k, method, b);
+            free(contend);
+            beams_pilot_fold(sel, b, 1);
         }
         rd_select_choose_tiles(sel);
     }
