@@ -1705,9 +1705,12 @@ Test(select, the_beams_estimator_is_the_last_and_carries_the_passes_share)
                     const rd_select_stats *st = &sel.stats[h * mn + (size_t)sel.n * k];
                     double cb = st[b].cost / st[b].n, cm = st[RD_SEL_METHOD].cost / st[RD_SEL_METHOD].n;
                     /* (the beams' pilot: its first stage's 2 samples a pixel, or where they
-                     * contend for the tile all 8: the_beams_pilot_the_tiles_they_contend_for_in_full) */
-                    cr_expect((st[b].n == 16 || st[b].n == 64) && st[b].sum[0] == 4.0 * st[b].n,
-                              "tile %d: %g beams samples, sum %g", k, st[b].n, st[b].sum[0]);
+                     * contend for the tile all 8, in both halves alike:
+                     * the_beams_pilot_the_tiles_they_contend_for_in_full) */
+                    const rd_select_stats *other = &sel.stats[(1 - h) * mn + (size_t)sel.n * k];
+                    cr_expect((st[b].n == 16 || st[b].n == 64) && st[b].sum[0] == 4.0 * st[b].n && other[b].n == st[b].n,
+                              "tile %d, half %d: %g beams samples (the other half %g), sum %g", k, h, st[b].n, other[b].n,
+                              st[b].sum[0]);
                     cr_expect(fabs(cb - (RD_SELECT_COST_SAMPLE + 3 * 7.0 + share)) < 1e-4,
                               "tile %d, half %d: the beams' cost %g a sample, not %g", k, h, cb,
                               RD_SELECT_COST_SAMPLE + 3 * 7.0 + share);
@@ -1824,8 +1827,8 @@ Test(select, the_beams_estimator_takes_tiles_and_paces_its_own_passes, .timeout 
 /* ---- The beams' pilot in two stages (select.c's head) ---------------------------------------- */
 
 /* Stand-ins on the 32x24 selection scene (4x3 tiles) whose variance a sample is 1/3 (2u, mean
- * 1) but in the left column of tiles (x < 8), where delta's path and the method are 100 times
- * that (200u) and the beams are still (1); the method costs 10 PDF segments a sample (72.18 at
+ * 1) but in the left column of tiles (x < 8), where delta's path and the method are 10^4 times
+ * that (200u: 3333) and the beams are still (1); the method costs 10 PDF segments a sample (72.18 at
  * the cell cost 7), the beams 3 (23.18 and the passes' share: none here). */
 static vec3 two_stage_delta(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sampler *smp, int equiangular)
 {
@@ -1873,6 +1876,8 @@ Test(select, the_beams_pilot_the_tiles_they_contend_for_in_full)
             double want = col < 3 ? 64.0 : 16.0;
             cr_expect(st[2].n == want && st[0].n == 64.0 && st[1].n == 64.0,
                       "tile %d, half %d: %g beams samples (not %g), delta %g, the method %g", k, h, st[2].n, want, st[0].n, st[1].n);
+            cr_expect(col > 0 || st[2].sum[0] == st[2].n, "tile %d, half %d: the beams' samples sum to %g, not %g", k, h,
+                      st[2].sum[0], st[2].n);
         }
         int choice = col < 2 ? 2 : RD_SEL_DELTA;
         cr_expect(sel.choice[k] == choice && sel.trial[k] == 0, "tile %d: estimator %d (trial %d), not %d", k, sel.choice[k],

@@ -112,17 +112,19 @@
  * (docs/guided-marching.md "The beams beside the marcher": where it loses, and a bias term tried).
  *
  * The beams' pilot in two stages (session 60). A beams sample marches the whole ray and queries
- * the photon balls along it: ~50 us of one thread on sphere-in-fog, where the pilot's 38400 of
+ * the photon balls along it: 50-75 us of one thread on sphere-in-fog, where the pilot's 38400 of
  * them (SEL_SPP a pilot pixel) took ~1 s of a 10-s render's 2 threads for tiles the beams then
  * won none of: `guided` with march.beams made 0.69-0.82x `guided` without there (docs/benchmarks.md
  * "Session 60"). So the beams draw SEL_SPP_BEAMS_FIRST samples of every pilot pixel first; the
  * rule runs on what the pilot has then (beams_contend), and the beams draw the rest of their
  * SEL_SPP only in the tiles it gives them or puts them on trial in, and those tiles' 3x3
- * neighbours (the reach of the rule's pooling); then the rule chooses as always. A tile whose
- * beams pilot is whole has the statistics of a pilot of one stage, to the bit (the records are
- * kept in the image's pixel records until folded, in the same order); elsewhere the beams enter
- * the image's first choice with 16 samples a half tile instead of 64, and the trial's evidence
- * ratio then sends a move to them through a trial first. Their samples count in the others'
+ * neighbours (the reach of the figures' pooling; the image-wide parts, the non-zero prior and the
+ * predicted variance where halves disagree, read every tile); then the rule chooses as always. A
+ * tile whose beams pilot is whole has the statistics of a pilot of one stage, to the bit (the
+ * records are kept in the image's pixel records until folded, in the same order); elsewhere the
+ * beams enter the first choice with 16 samples a half tile instead of 64 (enough for the trial's
+ * evidence ratio against the 64 of the tile's estimator: a move to them there is made at once,
+ * as before, and at the epochs goes through a trial first, as before). Their samples count in the others'
  * dim-tile prior too (select_rule.c: the hits a tile's estimators saw against those expected), so
  * where the beams contend for no tile the others' choices can differ from a pilot of one stage
  * (hard-window-beam's pilot: 94 tiles to plain delta against 60, 200 to delta with the strategy
@@ -385,8 +387,8 @@ static void pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, const rd_select
     pixel_fold(st, &px);
 }
 
-/* Pilot pixel (x, y) of tile k (every other pixel each way: pilot_tile) as its record's index in
- * sel->pixels, which holds the beams' pilot samples until they are folded (beams_pilot_fold). */
+/* The record in sel->pixels of pilot pixel (x, y), which holds the beams' pilot samples until
+ * beams_pilot_fold. */
 static rd_select_pixel *pilot_record(rd_select *sel, int x, int y)
 {
     return &sel->pixels[(size_t)y * sel->width + x];
@@ -433,22 +435,28 @@ static void beams_pilot_fold(rd_select *sel, int b, int clear)
 
 /* Which tiles the beams (estimator b) contend for after their pilot's first stage: the rule on
  * the statistics so far gives them the tile or puts them on trial there, or in one of its 3x3
- * neighbours (the rule's pooling); contend[k] 1 for those. The selection's choices, statistics
- * and unlit estimator are as before the call. Out of memory: every tile contends. */
+ * neighbours (the figures' pooling); contend[k] 1 for those. The selection's choices, trials,
+ * statistics and unlit estimator are as before the call. Out of memory (here or in the rule,
+ * which then leaves unlit unset): every tile contends. */
 static void beams_contend(rd_select *sel, int b, uint8_t *contend)
 {
     int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny;
     size_t bytes = 2 * (size_t)sel->n * n * sizeof *sel->stats;
     rd_select_stats *keep = malloc(bytes);
-    if (!keep) {
+    uint8_t *choice = malloc(2 * (size_t)n); /* the choices and the trials */
+    if (!keep || !choice) {
+        free(keep), free(choice);
         memset(contend, 1, (size_t)n);
         return;
     }
     memcpy(keep, sel->stats, bytes);
+    memcpy(choice, sel->choice, (size_t)n), memcpy(choice + n, sel->trial, (size_t)n);
+    const int unlit = sel->unlit;
     beams_pilot_fold(sel, b, 0);
+    sel->unlit = -1; /* (the rule sets it where it runs) */
     rd_select_choose_tiles(sel);
-    memset(contend, 0, (size_t)n);
-    for (int k = 0; k < n; k++) {
+    memset(contend, sel->unlit < 0, (size_t)n);
+    for (int k = 0; k < n && sel->unlit >= 0; k++) {
         if (sel->choice[k] != b && sel->trial[k] != 1 + b) continue;
         int tx = k % nx, ty = k / nx;
         for (int y = ty - 1; y <= ty + 1; y++)
@@ -456,11 +464,10 @@ static void beams_contend(rd_select *sel, int b, uint8_t *contend)
                 if (x >= 0 && y >= 0 && x < nx && y < ny) contend[y * nx + x] = 1;
     }
     memcpy(sel->stats, keep, bytes);
-    free(keep);
-    memset(sel->choice, RD_SEL_DELTA, (size_t)n), memset(sel->trial, 0, (size_t)n); /* (rd_select_init's) */
-    sel->unlit = -1;
+    memcpy(sel->choice, choice, (size_t)n), memcpy(sel->trial, choice + n, (size_t)n);
+    sel->unlit = unlit;
+    free(keep), free(choice);
 }
-
 
 rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost, int estimators,
                          char *err, size_t errlen)

@@ -199,7 +199,8 @@
  * cloud and the lens caustic within their rounds' spread. At 60 s the dense block's beams still
  * lose to the marcher without them (their passes' shared noise, which their spread does not show;
  * read into the rule in session 60 and not kept: the tiles it moved went on trial to estimators
- * whose tails their pilots had not shown, docs/guided-marching.md "The passes' shared noise").
+ * whose tails their pilots had not shown, docs/guided-marching.md "The passes' shared
+ * noise, read and not kept").
  *
  * The rule. At equal time the image's MSE is (sum_k V_k)(sum_k C_k) / time for the choices
  * m_k of the tiles k, so the best choices minimise the product. Its stationary point is where
