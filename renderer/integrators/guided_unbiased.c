@@ -657,7 +657,7 @@ static int gu_epoch_next(const rd_render_ctx *ctx, int sample)
 static void gu_epoch(rd_render_ctx *ctx, int sample)
 {
     gu_state *st = ctx->state;
-    if (rd_select_epoch_next(&st->sel, sample - 1) == sample) rd_select_epoch(&st->sel, ctx->comm);
+    if (rd_select_epoch_next(&st->sel, sample - 1) == sample) rd_select_epoch(&st->sel, ctx->comm, ctx->epoch_ahead);
     if (rd_probes_epoch_next(&st->probes, sample - 1) == sample) rd_probes_epoch(ctx, &st->probes);
 }
 

@@ -31,9 +31,12 @@ enum { RD_SEL_DELTA = 0, RD_SEL_METHOD = 1, RD_SEL_DELTA_EQ = 2, RD_SEL_PATH = 3
 /* One estimator's samples in one half of one tile (rd_select.stats), from the pilot and the
  * image's epochs so far: the count, the count with any channel non-zero, per channel the sum
  * and the squared deviations from each pixel's own mean (dev2, with dof = samples - pixels
- * degrees of freedom), and the counted cost. */
+ * degrees of freedom), and the counted cost; and of those, the samples the image holds (the
+ * epochs', not the pilot's, which draws on random numbers of its own) and their counted cost
+ * (select_rule.c, "The samples the image holds"). */
 typedef struct {
     double n, nonzero, dof, sum[3], dev2[3], cost;
+    double image_n, image_cost;
 } rd_select_stats;
 
 /* One pixel's samples since the last epoch (all of one estimator: the pixel's, rd_select_uses,
@@ -101,6 +104,8 @@ typedef struct {
     rd_select_delta_fn delta; /* delta's path as the method gives it (with its probes), NULL:
                                  rd_delta_radiance_eq (rd_select_prepare) */
     int choices;              /* choices made so far: the pilot's, then one an epoch (traced_choice) */
+    double ahead;             /* at an epoch, the render's time left over its image's so far
+                                 (rd_select_epoch); 0 otherwise */
     rd_select_report *report; /* rd_render_ctx.select_report (may be NULL) */
     const char *trace_path;   /* rd_render_ctx.select_trace on rank 0, else NULL */
     rd_text trace;            /* the trace's lines so far */
@@ -209,23 +214,40 @@ void rd_select_observe(rd_select *sel, uint64_t pixel, vec3 L, double cost);
 /* The image's epochs: the choice is made again at samples 4, 16, 64, ... (x4) of every pixel
  * from everything seen so far. rd_select_epoch_next: the first epoch boundary after `sample`
  * (INT_MAX: none); rd_select_epoch: fold the pixels' samples into their tiles' statistics and
- * choose again (no-op when the selection is off). */
+ * choose again (no-op when the selection is off), for a render whose time left is `ahead` times
+ * what its image has taken so far (rd_render_ctx.epoch_ahead; not > 0 or not finite: no end
+ * known, and the rule weighs the samples to come alone: select_rule.c). */
 int rd_select_epoch_next(const rd_select *sel, int sample);
 /* With comm (several ranks, each with the samples of the pixels it renders and zeros
  * elsewhere), the pixels' samples are first summed over the ranks (exactly: one rank holds each
  * pixel's), so every rank folds the same statistics and makes the same choice as one process.
  * Collective then: every rank calls it at the same epoch. comm NULL: this process alone. */
-void rd_select_epoch(rd_select *sel, const rd_comm *comm);
+void rd_select_epoch(rd_select *sel, const rd_comm *comm, double ahead);
 /* The trial (see select_rule.c, "Evidence of unequal size"): a tile's choice moves to another
  * estimator at once only when that estimator's samples in the tile are at least
  * 1 / RD_SELECT_TRIAL_RATIO of the current one's; else the tile goes on trial for one epoch
  * first. */
 #define RD_SELECT_TRIAL_RATIO 4
+/* The epochs: the first ends at sample RD_SELECT_EPOCH_FIRST of every pixel, and each is
+ * RD_SELECT_EPOCH_GROWTH times the last (4, 16, 64, 256, ...). */
+#define RD_SELECT_EPOCH_FIRST 4
+#define RD_SELECT_EPOCH_GROWTH 4
+
+/* The image's samples so far, for the rule (select_rule.c, "The samples the image holds"): P,
+ * the sum over the pixels of their samples' variances (the squared error of their means times
+ * n0^2), n0 the samples a pixel, and R the time the render has left, in the units of the rule's
+ * costs. */
+typedef struct {
+    double P, n0, R;
+} rd_select_past;
 
 /* The rule: for n tiles with the per-sample variance and cost of each of the m estimators
- * (var[m k + e], cost[m k + e], e = 0 .. m-1), the choices that minimise (sum V)(sum C);
- * choice[k] the estimator of tile k. */
-void rd_select_choose(const double *var, const double *cost, int n, int m, uint8_t *choice);
+ * (var[m k + e], cost[m k + e], e = 0 .. m-1, as sums over each tile's pixels), the choices
+ * that minimise (sum V)(sum C), or with `past` (may be NULL) the image's squared error at the
+ * end of the time left, (P + a sum V) / (n0 + a)^2 with a = R / sum C; choice[k] the estimator
+ * of tile k. */
+void rd_select_choose(const double *var, const double *cost, int n, int m, const rd_select_past *past,
+                      uint8_t *choice);
 
 /* Every tile's estimator (sel->choice, sel->trial, and sel->unlit at the first call) from the
  * statistics of its two halves so far, sel->stats (select_rule.c): at the pilot's end and at

@@ -193,8 +193,6 @@
 #define SEL_COST_VERTEX 3.91   /* a guided-unbiased vertex that read the guide */
 #define SEL_COST_BEAM_HIT 0.60 /* a ball a segment's query crossed (march.ls nee+beams) */
 #define SEL_COST_EQ_FLIGHT 0.40 /* a flight's equiangular set-up (its choice of lights) */
-#define SEL_EPOCH_FIRST 4   /* the first epoch ends at sample 4 of every pixel, */
-#define SEL_EPOCH_GROWTH 4  /* and each is 4 times the last: 4, 16, 64, 256, ... */
 /* The pilot's random numbers: the image's keys (pixel, sample, seed) with the seed moved by a
  * constant, so no pilot sample is one of the image's. */
 #define SEL_SEED_SHIFT 0x5E1EC7ULL
@@ -492,13 +490,13 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
 }
 
 /* Count the choice just made and trace it (rd_select_trace): the pilot's governs the render's
- * samples from its first, the epochs' from SEL_EPOCH_FIRST, then each SEL_EPOCH_GROWTH times the
+ * samples from its first, the epochs' from RD_SELECT_EPOCH_FIRST, then each RD_SELECT_EPOCH_GROWTH times the
  * last. A failed write does not stop the render: the report keeps its error and the tracing
  * stops, so the file holds the first select_traced lines, none missing between them. */
 static void traced_choice(rd_select *sel)
 {
     long from = 0;
-    for (int i = 0; i < sel->choices; i++) from = i == 0 ? SEL_EPOCH_FIRST : from * SEL_EPOCH_GROWTH;
+    for (int i = 0; i < sel->choices; i++) from = i == 0 ? RD_SELECT_EPOCH_FIRST : from * RD_SELECT_EPOCH_GROWTH;
     sel->choices++;
     if (sel->report) sel->report->choices++;
     if (!sel->trace_path) return;
@@ -626,15 +624,15 @@ void rd_select_observe(rd_select *sel, uint64_t pixel, vec3 L, double cost)
 int rd_select_epoch_next(const rd_select *sel, int sample)
 {
     if (!sel->choice || !sel->epochs) return INT_MAX;
-    int b = SEL_EPOCH_FIRST;
+    int b = RD_SELECT_EPOCH_FIRST;
     while (b <= sample) {
-        if (b > INT_MAX / SEL_EPOCH_GROWTH) return INT_MAX;
-        b *= SEL_EPOCH_GROWTH;
+        if (b > INT_MAX / RD_SELECT_EPOCH_GROWTH) return INT_MAX;
+        b *= RD_SELECT_EPOCH_GROWTH;
     }
     return b;
 }
 
-void rd_select_epoch(rd_select *sel, const rd_comm *comm)
+void rd_select_epoch(rd_select *sel, const rd_comm *comm, double ahead)
 {
     if (!sel->choice) return;
     _Static_assert(sizeof(rd_select_pixel) == RD_SELECT_PIXEL_DOUBLES * sizeof(double),
@@ -649,10 +647,14 @@ void rd_select_epoch(rd_select *sel, const rd_comm *comm)
         for (int x = 0; x < sel->width; x++) {
             int k = (y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE;
             rd_select_pixel *px = &sel->pixels[(size_t)y * sel->width + x];
-            pixel_fold(&half_stats(sel, x, y)[sel->n * k + rd_select_uses(sel, x, y)], px);
+            rd_select_stats *st = &half_stats(sel, x, y)[sel->n * k + rd_select_uses(sel, x, y)];
+            pixel_fold(st, px);
+            st->image_n += px->n, st->image_cost += px->cost / RD_SELECT_COST_UNIT; /* (the image's) */
             memset(px, 0, sizeof *px);
         }
+    sel->ahead = ahead;
     rd_select_choose_tiles(sel);
+    sel->ahead = 0.0;
     traced_choice(sel);
 }
 

@@ -202,12 +202,37 @@
  * whose tails their pilots had not shown, docs/guided-marching.md "The passes' shared
  * noise, read and not kept").
  *
+ * The samples the image holds (session 61). A pixel's mean keeps every sample drawn before an
+ * epoch, and the rule used to weigh each estimator's variance a sample as if all the pixel's
+ * samples were to be its own. On smoke-vdb (`guided` with march.beams, 10 s) the beams went on
+ * trial in 85 tiles at the pilot and 87 at the epoch at 16, on figures that say they win there
+ * in the long run (V 0.000139 a sample at a counted cost of 456, against delta's 0.0172 at 11.5):
+ * but a beams square's 16 earlier samples of delta outweigh 48 of the beams' 40 to 1 in its
+ * variance, and at ~75 us a sample the beams reach 54-232 samples a pixel in the 10 s against
+ * `guided`'s 830. gB made 0.33-0.77x plain `delta` there (docs/benchmarks.md "Session 60"). So at
+ * an epoch the rule minimises what the image's squared error will be when the render ends: with
+ * n0 samples a pixel so far, whose variances sum to P over the pixels (each estimator's image
+ * samples in a tile times its variance a sample as the figures read it), and R the time left (the
+ * render's time left over its image's so far, rd_render_ctx.epoch_ahead, times the image's
+ * counted cost so far), a choice with figure sums V and C draws a = R / C more samples a pixel
+ * and leaves
+ *     (P + a V) / (n0 + a)^2,
+ * summed over the pixels (past_of, objective). A long time left (a >> n0) gives back V C / R,
+ * the product below; so does the pilot (no image samples: P = n0 = 0), and so does a render with
+ * no end known (rd_select_epoch's `ahead` not finite, as the unit tests' stand-ins). A move that
+ * pays only in the long run is made only if the run is long: with the same choice the same every
+ * epoch, the objective does not read "one epoch more" (the next epoch's n1 = 4 n0 as the horizon
+ * would keep a past of one estimator for good, each epoch seeing the same 4x). The time left is
+ * taken at the image's mean pace so far; in a render of a fixed number of samples it is the
+ * samples left over those done.
+ *
  * The rule. At equal time the image's MSE is (sum_k V_k)(sum_k C_k) / time for the choices
  * m_k of the tiles k, so the best choices minimise the product. Its stationary point is where
  * every tile takes the m minimising V_k,m + lambda C_k,m with lambda = sum V / sum C of the
  * choices themselves (d(VC) = C dV + V dC = 0): the fixed point is found by iterating from
  * each tile's own best V C, a few rounds; then single flips that lower the product itself are
- * made until none does (rd_select_choose). */
+ * made until none does (rd_select_choose). With the image's samples (above) the same holds for
+ * (P + a V) / (n0 + a)^2, whose lambda is (2 P + (a - n0) V) / (C (n0 + a)) (slope). */
 #include "integrators/rd_select.h"
 
 #include <math.h>
@@ -271,7 +296,31 @@ static uint8_t least(const double *f, int m)
     return (uint8_t)b;
 }
 
-void rd_select_choose(const double *var, const double *cost, int n, int m, uint8_t *choice)
+/* The rule's objective for figure sums V and C (see the head, "The rule"): V C, or with the
+ * image's samples so far, the image's squared error at the end of the time left (times the
+ * pixels), (P + a V) / (n0 + a)^2 with a = R / C, the samples a pixel each draws in it. */
+static double objective(double V, double C, const rd_select_past *past)
+{
+    if (!past) return V * C;
+    if (!(C > 0.0)) return 0.0; /* (samples without end) */
+    double a = past->R / C;
+    return (past->P + a * V) / ((past->n0 + a) * (past->n0 + a));
+}
+
+/* The weight lambda of cost against variance at which the objective is stationary (its
+ * derivative in C over its derivative in V): V / C for the product, and with the past
+ * (2 P + (a - n0) V) / (C (n0 + a)), which is V / C when nothing is past (P = n0 = 0) or the
+ * time left is long (a >> n0, P / n0). It can be negative: where the samples to come would be
+ * noisier a sample than twice the past's, fewer of them make a better mean. */
+static double slope(double V, double C, const rd_select_past *past)
+{
+    if (!past) return V / C;
+    double a = past->R / C;
+    return (2.0 * past->P + (a - past->n0) * V) / (C * (past->n0 + a));
+}
+
+void rd_select_choose(const double *var, const double *cost, int n, int m, const rd_select_past *past,
+                      uint8_t *choice)
 {
     double f[RD_SEL_MAX];
     for (int k = 0; k < n; k++) { /* start: each tile's own best V C */
@@ -282,7 +331,7 @@ void rd_select_choose(const double *var, const double *cost, int n, int m, uint8
         double V = 0.0, C = 0.0;
         for (int k = 0; k < n; k++) V += var[m * k + choice[k]], C += cost[m * k + choice[k]];
         if (!(C > 0.0)) return;
-        double lambda = V / C;
+        double lambda = slope(V, C, past);
         int changed = 0;
         for (int k = 0; k < n; k++) {
             for (int e = 0; e < m; e++) f[e] = var[m * k + e] + lambda * cost[m * k + e];
@@ -293,11 +342,12 @@ void rd_select_choose(const double *var, const double *cost, int n, int m, uint8
         if (!changed) break;
     }
     /* The fixed point is stationary for the linearised objective, but a tile whose move trades
-     * variance for cost can still lower the product itself (the cross term dV dC < 0): move such
-     * tiles, one at a time, to the first other estimator that lowers it, until no single move
-     * helps. */
+     * variance for cost can still lower the objective itself (the cross term dV dC < 0, and the
+     * past's curvature): move such tiles, one at a time, to the first other estimator that
+     * lowers it, until no single move helps. */
     double V = 0.0, C = 0.0;
     for (int k = 0; k < n; k++) V += var[m * k + choice[k]], C += cost[m * k + choice[k]];
+    double F = objective(V, C, past);
     for (int round = 0, changed = 1; changed && round < SEL_ROUNDS; round++) {
         changed = 0;
         for (int k = 0; k < n; k++)
@@ -305,9 +355,10 @@ void rd_select_choose(const double *var, const double *cost, int n, int m, uint8
                 int o = choice[k];
                 if (e == o) continue;
                 double V2 = V - var[m * k + o] + var[m * k + e], C2 = C - cost[m * k + o] + cost[m * k + e];
-                if (V2 * C2 < V * C * (1.0 - 1e-12)) {
+                double F2 = objective(V2, C2, past);
+                if (F2 < F * (1.0 - 1e-12)) {
                     choice[k] = (uint8_t)e;
-                    V = V2, C = C2;
+                    V = V2, C = C2, F = F2;
                     changed = 1;
                 }
             }
@@ -389,6 +440,30 @@ static void lag_floor(const rd_select *sel, const rd_select_stats *st, int centr
             var[m * k + e] = fmax(var[m * k + e], pixels * v / 3.0);
         }
     }
+}
+
+/* The image's samples so far (see the head, "The samples the image holds"), for the rule on
+ * figures var (one set of m per tile, as figures() gives them) from the statistics all (a tile's
+ * two halves): P, the sum over the tiles of each estimator's image samples there times its
+ * variance a sample as var reads it (var[m k + j] / pixels), n0 the image's samples a pixel, and
+ * R = sel->ahead times their counted cost (the render's time left, in the costs' units). 0 (no
+ * past to weigh: the rule on the samples to come alone) where the image holds no sample (the
+ * pilot) or the render has no end known. */
+static int past_of(const rd_select *sel, const rd_select_stats *all, const double *var, rd_select_past *past)
+{
+    if (!(sel->ahead > 0.0 && isfinite(sel->ahead))) return 0;
+    int nx = sel->tiles_x, n = nx * sel->tiles_y, m = sel->n;
+    double P = 0.0, held = 0.0, T0 = 0.0;
+    for (int k = 0; k < n; k++) {
+        const double pixels = tile_pixels(sel, k % nx, k / nx);
+        for (int j = 0; j < m; j++) {
+            const rd_select_stats *s = &all[m * k + j];
+            P += s->image_n * var[m * k + j] / pixels, held += s->image_n, T0 += s->image_cost;
+        }
+    }
+    if (!(held > 0.0 && T0 > 0.0)) return 0;
+    past->P = P, past->n0 = held / ((double)sel->width * sel->height), past->R = sel->ahead * T0;
+    return 1;
 }
 
 /* The rule's figures from statistics st ([m k + e], one set of m per tile): each tile's V and C
@@ -514,7 +589,7 @@ void rd_select_choose_tiles(rd_select *sel)
         const rd_select_stats *a = &half[0][i], *b = &half[1][i];
         rd_select_stats *t = &all[i];
         t->n = a->n + b->n, t->nonzero = a->nonzero + b->nonzero, t->dof = a->dof + b->dof;
-        t->cost = a->cost + b->cost;
+        t->cost = a->cost + b->cost, t->image_n = a->image_n + b->image_n, t->image_cost = a->image_cost + b->image_cost;
         for (int c = 0; c < 3; c++) t->sum[c] = a->sum[c] + b->sum[c], t->dev2[c] = a->dev2[c] + b->dev2[c];
     }
     /* Each estimator's non-zero fraction over the lit tiles: the prior of every tile's p. */
@@ -529,9 +604,10 @@ void rd_select_choose_tiles(rd_select *sel)
     for (int e = 0; e < m; e++) pbar[e] = (nz[e] + 1.0) / (nn[e] + 2.0);
     if (sel->unlit < 0) sel->unlit = image_path(sel, all, pbar); /* the pilot's samples */
     int two_paths = (sel->paths & (sel->paths - 1u)) != 0u;
+    rd_select_past past;
     for (int h = 0; h < 2; h++) {
         figures(sel, half[h], pbar, NULL, var, cost, tmp);
-        rd_select_choose(var, cost, n, m, want + (size_t)h * n);
+        rd_select_choose(var, cost, n, m, past_of(sel, all, var, &past) ? &past : NULL, want + (size_t)h * n);
     }
     figures(sel, all, pbar, NULL, NULL, all_cost, tmp);
     /* What the tiles beyond a tile's pooling predict, for the tiles whose halves disagree (see
@@ -541,7 +617,7 @@ void rd_select_choose_tiles(rd_select *sel)
     uint8_t *image_want = want + 2 * (size_t)n;
     pooled_relative_variance(sel, all, r, r + mn, r + 2 * mn);
     figures(sel, all, pbar, r, var, cost, tmp);
-    rd_select_choose(var, cost, n, m, image_want);
+    rd_select_choose(var, cost, n, m, past_of(sel, all, var, &past) ? &past : NULL, image_want);
     for (int k = 0; k < n; k++)
         for (int e = 0; e < m; e++)
             if (!(r[m * k + e] > 0.0)) image_want[k] = RD_SEL_MAX;

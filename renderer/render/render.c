@@ -384,6 +384,7 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
      * second (never past the time left), so progress, the convergence curve and Ctrl-C come
      * promptly. */
     uint64_t invalid = 0;
+    const double t_image = now_seconds(clk); /* the image's first pass begins */
     int done = 0, pass = 1, curve_cap = 0;
     /* The photon passes' clock: samples of the estimate that reads the passes (the method's
      * own, or guided's beams: rd_method.marched_pixels), in pixel-samples (the samples before
@@ -434,7 +435,15 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
             cut = v[0], any_cancel = v[1];
         }
         if (!cut) done += n, marched += (uint64_t)n * mp;
-        if (!cut && s0 + done == epoch_end) m->epoch(&ctx, epoch_end);
+        if (!cut && s0 + done == epoch_end) {
+            /* The time left as a multiple of the image's so far (rd_render_ctx.epoch_ahead): by
+             * the deadline, and by the samples left over those done (as if each took as long). */
+            double t = now_seconds(clk), ahead = (double)(o->spp - done) / done;
+            if (deadline < INFINITY && t > t_image) ahead = fmin(ahead, fmax(0.0, deadline - t) / (t - t_image));
+            if (comm) comm->reduce(comm->user, &ahead, 1, RD_COMM_DOUBLE, RD_COMM_MAX, -1);
+            ctx.epoch_ahead = ahead;
+            m->epoch(&ctx, epoch_end);
+        }
         double t1 = now_seconds(clk), elapsed = t1 - t_start;
         if (o->progress) o->progress(o->progress_user, done, o->spp, elapsed);
         if (o->reference) {
