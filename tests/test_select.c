@@ -1878,9 +1878,9 @@ static void expect_passes_paced_by(const rd_render_result *r, double per_pass, d
 Test(select, the_beams_estimator_takes_tiles_and_paces_its_own_passes, .timeout = 300)
 {
     rd_scene *s0 = rt_scene("selbe0.json", beams_estimator_scene("tiles", NULL));
-    cr_assert(!s0->march.beams && !s0->photons.progressive, "march.beams is off by default");
+    cr_assert(s0->march.beams && !s0->photons.progressive, "march.beams is on by default (since session 61)");
     rd_scene_free(s0);
-    expect_no_beams("selbe0.json", beams_estimator_scene("tiles", NULL), "without march.beams");
+    expect_no_beams("selbe0.json", beams_estimator_scene("tiles", "false"), "without march.beams");
     /* with settings.select off there is no selection to hold the beams */
     expect_no_beams("selbeoff.json", beams_estimator_scene("off", "true"), "select off");
     rd_render_result r0;

@@ -292,7 +292,7 @@ rd_status ld_parse_march(ld_ctx *c, const cJSON *j, rd_march_settings *m)
     m->equiangular = RD_EQ_AUTO;
     m->probes = 0; /* "auto": measured in docs/guided-marching.md "Probes" */
     m->guided_paths = 1; /* docs/guided-marching.md "A fourth estimator" */
-    m->beams = 0;        /* docs/guided-marching.md "The beams beside the marcher" */
+    m->beams = 1; /* since session 61: docs/guided-marching.md "The beams beside the marcher" */
     if (!j) return RD_OK;
     const char *path = "march";
     LD_TRY(ld_need_object(c, j, path));
@@ -317,6 +317,6 @@ rd_status ld_parse_march(ld_ctx *c, const cJSON *j, rd_march_settings *m)
     LD_TRY(ld_get_enum(c, j, path, "detail", 0, detail, 0, &m->detail));
     LD_TRY(parse_probes(c, j, path, &m->probes));
     LD_TRY(ld_get_bool(c, j, path, "guided_paths", 1, &m->guided_paths));
-    LD_TRY(ld_get_bool(c, j, path, "beams", 0, &m->beams));
+    LD_TRY(ld_get_bool(c, j, path, "beams", 1, &m->beams));
     return parse_equiangular(c, j, path, 0, 0, &m->equiangular);
 }
