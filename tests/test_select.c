@@ -112,28 +112,48 @@ Test(select, a_tie_goes_to_delta)
     for (int k = 0; k < N; k++) cr_assert(m[k] == 0, "tile %d: a tie (costs %.17g, %.17g) went to the method", k, cost[2 * k], cost[2 * k + 1]);
 }
 
-/* The image's squared error (times the pixels) at the end of the time left R, with the image's
- * samples so far (P, n0), for figure sums V and C: written out here apart from the rule's. */
-static double error_at_end(double V, double C, double P, double n0, double R)
+/* The rule's objective with the image's samples so far (P, n0, their cost T0), written out here
+ * apart from the rule's: at a deadline R from now, the image's squared error (times the pixels)
+ * then; at a sample count, left samples a pixel from now, that error times the render's time
+ * (the error's (n0 + left)^2 left out: a constant). */
+static double error_at_end(double V, double C, const rd_select_past *p)
 {
-    double a = R / C; /* the samples a pixel draws in the time left */
-    return (P + a * V) / ((n0 + a) * (n0 + a));
+    if (p->left > 0.0) return (p->P + p->left * V) * (p->T0 + p->left * C);
+    double a = p->R / C; /* the samples a pixel draws in the time left */
+    return (p->P + a * V) / ((p->n0 + a) * (p->n0 + a));
+}
+
+/* Whether some single move of one tile of choice ch lowers error_at_end. */
+static int a_move_lowers(const double *var, const double *cost, int n, int m, const uint8_t *ch, const rd_select_past *p)
+{
+    double V = 0.0, C = 0.0;
+    for (int k = 0; k < n; k++) V += var[m * k + ch[k]], C += cost[m * k + ch[k]];
+    const double F = error_at_end(V, C, p);
+    for (int k = 0; k < n; k++)
+        for (int e = 0; e < m; e++) {
+            if (e == ch[k]) continue;
+            double V2 = V - var[m * k + ch[k]] + var[m * k + e], C2 = C - cost[m * k + ch[k]] + cost[m * k + e];
+            if (error_at_end(V2, C2, p) < F * (1.0 - 1e-12)) return 1;
+        }
+    return 0;
 }
 
 Test(select, with_the_image_s_samples_no_move_lowers_its_error_at_the_end)
 {
-    /* select_rule.c, "The samples the image holds": with the samples so far (P, n0) and the
-     * time left R, the rule minimises the image's error at the end, not (sum V)(sum C). Random
-     * instances over three estimators: no single move lowers that error (a rule that still
-     * minimised the product fails this where the past weighs: P and R drawn so that the past's
-     * variance is 0.01-100x the time left's), and with no past (P = n0 = 0) the choices are
-     * the product's. */
+    /* select_rule.c, "The samples the image holds": with the image's samples so far (P, n0, T0),
+     * the rule minimises the image's error at the render's end (at a deadline) or that error
+     * times the render's time (at a sample count), not (sum V)(sum C). Random instances over
+     * three estimators, half ending at a deadline and half at a sample count, the past's
+     * variance 0.01-100x what the product's choices would add over the time left: no single move
+     * lowers that objective, while the product's own choices are lowered by one in some
+     * instances (so the check sees the difference); and with no past (P = n0 = T0 = 0) the
+     * choices are the product's. */
     pcg32 rng = pcg32_seed(2026, 12, 6);
     enum { N = 100, M = 3 };
     double var[M * N], cost[M * N];
     uint8_t m[N], plain[N], none[N];
-    int differ = 0;
-    for (int inst = 0; inst < 60; inst++) {
+    int differ = 0, plain_lowered = 0;
+    for (int inst = 0; inst < 80; inst++) {
         for (int i = 0; i < M * N; i++) {
             var[i] = pow(10.0, -6.0 + 4.0 * pcg32_uniform(&rng));
             cost[i] = pow(10.0, 1.5 * pcg32_uniform(&rng));
@@ -143,25 +163,23 @@ Test(select, with_the_image_s_samples_no_move_lowers_its_error_at_the_end)
         for (int k = 0; k < N; k++) V0 += var[M * k + plain[k]], C0 += cost[M * k + plain[k]];
         const double n0 = 4.0 * pow(4.0, (double)(inst % 5)); /* an epoch: 4 .. 1024 */
         const double ahead = pow(10.0, -1.0 + 3.0 * pcg32_uniform(&rng)); /* time left 0.1 .. 100x */
-        const rd_select_past past = {V0 * n0 * pow(10.0, -2.0 + 4.0 * pcg32_uniform(&rng)), n0, ahead * n0 * C0};
+        const double weight = pow(10.0, -2.0 + 4.0 * pcg32_uniform(&rng));
+        const int by_samples = inst & 1;
+        rd_select_past past = {V0 * ahead * n0 * weight, n0, n0 * C0, by_samples ? 0.0 : ahead * n0 * C0,
+                               by_samples ? ahead * n0 : 0.0};
         rd_select_choose(var, cost, N, M, &past, m);
-        double V = 0.0, C = 0.0;
-        for (int k = 0; k < N; k++) V += var[M * k + m[k]], C += cost[M * k + m[k]], differ += m[k] != plain[k];
-        const double F = error_at_end(V, C, past.P, past.n0, past.R);
-        for (int k = 0; k < N; k++)
-            for (int e = 0; e < M; e++) {
-                if (e == m[k]) continue;
-                double V2 = V - var[M * k + m[k]] + var[M * k + e], C2 = C - cost[M * k + m[k]] + cost[M * k + e];
-                cr_assert(error_at_end(V2, C2, past.P, past.n0, past.R) >= F * (1.0 - 1e-12),
-                          "instance %d tile %d: moving it to %d lowers the error at the end", inst, k, e);
-            }
-        const rd_select_past nothing = {0.0, 0.0, past.R};
+        for (int k = 0; k < N; k++) differ += m[k] != plain[k];
+        cr_assert(!a_move_lowers(var, cost, N, M, m, &past), "instance %d (%s): a single move lowers the objective", inst,
+                  by_samples ? "sample count" : "deadline");
+        plain_lowered += a_move_lowers(var, cost, N, M, plain, &past);
+        const rd_select_past nothing = {0.0, 0.0, 0.0, past.R, past.left};
         rd_select_choose(var, cost, N, M, &nothing, none);
         for (int k = 0; k < N; k++)
             cr_assert(none[k] == plain[k], "instance %d tile %d: with no past, %d where the product takes %d", inst, k,
                       none[k], plain[k]);
     }
-    cr_assert(differ > 0, "the past never changed a choice: the test shows nothing");
+    cr_assert(differ > 0 && plain_lowered > 0, "the past changed %d choices, lowered the product's in %d instances: "
+              "the test shows nothing", differ, plain_lowered);
 }
 
 /* ---- The epochs: the image's samples correct the pilot -------------------------------------- */
@@ -243,12 +261,12 @@ Test(select, an_epoch_drops_the_method_when_the_image_shows_its_heavy_tail)
     /* The pilot: delta variance 1 at cost 1, the method variance 0.1 at cost 2 (V C 0.2 < 1). */
     fake_pilot(&sel, 0, 1.0, 1.0, 1.0, 1.0);
     fake_pilot(&sel, 1, 1.0, 0.1, 1.0, 2.0);
-    rd_select_epoch(&sel, NULL, INFINITY); /* no samples yet: the pilot's choice */
+    rd_select_epoch(&sel, NULL, NULL); /* no samples yet: the pilot's choice */
     cr_assert(sel.choice[0] == 1, "the pilot's statistics favour the method");
     /* The image: the method's samples are mostly zero with a rare firefly, variance
      * 1 / 0.002 - 1 = 499 per sample over 64 x 256 samples. */
     observe_rare(&sel, 256, 1.0, 0.002, 2.0, 11);
-    rd_select_epoch(&sel, NULL, INFINITY);
+    rd_select_epoch(&sel, NULL, NULL);
     cr_assert(tile_stats(&sel, 1).n == 128 + 64 * 256 && tile_stats(&sel, 0).n == 128,
               "the samples go to the estimator that drew them: %g and %g", tile_stats(&sel, 0).n, tile_stats(&sel, 1).n);
     /* delta's 128 samples against the method's 16512: delta goes on trial, not in at once. */
@@ -256,7 +274,7 @@ Test(select, an_epoch_drops_the_method_when_the_image_shows_its_heavy_tail)
               sel.trial[0]);
     /* The trial: delta's half shows variance 1 at cost 1, the method's half its heavy tail. */
     observe_trial(&sel, 256, 1.0, 0.5, 1.0, 0.002, 2.0, 13);
-    rd_select_epoch(&sel, NULL, INFINITY);
+    rd_select_epoch(&sel, NULL, NULL);
     cr_assert(sel.choice[0] == 0 && sel.trial[0] == 0, "after the trial, delta (method's variance %g over %g samples)",
               tile_var(&sel, 1), tile_stats(&sel, 1).n);
     cr_assert(tile_stats(&sel, 0).n == 128 + 32 * 256 && tile_stats(&sel, 1).n == 128 + 64 * 256 + 32 * 256,
@@ -275,10 +293,10 @@ static void rare_light_tile_on_trial(rd_select *sel)
     cr_assert(rd_select_init(sel, 8, 8, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
     fake_pilot(sel, 0, 1.0, 1.0, 0.5, 1.0);
     fake_pilot(sel, 1, 1.0, 0.2, 1.0, 8.0);
-    rd_select_epoch(sel, NULL, INFINITY);
+    rd_select_epoch(sel, NULL, NULL);
     cr_assert(sel->choice[0] == 0, "the pilot's statistics favour delta");
     observe_rare(sel, 256, 1.0, 0.005, 1.0, 12);
-    rd_select_epoch(sel, NULL, INFINITY);
+    rd_select_epoch(sel, NULL, NULL);
     cr_assert(sel->choice[0] == RD_SEL_DELTA && sel->trial[0] == 1 + RD_SEL_METHOD, "the method on trial (method %d, trial %d; delta's variance %g)",
               sel->choice[0], sel->trial[0], tile_var(sel, 0));
 }
@@ -290,7 +308,7 @@ Test(select, an_epoch_takes_the_method_when_delta_s_paths_rarely_find_the_light)
     /* The trial: the method's half keeps its variance 0.2 (X = 1.2 with probability 1 / 1.2),
      * delta's half its rare hits. */
     observe_trial(&sel, 256, 1.0, 0.005, 1.0, 1.0 / 1.2, 8.0, 14);
-    rd_select_epoch(&sel, NULL, INFINITY);
+    rd_select_epoch(&sel, NULL, NULL);
     cr_assert(sel.choice[0] == 1 && sel.trial[0] == 0, "after the trial, the method (its variance %g over %g samples)",
               tile_var(&sel, 1), tile_stats(&sel, 1).n);
     rd_select_free(&sel);
@@ -303,7 +321,7 @@ Test(select, a_trial_lasts_one_epoch)
      * trial that the counts could keep open would leave the tile half and half for good. */
     rd_select sel;
     rare_light_tile_on_trial(&sel);
-    rd_select_epoch(&sel, NULL, INFINITY);
+    rd_select_epoch(&sel, NULL, NULL);
     cr_assert(sel.trial[0] == 0 && sel.choice[0] == 1, "the trial ended (method %d, trial %d)", sel.choice[0],
               sel.trial[0]);
     rd_select_free(&sel);
@@ -317,21 +335,24 @@ Test(select, a_move_that_pays_only_after_the_render_ends_is_not_made)
      * the error there, (P + a V) / (n0 + a)^2 per pixel, is (256 + 256) 199 / 512^2 = 0.39 with
      * delta and (256 x 199 + 32 x 0.2) / 288^2 = 0.61 with the method, so the tile stays with
      * delta, no trial. With 100x the time left: 0.0077 against 0.0043, and the method goes on
-     * trial, as with no end known. */
-    const double aheads[3] = {1.0, 100.0, INFINITY};
-    const int trial[3] = {0, 1 + RD_SEL_METHOD, 1 + RD_SEL_METHOD};
-    for (int i = 0; i < 3; i++) {
+     * trial, as with no end known. At a sample count the same: with 256 samples a pixel left,
+     * error times time (P + 256 V)(T0 + 256 C) is 101888 x 512 = 5.2e7 with delta against
+     * 50995 x 2304 = 1.2e8 with the method; with 25600 left, 1.3e11 against 1.2e10. */
+    const rd_select_end ends[5] = {{1.0, 0.0}, {100.0, 0.0}, {0.0, 256.0}, {0.0, 25600.0}, {0.0, 0.0}};
+    const int trial[5] = {0, 1 + RD_SEL_METHOD, 0, 1 + RD_SEL_METHOD, 1 + RD_SEL_METHOD};
+    for (int i = 0; i < 5; i++) {
         rd_select sel;
         char err[RD_ERRLEN];
         cr_assert(rd_select_init(&sel, 8, 8, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
         fake_pilot(&sel, 0, 1.0, 1.0, 0.5, 1.0);
         fake_pilot(&sel, 1, 1.0, 0.2, 1.0, 8.0);
-        rd_select_epoch(&sel, NULL, aheads[i]);
+        rd_select_epoch(&sel, NULL, &ends[i]);
         cr_assert(sel.choice[0] == RD_SEL_DELTA, "the pilot's statistics favour delta");
         observe_rare(&sel, 256, 1.0, 0.005, 1.0, 12);
-        rd_select_epoch(&sel, NULL, aheads[i]);
-        cr_assert(sel.choice[0] == RD_SEL_DELTA && sel.trial[0] == trial[i], "ahead %g: choice %d, trial %d (want %d)",
-                  aheads[i], sel.choice[0], sel.trial[0], trial[i]);
+        rd_select_epoch(&sel, NULL, &ends[i]);
+        cr_assert(sel.choice[0] == RD_SEL_DELTA && sel.trial[0] == trial[i],
+                  "end (ahead %g, left %g): choice %d, trial %d (want %d)", ends[i].ahead, ends[i].left, sel.choice[0],
+                  sel.trial[0], trial[i]);
         rd_select_free(&sel);
     }
 }
@@ -345,7 +366,7 @@ Test(select, a_trial_keeps_delta_where_the_method_s_tail_is_delta_s)
     rd_select sel;
     rare_light_tile_on_trial(&sel);
     observe_trial(&sel, 256, 1.0, 0.005, 1.0, 0.005, 8.0, 15);
-    rd_select_epoch(&sel, NULL, INFINITY);
+    rd_select_epoch(&sel, NULL, NULL);
     cr_assert(sel.choice[0] == 0 && sel.trial[0] == 0, "after the trial, delta (the method's variance %g)",
               tile_var(&sel, 1));
     rd_select_free(&sel);
@@ -367,7 +388,7 @@ Test(select, a_trial_between_delta_and_delta_with_equiangular_sampling_is_a_chec
     for (int h = 0; h < 2; h++) add_half(&sel, h, RD_SEL_DELTA, 32, 64, 1.0, 1.0, 1.0, 1.0);
     fake_pilot(&sel, RD_SEL_METHOD, 1.0, 1.0, 1.0, 10.0);
     fake_pilot(&sel, RD_SEL_DELTA_EQ, 1.0, 0.1, 1.0, 1.2);
-    rd_select_epoch(&sel, NULL, INFINITY);
+    rd_select_epoch(&sel, NULL, NULL);
     cr_assert(sel.choice[0] == RD_SEL_DELTA && sel.trial[0] == 1 + RD_SEL_DELTA_EQ,
               "choice %d, trial %d: lopsided evidence must go on trial first", sel.choice[0], sel.trial[0]);
     for (int p = 0; p < 64; p++) {
@@ -380,7 +401,7 @@ Test(select, a_trial_between_delta_and_delta_with_equiangular_sampling_is_a_chec
             rd_select_observe(&sel, (uint64_t)p, v3(xv, xv, xv), c);
         }
     }
-    rd_select_epoch(&sel, NULL, INFINITY);
+    rd_select_epoch(&sel, NULL, NULL);
     cr_assert(sel.choice[0] == RD_SEL_DELTA_EQ && sel.trial[0] == 0, "after the trial: choice %d, trial %d",
               sel.choice[0], sel.trial[0]);
     rd_select_free(&sel);
@@ -396,7 +417,7 @@ Test(select, a_trial_between_delta_and_delta_with_equiangular_sampling_is_a_chec
         add_half(&sel, h, RD_SEL_METHOD, 16, 64, 1.0, 1.0, 1.0, 10.0);
     }
     sel.choice[0] = RD_SEL_DELTA, sel.trial[0] = 1 + RD_SEL_METHOD;
-    rd_select_epoch(&sel, NULL, INFINITY);
+    rd_select_epoch(&sel, NULL, NULL);
     cr_assert(sel.choice[0] == RD_SEL_DELTA && sel.trial[0] == 1 + RD_SEL_DELTA_EQ,
               "after the method's trial: choice %d, trial %d (the third must go on trial)", sel.choice[0], sel.trial[0]);
     rd_select_free(&sel);
@@ -414,7 +435,7 @@ static void halves_tile(rd_select *sel, double v0, double v1)
         add_half(sel, h, RD_SEL_DELTA, 8, 8, 1.0, h ? v1 : v0, 1.0, 1.0);
         add_half(sel, h, RD_SEL_METHOD, 8, 8, 1.0, 1.0, 1.0, 2.0);
     }
-    rd_select_epoch(sel, NULL, INFINITY); /* no samples: the choice from these statistics */
+    rd_select_epoch(sel, NULL, NULL); /* no samples: the choice from these statistics */
 }
 
 Test(select, a_costlier_estimator_takes_a_tile_only_when_both_halves_want_it)
@@ -452,7 +473,7 @@ static void noisy_row(rd_select *sel, const double *v0, const double *v1)
             add_half(sel, h, 2 * k + RD_SEL_DELTA, 8, 8, 1.0, h ? v1[k] : v0[k], 1.0, 1.0);
             add_half(sel, h, 2 * k + RD_SEL_METHOD, 8, 8, 1.0, 1.0, 1.0, 4.0);
         }
-    rd_select_epoch(sel, NULL, INFINITY); /* no samples: the choice from these statistics */
+    rd_select_epoch(sel, NULL, NULL); /* no samples: the choice from these statistics */
 }
 
 Test(select, where_the_halves_disagree_the_image_s_pooled_variance_decides)
@@ -492,7 +513,7 @@ static int half_of_pixel(int x, int y)
     char err[RD_ERRLEN];
     cr_assert(rd_select_init(&sel, 16, 16, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
     rd_select_observe(&sel, (uint64_t)(16 * y + x), v3(1, 1, 1), 1.0);
-    rd_select_epoch(&sel, NULL, INFINITY);
+    rd_select_epoch(&sel, NULL, NULL);
     size_t mn = (size_t)sel.n * sel.tiles_x * sel.tiles_y;
     double n0 = 0.0, n1 = 0.0;
     for (size_t i = 0; i < mn; i++) n0 += sel.stats[i].n, n1 += sel.stats[mn + i].n;
@@ -521,7 +542,7 @@ Test(select, the_halves_are_a_checkerboard_of_2x2_blocks_that_splits_a_trial_eve
     size_t mn = (size_t)sel.n * sel.tiles_x * sel.tiles_y;
     for (int k = 0; k < 4; k++) sel.choice[k] = RD_SEL_DELTA, sel.trial[k] = 1 + RD_SEL_METHOD; /* all on trial */
     for (int p = 0; p < 256; p++) rd_select_observe(&sel, (uint64_t)p, v3(1, 1, 1), 1.0);
-    rd_select_epoch(&sel, NULL, INFINITY);
+    rd_select_epoch(&sel, NULL, NULL);
     for (int k = 0; k < 4; k++)
         for (int e = 0; e < 2; e++)
             cr_assert(sel.stats[2 * k + e].n == 16 && sel.stats[mn + 2 * k + e].n == 16,
@@ -545,11 +566,11 @@ Test(select, a_move_the_halves_do_not_agree_on_goes_on_trial_first)
         add_half(&sel, h, RD_SEL_METHOD, 8, 8, 1.0, 1.0, 1.0, 2.0);
     }
     sel.choice[0] = RD_SEL_METHOD;
-    rd_select_epoch(&sel, NULL, INFINITY);
+    rd_select_epoch(&sel, NULL, NULL);
     cr_assert(sel.choice[0] == RD_SEL_METHOD && sel.trial[0] == 1 + RD_SEL_DELTA, "choice %d, trial %d: delta must go on trial",
               sel.choice[0], sel.trial[0]);
     /* after the trial (no new samples here), the halves still differ: the cheaper, delta */
-    rd_select_epoch(&sel, NULL, INFINITY);
+    rd_select_epoch(&sel, NULL, NULL);
     cr_assert(sel.choice[0] == RD_SEL_DELTA && sel.trial[0] == 0, "after the trial: choice %d, trial %d", sel.choice[0],
               sel.trial[0]);
     rd_select_free(&sel);
@@ -572,7 +593,7 @@ static void half_lit_row(rd_select *sel, int estimators, double v_delta, double 
         fake_pilot(sel, m * k + RD_SEL_METHOD, lit, lit * 1.0, lit, m == 3 ? 10.0 : 1.2);
         if (m == 3) fake_pilot(sel, m * k + RD_SEL_DELTA_EQ, lit, lit * v_eq, lit, 1.2);
     }
-    rd_select_epoch(sel, NULL, INFINITY); /* no samples: the pilot's choice */
+    rd_select_epoch(sel, NULL, NULL); /* no samples: the pilot's choice */
 }
 
 Test(select, a_tile_no_sample_has_lit_takes_the_path_the_image_prefers)
@@ -608,7 +629,7 @@ Test(select, a_tile_no_sample_has_lit_takes_the_path_the_image_prefers)
         fake_pilot(&sel, 2 * k + RD_SEL_DELTA, lit, lit * 10.0, lit, 1.0);
         fake_pilot(&sel, 2 * k + RD_SEL_METHOD, lit, lit * 0.1, lit, 1.2);
     }
-    rd_select_epoch(&sel, NULL, INFINITY);
+    rd_select_epoch(&sel, NULL, NULL);
     for (int k = 4; k < 8; k++)
         cr_assert(sel.choice[k] == RD_SEL_METHOD && sel.trial[k] == 0, "delta's tiles, unlit tile %d: estimator %d, trial %d",
                   k, sel.choice[k], sel.trial[k]);
@@ -881,8 +902,8 @@ Test(select, a_thread_s_record_of_a_pixel_equals_one_sample_at_a_time)
     cr_assert(samples > 0.5 * 7 * n && samples < 7.0 * n, "%g finite samples of %zu", samples, 7 * n);
     cr_assert(memcmp(a.pixels, b.pixels, n * sizeof *a.pixels) == 0, "the thread's records differ from one sample's at a time");
     cr_assert(costs > 2.18 * samples, "the counted cost %g of %g samples has no work in it", costs, samples);
-    rd_select_epoch(&a, NULL, INFINITY);
-    rd_select_epoch(&b, NULL, INFINITY);
+    rd_select_epoch(&a, NULL, NULL);
+    rd_select_epoch(&b, NULL, NULL);
     size_t mn = 2 * (size_t)a.n * a.tiles_x * a.tiles_y;
     cr_assert(memcmp(a.stats, b.stats, mn * sizeof *a.stats) == 0 && memcmp(a.choice, b.choice, (size_t)a.tiles_x * a.tiles_y) == 0,
               "the epoch's statistics or choices differ");
@@ -942,7 +963,7 @@ Test(select, a_tile_of_2x2_pixels_at_the_edge_takes_the_choice_of_its_one_half)
             add_half(&sel, h, 2 * k + RD_SEL_DELTA, px, 8, 1.0, k == 15 ? 1000.0 : 1.0, 1.0, 1.0);
             add_half(&sel, h, 2 * k + RD_SEL_METHOD, px, 8, 1.0, 1.0, 1.0, 2.0);
         }
-    rd_select_epoch(&sel, NULL, INFINITY);
+    rd_select_epoch(&sel, NULL, NULL);
     cr_assert(sel.choice[15] == RD_SEL_METHOD, "the corner tile: %d", sel.choice[15]);
     cr_assert(sel.choice[10] == RD_SEL_DELTA && sel.trial[10] == 0, "its neighbour: %d, trial %d", sel.choice[10],
               sel.trial[10]);
@@ -964,7 +985,7 @@ static void pool_scene(rd_select *sel, const double *delta_v)
         fake_pilot(sel, 2 * k, 1.0, delta_v[k], 1.0, 1.0);
         fake_pilot(sel, 2 * k + 1, 1.0, 0.67, 1.0, 2.75);
     }
-    rd_select_epoch(sel, NULL, INFINITY); /* no samples: the choice from these statistics */
+    rd_select_epoch(sel, NULL, NULL); /* no samples: the choice from these statistics */
 }
 
 Test(select, a_beam_across_the_tiles_still_goes_to_the_method)
@@ -1000,7 +1021,7 @@ static void prior_scene(rd_select *sel, const int *lit, int hits, double c_m)
         else fake_pilot(sel, 2 * k, 0.0, 0.0, 0.0, 1.0);
         fake_pilot(sel, 2 * k + 1, 1.0, 0.5, 1.0, c_m);
     }
-    rd_select_epoch(sel, NULL, INFINITY); /* no samples: the choice from these statistics */
+    rd_select_epoch(sel, NULL, NULL); /* no samples: the choice from these statistics */
 }
 
 Test(select, a_tile_of_zeros_goes_by_how_often_delta_sees_light_elsewhere)
@@ -1054,7 +1075,7 @@ static void dim_scene(rd_select *sel, double mu_d, int delta_hits_dim)
             fake_pilot(sel, 2 * k + 1, mu_d, mu_d * mu_d * 127.0, 1.0 / 128.0, 3.0);
         }
     }
-    rd_select_epoch(sel, NULL, INFINITY); /* no samples: the choice from these statistics */
+    rd_select_epoch(sel, NULL, NULL); /* no samples: the choice from these statistics */
 }
 
 Test(select, a_dim_tile_s_zeros_weigh_by_how_dim_it_is)
@@ -1704,7 +1725,7 @@ Test(select, with_the_beams_the_bound_s_tile_mean_is_the_beams_mean)
             fake_pilot(&sel, 3 * k + 1, 0.12, 0.02, 0.25, 12.0);
             fake_pilot(&sel, 3 * k + 2, 0.12, 0.023, 1.0, 120.0);
         }
-        rd_select_epoch(&sel, NULL, INFINITY); /* no samples: the choice from these statistics */
+        rd_select_epoch(&sel, NULL, NULL); /* no samples: the choice from these statistics */
         for (int k = 0; k < 25; k++)
             cr_expect(sel.choice[k] == (beams ? 1 : 2), "%s: tile %d took estimator %d", beams ? "beams" : "no beams", k,
                       sel.choice[k]);
@@ -1743,7 +1764,7 @@ Test(select, with_the_beams_a_mean_that_lags_theirs_reads_a_tail)
                 fake_pilot(&sel, 3 * k + 1, mean[i], 0.00005, 1.0, 14.0);
                 fake_pilot(&sel, 3 * k + 2, 0.008, 0.00005, 1.0, 285.0);
             }
-            rd_select_epoch(&sel, NULL, INFINITY);
+            rd_select_epoch(&sel, NULL, NULL);
             int want = beams && i == 0 ? RD_SEL_DELTA : RD_SEL_METHOD;
             for (int k = 0; k < 25; k++)
                 cr_expect(sel.choice[k] == want && sel.trial[k] == 0,

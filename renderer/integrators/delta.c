@@ -124,7 +124,7 @@ static void delta_epoch(rd_render_ctx *ctx, int sample)
     delta_state *ds = ctx->state;
     (void)sample;
     if (!ds) return;
-    if (ds->sel) rd_select_epoch(ds->sel, ctx->comm, ctx->epoch_ahead);
+    if (ds->sel) rd_select_epoch(ds->sel, ctx->comm, &(rd_select_end){ctx->epoch_ahead, ctx->epoch_left});
     else rd_probes_epoch(ctx, &ds->probes);
 }
 

@@ -657,7 +657,8 @@ static int gu_epoch_next(const rd_render_ctx *ctx, int sample)
 static void gu_epoch(rd_render_ctx *ctx, int sample)
 {
     gu_state *st = ctx->state;
-    if (rd_select_epoch_next(&st->sel, sample - 1) == sample) rd_select_epoch(&st->sel, ctx->comm, ctx->epoch_ahead);
+    if (rd_select_epoch_next(&st->sel, sample - 1) == sample)
+        rd_select_epoch(&st->sel, ctx->comm, &(rd_select_end){ctx->epoch_ahead, ctx->epoch_left});
     if (rd_probes_epoch_next(&st->probes, sample - 1) == sample) rd_probes_epoch(ctx, &st->probes);
 }
 

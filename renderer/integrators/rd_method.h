@@ -86,11 +86,12 @@ typedef struct rd_render_ctx {
     const char *select_trace; /* rd_render_opts.select_trace (integrators/select.c) */
     struct rd_select_report *select_report; /* where a tile selection counts its choices and
                                                its trace's writes (render.c's; may be NULL) */
-    /* At an epoch (rd_method.epoch): the render's time left as a multiple of the time its image
-     * has taken so far, by its deadline or its samples, whichever ends it first, the same on
-     * every rank (the largest); not > 0 or not finite: no end known (integrators/select_rule.c,
-     * "The samples the image holds"). */
-    double epoch_ahead;
+    /* At an epoch (rd_method.epoch), how the render ends (integrators/select_rule.c, "The
+     * samples the image holds"), whichever bound comes first: at its deadline, epoch_ahead the
+     * time left over the time its image has taken so far (the same on every rank: the
+     * largest), or at its sample count, epoch_left the samples a pixel has left; the other 0.
+     * Both 0: no end known, or nothing left. */
+    double epoch_ahead, epoch_left;
 } rd_render_ctx;
 
 /* What a tile selection reports to the render (rd_render_stats.select_choices, select_traced,

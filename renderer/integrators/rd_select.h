@@ -39,6 +39,13 @@ typedef struct {
     double image_n, image_cost;
 } rd_select_stats;
 
+/* How the render ends, seen at an epoch (select_rule.c, "The samples the image holds"): at its
+ * deadline, `ahead` the time left over the time its image has taken so far (> 0), or at its
+ * sample count, `left` the samples a pixel has left (> 0); the other 0. Both 0: no end known. */
+typedef struct {
+    double ahead, left;
+} rd_select_end;
+
 /* One pixel's samples since the last epoch (all of one estimator: the pixel's, rd_select_uses,
  * does not change within an epoch). Plain doubles, so that several ranks' arrays are summed as
  * one array of doubles (rd_select_epoch): 9 a pixel, 72 bytes. sum and sum2 are accumulated in
@@ -104,8 +111,6 @@ typedef struct {
     rd_select_delta_fn delta; /* delta's path as the method gives it (with its probes), NULL:
                                  rd_delta_radiance_eq (rd_select_prepare) */
     int choices;              /* choices made so far: the pilot's, then one an epoch (traced_choice) */
-    double ahead;             /* at an epoch, the render's time left over its image's so far
-                                 (rd_select_epoch); 0 otherwise */
     rd_select_report *report; /* rd_render_ctx.select_report (may be NULL) */
     const char *trace_path;   /* rd_render_ctx.select_trace on rank 0, else NULL */
     rd_text trace;            /* the trace's lines so far */
@@ -214,44 +219,42 @@ void rd_select_observe(rd_select *sel, uint64_t pixel, vec3 L, double cost);
 /* The image's epochs: the choice is made again at samples 4, 16, 64, ... (x4) of every pixel
  * from everything seen so far. rd_select_epoch_next: the first epoch boundary after `sample`
  * (INT_MAX: none); rd_select_epoch: fold the pixels' samples into their tiles' statistics and
- * choose again (no-op when the selection is off), for a render whose time left is `ahead` times
- * what its image has taken so far (rd_render_ctx.epoch_ahead; not > 0 or not finite: no end
- * known, and the rule weighs the samples to come alone: select_rule.c). */
+ * choose again (no-op when the selection is off), for a render that ends as `end` says
+ * (rd_render_ctx.epoch_ahead and epoch_left; NULL or both 0: no end known, and the rule weighs
+ * the samples to come alone: select_rule.c). */
 int rd_select_epoch_next(const rd_select *sel, int sample);
 /* With comm (several ranks, each with the samples of the pixels it renders and zeros
  * elsewhere), the pixels' samples are first summed over the ranks (exactly: one rank holds each
  * pixel's), so every rank folds the same statistics and makes the same choice as one process.
  * Collective then: every rank calls it at the same epoch. comm NULL: this process alone. */
-void rd_select_epoch(rd_select *sel, const rd_comm *comm, double ahead);
+void rd_select_epoch(rd_select *sel, const rd_comm *comm, const rd_select_end *end);
 /* The trial (see select_rule.c, "Evidence of unequal size"): a tile's choice moves to another
  * estimator at once only when that estimator's samples in the tile are at least
  * 1 / RD_SELECT_TRIAL_RATIO of the current one's; else the tile goes on trial for one epoch
  * first. */
 #define RD_SELECT_TRIAL_RATIO 4
-/* The epochs: the first ends at sample RD_SELECT_EPOCH_FIRST of every pixel, and each is
- * RD_SELECT_EPOCH_GROWTH times the last (4, 16, 64, 256, ...). */
-#define RD_SELECT_EPOCH_FIRST 4
-#define RD_SELECT_EPOCH_GROWTH 4
 
 /* The image's samples so far, for the rule (select_rule.c, "The samples the image holds"): P,
  * the sum over the pixels of their samples' variances (the squared error of their means times
- * n0^2), n0 the samples a pixel, and R the time the render has left, in the units of the rule's
- * costs. */
+ * n0^2), n0 the samples a pixel, T0 their counted cost; and the render's end: with left > 0 it
+ * ends left samples a pixel from now, else R (in the units of the rule's costs) from now. */
 typedef struct {
-    double P, n0, R;
+    double P, n0, T0, R, left;
 } rd_select_past;
 
 /* The rule: for n tiles with the per-sample variance and cost of each of the m estimators
  * (var[m k + e], cost[m k + e], e = 0 .. m-1, as sums over each tile's pixels), the choices
  * that minimise (sum V)(sum C), or with `past` (may be NULL) the image's squared error at the
- * end of the time left, (P + a sum V) / (n0 + a)^2 with a = R / sum C; choice[k] the estimator
- * of tile k. */
+ * end of the time left, (P + a sum V) / (n0 + a)^2 with a = R / sum C, or where the render ends
+ * at a sample count (past->left > 0) that error times the render's time, (P + left sum V)(T0 +
+ * left sum C); choice[k] the estimator of tile k. */
 void rd_select_choose(const double *var, const double *cost, int n, int m, const rd_select_past *past,
                       uint8_t *choice);
 
 /* Every tile's estimator (sel->choice, sel->trial, and sel->unlit at the first call) from the
- * statistics of its two halves so far, sel->stats (select_rule.c): at the pilot's end and at
- * each epoch. Out of memory: the choices stay as they are. */
-void rd_select_choose_tiles(rd_select *sel);
+ * statistics of its two halves so far, sel->stats (select_rule.c): at the pilot's end (end
+ * NULL) and at each epoch, for a render that ends as `end` says (NULL: no end known). Out of
+ * memory: the choices stay as they are. */
+void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end);
 
 #endif /* RD_SELECT_H */

@@ -193,6 +193,8 @@
 #define SEL_COST_VERTEX 3.91   /* a guided-unbiased vertex that read the guide */
 #define SEL_COST_BEAM_HIT 0.60 /* a ball a segment's query crossed (march.ls nee+beams) */
 #define SEL_COST_EQ_FLIGHT 0.40 /* a flight's equiangular set-up (its choice of lights) */
+#define SEL_EPOCH_FIRST 4   /* the first epoch ends at sample 4 of every pixel, */
+#define SEL_EPOCH_GROWTH 4  /* and each is 4 times the last: 4, 16, 64, 256, ... */
 /* The pilot's random numbers: the image's keys (pixel, sample, seed) with the seed moved by a
  * constant, so no pilot sample is one of the image's. */
 #define SEL_SEED_SHIFT 0x5E1EC7ULL
@@ -452,7 +454,7 @@ static void beams_contend(rd_select *sel, int b, uint8_t *contend)
     const int unlit = sel->unlit;
     beams_pilot_fold(sel, b, 0);
     sel->unlit = -1; /* (the rule sets it where it runs) */
-    rd_select_choose_tiles(sel);
+    rd_select_choose_tiles(sel, NULL);
     memset(contend, sel->unlit < 0, (size_t)n);
     for (int k = 0; k < n && sel->unlit >= 0; k++) {
         if (sel->choice[k] != b && sel->trial[k] != 1 + b) continue;
@@ -490,13 +492,13 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
 }
 
 /* Count the choice just made and trace it (rd_select_trace): the pilot's governs the render's
- * samples from its first, the epochs' from RD_SELECT_EPOCH_FIRST, then each RD_SELECT_EPOCH_GROWTH times the
+ * samples from its first, the epochs' from SEL_EPOCH_FIRST, then each SEL_EPOCH_GROWTH times the
  * last. A failed write does not stop the render: the report keeps its error and the tracing
  * stops, so the file holds the first select_traced lines, none missing between them. */
 static void traced_choice(rd_select *sel)
 {
     long from = 0;
-    for (int i = 0; i < sel->choices; i++) from = i == 0 ? RD_SELECT_EPOCH_FIRST : from * RD_SELECT_EPOCH_GROWTH;
+    for (int i = 0; i < sel->choices; i++) from = i == 0 ? SEL_EPOCH_FIRST : from * SEL_EPOCH_GROWTH;
     sel->choices++;
     if (sel->report) sel->report->choices++;
     if (!sel->trace_path) return;
@@ -574,7 +576,7 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
             free(contend);
             beams_pilot_fold(sel, b, 1);
         }
-        rd_select_choose_tiles(sel);
+        rd_select_choose_tiles(sel, NULL);
     }
     rd_threads_free(th, threads);
     if (!ok) {
@@ -624,15 +626,15 @@ void rd_select_observe(rd_select *sel, uint64_t pixel, vec3 L, double cost)
 int rd_select_epoch_next(const rd_select *sel, int sample)
 {
     if (!sel->choice || !sel->epochs) return INT_MAX;
-    int b = RD_SELECT_EPOCH_FIRST;
+    int b = SEL_EPOCH_FIRST;
     while (b <= sample) {
-        if (b > INT_MAX / RD_SELECT_EPOCH_GROWTH) return INT_MAX;
-        b *= RD_SELECT_EPOCH_GROWTH;
+        if (b > INT_MAX / SEL_EPOCH_GROWTH) return INT_MAX;
+        b *= SEL_EPOCH_GROWTH;
     }
     return b;
 }
 
-void rd_select_epoch(rd_select *sel, const rd_comm *comm, double ahead)
+void rd_select_epoch(rd_select *sel, const rd_comm *comm, const rd_select_end *end)
 {
     if (!sel->choice) return;
     _Static_assert(sizeof(rd_select_pixel) == RD_SELECT_PIXEL_DOUBLES * sizeof(double),
@@ -652,9 +654,7 @@ void rd_select_epoch(rd_select *sel, const rd_comm *comm, double ahead)
             st->image_n += px->n, st->image_cost += px->cost / RD_SELECT_COST_UNIT; /* (the image's) */
             memset(px, 0, sizeof *px);
         }
-    sel->ahead = ahead;
-    rd_select_choose_tiles(sel);
-    sel->ahead = 0.0;
+    rd_select_choose_tiles(sel, end);
     traced_choice(sel);
 }
 

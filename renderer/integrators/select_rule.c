@@ -296,25 +296,31 @@ static uint8_t least(const double *f, int m)
     return (uint8_t)b;
 }
 
-/* The rule's objective for figure sums V and C (see the head, "The rule"): V C, or with the
- * image's samples so far, the image's squared error at the end of the time left (times the
- * pixels), (P + a V) / (n0 + a)^2 with a = R / C, the samples a pixel each draws in it. */
+/* The rule's objective for figure sums V and C (see the head, "The rule" and "The samples the
+ * image holds"): V C; with the image's samples so far and a deadline, the image's squared error
+ * then (times the pixels), (P + a V) / (n0 + a)^2 with a = R / C the samples a pixel draws in the
+ * time left; with a sample count, that error times the render's time, (P + left V)(T0 + left C)
+ * (up to the constant (n0 + left)^2). */
 static double objective(double V, double C, const rd_select_past *past)
 {
     if (!past) return V * C;
-    if (!(C > 0.0)) return 0.0; /* (samples without end) */
+    if (past->left > 0.0) return (past->P + past->left * V) * (past->T0 + past->left * C);
+    if (!(C > 0.0)) return 0.0; /* (a figure of no cost draws samples without end: no error) */
     double a = past->R / C;
     return (past->P + a * V) / ((past->n0 + a) * (past->n0 + a));
 }
 
 /* The weight lambda of cost against variance at which the objective is stationary (its
- * derivative in C over its derivative in V): V / C for the product, and with the past
+ * derivative in C over its derivative in V): V / C for the product; with a deadline
  * (2 P + (a - n0) V) / (C (n0 + a)), which is V / C when nothing is past (P = n0 = 0) or the
- * time left is long (a >> n0, P / n0). It can be negative: where the samples to come would be
- * noisier a sample than twice the past's, fewer of them make a better mean. */
+ * time left is long (a V >> P and a >> n0), and which is negative where a < n0 and the samples
+ * to come would be noisier a sample than 2 P / (n0 - a): fewer of them then make a better mean;
+ * with a sample count (P + left V) / (T0 + left C), never negative (the samples are drawn
+ * whatever they cost). */
 static double slope(double V, double C, const rd_select_past *past)
 {
     if (!past) return V / C;
+    if (past->left > 0.0) return (past->P + past->left * V) / (past->T0 + past->left * C);
     double a = past->R / C;
     return (2.0 * past->P + (a - past->n0) * V) / (C * (past->n0 + a));
 }
@@ -445,13 +451,15 @@ static void lag_floor(const rd_select *sel, const rd_select_stats *st, int centr
 /* The image's samples so far (see the head, "The samples the image holds"), for the rule on
  * figures var (one set of m per tile, as figures() gives them) from the statistics all (a tile's
  * two halves): P, the sum over the tiles of each estimator's image samples there times its
- * variance a sample as var reads it (var[m k + j] / pixels), n0 the image's samples a pixel, and
- * R = sel->ahead times their counted cost (the render's time left, in the costs' units). 0 (no
- * past to weigh: the rule on the samples to come alone) where the image holds no sample (the
- * pilot) or the render has no end known. */
-static int past_of(const rd_select *sel, const rd_select_stats *all, const double *var, rd_select_past *past)
+ * variance a sample as var reads it (var[m k + j] / pixels), n0 the image's samples a pixel, T0
+ * their counted cost, and the end: R = end->ahead T0 (the time left, in the costs' units) or
+ * end->left. 0 (no past to weigh: the rule on the samples to come alone) where the image holds no
+ * sample (the pilot) or the render has no end known (end NULL or both 0). */
+static int past_of(const rd_select *sel, const rd_select_stats *all, const double *var, const rd_select_end *end,
+                   rd_select_past *past)
 {
-    if (!(sel->ahead > 0.0 && isfinite(sel->ahead))) return 0;
+    const int by_time = end && end->ahead > 0.0 && isfinite(end->ahead), by_samples = end && end->left > 0.0;
+    if (!by_time && !by_samples) return 0;
     int nx = sel->tiles_x, n = nx * sel->tiles_y, m = sel->n;
     double P = 0.0, held = 0.0, T0 = 0.0;
     for (int k = 0; k < n; k++) {
@@ -462,7 +470,8 @@ static int past_of(const rd_select *sel, const rd_select_stats *all, const doubl
         }
     }
     if (!(held > 0.0 && T0 > 0.0)) return 0;
-    past->P = P, past->n0 = held / ((double)sel->width * sel->height), past->R = sel->ahead * T0;
+    past->P = P, past->n0 = held / ((double)sel->width * sel->height), past->T0 = T0;
+    past->R = by_time ? end->ahead * T0 : 0.0, past->left = by_time ? 0.0 : end->left;
     return 1;
 }
 
@@ -572,7 +581,7 @@ static int image_path(const rd_select *sel, const rd_select_stats *all, const do
  * variances if it is one of their two, else the cheaper of their two (see the head, "Replication"
  * and "Where the halves disagree"); a move to the estimator with far fewer samples goes on trial
  * first ("Evidence of unequal size"). */
-void rd_select_choose_tiles(rd_select *sel)
+void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
 {
     int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
     size_t mn = (size_t)m * n;
@@ -607,7 +616,7 @@ void rd_select_choose_tiles(rd_select *sel)
     rd_select_past past;
     for (int h = 0; h < 2; h++) {
         figures(sel, half[h], pbar, NULL, var, cost, tmp);
-        rd_select_choose(var, cost, n, m, past_of(sel, all, var, &past) ? &past : NULL, want + (size_t)h * n);
+        rd_select_choose(var, cost, n, m, past_of(sel, all, var, end, &past) ? &past : NULL, want + (size_t)h * n);
     }
     figures(sel, all, pbar, NULL, NULL, all_cost, tmp);
     /* What the tiles beyond a tile's pooling predict, for the tiles whose halves disagree (see
@@ -617,7 +626,7 @@ void rd_select_choose_tiles(rd_select *sel)
     uint8_t *image_want = want + 2 * (size_t)n;
     pooled_relative_variance(sel, all, r, r + mn, r + 2 * mn);
     figures(sel, all, pbar, r, var, cost, tmp);
-    rd_select_choose(var, cost, n, m, past_of(sel, all, var, &past) ? &past : NULL, image_want);
+    rd_select_choose(var, cost, n, m, past_of(sel, all, var, end, &past) ? &past : NULL, image_want);
     for (int k = 0; k < n; k++)
         for (int e = 0; e < m; e++)
             if (!(r[m * k + e] > 0.0)) image_want[k] = RD_SEL_MAX;

@@ -436,12 +436,14 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         }
         if (!cut) done += n, marched += (uint64_t)n * mp;
         if (!cut && s0 + done == epoch_end) {
-            /* The time left as a multiple of the image's so far (rd_render_ctx.epoch_ahead): by
-             * the deadline, and by the samples left over those done (as if each took as long). */
-            double t = now_seconds(clk), ahead = (double)(o->spp - done) / done;
-            if (deadline < INFINITY && t > t_image) ahead = fmin(ahead, fmax(0.0, deadline - t) / (t - t_image));
-            if (comm) comm->reduce(comm->user, &ahead, 1, RD_COMM_DOUBLE, RD_COMM_MAX, -1);
-            ctx.epoch_ahead = ahead;
+            /* How the render ends (rd_render_ctx.epoch_ahead, epoch_left): the bound that comes
+             * first, each read as a multiple of the image's so far, its time by the deadline
+             * (the largest over the ranks: one figure for all) or its samples. */
+            double t = now_seconds(clk), by_samples = (double)(o->spp - done) / done, by_time = INFINITY;
+            if (deadline < INFINITY && t > t_image) by_time = fmax(0.0, deadline - t) / (t - t_image);
+            if (comm) comm->reduce(comm->user, &by_time, 1, RD_COMM_DOUBLE, RD_COMM_MAX, -1);
+            ctx.epoch_ahead = by_time < by_samples ? by_time : 0.0;
+            ctx.epoch_left = by_time < by_samples ? 0.0 : (double)(o->spp - done);
             m->epoch(&ctx, epoch_end);
         }
         double t1 = now_seconds(clk), elapsed = t1 - t_start;
