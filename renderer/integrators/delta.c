@@ -124,7 +124,9 @@ static void delta_epoch(rd_render_ctx *ctx, int sample)
     delta_state *ds = ctx->state;
     (void)sample;
     if (!ds) return;
-    if (ds->sel) rd_select_epoch(ds->sel, ctx->comm, &(rd_select_end){ctx->epoch_ahead, ctx->epoch_left});
+    /* (No end given: the rule as before session 61, measured for `guided` only; see
+     * guided_unbiased.c's epoch.) */
+    if (ds->sel) rd_select_epoch(ds->sel, ctx->comm, NULL);
     else rd_probes_epoch(ctx, &ds->probes);
 }
 

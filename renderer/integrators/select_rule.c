@@ -217,14 +217,19 @@
  * counted cost so far), a choice with figure sums V and C draws a = R / C more samples a pixel
  * and leaves
  *     (P + a V) / (n0 + a)^2,
- * summed over the pixels (past_of, objective). A long time left (a >> n0) gives back V C / R,
- * the product below; so does the pilot (no image samples: P = n0 = 0), and so does a render with
- * no end known (rd_select_epoch's `ahead` not finite, as the unit tests' stand-ins). A move that
- * pays only in the long run is made only if the run is long: with the same choice the same every
- * epoch, the objective does not read "one epoch more" (the next epoch's n1 = 4 n0 as the horizon
- * would keep a past of one estimator for good, each epoch seeing the same 4x). The time left is
- * taken at the image's mean pace so far; in a render of a fixed number of samples it is the
- * samples left over those done.
+ * summed over the pixels (past_of, objective). A long time left (a V >> P, a >> n0) gives back
+ * V C / R, the product below; so does the pilot (no image samples: P = n0 = 0), and so does a
+ * render with no end known (rd_select_epoch's `end` NULL, as the unit tests' stand-ins). A move
+ * that pays only in the long run is made only if the run is long: the horizon is the render's
+ * end, not the next epoch (the next epoch's n1 = 4 n0 as the horizon would keep a past of one
+ * estimator for good, each epoch seeing the same 4x). The time left is taken at the image's mean
+ * pace so far. A render that ends at a sample count draws its left samples a pixel whatever they
+ * cost, so there the rule minimises the error at the end times the render's time, (P + left V)
+ * (T0 + left C) with T0 the image's counted cost so far (the error's (n0 + left)^2 is the same for
+ * every choice); at a deadline a costlier choice draws fewer samples, which the first form
+ * weighs. The choices then depend on the render's budget and, at a deadline, on the clock: a
+ * render of 64 samples is no longer the first 64 of one of 256 with the same seed (each is
+ * unbiased, and several ranks read one figure: render.c takes the largest).
  *
  * The rule. At equal time the image's MSE is (sum_k V_k)(sum_k C_k) / time for the choices
  * m_k of the tiles k, so the best choices minimise the product. Its stationary point is where
@@ -448,27 +453,26 @@ static void lag_floor(const rd_select *sel, const rd_select_stats *st, int centr
     }
 }
 
-/* The image's samples so far (see the head, "The samples the image holds"), for the rule on
- * figures var (one set of m per tile, as figures() gives them) from the statistics all (a tile's
- * two halves): P, the sum over the tiles of each estimator's image samples there times its
- * variance a sample as var reads it (var[m k + j] / pixels), n0 the image's samples a pixel, T0
- * their counted cost, and the end: R = end->ahead T0 (the time left, in the costs' units) or
- * end->left. 0 (no past to weigh: the rule on the samples to come alone) where the image holds no
- * sample (the pilot) or the render has no end known (end NULL or both 0). */
-static int past_of(const rd_select *sel, const rd_select_stats *all, const double *var, const rd_select_end *end,
-                   rd_select_past *past)
+/* The image's samples so far (see the head, "The samples the image holds") from the statistics
+ * all (a tile's two halves): P, the sum over the tiles of each estimator's image samples there
+ * times the variance a sample its samples there show (pooled over the tile's pixels, mean over
+ * RGB: no bound, no pooling over tiles, which are the rule's floors for a choice, not estimates
+ * of an error), n0 the image's samples a pixel, T0 their counted cost, and the end: R =
+ * end->ahead T0 (the time left, in the costs' units) or end->left. 0 (no past to weigh: the rule
+ * on the samples to come alone) where the image holds no sample (the pilot) or the render has no
+ * end known (end NULL or both 0). */
+static int past_of(const rd_select *sel, const rd_select_stats *all, const rd_select_end *end, rd_select_past *past)
 {
     const int by_time = end && end->ahead > 0.0 && isfinite(end->ahead), by_samples = end && end->left > 0.0;
     if (!by_time && !by_samples) return 0;
-    int nx = sel->tiles_x, n = nx * sel->tiles_y, m = sel->n;
+    int n = sel->tiles_x * sel->tiles_y, m = sel->n;
     double P = 0.0, held = 0.0, T0 = 0.0;
-    for (int k = 0; k < n; k++) {
-        const double pixels = tile_pixels(sel, k % nx, k / nx);
+    for (int k = 0; k < n; k++)
         for (int j = 0; j < m; j++) {
             const rd_select_stats *s = &all[m * k + j];
-            P += s->image_n * var[m * k + j] / pixels, held += s->image_n, T0 += s->image_cost;
+            if (s->dof > 0.0) P += s->image_n * (s->dev2[0] + s->dev2[1] + s->dev2[2]) / (3.0 * s->dof);
+            held += s->image_n, T0 += s->image_cost;
         }
-    }
     if (!(held > 0.0 && T0 > 0.0)) return 0;
     past->P = P, past->n0 = held / ((double)sel->width * sel->height), past->T0 = T0;
     past->R = by_time ? end->ahead * T0 : 0.0, past->left = by_time ? 0.0 : end->left;
@@ -616,7 +620,7 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
     rd_select_past past;
     for (int h = 0; h < 2; h++) {
         figures(sel, half[h], pbar, NULL, var, cost, tmp);
-        rd_select_choose(var, cost, n, m, past_of(sel, all, var, end, &past) ? &past : NULL, want + (size_t)h * n);
+        rd_select_choose(var, cost, n, m, past_of(sel, all, end, &past) ? &past : NULL, want + (size_t)h * n);
     }
     figures(sel, all, pbar, NULL, NULL, all_cost, tmp);
     /* What the tiles beyond a tile's pooling predict, for the tiles whose halves disagree (see
@@ -626,7 +630,7 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
     uint8_t *image_want = want + 2 * (size_t)n;
     pooled_relative_variance(sel, all, r, r + mn, r + 2 * mn);
     figures(sel, all, pbar, r, var, cost, tmp);
-    rd_select_choose(var, cost, n, m, past_of(sel, all, var, end, &past) ? &past : NULL, image_want);
+    rd_select_choose(var, cost, n, m, past_of(sel, all, end, &past) ? &past : NULL, image_want);
     for (int k = 0; k < n; k++)
         for (int e = 0; e < m; e++)
             if (!(r[m * k + e] > 0.0)) image_want[k] = RD_SEL_MAX;
