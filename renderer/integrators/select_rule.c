@@ -212,7 +212,8 @@
  * `guided`'s 830. gB made 0.33-0.77x plain `delta` there (docs/benchmarks.md "Session 60"). So at
  * an epoch the rule minimises what the image's squared error will be when the render ends: with
  * n0 samples a pixel so far, whose variances sum to P over the pixels (each estimator's image
- * samples in a tile times its variance a sample as the figures read it), and R the time left (the
+ * samples in a tile times the variance a sample its samples there show: not the figures, whose
+ * bounds and pooling are floors for a choice, not estimates of an error), and R the time left (the
  * render's time left over its image's so far, rd_render_ctx.epoch_ahead, times the image's
  * counted cost so far), a choice with figure sums V and C draws a = R / C more samples a pixel
  * and leaves
@@ -229,7 +230,13 @@
  * every choice); at a deadline a costlier choice draws fewer samples, which the first form
  * weighs. The choices then depend on the render's budget and, at a deadline, on the clock: a
  * render of 64 samples is no longer the first 64 of one of 256 with the same seed (each is
- * unbiased, and several ranks read one figure: render.c takes the largest).
+ * unbiased, and several ranks read one figure: render.c takes the largest). Only `guided`'s
+ * selection is given the render's end (guided.c): guided-unbiased's, given it, lost 30% of its
+ * efficiency on hard-dense-block in two rounds at 10 s (1.43 -> 1.05, 1.74 -> 1.21 plain `delta`;
+ * fewer tiles on trial to its paths at the epoch at 64, 45 and 17 of the halves' wants against 66
+ * and 51, though the objective's weights there, read from a print, differ from the product's by
+ * 6%: not understood), and `delta`'s "tiles" was not measured; both weigh the samples to come
+ * alone, as before.
  *
  * The rule. At equal time the image's MSE is (sum_k V_k)(sum_k C_k) / time for the choices
  * m_k of the tiles k, so the best choices minimise the product. Its stationary point is where
