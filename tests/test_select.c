@@ -337,7 +337,7 @@ Test(select, a_move_that_pays_only_after_the_render_ends_is_not_made)
      * delta, no trial. With 100x the time left: 0.0077 against 0.0043, and the method goes on
      * trial, as with no end known. At a sample count the same: with 256 samples a pixel left,
      * error times time (P + 256 V)(T0 + 256 C) is 101888 x 512 = 5.2e7 with delta against
-     * 50995 x 2304 = 1.2e8 with the method; with 25600 left, 1.3e11 against 1.2e10. */
+     * 50995 x 2304 = 1.2e8 with the method; with 25600 left, 1.3e11 against 1.1e10. */
     const rd_select_end ends[5] = {{1.0, 0.0}, {100.0, 0.0}, {0.0, 256.0}, {0.0, 25600.0}, {0.0, 0.0}};
     const int trial[5] = {0, 1 + RD_SEL_METHOD, 0, 1 + RD_SEL_METHOD, 1 + RD_SEL_METHOD};
     for (int i = 0; i < 5; i++) {

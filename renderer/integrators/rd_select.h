@@ -41,7 +41,8 @@ typedef struct {
 
 /* How the render ends, seen at an epoch (select_rule.c, "The samples the image holds"): at its
  * deadline, `ahead` the time left over the time its image has taken so far (> 0), or at its
- * sample count, `left` the samples a pixel has left (> 0); the other 0. Both 0: no end known. */
+ * sample count, `left` the samples a pixel has left (> 0); the other 0. Both 0: no end known, or
+ * nothing left (the rule weighs the samples to come alone). */
 typedef struct {
     double ahead, left;
 } rd_select_end;

@@ -212,8 +212,10 @@
  * `guided`'s 830. gB made 0.33-0.77x plain `delta` there (docs/benchmarks.md "Session 60"). So at
  * an epoch the rule minimises what the image's squared error will be when the render ends: with
  * n0 samples a pixel so far, whose variances sum to P over the pixels (each estimator's image
- * samples in a tile times the variance a sample its samples there show: not the figures, whose
- * bounds and pooling are floors for a choice, not estimates of an error), and R the time left (the
+ * samples in a tile times its variance a sample as the figures read it: the past weighed as the
+ * samples to come are; the samples' own spread, below the figures' floors where those bind, made
+ * the past look better than the same estimator's future and can turn the cost's weight
+ * negative, favouring costlier estimators late in a render), and R the time left (the
  * render's time left over its image's so far, rd_render_ctx.epoch_ahead, times the image's
  * counted cost so far), a choice with figure sums V and C draws a = R / C more samples a pixel
  * and leaves
@@ -227,7 +229,7 @@
  * pace so far. A render that ends at a sample count draws its left samples a pixel whatever they
  * cost, so there the rule minimises the error at the end times the render's time, (P + left V)
  * (T0 + left C) with T0 the image's counted cost so far (the error's (n0 + left)^2 is the same for
- * every choice); at a deadline a costlier choice draws fewer samples, which the first form
+ * every choice); at a deadline a costlier choice draws fewer samples, which the deadline's form
  * weighs. The choices then depend on the render's budget and, at a deadline, on the clock: a
  * render of 64 samples is no longer the first 64 of one of 256 with the same seed (each is
  * unbiased, and several ranks read one figure: render.c takes the largest). Only `guided`'s
@@ -460,26 +462,28 @@ static void lag_floor(const rd_select *sel, const rd_select_stats *st, int centr
     }
 }
 
-/* The image's samples so far (see the head, "The samples the image holds") from the statistics
- * all (a tile's two halves): P, the sum over the tiles of each estimator's image samples there
- * times the variance a sample its samples there show (pooled over the tile's pixels, mean over
- * RGB: no bound, no pooling over tiles, which are the rule's floors for a choice, not estimates
- * of an error), n0 the image's samples a pixel, T0 their counted cost, and the end: R =
- * end->ahead T0 (the time left, in the costs' units) or end->left. 0 (no past to weigh: the rule
- * on the samples to come alone) where the image holds no sample (the pilot) or the render has no
- * end known (end NULL or both 0). */
-static int past_of(const rd_select *sel, const rd_select_stats *all, const rd_select_end *end, rd_select_past *past)
+/* The image's samples so far (see the head, "The samples the image holds"), for the rule on
+ * figures var (one set of m per tile, as figures() gives them) from the statistics all (a tile's
+ * two halves): P, the sum over the tiles of each estimator's image samples there times its
+ * variance a sample as var reads it (var[m k + j] / pixels: the same figures, bounds and pooling
+ * as the samples to come are weighed by), n0 the image's samples a pixel, T0 their counted cost,
+ * and the end: R = end->ahead T0 (the time left, in the costs' units) or end->left. 0 (no past to
+ * weigh: the rule on the samples to come alone) where the image holds no sample (the pilot) or
+ * the render has no end known (end NULL or both 0). */
+static int past_of(const rd_select *sel, const rd_select_stats *all, const double *var, const rd_select_end *end,
+                   rd_select_past *past)
 {
     const int by_time = end && end->ahead > 0.0 && isfinite(end->ahead), by_samples = end && end->left > 0.0;
     if (!by_time && !by_samples) return 0;
-    int n = sel->tiles_x * sel->tiles_y, m = sel->n;
+    int nx = sel->tiles_x, n = nx * sel->tiles_y, m = sel->n;
     double P = 0.0, held = 0.0, T0 = 0.0;
-    for (int k = 0; k < n; k++)
+    for (int k = 0; k < n; k++) {
+        const double pixels = tile_pixels(sel, k % nx, k / nx);
         for (int j = 0; j < m; j++) {
             const rd_select_stats *s = &all[m * k + j];
-            if (s->dof > 0.0) P += s->image_n * (s->dev2[0] + s->dev2[1] + s->dev2[2]) / (3.0 * s->dof);
-            held += s->image_n, T0 += s->image_cost;
+            P += s->image_n * var[m * k + j] / pixels, held += s->image_n, T0 += s->image_cost;
         }
+    }
     if (!(held > 0.0 && T0 > 0.0)) return 0;
     past->P = P, past->n0 = held / ((double)sel->width * sel->height), past->T0 = T0;
     past->R = by_time ? end->ahead * T0 : 0.0, past->left = by_time ? 0.0 : end->left;
@@ -627,7 +631,7 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
     rd_select_past past;
     for (int h = 0; h < 2; h++) {
         figures(sel, half[h], pbar, NULL, var, cost, tmp);
-        rd_select_choose(var, cost, n, m, past_of(sel, all, end, &past) ? &past : NULL, want + (size_t)h * n);
+        rd_select_choose(var, cost, n, m, past_of(sel, all, var, end, &past) ? &past : NULL, want + (size_t)h * n);
     }
     figures(sel, all, pbar, NULL, NULL, all_cost, tmp);
     /* What the tiles beyond a tile's pooling predict, for the tiles whose halves disagree (see
@@ -637,7 +641,7 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
     uint8_t *image_want = want + 2 * (size_t)n;
     pooled_relative_variance(sel, all, r, r + mn, r + 2 * mn);
     figures(sel, all, pbar, r, var, cost, tmp);
-    rd_select_choose(var, cost, n, m, past_of(sel, all, end, &past) ? &past : NULL, image_want);
+    rd_select_choose(var, cost, n, m, past_of(sel, all, var, end, &past) ? &past : NULL, image_want);
     for (int k = 0; k < n; k++)
         for (int e = 0; e < m; e++)
             if (!(r[m * k + e] > 0.0)) image_want[k] = RD_SEL_MAX;
