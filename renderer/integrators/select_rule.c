@@ -236,8 +236,8 @@
  * selection is given the render's end (guided.c): guided-unbiased's, given it, lost 30% of its
  * efficiency on hard-dense-block in two rounds at 10 s (1.43 -> 1.05, 1.74 -> 1.21 plain `delta`;
  * fewer tiles on trial to its paths at the epoch at 64, 45 and 17 of the halves' wants against 66
- * and 51, though the objective's weights there, read from a print, differ from the product's by
- * 6%: not understood), and `delta`'s "tiles" was not measured; both weigh the samples to come
+ * and 51, though the objective's weights there, read from a print with P from the samples'
+ * spread, differ from the product's by 6%: not understood), and `delta`'s "tiles" was not measured; both weigh the samples to come
  * alone, as before.
  *
  * The rule. At equal time the image's MSE is (sum_k V_k)(sum_k C_k) / time for the choices
