@@ -213,8 +213,8 @@
  * an epoch the rule minimises what the image's squared error will be when the render ends: with
  * n0 samples a pixel so far, whose variances sum to P over the pixels (each estimator's image
  * samples in a tile times its variance a sample as the figures read it: the past weighed as the
- * samples to come are; the samples' own spread, below the figures' floors where those bind, made
- * the past look better than the same estimator's future and can turn the cost's weight
+ * samples to come are; the samples' own spread, below the figures' floors where those bind, would
+ * make the past look better than the same estimator's future and could turn the cost's weight
  * negative, favouring costlier estimators late in a render), and R the time left (the
  * render's time left over its image's so far, rd_render_ctx.epoch_ahead, times the image's
  * counted cost so far), a choice with figure sums V and C draws a = R / C more samples a pixel
@@ -235,10 +235,10 @@
  * unbiased, and several ranks read one figure: render.c takes the largest). Only `guided`'s
  * selection is given the render's end (guided.c): guided-unbiased's, given it, lost 30% of its
  * efficiency on hard-dense-block in two rounds at 10 s (1.43 -> 1.05, 1.74 -> 1.21 plain `delta`;
- * fewer tiles on trial to its paths at the epoch at 64, 45 and 17 of the halves' wants against 66
- * and 51, though the objective's weights there, read from a print with P from the samples'
- * spread, differ from the product's by 6%: not understood), and `delta`'s "tiles" was not measured; both weigh the samples to come
- * alone, as before.
+ * fewer tiles on trial to its paths at the epoch at 64, 2 against 30 in seed 1031, though the
+ * objective's weights there, printed by a scratch build, were within 6% of the product's: not
+ * understood; docs/guided-marching.md "The samples the image holds"), and `delta`'s "tiles" was
+ * not measured; both weigh the samples to come alone, as before.
  *
  * The rule. At equal time the image's MSE is (sum_k V_k)(sum_k C_k) / time for the choices
  * m_k of the tiles k, so the best choices minimise the product. Its stationary point is where
@@ -613,7 +613,8 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
         const rd_select_stats *a = &half[0][i], *b = &half[1][i];
         rd_select_stats *t = &all[i];
         t->n = a->n + b->n, t->nonzero = a->nonzero + b->nonzero, t->dof = a->dof + b->dof;
-        t->cost = a->cost + b->cost, t->image_n = a->image_n + b->image_n, t->image_cost = a->image_cost + b->image_cost;
+        t->cost = a->cost + b->cost;
+        t->image_n = a->image_n + b->image_n, t->image_cost = a->image_cost + b->image_cost;
         for (int c = 0; c < 3; c++) t->sum[c] = a->sum[c] + b->sum[c], t->dev2[c] = a->dev2[c] + b->dev2[c];
     }
     /* Each estimator's non-zero fraction over the lit tiles: the prior of every tile's p. */
