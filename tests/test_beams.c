@@ -358,12 +358,12 @@ Test(beams, later_passes_are_ordered_not_indexed)
     rd_scene *s = rt_scene("beams.json", scene_json());
     cr_assert(rd_march_pass_maps(s) == 0u, "one fixed map (photons.progressive false): no pass");
     s->photons.progressive = 1;
-    cr_assert(rd_march_pass_maps(s) == (RD_NEEDS_INDIRECT | RD_PASS_NO_INDEX));
+    cr_assert(rd_march_pass_maps(s) == (RD_NEEDS_INDIRECT | RD_PASS_NO_INDEX | RD_PASS_THIN));
     char err[RD_ERRLEN];
     rd_baked *ordered = NULL, *built = NULL;
-    cr_assert(rd_bake_photon_pass(s, rd_march_pass_maps(s), 2, 7, 1, NULL, NULL, &ordered, err, sizeof err) == RD_OK,
+    cr_assert(rd_bake_photon_pass(s, rd_march_pass_maps(s), 2, 7, 1.0, 1, NULL, NULL, &ordered, err, sizeof err) == RD_OK,
               "%s", err);
-    cr_assert(rd_bake_photon_pass(s, RD_NEEDS_INDIRECT, 2, 7, 1, NULL, NULL, &built, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_bake_photon_pass(s, RD_NEEDS_INDIRECT, 2, 7, 1.0, 1, NULL, NULL, &built, err, sizeof err) == RD_OK, "%s", err);
     const pm_map *a = rd_baked_indirect_map(ordered), *b = rd_baked_indirect_map(built);
     size_t n = pm_map_photon_count(a);
     cr_assert(n > 100 && n == pm_map_photon_count(b), "%zu and %zu photons", n, pm_map_photon_count(b));
@@ -377,5 +377,81 @@ Test(beams, later_passes_are_ordered_not_indexed)
     cr_expect(pm_map_knn(b, x, 4, idx, d2) == 4);
     rd_baked_free(ordered);
     rd_baked_free(built);
+    rd_scene_free(s);
+}
+
+/* A thinned pass (RD_PASS_THIN; rd_photon_opts.keep): the same photons' paths, each collision
+ * stored with probability q and its power divided by q. So the thinned map is a subsequence of
+ * the pass's whole map (the same seed: positions and directions to the bit, power x 1/q), it
+ * holds about q of its collisions, and its total power estimates the whole map's without bias.
+ * The count is binomial, sd sqrt(n q (1 - q)); the power's difference has variance
+ * sum p_i^2 (1 - q) / q over the whole map's photons: both within 5 sigma (fixed seeds). */
+Test(beams, a_thinned_pass_keeps_a_share_of_the_same_collisions)
+{
+    rd_scene *s = rt_scene("beams.json", scene_json());
+    s->photons.count = 20000;
+    char err[RD_ERRLEN];
+    const double q = 0.3;
+    rd_baked *whole = NULL, *thin = NULL;
+    cr_assert(rd_bake_photon_pass(s, RD_NEEDS_INDIRECT, 2, 7, 1.0, 1, NULL, NULL, &whole, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_bake_photon_pass(s, RD_NEEDS_INDIRECT | RD_PASS_NO_INDEX, 2, 7, q, 2, NULL, NULL, &thin, err, sizeof err) == RD_OK,
+              "%s", err);
+    const pm_map *a = rd_baked_indirect_map(whole), *b = rd_baked_indirect_map(thin);
+    size_t na = pm_map_photon_count(a), nb = pm_map_photon_count(b);
+    cr_assert(na > 20000, "the scene stores %zu indirect collisions for 20000 photons", na);
+    const pm_photon *pa = pm_map_photons(a), *pb = pm_map_photons(b);
+    size_t j = 0, unmatched = 0;
+    double sum_a = 0.0, sum_b = 0.0, var = 0.0;
+    for (size_t i = 0; i < na; i++) {
+        double p = pa[i].power[0] + pa[i].power[1] + pa[i].power[2];
+        sum_a += p;
+        var += p * p * (1.0 - q) / q;
+    }
+    for (size_t i = 0; i < nb; i++) {
+        while (j < na && memcmp(pa[j].pos, pb[i].pos, sizeof pa[j].pos) != 0) j++;
+        if (j == na || memcmp(pa[j].dir, pb[i].dir, sizeof pa[j].dir) != 0) {
+            unmatched++;
+            j = 0;
+            continue;
+        }
+        for (int c = 0; c < 3; c++)
+            cr_expect(fabs(pb[i].power[c] - pa[j].power[c] / q) <= 1e-6 * fabs(pa[j].power[c] / q) + 1e-30,
+                      "photon %zu, channel %d: power %g, want %g / %g", i, c, pb[i].power[c], pa[j].power[c], q);
+        sum_b += pb[i].power[0] + pb[i].power[1] + pb[i].power[2];
+        j++;
+    }
+    cr_expect(unmatched == 0, "%zu of the thinned pass's %zu photons are not in the whole pass, in order", unmatched, nb);
+    double sd_n = sqrt(na * q * (1.0 - q));
+    cr_expect(fabs(nb - q * na) < 5.0 * sd_n, "kept %zu of %zu, want %.0f +- 5 x %.1f", nb, na, q * na, sd_n);
+    cr_expect(fabs(sum_b - sum_a) < 5.0 * sqrt(var), "power %.6g thinned, %.6g whole (5 sd %.3g)", sum_b, sum_a,
+              5.0 * sqrt(var));
+    rd_baked_free(whole);
+    rd_baked_free(thin);
+    rd_scene_free(s);
+}
+
+/* A render whose beams read progressive passes (march.ls nee+beams, photons.progressive) thins
+ * the passes after the first by pass 1's own counts: the report's keep is pass 1's emitted over
+ * its stored indirect photons (the same pass baked here, the render's seed), and the image is
+ * finite. (That the thinning keeps the estimate unbiased is the test above.) */
+Test(beams, a_render_thins_its_later_passes_by_pass_one_s_counts, .timeout = 300)
+{
+    rd_scene *s = rt_scene("beams.json", scene_json());
+    s->photons.progressive = 1;
+    char err[RD_ERRLEN];
+    rd_baked *first = NULL;
+    cr_assert(rd_bake_photon_pass(s, RD_NEEDS_INDIRECT, 1, 3, 1.0, 2, NULL, NULL, &first, err, sizeof err) == RD_OK, "%s", err);
+    const rd_bake_stats *b1 = rd_baked_stats(first);
+    cr_assert(b1->indexed > b1->emitted, "pass 1 stores %zu for %zu emitted: nothing to thin", b1->indexed, b1->emitted);
+    double want = (double)b1->emitted / (double)b1->indexed;
+    rd_render_opts o = {.method = "uniform", .spp = 3, .seed = 3, .threads = 2};
+    rd_render_result r;
+    cr_assert(rd_render(s, &o, &r, err, sizeof err) == RD_OK, "%s", err);
+    cr_expect(r.stats.photon_passes == 3, "%d passes", r.stats.photon_passes);
+    cr_expect(r.stats.photon_keep == want, "keep %.17g, want %.17g", r.stats.photon_keep, want);
+    for (int i = 0; i < 3 * r.image.w * r.image.h; i++)
+        cr_assert(isfinite(r.image.rgb[i]), "pixel value %d not finite", i);
+    rd_render_result_free(&r);
+    rd_baked_free(first);
     rd_scene_free(s);
 }

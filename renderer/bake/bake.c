@@ -224,7 +224,7 @@ static size_t photons_to_trace(const rd_scene *s, const rd_bake_opts *o)
  * `indirect`, the same trace also fills a new *indirect with the photons without their first
  * flight (rd_trace_photons_split), which a second trace would otherwise repeat. Several ranks
  * (o->comm): collective, and a failure is every rank's. */
-static rd_status trace_new_map(const rd_scene *s, const rd_bake_opts *o, int store_direct, int segments,
+static rd_status trace_new_map(const rd_scene *s, const rd_bake_opts *o, int store_direct, int segments, double keep,
                                pm_map **map, pm_map **indirect, rd_photon_stats *ps, char *err,
                                size_t errlen)
 {
@@ -233,6 +233,7 @@ static rd_status trace_new_map(const rd_scene *s, const rd_bake_opts *o, int sto
                          .segments = segments,
                          .max_depth = s->photons.max_depth,
                          .reachable = o->reachable,
+                         .keep = keep,
                          .seed = o->seed >= 0 ? (uint64_t)o->seed : s->photons.seed,
                          .threads = o->threads,
                          .cancel = o->cancel,
@@ -315,7 +316,7 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
     } else {
         rd_photon_stats ps;
         pm_map **ind = o->indirect && !o->load_indirect ? &b->indirect : NULL;
-        if ((st = trace_new_map(s, o, s->photons.store_direct, s->photons.segments, &b->map, ind, &ps, err, errlen)) != RD_OK) {
+        if ((st = trace_new_map(s, o, s->photons.store_direct, s->photons.segments, 1.0, &b->map, ind, &ps, err, errlen)) != RD_OK) {
             br.agreed = 1; /* a failed trace failed on every rank */
             goto fail;
         }
@@ -343,7 +344,7 @@ rd_status rd_bake(const rd_scene *s, const rd_bake_opts *o, rd_baked **out, char
         /* (with a loaded main map: the indirect photons need a trace of their own) */
         rd_photon_stats ps;
         if ((st = bake_agree(&br, RD_OK, err, errlen)) != RD_OK) goto fail;
-        if ((st = trace_new_map(s, o, 0, 0, &b->indirect, NULL, &ps, err, errlen)) != RD_OK) {
+        if ((st = trace_new_map(s, o, 0, 0, 1.0, &b->indirect, NULL, &ps, err, errlen)) != RD_OK) {
             br.agreed = 1;
             goto fail;
         }
@@ -412,7 +413,7 @@ fail:
     return st;
 }
 
-rd_status rd_bake_photon_pass(const rd_scene *s, unsigned maps, int pass, uint64_t render_seed,
+rd_status rd_bake_photon_pass(const rd_scene *s, unsigned maps, int pass, uint64_t render_seed, double keep,
                               int threads, const volatile int *cancel, const rd_comm *comm, rd_baked **out,
                               char *err, size_t errlen)
 {
@@ -435,8 +436,8 @@ rd_status rd_bake_photon_pass(const rd_scene *s, unsigned maps, int pass, uint64
     /* The same two maps as rd_bake makes, from this pass's photons: one trace for both (a
      * collective one on several ranks, whose failure is every rank's). */
     pm_map **ind = maps & RD_NEEDS_INDIRECT ? &b->indirect : NULL;
-    if (maps & RD_NEEDS_PHOTONS) st = trace_new_map(s, &o, s->photons.store_direct, 0, &b->map, ind, &ps, err, errlen);
-    else if (maps & RD_NEEDS_INDIRECT) st = trace_new_map(s, &o, 0, 0, &b->indirect, NULL, &ps, err, errlen);
+    if (maps & RD_NEEDS_PHOTONS) st = trace_new_map(s, &o, s->photons.store_direct, 0, keep, &b->map, ind, &ps, err, errlen);
+    else if (maps & RD_NEEDS_INDIRECT) st = trace_new_map(s, &o, 0, 0, keep, &b->indirect, NULL, &ps, err, errlen);
     if (st != RD_OK) {
         rd_baked_free(b);
         return st;

@@ -276,11 +276,20 @@ int rd_light_sample_emission(const rd_scene *s, const rd_light *l, const rd_emis
     return 0;
 }
 
+/* Whether photon i's collision at `depth` is stored under thinning (rd_photon_opts.keep): a hash
+ * of the seed, the photon and the depth against keep, so the photon's stream is untouched. */
+static int kept(const rd_photon_opts *o, size_t i, int depth)
+{
+    uint64_t h = rd_mix64(o->seed ^ rd_mix64((uint64_t)i * 0x9E3779B97F4A7C15ULL + (uint64_t)depth));
+    return (double)(h >> 11) * 0x1.0p-53 < o->keep;
+}
+
 static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double *cdf,
                         const rd_emission_aim *aim, size_t first, size_t count, block_out *b,
                         rd_track_counters *tc)
 {
     const double inv_n = 1.0 / (double)o->count;
+    const int thin = o->keep > 0.0 && o->keep < 1.0;
     for (size_t i = first; i < first + count; i++) {
         pcg32 rng = pcg32_seed(i, 0x70686f746f6eULL, o->seed);
         /* Choose a light with probability proportional to its power (binary search). */
@@ -368,9 +377,14 @@ static void trace_block(const rd_scene *s, const rd_photon_opts *o, const double
             acc(b->scattered, scattered);
             if (caustic) acc(b->caustic, scattered);
             if (caustic && delta_light) acc(b->hidden, scattered);
-            /* Store the scattered power; skip first collisions when NEE supplies direct light. */
-            if (store && (depth > 1 || o->store_direct)) push_to(b, &b->ph, &b->n_ph, &b->cap_ph, x, r.d, scattered);
-            if (store && depth > 1 && b->split) push_to(b, &b->ind, &b->n_ind, &b->cap_ind, x, r.d, scattered);
+            /* Store the scattered power; skip first collisions when NEE supplies direct light.
+             * With thinning (o->keep), one choice for both maps, so the indirect map stays a
+             * subset of the other. */
+            if (store && (!thin || kept(o, i, depth))) {
+                vec3 stored = thin ? v3_scale(scattered, 1.0 / o->keep) : scattered;
+                if (depth > 1 || o->store_direct) push_to(b, &b->ph, &b->n_ph, &b->cap_ph, x, r.d, stored);
+                if (depth > 1 && b->split) push_to(b, &b->ind, &b->n_ind, &b->cap_ind, x, r.d, stored);
+            }
             acc(b->absorbed, v3_sub(beta, scattered)); /* expected absorption at this event */
             if (depth >= o->max_depth) { acc(b->carried, scattered); break; }
             /* Russian roulette on the albedo: survive with p = max channel, power x albedo / p. */

@@ -21,6 +21,11 @@ typedef struct {
                           or segment on an L S+ path from a point, spot or directional light
                           (the light of power_hidden, below); the statistics count all */
     uint64_t seed;
+    /* Thinning: 0 (or >= 1) stores every collision; in (0, 1) each collision is stored with
+     * probability keep, its power divided by keep (unbiased given the kernel that reads it), the
+     * choice a hash of (seed, photon, depth), so that it draws nothing from the photon's own
+     * stream (its path is the same either way) and does not depend on threads or ranks. */
+    double keep;
     int threads;       /* 0 = all */
     const volatile int *cancel; /* non-NULL: read before each block of 4096 photons; once it is
                                    non-zero the trace stops and returns RD_ERR_CANCELLED */
@@ -143,11 +148,12 @@ uint64_t rd_ppm_pass_seed(uint64_t photon_seed, uint64_t render_seed, int pass);
  * collision; RD_NEEDS_INDIRECT: the map without first flights) traced with
  * photons.pass_count (else photons.count) photons and rd_ppm_pass_seed(photons.seed,
  * render_seed, pass), and indexed (with RD_PASS_NO_INDEX in maps only put in spatial order,
- * pm_map_order: no query may be asked of them); no guide. *out is freed with rd_baked_free; its stats say
+ * pm_map_order: no query may be asked of them), each collision stored with probability keep
+ * (rd_photon_opts.keep; 0 or 1: every one); no guide. *out is freed with rd_baked_free; its stats say
  * the photons emitted and the seconds. cancel (NULL: none) is polled while tracing:
  * RD_ERR_CANCELLED. comm (NULL: alone): the ranks trace the pass together (rd_photon_opts.comm)
  * and return the same status on every rank. */
-rd_status rd_bake_photon_pass(const rd_scene *s, unsigned maps, int pass, uint64_t render_seed,
+rd_status rd_bake_photon_pass(const rd_scene *s, unsigned maps, int pass, uint64_t render_seed, double keep,
                               int threads, const volatile int *cancel, const rd_comm *comm, rd_baked **out,
                               char *err, size_t errlen);
 

@@ -59,7 +59,7 @@ static int wants_beams(const rd_scene *s)
  * estimator's indirect map, in spatial order after pass 1 (RD_PASS_NO_INDEX; always progressive). */
 static unsigned pass_maps_guided(const rd_scene *s)
 {
-    return wants_beams(s) ? RD_NEEDS_INDIRECT | RD_PASS_NO_INDEX : rd_march_pass_maps(s);
+    return wants_beams(s) ? RD_NEEDS_INDIRECT | RD_PASS_NO_INDEX | RD_PASS_THIN : rd_march_pass_maps(s);
 }
 
 /* The pilot pass of eq. 17: mean I_ray over a sparse grid of camera rays through pixel centres

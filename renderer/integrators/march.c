@@ -617,8 +617,8 @@ unsigned rd_march_pass_maps(const rd_scene *s)
     case RD_LS_PHOTONS: return RD_NEEDS_PHOTONS;
     case RD_LS_NEE_PHOTONS: return RD_NEEDS_INDIRECT;
     /* the beams read a pass's photons in spatial order and ask it no query (march_beams.c: the
-     * radii from pass 1's map) */
-    case RD_LS_NEE_BEAMS: return RD_NEEDS_INDIRECT | RD_PASS_NO_INDEX;
+     * radii from pass 1's map), and keep about as many balls as photons emitted */
+    case RD_LS_NEE_BEAMS: return RD_NEEDS_INDIRECT | RD_PASS_NO_INDEX | RD_PASS_THIN;
     default: return 0u;
     }
 }

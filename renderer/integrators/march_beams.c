@@ -176,7 +176,10 @@ void rd_march_beams_free(march_state *st)
  * however often they scatter. The choice hashes (pass, index), so it does not depend on the
  * threads. Keeping every photon tied on the calibration scenes (cloud, smoke-vdb,
  * sphere-in-fog: 0.87-1.08x) and lost 1.2x on a dense variant of hetero-forward (sigma_t 10,
- * albedo 0.99; docs/benchmarks.md "Session 19"). */
+ * albedo 0.99; docs/benchmarks.md "Session 19"). Since session 62 the passes after the first
+ * are thinned as they are traced (RD_PASS_THIN, rd_method.h: q from pass 1's counts), so they
+ * arrive with about `emitted` photons already carrying 1/q, and the thinning here only trims
+ * the binomial excess (its 1/q then multiplies the tracer's: both unbiased). */
 rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen)
 {
     march_state *st = ctx->state;

@@ -106,6 +106,14 @@ typedef struct rd_select_report {
  * asked no query, so they get that order without the kd-tree (pm_map_order; nee+beams, whose
  * k-NN radii come from pass 1's map, which is built whatever this says). */
 enum { RD_PASS_NO_INDEX = 1u << 16 };
+/* Beside a progressive pass's maps: the passes after the first are read as at most about as many
+ * photons as the pass emitted (nee+beams keeps that many balls, march_beams.c), so they are
+ * thinned as they are traced: each collision stored with probability
+ * q = min(1, emitted / stored in pass 1), its power 1/q (rd_photon_opts.keep). In a dense medium,
+ * where a photon stores a collision every mean free path, the pass then neither stores nor orders
+ * the collisions the beams would drop (hard-dense-block: 1.85 million stored a pass, 0.2 million
+ * kept). */
+enum { RD_PASS_THIN = 1u << 17 };
 
 typedef struct rd_method {
     const char *name;
@@ -116,7 +124,7 @@ typedef struct rd_method {
     /* Optional: the photon maps a progressive photon pass must trace anew for this scene
      * (RD_NEEDS_PHOTONS, RD_NEEDS_INDIRECT; 0 = none: no passes, the hook's to decide from the
      * scene, photons.progressive or `guided`'s march.beams), with RD_PASS_NO_INDEX where the passes after the
-     * first are only read in spatial order (above). NULL = none. */
+     * first are only read in spatial order, RD_PASS_THIN where they are thinned (above). NULL = none. */
     unsigned (*pass_maps)(const rd_scene *scene);
     /* Optional: called when a progressive photon pass has put new maps into ctx (between the
      * render's passes, after prepare; not for pass 1, whose maps prepare sees). */

@@ -136,7 +136,9 @@
  * "Session 53"; not counted: the beams' set-up a pass, ~14%, the one-thread kd-tree, R ranks' R x).
  * Since session 56 the beams' passes after the first build no kd-tree (RD_PASS_NO_INDEX, their
  * photons only put in spatial order), and their photons count RD_SELECT_COST_ORDERED
- * (RD_SELECT_PASSES_ORDERED; pass 1's counts stand for every pass's).
+ * (RD_SELECT_PASSES_ORDERED; pass 1's counts stand for every pass's). Since session 62 those
+ * passes are thinned as traced (RD_PASS_THIN), so the photons ordered a pass are counted as at
+ * most the photons emitted (render.c photon_pass); the collisions, still all traced, are not.
  *
  * The cost. Time is not deterministic, and the choice must be (for one build, the same seed
  * gives the same image on any machine and thread count), so C is counted: the work a sample

@@ -266,7 +266,14 @@ static rd_status photon_pass(rd_render_ctx *ctx, unsigned maps, int pass, rd_bak
 {
     const rd_scene *s = ctx->scene;
     rd_baked *next = NULL;
-    rd_status st = rd_bake_photon_pass(s, maps, pass, ctx->seed, ctx->threads, cancel, ctx->comm, &next, err, errlen);
+    /* RD_PASS_THIN: the passes after the first store each collision with probability
+     * q = min(1, emitted / stored) of pass 1 (rd_method.h; its one map, the indirect). */
+    double keep = 1.0;
+    if (pass > 1 && (maps & RD_PASS_THIN) && first) {
+        const rd_bake_stats *b1 = rd_baked_stats(first);
+        if ((double)b1->indexed > (double)b1->emitted) keep = (double)b1->emitted / (double)b1->indexed;
+    }
+    rd_status st = rd_bake_photon_pass(s, maps, pass, ctx->seed, keep, ctx->threads, cancel, ctx->comm, &next, err, errlen);
     if (st != RD_OK) return st;
     const rd_bake_stats *bs = rd_baked_stats(next);
     if (pass == 1) {
@@ -275,6 +282,9 @@ static rd_status photon_pass(rd_render_ctx *ctx, unsigned maps, int pass, rd_bak
         ctx->pass_emitted = (double)bs->emitted;
         ctx->pass_collisions = (double)bs->emitted * bs->collisions_per_photon;
         ctx->pass_indexed = (double)bs->indexed;
+        /* (the later passes, thinned, order about as many photons as were emitted: the share of
+         * a pass the selection charges, select.c "The photon passes") */
+        if ((maps & RD_PASS_THIN) && ctx->pass_indexed > ctx->pass_emitted) ctx->pass_indexed = ctx->pass_emitted;
     } else if (*cur != first) {
         rd_baked_free(*cur);
     }
@@ -287,6 +297,7 @@ static rd_status photon_pass(rd_render_ctx *ctx, unsigned maps, int pass, rd_bak
     rs->photons_traced += bs->emitted;
     rs->photon_seconds += bs->seconds;
     rs->radius_scale = ctx->radius_scale;
+    rs->photon_keep = keep;
     if (pass > 1 && ctx->method->photons_changed) return ctx->method->photons_changed(ctx, err, errlen);
     return RD_OK;
 }
