@@ -455,3 +455,64 @@ Test(beams, a_render_thins_its_later_passes_by_pass_one_s_counts, .timeout = 300
     rd_baked_free(first);
     rd_scene_free(s);
 }
+
+/* The kernel holds k of the balls read (march_beams.c, rd_march_photons_changed): where the balls
+ * are a share q_1 < 1 of pass 1's stored photons, the radii are r_1 q_1^(-1/3), so a ball holds
+ * about k = guide.k ball centres, not k q_1. Counted here, over the balls whose ball lies inside
+ * the medium (the photons' density falls off from the light, so the count is the k-NN bandwidth's
+ * local-uniformity approximation, not an exact figure): the mean count within 25% of k, where
+ * the radii unscaled would hold k q_1 (q_1 below 0.6 here). */
+Test(beams, a_ball_holds_k_of_the_balls_read, .timeout = 300)
+{
+    /* scene_json's medium made dense (sigma_t 6, albedo 0.97): a photon stores several collisions */
+    rd_scene *s = rt_scene("beams-dense.json",
+                           "{\"camera\":{\"position\":[3,-2,5],\"look_at\":[3,-2,1],\"fov\":30,\"resolution\":[8,8]},"
+                           "\"media\":[{\"bounds\":{\"min\":[2,-3,0],\"max\":[4,-1,2]},"
+                           "\"density\":{\"type\":\"constant\",\"value\":1},\"sigma_t\":6,\"albedo\":0.97,\"g\":0.4}],"
+                           "\"lights\":[{\"type\":\"point\",\"position\":[3.3,-1.8,1.1],\"intensity\":[3,2,1]}],"
+                           "\"photons\":{\"count\":3000,\"seed\":5},\"guide\":{\"k\":16},"
+                           "\"march\":{\"ls\":\"nee+beams\"},\"settings\":{\"method\":\"uniform\"}}");
+    rd_bake_opts bo = {0};
+    bo.seed = -1;
+    bo.threads = 2;
+    rd_bake_opts_for(&bo, RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT);
+    rd_baked *bk;
+    char err[RD_ERRLEN];
+    cr_assert(rd_bake(s, &bo, &bk, err, sizeof err) == RD_OK, "%s", err);
+    rd_render_ctx ctx = {.scene = s, .method = rd_method_find("uniform"), .threads = 2, .radius_scale = 1.0};
+    ctx.photons = rd_baked_map(bk);
+    ctx.photons_indirect = rd_baked_indirect_map(bk);
+    cr_assert(rd_march_prepare(&ctx, err, sizeof err) == RD_OK, "%s", err);
+    const march_state *st = ctx.state;
+    const pm_map *map = ctx.photons_indirect;
+    size_t np = pm_map_photon_count(map);
+    double q1 = 3000.0 / (double)np;
+    cr_assert(q1 < 0.6, "the scene must store more indirect photons than it emits: %zu for 3000", np);
+    const pm_photon *ph = pm_map_photons(map);
+    const int k = s->guide.k;
+    double sum = 0.0;
+    int balls = 0;
+    for (size_t i = 0; i < np && balls < 400; i++) {
+        double r = st->beam_radius[i];
+        if (!(r > 0.0)) continue;
+        int inside = 1; /* the box is [-1, 1]^3 about the map's origin, its centre */
+        for (int a = 0; a < 3; a++) inside &= fabs(ph[i].pos[a]) + r < 1.0;
+        if (!inside) continue;
+        int count = 0;
+        for (size_t j = 0; j < np; j++) {
+            if (!(st->beam_radius[j] > 0.0f)) continue;
+            double d2 = 0.0;
+            for (int a = 0; a < 3; a++) d2 += (ph[j].pos[a] - ph[i].pos[a]) * (ph[j].pos[a] - ph[i].pos[a]);
+            count += d2 < r * r;
+        }
+        sum += count;
+        balls++;
+    }
+    cr_assert(balls >= 100, "only %d balls lie inside the medium", balls);
+    double mean = sum / balls;
+    cr_expect(fabs(mean / k - 1.0) < 0.25, "a ball holds %.2f balls on average, want about k = %d (q_1 %.3f: unscaled %.2f)",
+              mean, k, q1, q1 * k);
+    rd_march_release(&ctx);
+    rd_baked_free(bk);
+    rd_scene_free(s);
+}

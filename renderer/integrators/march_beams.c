@@ -179,7 +179,17 @@ void rd_march_beams_free(march_state *st)
  * albedo 0.99; docs/benchmarks.md "Session 19"). Since session 62 the passes after the first
  * are thinned as they are traced (RD_PASS_THIN, rd_method.h: q from pass 1's counts), so they
  * arrive with about `emitted` photons already carrying 1/q, and the thinning here only trims
- * the binomial excess (its 1/q then multiplies the tracer's: both unbiased). */
+ * the binomial excess (its 1/q then multiplies the tracer's: both unbiased).
+ *
+ * The kernel holds k of the balls read (session 62). r_1 is the radius of k neighbours in pass
+ * 1's map, all its stored photons; of those, a share q_1 = min(1, emitted / stored in pass 1)
+ * become balls (here, or in the tracer and here), so a ball of radius r_1 held k q_1 balls: on
+ * hard-dense-block (q_1 0.11) about 7 where guide.k is 64, and the estimate had the variance of a
+ * kernel of 7. The radii are scaled by q_1^(-1/3), which holds k again where the photons are
+ * locally uniform (the k-NN bandwidth's own extrapolation, bandwidth.c: r ~ (k / n)^(1/3)): a
+ * wider kernel (bias ~ r^2) of more balls (more crossed a query, ~ q_1^(-2/3)), the kernel's
+ * definition the same whether a medium stores a collision per photon or ten. Where q_1 = 1 (no
+ * pass stores more than it emits) nothing changes. */
 rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen)
 {
     march_state *st = ctx->state;
@@ -211,6 +221,8 @@ rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen)
     size_t emitted = ps->pass_count > 0 && ctx->photon_pass >= 1 ? ps->pass_count : ps->count;
     double q = n > emitted ? (double)emitted / n : 1.0;
     st->beam_weight = 1.0 / q;
+    size_t n1 = pm_map_photon_count(first); /* (the kernel's k of the balls read: above) */
+    if (n1 > emitted) scale *= cbrt((double)n1 / (double)emitted);
     uint64_t key = 0x9e3779b97f4a7c15ULL * (uint64_t)(ctx->photon_pass + 1);
     const struct beam_field *f = st->beam_field;
     size_t queries = 0;
