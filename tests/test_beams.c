@@ -193,20 +193,28 @@ static double box_share(const double x[3], double r, const double lo[3], const d
     return share;
 }
 
-Test(beams, estimate_equals_the_exact_point_gather, .timeout = 300)
+/* Scene s's fixed photon maps baked (*bk) and `uniform` prepared on them (*ctx): the beams'
+ * balls built, their radii in the march state. */
+static void prepare_uniform(rd_scene *s, rd_baked **bk, rd_render_ctx *ctx)
 {
-    rd_scene *s = rt_scene("beams.json", scene_json());
     rd_bake_opts bo = {0};
     bo.seed = -1;
     bo.threads = 2;
     rd_bake_opts_for(&bo, RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT);
-    rd_baked *bk;
     char err[RD_ERRLEN];
-    cr_assert(rd_bake(s, &bo, &bk, err, sizeof err) == RD_OK, "%s", err);
-    rd_render_ctx ctx = {.scene = s, .method = rd_method_find("uniform"), .threads = 2, .radius_scale = 1.0};
-    ctx.photons = rd_baked_map(bk);
-    ctx.photons_indirect = rd_baked_indirect_map(bk);
-    cr_assert(rd_march_prepare(&ctx, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_bake(s, &bo, bk, err, sizeof err) == RD_OK, "%s", err);
+    *ctx = (rd_render_ctx){.scene = s, .method = rd_method_find("uniform"), .threads = 2, .radius_scale = 1.0};
+    ctx->photons = rd_baked_map(*bk);
+    ctx->photons_indirect = rd_baked_indirect_map(*bk);
+    cr_assert(rd_march_prepare(ctx, err, sizeof err) == RD_OK, "%s", err);
+}
+
+Test(beams, estimate_equals_the_exact_point_gather, .timeout = 300)
+{
+    rd_scene *s = rt_scene("beams.json", scene_json());
+    rd_baked *bk;
+    rd_render_ctx ctx;
+    prepare_uniform(s, &bk, &ctx);
     const march_state *st = ctx.state;
     const pm_map *map = ctx.photons_indirect;
     size_t np = pm_map_photon_count(map);
@@ -472,17 +480,9 @@ Test(beams, a_ball_holds_k_of_the_balls_read, .timeout = 300)
                            "\"lights\":[{\"type\":\"point\",\"position\":[3.3,-1.8,1.1],\"intensity\":[3,2,1]}],"
                            "\"photons\":{\"count\":3000,\"seed\":5},\"guide\":{\"k\":16},"
                            "\"march\":{\"ls\":\"nee+beams\"},\"settings\":{\"method\":\"uniform\"}}");
-    rd_bake_opts bo = {0};
-    bo.seed = -1;
-    bo.threads = 2;
-    rd_bake_opts_for(&bo, RD_NEEDS_PHOTONS | RD_NEEDS_INDIRECT);
     rd_baked *bk;
-    char err[RD_ERRLEN];
-    cr_assert(rd_bake(s, &bo, &bk, err, sizeof err) == RD_OK, "%s", err);
-    rd_render_ctx ctx = {.scene = s, .method = rd_method_find("uniform"), .threads = 2, .radius_scale = 1.0};
-    ctx.photons = rd_baked_map(bk);
-    ctx.photons_indirect = rd_baked_indirect_map(bk);
-    cr_assert(rd_march_prepare(&ctx, err, sizeof err) == RD_OK, "%s", err);
+    rd_render_ctx ctx;
+    prepare_uniform(s, &bk, &ctx);
     const march_state *st = ctx.state;
     const pm_map *map = ctx.photons_indirect;
     size_t np = pm_map_photon_count(map);
