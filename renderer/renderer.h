@@ -274,13 +274,15 @@ typedef struct {
     /* Progressive photon passes (photons.progressive, or `guided`'s march.beams; 0 passes with
      * one fixed map): passes
      * traced, photons emitted over them, seconds spent tracing and indexing them (part of
-     * `seconds`), the last pass's gather radius relative to the first pass's, and the share of
-     * its collisions the last pass stored (1, or RD_PASS_THIN's q: rd_method.h). */
+     * `seconds`), the last pass's gather radius relative to the first pass's, the share of
+     * its collisions the last pass stored (1, or RD_PASS_THIN's q: rd_method.h) and the photons
+     * it stored. */
     int photon_passes;
     uint64_t photons_traced;
     double photon_seconds;
     double radius_scale;
     double photon_keep;
+    size_t photons_stored;
     /* The tile selection (settings.select): the choices it made (its pilot's, one an epoch; 0:
      * the render had no selection) and, with rd_render_opts.select_trace, how many of them the
      * trace holds (on rank 0; the others write none). */

@@ -280,7 +280,8 @@ int rd_light_sample_emission(const rd_scene *s, const rd_light *l, const rd_emis
  * of the seed, the photon and the depth against keep, so the photon's stream is untouched. */
 static int kept(const rd_photon_opts *o, size_t i, int depth)
 {
-    uint64_t h = rd_mix64(o->seed ^ rd_mix64((uint64_t)i * 0x9E3779B97F4A7C15ULL + (uint64_t)depth));
+    /* (the tag keeps the hash apart from pcg32_seed's, rd_math.h, which mixes alike) */
+    uint64_t h = rd_mix64(o->seed ^ 0x7468696e6e696e67ULL ^ rd_mix64((uint64_t)i * 0x9E3779B97F4A7C15ULL + (uint64_t)depth));
     return (double)(h >> 11) * 0x1.0p-53 < o->keep;
 }
 

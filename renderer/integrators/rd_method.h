@@ -106,7 +106,8 @@ typedef struct rd_select_report {
  * asked no query, so they get that order without the kd-tree (pm_map_order; nee+beams, whose
  * k-NN radii come from pass 1's map, which is built whatever this says). */
 enum { RD_PASS_NO_INDEX = 1u << 16 };
-/* Beside a progressive pass's maps: the passes after the first are read as at most about as many
+/* Beside a progressive pass's maps (the indirect map alone: render.c ignores it beside
+ * RD_NEEDS_PHOTONS): the passes after the first are read as at most about as many
  * photons as the pass emitted (nee+beams keeps that many balls, march_beams.c), so they are
  * thinned as they are traced: each collision stored with probability
  * q = min(1, emitted / stored in pass 1), its power 1/q (rd_photon_opts.keep). In a dense medium,

@@ -189,7 +189,8 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
  * the image's pixels of them): each adds its share of pass 1's work to its cost (rd_select.method_pass_cost: ctx's pass_emitted, pass_collisions and pass_indexed, at
  * the weights below; select.c, "The photon passes"); with RD_SELECT_PASSES_ORDERED too, the
  * passes after the first put their photons in spatial order without a kd-tree (RD_PASS_NO_INDEX:
- * nee+beams), and a photon counts RD_SELECT_COST_ORDERED instead of RD_SELECT_COST_INDEXED. */
+ * nee+beams), and a photon counts RD_SELECT_COST_ORDERED instead of RD_SELECT_COST_INDEXED
+ * (pass_indexed at most pass_emitted where those passes are thinned: render.c, RD_PASS_THIN). */
 enum { RD_SELECT_THIRD = 1, RD_SELECT_METHOD_IS_PATH = 2, RD_SELECT_PASSES = 4, RD_SELECT_PASSES_ORDERED = 8 };
 /* A progressive pass's work, in density lookups: a photon emitted, a tentative collision, a
  * photon indexed (stored and built into a kd-tree), a photon stored and put in order alone (the

@@ -65,6 +65,7 @@ static char *report_json(const rd_scene *s, const rd_render_opts *o, const rd_re
             /* the share of a pass's collisions stored (RD_PASS_THIN: the beams' passes after the
              * first, in a dense medium) */
             cJSON_AddNumberToObject(pp, "keep", st->photon_keep);
+            cJSON_AddNumberToObject(pp, "stored", (double)st->photons_stored); /* by the last pass */
             cJSON_AddNumberToObject(pp, "alpha", s->photons.alpha);
             cJSON_AddNumberToObject(pp, "spp_per_pass", s->photons.pass_spp);
             /* the share aimed at the glass, where the scene has glass (rd_emission_aim) */

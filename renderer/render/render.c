@@ -267,9 +267,10 @@ static rd_status photon_pass(rd_render_ctx *ctx, unsigned maps, int pass, rd_bak
     const rd_scene *s = ctx->scene;
     rd_baked *next = NULL;
     /* RD_PASS_THIN: the passes after the first store each collision with probability
-     * q = min(1, emitted / stored) of pass 1 (rd_method.h; its one map, the indirect). */
+     * q = min(1, emitted / stored) of pass 1 (rd_method.h), for maps of the indirect photons
+     * alone, whose count is `indexed` and whose q the beams' radii read too (march_beams.c). */
     double keep = 1.0;
-    if (pass > 1 && (maps & RD_PASS_THIN) && first) {
+    if (pass > 1 && (maps & RD_PASS_THIN) && !(maps & RD_NEEDS_PHOTONS) && first) {
         const rd_bake_stats *b1 = rd_baked_stats(first);
         if ((double)b1->indexed > (double)b1->emitted) keep = (double)b1->emitted / (double)b1->indexed;
     }
@@ -284,7 +285,8 @@ static rd_status photon_pass(rd_render_ctx *ctx, unsigned maps, int pass, rd_bak
         ctx->pass_indexed = (double)bs->indexed;
         /* (the later passes, thinned, order about as many photons as were emitted: the share of
          * a pass the selection charges, select.c "The photon passes") */
-        if ((maps & RD_PASS_THIN) && ctx->pass_indexed > ctx->pass_emitted) ctx->pass_indexed = ctx->pass_emitted;
+        if ((maps & RD_PASS_THIN) && !(maps & RD_NEEDS_PHOTONS) && ctx->pass_indexed > ctx->pass_emitted)
+            ctx->pass_indexed = ctx->pass_emitted;
     } else if (*cur != first) {
         rd_baked_free(*cur);
     }
@@ -298,6 +300,7 @@ static rd_status photon_pass(rd_render_ctx *ctx, unsigned maps, int pass, rd_bak
     rs->photon_seconds += bs->seconds;
     rs->radius_scale = ctx->radius_scale;
     rs->photon_keep = keep;
+    rs->photons_stored = bs->indexed;
     if (pass > 1 && ctx->method->photons_changed) return ctx->method->photons_changed(ctx, err, errlen);
     return RD_OK;
 }
