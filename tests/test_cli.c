@@ -218,6 +218,36 @@ Test(cli, render_writes_exr_png_and_report, .timeout = 120)
     cr_expect(tmpfiles == 0, "temporary files left behind");
 }
 
+/* The image module (core/image_plugin.h) is loaded when a command first reads or writes an
+ * image; a copy of the program without the module beside it must refuse a render before the
+ * render, not after it: one line naming the output, a non-zero exit, no output written, and
+ * little CPU time for a render of 24x16 pixels at 2^20 samples (minutes of work). The copy of
+ * the program itself starts without OpenImageIO: `info` on a good scene succeeds. */
+Test(cli, a_program_without_its_image_module_refuses_before_rendering, .timeout = 120)
+{
+    const char *bin = getenv("PHOTONMARCH_BIN");
+    cr_assert(bin != NULL);
+    char dir[256], lone[300], exr[300], out[4096], err[4096], cmd[700];
+    snprintf(dir, sizeof dir, "%s/lone", rt_tmpdir());
+    snprintf(lone, sizeof lone, "%s/photonmarch", dir);
+    snprintf(exr, sizeof exr, "%s/x.exr", dir);
+    snprintf(cmd, sizeof cmd, "mkdir -p '%s' && cp '%s' '%s'", dir, bin, lone);
+    cr_assert(system(cmd) == 0, "%s", cmd);
+    char *info[] = {lone, "info", (char *)tiny_scene(), NULL};
+    int code = rt_run(info, out, sizeof out, err, sizeof err, NULL);
+    cr_expect(code == 0, "info without the image module: exit %d: %s", code, err);
+    char *argv[] = {lone, "render", (char *)tiny_scene(), "-o", exr, "--spp", "1048576", "-q", NULL};
+    double cpu = 0;
+    code = rt_run(argv, out, sizeof out, err, sizeof err, &cpu);
+    cr_expect(code != 0, "a render without the image module succeeded");
+    size_t len = strlen(err);
+    cr_expect(len > 0 && strchr(err, '\n') == err + len - 1, "stderr is not one line: [%s]", err);
+    cr_expect(strncmp(err, exr, strlen(exr)) == 0 && strstr(err, "cannot load the image module"),
+              "the message does not name the output and the module: %s", err);
+    cr_expect(cpu <= 2.0, "%.2f CPU s before refusing: the render ran first", cpu);
+    cr_expect(access(exr, F_OK) != 0, "an output was written");
+}
+
 /* Bit for bit the same contents. */
 static int same_bytes(const char *a, const char *b)
 {

@@ -215,6 +215,10 @@ int cli_cmd_compare_on(int argc, char **argv, rd_dist *d)
             len += snprintf(opts + len, sizeof opts - (size_t)len, "|%s=%s", o->extras[i].label, o->extras[i].path);
         code = cli_ranks_same_options(d, opts, &ca->a);
     }
+    if (!code) { /* only rank 0 writes: a missing image module fails the command now, not at the end */
+        st = lead ? rd_image_io_ready(ca->outdir, err, sizeof err) : RD_OK;
+        code = cli_ranks_agree(d, cli_exit_for(st), err);
+    }
     if (code) goto out;
     ca->o.seed = ca->seed >= 0 ? (uint64_t)ca->seed : rd_scene_seed(scene);
     ca->o.cancel = cli_cancel_flag();

@@ -3,8 +3,8 @@
  * partial file where a good one was. A run killed mid-write leaves at most a hidden temporary
  * (".OUT.tmp<pid>.ext"), which the next run writing the same output removes. This is the one
  * implementation of that policy: the leaf libraries write to a stream (pm_map_write,
- * sh_guide_write, through rd_write_file) and the C++ shims (image_io.cpp, vdb_io.cpp) write to
- * rd_temp_name's name and call rd_commit_temp. */
+ * sh_guide_write, through rd_write_file); images.c (for the OpenImageIO module) and vdb_io.cpp
+ * have their files written at rd_temp_name's name and call rd_commit_temp. */
 #define _DEFAULT_SOURCE /* mkdir, kill */
 #include "core/rd_core.h"
 

@@ -1,6 +1,6 @@
 /* output.c: what a render leaves on disk (docs/cli.md): the mean image, its per-pixel standard
  * error, a preview, and the JSON report. Every file is written under a temporary name and
- * renamed (core/files.c, and image_io.cpp for the images), so a failed or interrupted run never
+ * renamed (core/files.c, and core/images.c for the images), so a failed or interrupted run never
  * leaves a partial file where a good one was. */
 #include "bake/rd_photons.h"
 #include "core/rd_core.h"
