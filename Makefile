@@ -269,6 +269,9 @@ test-tsan: deps
 #    surface_images/auto_probes_where_* and the_selection_s_pilot_*), and in session 36
 #    guided-unbiased's (surface_images/guided_unbiased_probes_*, 9 s in the release run), whose
 #    split path is delta's trace with another flight sampler and whose probes are those above;
+#    and in session 63 the default guided's image against delta's with the beams
+#    (beams/the_default_guided_gives_*, 7.5 s in the release run), whose beams, passes and
+#    selection run under ASan in select/the_beams_estimator_takes_tiles_* and beams/a_render_thins_*;
 #  - the tests that only spawn the command line (cli/*, memory/*, stress_big/*, and compare's
 #    page, error and Ctrl-C tests, compare_cli/*): in this run they would spawn the release binary again
 #    (PHOTONMARCH_BIN), so under ASan they only repeat the release run; the command line itself
@@ -280,7 +283,7 @@ test-tsan: deps
 # Together they would take the suite past 15 minutes.
 SAN_BUILD := build-fuzz
 SAN_MAKE  := $(MAKE) BUILD=$(SAN_BUILD) SAN=fuzz CC=clang-14 CXX=clang++-14
-ASAN_FILTER := '!(fuzz_regress/image|render/pixels_of_one_image_are_uncorrelated|guided_unbiased/each_part_alone_*|guided_unbiased/flight_sampler_chi_square_*|march/guided_and_transmittance_share_*|march/defensive_only_and_wrong_guides_*|photons/knn_radiance_converges_*|integrator/white_furnace_every_tracker|stress_big/*|cli/*|memory/*|compare/page_loads_*|compare/bad_reference_*|compare/ctrl_c_*|compare_cli/*|geom/cli_renders_shapes|structure/*|progressive/squared_gap_*|mpi/*|beam_connect/forward_scattering_*|beam_connect/guided_unbiased_s_*|beam_connect/a_second_light_*|beam_connect/two_media_*|beam_connect/an_interface_*|beam_connect/a_clear_box_*|march/a_directional_beam_s_equiangular_*|integrator/strategies_keep_the_mean_on_the_default_scene|march/nee_paths_marchers_equal_delta_*|select/delta_s_own_tiles_mix_*|select/guided_unbiased_paths_in_*|march/equiangular_sample_keeps_*|guided_unbiased/equiangular_strategy_keeps_*|surface_images/probes_keep_*|surface_images/delta_probes_keep_*|surface_images/guided_unbiased_probes_*)'
+ASAN_FILTER := '!(fuzz_regress/image|render/pixels_of_one_image_are_uncorrelated|guided_unbiased/each_part_alone_*|guided_unbiased/flight_sampler_chi_square_*|march/guided_and_transmittance_share_*|march/defensive_only_and_wrong_guides_*|photons/knn_radiance_converges_*|integrator/white_furnace_every_tracker|stress_big/*|cli/*|memory/*|compare/page_loads_*|compare/bad_reference_*|compare/ctrl_c_*|compare_cli/*|geom/cli_renders_shapes|structure/*|progressive/squared_gap_*|mpi/*|beam_connect/forward_scattering_*|beam_connect/guided_unbiased_s_*|beam_connect/a_second_light_*|beam_connect/two_media_*|beam_connect/an_interface_*|beam_connect/a_clear_box_*|march/a_directional_beam_s_equiangular_*|integrator/strategies_keep_the_mean_on_the_default_scene|march/nee_paths_marchers_equal_delta_*|select/delta_s_own_tiles_mix_*|select/guided_unbiased_paths_in_*|march/equiangular_sample_keeps_*|guided_unbiased/equiangular_strategy_keeps_*|surface_images/probes_keep_*|surface_images/delta_probes_keep_*|surface_images/guided_unbiased_probes_*|beams/the_default_guided_gives_*)'
 SAN_LOG := $(SAN_BUILD)/sanitizer-reports
 SAN_ASAN := halt_on_error=1:detect_leaks=1:leak_check_at_exit=0:allocator_may_return_null=1:log_path=$(CURDIR)/$(SAN_LOG)/process
 SAN_ENV := ASAN_OPTIONS=$(SAN_ASAN) \
