@@ -56,7 +56,7 @@ MPI_CFLAGS := $(shell pkg-config --cflags ompi-c 2>/dev/null)
 MPI_LIBS   := $(shell pkg-config --libs ompi-c 2>/dev/null)
 RD_SRC   := $(filter-out $(CLI_SRC) $(DIST_SRC),$(wildcard renderer/*/*.c))
 # OpenImageIO is reached through a module of its own (renderer/core/image_plugin.h: Debian's
-# OpenImageIO loads ~250 shared objects, 0.26 s at every program start, 0.53 s under the
+# OpenImageIO loads ~260 shared objects, 0.26-0.34 s at every program start, 0.53-0.59 s under the
 # sanitizers), loaded on the first image read or write; it is not in librenderer.a. The programs
 # find it through their run path: the build folder, $ORIGIN for build/photonmarch and $ORIGIN/..
 # for the programs in build/*/ (RPATH_TOP, RPATH_SUB).

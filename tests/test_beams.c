@@ -528,16 +528,19 @@ Test(beams, a_ball_holds_k_of_the_balls_read, .timeout = 300)
     rd_scene_free(s);
 }
 
-/* The default `guided` (march.beams on, the tile selection named, as rt_scene would turn it off,
- * the beams' progressive passes, thinned and with the kernel of k balls) against `delta` on a
- * dense box lit from above, where the beams take a good share of the samples: consistent, not
- * unbiased, so the kernel's bias at this budget (64 samples a pixel, a pass each) must lie below
- * what the comparison resolves: 5 standard errors of the image mean and 4.5 of each 8x8 region's
- * (rt_expect_same, from the two renders' own standard errors). What that resolution is, is checked
- * too: the same render with the light 10% brighter must be told apart from `delta`'s. (A kernel
- * 64x wider in volume, guide.k 4096, was not told apart at 4x these samples: the image here is
- * smooth, and the ball's share inside the box takes out the faces' bias; so this is a guard
- * against a wrong weight or scale of the beams, not a measure of the kernel's blur.) */
+/* `guided` as a user's render runs it (march.beams on, the tile selection named, as rt_scene
+ * would turn it off, the beams' progressive passes as the defaults have them) against `delta` on
+ * a dense box lit from above, where the beams take a good share of the samples: consistent, not
+ * unbiased, so the kernel's bias at this budget (64 samples a pixel; a pass for every 32x24 of
+ * the beams' samples) must lie below what the comparison resolves: 5 standard errors of the
+ * image mean and 4.5 of each 8x8 region's (rt_expect_same, from the two renders' own standard
+ * errors). What that resolution is, is checked too: the same render with the light 10% brighter
+ * must be told apart from `delta`'s. The beams' pixels of one pass share its photons, so their
+ * standard errors, taken as independent, understate the regions' noise: the z-scores err toward a
+ * false alarm, not toward a pass. (A kernel 64x wider in volume, guide.k 4096, was not told
+ * apart at 4x these samples: the image here is smooth, and the ball's share inside the box takes
+ * out the faces' bias; so this is a guard against a wrong weight or scale of the beams, not a
+ * measure of the kernel's blur.) */
 static const char *dense_box_json(double intensity)
 {
     static char buf[1024];
@@ -546,7 +549,7 @@ static const char *dense_box_json(double intensity)
              "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},\"density\":{\"type\":\"constant\",\"value\":1},"
              "\"sigma_t\":10,\"albedo\":0.99,\"g\":0.3}],"
              "\"lights\":[{\"type\":\"point\",\"position\":[0,1.6,0.5],\"intensity\":%g}],"
-             "\"photons\":{\"count\":20000},\"march\":{\"equiangular\":false},"
+             "\"photons\":{\"count\":20000},"
              "\"settings\":{\"select\":\"auto\"}}",
              intensity);
     return buf;

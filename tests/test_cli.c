@@ -221,8 +221,9 @@ Test(cli, render_writes_exr_png_and_report, .timeout = 120)
 /* The image module (core/image_plugin.h) is loaded when a command first reads or writes an
  * image; a copy of the program without the module beside it must refuse a render before the
  * render, not after it: one line naming the output, a non-zero exit, no output written, and
- * little CPU time for a render of 24x16 pixels at 2^20 samples (minutes of work). The copy of
- * the program itself starts without OpenImageIO: `info` on a good scene succeeds. */
+ * little CPU time for a render of 24x16 pixels at 2^20 samples (minutes of work). `info` on a
+ * good scene, which reads no image, succeeds there; and the program does not name OpenImageIO
+ * among the libraries it needs (readelf), or every start would load it again. */
 Test(cli, a_program_without_its_image_module_refuses_before_rendering, .timeout = 120)
 {
     const char *bin = getenv("PHOTONMARCH_BIN");
@@ -233,6 +234,9 @@ Test(cli, a_program_without_its_image_module_refuses_before_rendering, .timeout 
     snprintf(exr, sizeof exr, "%s/x.exr", dir);
     snprintf(cmd, sizeof cmd, "mkdir -p '%s' && cp '%s' '%s'", dir, bin, lone);
     cr_assert(system(cmd) == 0, "%s", cmd);
+    cr_assert(system("command -v readelf > /dev/null") == 0, "readelf (binutils) is not installed");
+    snprintf(cmd, sizeof cmd, "readelf -d '%s' | grep -q 'NEEDED.*OpenImageIO'", bin);
+    cr_expect(system(cmd) != 0, "%s is linked against OpenImageIO: every start loads it", bin);
     char *info[] = {lone, "info", (char *)tiny_scene(), NULL};
     int code = rt_run(info, out, sizeof out, err, sizeof err, NULL);
     cr_expect(code == 0, "info without the image module: exit %d: %s", code, err);

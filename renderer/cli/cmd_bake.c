@@ -213,7 +213,10 @@ int cli_cmd_bake_on(int argc, char **argv, rd_dist *d)
     bo.cancel = cli_cancel_flag();
     bo.comm = rd_dist_comm(d);
     if (!quiet) fprintf(stderr, "photonmarch bake: tracing and baking (Ctrl-C stops and writes nothing)\n");
-    st = lead ? rd_make_parent_dirs(prefix, err, sizeof err) : RD_OK;
+    /* (the image module first: a bake writes its photons' picture, so a missing module fails it
+     * before the bake, and before any folder is made) */
+    st = lead ? rd_image_io_ready(prefix, err, sizeof err) : RD_OK;
+    if (st == RD_OK && lead) st = rd_make_parent_dirs(prefix, err, sizeof err);
     if ((code = cli_ranks_agree(d, cli_exit_for(st), err)) != 0) goto done;
     st = rd_bake(s, &bo, &b, err, sizeof err); /* several ranks: the same status on every rank */
     if (st == RD_ERR_CANCELLED || (st == RD_OK && cli_interrupted())) {

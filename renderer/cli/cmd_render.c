@@ -278,8 +278,8 @@ int cli_cmd_render_on(int argc, char **argv, rd_dist *d)
         if ((code = cli_ranks_same_options(d, opts, a)) != 0) goto out;
     }
     /* Only rank 0 writes. */
-    st = lead ? rd_make_parent_dirs(outpath, err, sizeof err) : RD_OK;
-    if (st == RD_OK && lead) st = rd_image_io_ready(outpath, err, sizeof err);
+    st = lead ? rd_image_io_ready(outpath, err, sizeof err) : RD_OK; /* (before any folder is made) */
+    if (st == RD_OK && lead) st = rd_make_parent_dirs(outpath, err, sizeof err);
     if ((code = cli_ranks_agree(d, cli_exit_for(st), err)) != 0) goto out;
     /* What the method needs baked: from --photons/--guide, the cache, or a fresh bake. */
     unsigned needs = rd_method_needs_for(ro.method, scene);

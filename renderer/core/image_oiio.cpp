@@ -7,7 +7,7 @@
 
 #include <cstdio>
 #include <cstdlib>
-#include <vector>
+#include <memory>
 
 using namespace OIIO;
 
@@ -56,19 +56,18 @@ rd_status read_pixels(const char *path, float **pixels, int *w_out, int *h_out, 
             std::snprintf(err, errlen, "%s: unsupported image size %dx%dx%d", path, w, h, nc);
             return RD_ERR_FORMAT;
         }
-        std::vector<float> buf((size_t)w * h * nc);
-        if (!in->read_image(0, 0, 0, nc, TypeDesc::FLOAT, buf.data())) {
-            std::snprintf(err, errlen, "%s: %s", path, in->geterror().c_str());
-            return RD_ERR_FORMAT;
-        }
-        in->close();
-        float *px = (float *)std::malloc(buf.size() * sizeof(float));
+        // Straight into the buffer the caller frees (one copy of the pixels, as OpenImageIO reads).
+        std::unique_ptr<float, decltype(&std::free)> px((float *)std::malloc((size_t)w * h * nc * sizeof(float)), &std::free);
         if (!px) {
             std::snprintf(err, errlen, "%s: out of memory", path);
             return RD_ERR_NOMEM;
         }
-        std::copy(buf.begin(), buf.end(), px);
-        *pixels = px;
+        if (!in->read_image(0, 0, 0, nc, TypeDesc::FLOAT, px.get())) {
+            std::snprintf(err, errlen, "%s: %s", path, in->geterror().c_str());
+            return RD_ERR_FORMAT;
+        }
+        in->close();
+        *pixels = px.release();
         *w_out = w;
         *h_out = h;
         *nc_out = nc;

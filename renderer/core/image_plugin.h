@@ -2,10 +2,11 @@
  * first image read or write (image_oiio.cpp, built alone as RD_IMAGE_PLUGIN_FILE beside the
  * programs that use it).
  *
- * Why a module of its own: Debian's OpenImageIO pulls in about 250 shared objects (OpenCV,
- * FFmpeg, GDAL, GStreamer, ...), and linking it into a program makes every start of that program
- * pay their loading and symbol binding: 0.26 s before `main` in the release build, 0.53 s under
- * the sanitizers, measured with an empty program linked against -lOpenImageIO alone. Every
+ * Why a module of its own: Debian's OpenImageIO pulls in about 260 shared objects (OpenCV,
+ * FFmpeg, GDAL, GStreamer, ...), and linking it into a program makes every start of that
+ * program pay their loading and symbol binding: 0.26-0.34 s before `main` in the release build,
+ * 0.53-0.59 s under the sanitizers, measured with an empty program linked against -lOpenImageIO
+ * alone (docs/benchmarks.md "Session 63"). Every
  * command that only reads a scene (`info`, `explain`, a refused scene) and every test process
  * paid it; now only the processes that read or write an image do, once. */
 #ifndef RD_IMAGE_PLUGIN_H
@@ -22,6 +23,9 @@
  * of another version is not found rather than misread. */
 #define RD_IMAGE_PLUGIN_SYMBOL "rd_image_plugin_v1"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
 typedef struct {
     /* Write w x h RGB pixels (float, or unsigned char when u8) to `tmp` in the format of `path`'s
      * extension (the caller renames tmp to path). No partial file is left at tmp on failure. */
@@ -31,5 +35,8 @@ typedef struct {
     rd_status (*read)(const char *path, float **pixels, int *w, int *h, int *nc, char *err,
                       size_t errlen);
 } rd_image_plugin;
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -16,11 +16,13 @@
  * reference count, no second load), from any thread. */
 static const rd_image_plugin *plugin(const char *path, char *err, size_t errlen)
 {
-    void *h = dlopen(RD_IMAGE_PLUGIN_FILE, RTLD_NOW | RTLD_LOCAL | RTLD_NODELETE);
+    /* (RTLD_LAZY: the libraries' functions bound on their first call, as for a program linked
+     * against them) */
+    void *h = dlopen(RD_IMAGE_PLUGIN_FILE, RTLD_LAZY | RTLD_LOCAL | RTLD_NODELETE);
     if (!h) {
         const char *why = dlerror();
-        snprintf(err, errlen, "%s: cannot load the image module (built beside photonmarch): %s", path,
-                 why ? why : RD_IMAGE_PLUGIN_FILE);
+        snprintf(err, errlen, "%s: cannot load the image module (the build folder's %s): %s", path,
+                 RD_IMAGE_PLUGIN_FILE, why ? why : "not found");
         return NULL;
     }
     const rd_image_plugin *p = dlsym(h, RD_IMAGE_PLUGIN_SYMBOL);
