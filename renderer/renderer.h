@@ -490,7 +490,7 @@ rd_status rd_image_write_png(const char *path, const rd_image *img, double expos
 rd_status rd_image_read(const char *path, rd_image *out, char *err, size_t errlen);
 /* The image calls above load OpenImageIO's module on their first use (core/image_plugin.h).
  * A command that will write images to `path` calls this first, so a missing module fails it
- * before its work, not after (RD_ERR_IO, the message naming path). */
+ * before its work, not after (RD_ERR_OUTPUT, the message naming path). */
 rd_status rd_image_io_ready(const char *path, char *err, size_t errlen);
 
 /* ==== Comparing methods: `photonmarch compare` (issue 11; THEORY.md §7; docs/compare.md) ==== *

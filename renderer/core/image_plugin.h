@@ -1,14 +1,14 @@
 /* image_plugin.h: the contract between core/images.c and the OpenImageIO module it loads on the
- * first image read or write (image_oiio.cpp, built alone as RD_IMAGE_PLUGIN_FILE beside the
- * programs that use it).
+ * first image read or write (image_oiio.cpp, built alone as RD_IMAGE_PLUGIN_FILE in the build
+ * folder, beside build/photonmarch).
  *
  * Why a module of its own: Debian's OpenImageIO pulls in about 260 shared objects (OpenCV,
  * FFmpeg, GDAL, GStreamer, ...), and linking it into a program makes every start of that
  * program pay their loading and symbol binding: 0.26-0.34 s before `main` in the release build,
  * 0.53-0.59 s under the sanitizers, measured with an empty program linked against -lOpenImageIO
- * alone (docs/benchmarks.md "Session 63"). Every
- * command that only reads a scene (`info`, `explain`, a refused scene) and every test process
- * paid it; now only the processes that read or write an image do, once. */
+ * alone (docs/benchmarks.md "Session 63"). Every command that only reads a scene (`info`,
+ * `explain`, a refused scene) and every test process paid it; now only the processes that read
+ * or write an image do, once. */
 #ifndef RD_IMAGE_PLUGIN_H
 #define RD_IMAGE_PLUGIN_H
 

@@ -34,7 +34,7 @@ static const rd_image_plugin *plugin(const char *path, char *err, size_t errlen)
 
 rd_status rd_image_io_ready(const char *path, char *err, size_t errlen)
 {
-    return plugin(path, err, errlen) ? RD_OK : RD_ERR_IO;
+    return plugin(path, err, errlen) ? RD_OK : RD_ERR_OUTPUT; /* (the outputs cannot be written) */
 }
 
 static rd_status write_pixels(const char *path, int w, int h, int u8, const void *pixels, char *err,
