@@ -255,42 +255,56 @@ Test(beams, estimate_equals_the_exact_point_gather, .timeout = 300)
         ray3 r = {v3_add(from[k], cw_), v3_norm(v3_sub(to[k], from[k]))};
         double t0, t1;
         cr_assert(rd_box_intersect(s->bmin, s->bmax, r, 0.0, INFINITY, &t0, &t1) && t1 > t0);
-        /* The exact gather: every ball, its chord's integral of exp(-sigma_t (t - t0)). */
-        double want = 0.0;
+        /* The exact gather: every ball, its chord's integral of exp(-sigma_t (t - t0)); and the
+         * same with every ball of half the volume, radius r_k / sqrt 2, which the estimate
+         * less its gap must equal (rd_march_beam_estimate's gap). */
+        double want = 0.0, want_half = 0.0;
         vec3 w = v3_scale(r.d, -1.0);
-        for (size_t i = 0; i < np; i++) {
-            double rk = st->beam_radius[i], ta, tb;
-            vec3 c = v3(org[0] + ph[i].pos[0], org[1] + ph[i].pos[1], org[2] + ph[i].pos[2]);
-            if (!(rk > 0.0) || !chord(r, c, rk, t0, t1, &ta, &tb)) continue;
-            double cw = ph[i].dir[0] * w.x + ph[i].dir[1] * w.y + ph[i].dir[2] * w.z;
-            /* The chord's integral of exp(-sigma_t (t - t0)) / share(x(t)): near the box's
-             * faces the estimate divides by the ball's share inside (march_share.c), so the
-             * integral is taken by the midpoint rule, 256 points a chord. */
-            double Tint = 0.0;
-            const double lo[3] = {C[0] - 1, C[1] - 1, C[2] - 1}, hi[3] = {C[0] + 1, C[1] + 1, C[2] + 1};
-            for (int qi = 0; qi < 256; qi++) {
-                double t = ta + (qi + 0.5) / 256.0 * (tb - ta);
-                vec3 xt = ray_at(r, t);
-                const double xa[3] = {xt.x, xt.y, xt.z};
-                Tint += exp(-SIGMA_T * (t - t0)) / box_share(xa, rk, lo, hi) * (tb - ta) / 256.0;
+        for (int hv = 0; hv < 2; hv++) {
+            for (size_t i = 0; i < np; i++) {
+                double rk = st->beam_radius[i] * (hv ? sqrt(0.5) : 1.0), ta, tb;
+                vec3 c = v3(org[0] + ph[i].pos[0], org[1] + ph[i].pos[1], org[2] + ph[i].pos[2]);
+                if (!(rk > 0.0) || !chord(r, c, rk, t0, t1, &ta, &tb)) continue;
+                double cw = ph[i].dir[0] * w.x + ph[i].dir[1] * w.y + ph[i].dir[2] * w.z;
+                /* The chord's integral of exp(-sigma_t (t - t0)) / share(x(t)): near the box's
+                 * faces the estimate divides by the ball's share inside (march_share.c), so the
+                 * integral is taken by the midpoint rule, 256 points a chord. */
+                double Tint = 0.0;
+                const double lo[3] = {C[0] - 1, C[1] - 1, C[2] - 1}, hi[3] = {C[0] + 1, C[1] + 1, C[2] + 1};
+                for (int qi = 0; qi < 256; qi++) {
+                    double t = ta + (qi + 0.5) / 256.0 * (tb - ta);
+                    vec3 xt = ray_at(r, t);
+                    const double xa[3] = {xt.x, xt.y, xt.z};
+                    Tint += exp(-SIGMA_T * (t - t0)) / box_share(xa, rk, lo, hi) * (tb - ta) / 256.0;
+                }
+                double add = ph[i].power[0] * rd_hg_eval(0.4, cw) / (4.0 / 3.0 * M_PI * rk * rk * rk) * Tint;
+                if (hv) want_half += add;
+                else want += add;
             }
-            want += ph[i].power[0] * rd_hg_eval(0.4, cw) / (4.0 / 3.0 * M_PI * rk * rk * rk) * Tint;
         }
-        want *= st->beam_weight;
-        cr_assert(want > 0.0, "ray %d crosses no ball", k);
+        want *= st->beam_weight, want_half *= st->beam_weight;
+        cr_assert(want > 0.0 && want_half > 0.0, "ray %d crosses no ball", k);
         enum { DRAWS = 20000 };
-        double sum = 0.0, sum2 = 0.0;
+        double sum = 0.0, sum2 = 0.0, hsum = 0.0, hsum2 = 0.0;
         rd_track_counters c = {0};
         int crossed;
         for (int j = 0; j < DRAWS; j++) {
             pcg32 rng = pcg32_seed(11, (uint64_t)j, (uint64_t)k);
-            double v = rd_march_beam_estimate(&ctx, &ms, r, s->fill_medium, t0, t1, &rng, &c, &crossed).x;
+            vec3 gap;
+            double v = rd_march_beam_estimate(&ctx, &ms, r, s->fill_medium, t0, t1, &rng, &c, &crossed, &gap).x;
             sum += v, sum2 += v * v;
+            hsum += v - gap.x, hsum2 += (v - gap.x) * (v - gap.x);
         }
+        /* Both within 4.5 standard errors of their draws' means (fixed seeds). */
         double mean = sum / DRAWS, se = sqrt(fmax(0.0, sum2 / DRAWS - mean * mean) / DRAWS);
-        cr_log_info("beams: ray %d: estimate %.6g +- %.2g, exact gather %.6g", k, mean, se, want);
+        double hmean = hsum / DRAWS, hse = sqrt(fmax(0.0, hsum2 / DRAWS - hmean * hmean) / DRAWS);
+        cr_log_info("beams: ray %d: estimate %.6g +- %.2g, exact gather %.6g; half-volume balls %.6g +- %.2g, exact %.6g",
+                    k, mean, se, want, hmean, hse, want_half);
         cr_expect(fabs(mean - want) < 4.5 * se + 1e-9 * want,
                   "ray %d: the beam estimate %.6g +- %.2g is not the exact gather %.6g", k, mean, se, want);
+        cr_expect(fabs(hmean - want_half) < 4.5 * hse + 1e-9 * want_half,
+                  "ray %d: the estimate less its gap %.6g +- %.2g is not the exact gather of the half-volume balls %.6g",
+                  k, hmean, hse, want_half);
     }
     free(buf);
     rd_march_release(&ctx);

@@ -359,15 +359,17 @@ vec3 rd_march_source(const rd_render_ctx *ctx, rd_ls_kind ls, const rd_medium *m
  * is black: the rest of T would multiply nothing, so it is not tracked). `event` is the
  * scattering event a sample here would be
  * (the surface events before the segment + 1); past settings.max_depth the segment gives the
- * transmittance alone, as `delta` scatters no more there either. */
+ * transmittance alone, as `delta` scatters no more there either. *gap gets the beam estimate's
+ * gap with nee+beams (rd_march_beam_estimate), else 0. */
 static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int region,
                           double t_end, placement place, rd_ls_kind ls, double u, int event, int need_T,
-                          pcg32 *rng, double *T_out)
+                          pcg32 *rng, double *T_out, vec3 *gap)
 {
     const rd_scene *s = ctx->scene;
     rd_track_counters *c = &th->counters;
     double t0, t1;
     *T_out = 1.0;
+    *gap = v3(0, 0, 0);
     if (!medium_span(s, r, t_end, &t0, &t1)) return v3(0, 0, 0);
     if (event > s->settings.max_depth) {
         *T_out = need_T ? rd_transmittance(s, region, r, t0, t1, rng, c) : 0.0;
@@ -424,7 +426,7 @@ static vec3 march_segment(const rd_render_ctx *ctx, rd_thread *th, ray3 r, int r
      * segment give the rest (rd_march_beam_estimate). */
     if (ls == RD_LS_NEE_BEAMS) {
         int crossed;
-        L = v3_add(L, rd_march_beam_estimate(ctx, &ms, r, region, t0, t1, rng, c, &crossed));
+        L = v3_add(L, rd_march_beam_estimate(ctx, &ms, r, region, t0, t1, rng, c, &crossed, th->want_gap ? gap : NULL));
         th->beam_queries++;
         th->beam_hits += (uint64_t)crossed;
     }
@@ -450,7 +452,9 @@ static vec3 march_chain(const rd_render_ctx *ctx, rd_thread *th, ray3 r, double 
         double t_light;
         int hit_light = rd_scene_hit_light(s, r, INFINITY, -1, &t_light);
         vec3 Lb = rd_scene_behind(s, hit_light);
-        vec3 L = march_segment(ctx, th, r, s->fill_medium, t_light, place, ls, u, 1, v3_maxc(Lb) > 0.0, rng, &T);
+        vec3 gap;
+        vec3 L = march_segment(ctx, th, r, s->fill_medium, t_light, place, ls, u, 1, v3_maxc(Lb) > 0.0, rng, &T, &gap);
+        th->beam_gap = v3_add(th->beam_gap, gap);
         *E = v3_scale(Lb, T);
         return L;
     }
@@ -470,8 +474,10 @@ static vec3 march_chain(const rd_render_ctx *ctx, rd_thread *th, ray3 r, double 
          * delta's path loop (settings.max_depth bounds both alike). */
         /* T of the segment matters when a surface follows it or something bright lies behind. */
         int need_T = (got && h.light < 0) || v3_maxc(rd_scene_behind(s, got ? h.light : -1)) > 0.0;
-        vec3 Ls = march_segment(ctx, th, r, region, got ? h.t : INFINITY, place, ls, u, depth + 1, need_T, rng, &T);
+        vec3 gap;
+        vec3 Ls = march_segment(ctx, th, r, region, got ? h.t : INFINITY, place, ls, u, depth + 1, need_T, rng, &T, &gap);
         L = v3_add(L, v3_mul(beta, Ls));
+        th->beam_gap = v3_add(th->beam_gap, v3_mul(beta, gap));
         beta = v3_scale(beta, T);
         if (!got || h.light >= 0) {
             *E = v3_mul(beta, rd_scene_behind(s, got ? h.light : -1));
@@ -516,6 +522,7 @@ vec3 rd_march_radiance_ls(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_sa
     double u = rd_sampler_1d(smp);
     pcg32 rng = rd_sampler_stream(smp);
     vec3 E;
+    th->beam_gap = v3(0, 0, 0);
     if (!rd_probes_on(&st->probes)) { /* no probes: the chain's own E */
         vec3 I = march_chain(ctx, th, r, u, &rng, place, ls, &E);
         return v3_add(I, E);

@@ -268,12 +268,43 @@ rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen)
  * (rd_march_support_share, march_share.c): the kernel's boundary bias, -2.6% of homogeneous's image
  * and -6.5% of the dense block's before, -0.4% and -1.2% after (docs/benchmarks.md
  * "Session 54"). */
+/* The term of a pick at u on hit h's chord (ball of radius rk about q, medium m at the pick, with
+ * sigma_t sigma_x there) read with the ball of half the volume, radius rk / sqrt 2, as a factor of
+ * the pick's T and weight (rd_march.h, `gap`): u maps linearly onto the small ball's chord
+ * (clipped to [t0, t1] as the big one is), so a u uniform on the big chord lands uniform on the
+ * small one, and T there is the pick's times exp(-sigma (u' - u)), sigma the mean of sigma_t at
+ * the two points (exact in a medium constant between them). The small term then follows the big
+ * one pick for pick, and the gap is a smooth difference rather than an indicator's noise. 0
+ * where the segment misses the small ball or u' lies outside the medium. One density lookup. */
+static double half_ball_term(const rd_scene *s, int region, ray3 r, vec3 q, double rk, const rd_beam_hit *h,
+                             double u, double t0, double t1, const rd_medium *m, double sigma_x, double cw,
+                             rd_track_counters *c)
+{
+    const double rh = rk * 0.70710678118654752440; /* 1 / sqrt 2 */
+    vec3 oq = v3_sub(q, r.o);
+    double tc = v3_dot(oq, r.d), d2 = fmax(0.0, v3_dot(oq, oq) - tc * tc);
+    if (!(d2 < rh * rh) || !(h->tb > h->ta)) return 0.0;
+    double half = sqrt(rh * rh - d2), sa = fmax(tc - half, t0), sb = fmin(tc + half, t1);
+    if (!(sb > sa)) return 0.0;
+    double u2 = sa + (u - h->ta) / (h->tb - h->ta) * (sb - sa);
+    vec3 x2 = ray_at(r, u2);
+    const rd_medium *m2 = rd_scene_medium_at(s, region, x2);
+    if (!m2) return 0.0;
+    c->lookups++;
+    double sigma2 = rd_medium_sigma_t(m2, x2);
+    if (!(sigma2 > 0.0)) return 0.0;
+    double f = rd_hg_eval(m->g, cw) * (sb - sa) / (4.0 / 3.0 * M_PI * rh * rh * rh);
+    f /= rd_march_support_share(s, region, m2, x2, rh);
+    return f * exp(-0.5 * (sigma_x + sigma2) * (u2 - u));
+}
+
 vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, ray3 r, int region,
-                             double t0, double t1, pcg32 *rng, rd_track_counters *c, int *crossed)
+                             double t0, double t1, pcg32 *rng, rd_track_counters *c, int *crossed, vec3 *gap)
 {
     const rd_scene *s = ctx->scene;
     const march_state *st = ctx->state;
     double wgt;
+    if (gap) *gap = v3(0, 0, 0);
     int n = rd_beams_cross(st->beams, r, t0, t1, ms->hits, st->beam_cap, rng, &wgt);
     *crossed = n < st->beam_cap ? n : (int)lround(wgt * n); /* every ball crossed, kept or not */
     if (n == 0) return v3(0, 0, 0);
@@ -328,7 +359,7 @@ vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, r
     }
     double o[3];
     pm_map_origin(map, o);
-    vec3 sum = v3(0, 0, 0);
+    vec3 sum = v3(0, 0, 0), half = v3(0, 0, 0);
     double T = 1.0, tp = t0;
     for (int j = 0; j < npick && T != 0.0; j++) {
         double u = pu[j];
@@ -344,10 +375,11 @@ vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, r
          * reaching into an empty voxel adds nothing there. */
         if (!m) continue;
         c->lookups++;
-        if (!(rd_medium_sigma_t(m, x) > 0.0)) continue;
+        const double sigma_x = rd_medium_sigma_t(m, x);
+        if (!(sigma_x > 0.0)) continue;
+        vec3 q = v3(o[0] + p->pos[0], o[1] + p->pos[1], o[2] + p->pos[2]);
+        vec3 dq = v3_sub(q, x);
         if (s->geom) {
-            vec3 q = v3(o[0] + p->pos[0], o[1] + p->pos[1], o[2] + p->pos[2]);
-            vec3 dq = v3_sub(q, x);
             double len = v3_len(dq);
             if (len > 0.0 && rd_geom_occluded(s->geom, (ray3){x, v3_scale(dq, 1.0 / len)}, 0.0, len, NULL)) continue;
         }
@@ -355,8 +387,12 @@ vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, r
         double cw = fmin(1.0, fmax(-1.0, p->dir[0] * w.x + p->dir[1] * w.y + p->dir[2] * w.z));
         double f = rd_hg_eval(m->g, cw) * (h->tb - h->ta) / (4.0 / 3.0 * M_PI * rk * rk * rk);
         f /= rd_march_support_share(s, region, m, x, rk);
-        sum = v3_madd(sum, v3(p->power[0], p->power[1], p->power[2]), f * T * pw[j]);
+        vec3 power = v3(p->power[0], p->power[1], p->power[2]);
+        sum = v3_madd(sum, power, f * T * pw[j]);
+        if (gap) half = v3_madd(half, power, half_ball_term(s, region, r, q, rk, h, u, t0, t1, m, sigma_x, cw, c) * T * pw[j]);
     }
-    return v3_scale(sum, wgt * st->beam_weight);
+    double scale = wgt * st->beam_weight;
+    if (gap) *gap = v3_scale(v3_sub(sum, half), scale);
+    return v3_scale(sum, scale);
 }
 

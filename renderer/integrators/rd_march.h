@@ -84,8 +84,15 @@ double rd_march_support_share(const rd_scene *s, int region, const rd_medium *m,
  * of r in `region` (the balls of the indirect photons, state's beams; march_beams.c says how), the
  * integral of T(t0, t) sigma_s L_s over the segment. */
 vec3 rd_march_beam_estimate(const rd_render_ctx *ctx, const march_scratch *ms, ray3 r, int region,
-                            double t0, double t1, pcg32 *rng, rd_track_counters *c, int *crossed);
-/* (*crossed: the balls the segment crossed, those beyond the reservoir's cap included.) */
+                            double t0, double t1, pcg32 *rng, rd_track_counters *c, int *crossed, vec3 *gap);
+/* (*crossed: the balls the segment crossed, those beyond the reservoir's cap included. *gap,
+ * unless NULL: the estimate less the same picks read with every ball of half its volume, radius
+ * r_k / sqrt 2 (each pick moved onto the small ball's chord, march_beams.c's half_ball_term).
+ * Where the kernel's bias grows as r^2 (a smooth in-scattered field: a ball of radius r averages
+ * it with a second moment r^2 / 5 a direction, so the bias is r^2 / 10 times its Laplacian), the
+ * small balls carry half the bias, and 2 gap estimates the estimate's bias (Richardson's
+ * extrapolation; select_rule.c "The beams' bias"). At an edge of the light the bias grows as r
+ * instead and 2 gap reads 0.59 of it.) */
 /* march.equiangular: one equiangular sample per segment toward a point or spot light (or a
  * directional beam), MIS with the placement's samples (march_equiangular.c says how). The
  * lights a segment samples: */

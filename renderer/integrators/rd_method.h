@@ -39,6 +39,10 @@ typedef struct rd_thread {
                              * its flights' distance-pdf segments */
     uint64_t guide_vertices; /* guided-unbiased: path vertices whose policy read the guide */
     uint64_t beam_queries, beam_hits; /* march.ls nee+beams: segments queried, balls they crossed */
+    int want_gap;           /* nee+beams: 1 while the selection draws a beams sample, whose
+                             * beam_gap it reads (select.c); the gap is computed only then */
+    vec3 beam_gap;          /* ... the sample's beam estimates less the same with balls of half
+                             * the volume (rd_march_beam_estimate's gap; its bias, select_rule.c) */
     uint64_t probes;        /* march.probes, settings.probes: the probes' camera chains (probes.c) */
     uint32_t samples_min, samples_max;
     uint64_t delta_samples; /* settings.select: camera samples given to delta's path (for
