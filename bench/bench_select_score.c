@@ -326,7 +326,7 @@ static int best_fixed(const trace *r, const tables *t, long N)
         tile_sums(r, t, tv, px);
         for (int k = 0; k < n; k++)
             for (int e = 0; e < m; e++) var[m * k + e] = tv[k * MAXE + e], cost[m * k + e] = px[k] * r->cost[k * MAXE + e];
-        rd_select_choose(var, cost, n, m, NULL, ch);
+        rd_select_choose(var, cost, NULL, n, m, NULL, ch);
         int count[MAXE] = {0};
         for (int k = 0; k < n; k++) b.choice[0][k] = ch[k], count[ch[k]]++;
         double v, c, own;

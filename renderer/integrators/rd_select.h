@@ -37,6 +37,13 @@ enum { RD_SEL_DELTA = 0, RD_SEL_METHOD = 1, RD_SEL_DELTA_EQ = 2, RD_SEL_PATH = 3
 typedef struct {
     double n, nonzero, dof, sum[3], dev2[3], cost;
     double image_n, image_cost;
+    /* The beams' (0 for the others; select_rule.c, "The beams' bias"): the sum of their
+     * samples' gaps (rd_thread.beam_gap, the mean over RGB); and over each pixel record (a pilot
+     * pixel's samples, or an epoch's) with samples of both an odd and an even photon pass, the
+     * product of the two sets' mean gaps (an unbiased estimate of the squared gap the pixel's
+     * samples expect: the two sets share no photons), in bias2, its square in bias2_sq, and the
+     * records counted, bias_n. */
+    double gap, bias2, bias2_sq, bias_n;
 } rd_select_stats;
 
 /* How the render ends, seen at an epoch (select_rule.c, "The samples the image holds"): at its
@@ -49,7 +56,7 @@ typedef struct {
 
 /* One pixel's samples since the last epoch (all of one estimator: the pixel's, rd_select_uses,
  * does not change within an epoch). Plain doubles, so that several ranks' arrays are summed as
- * one array of doubles (rd_select_epoch): 9 a pixel, 72 bytes. sum and sum2 are accumulated in
+ * one array of doubles (rd_select_epoch): 13 a pixel, 104 bytes. sum and sum2 are accumulated in
  * float precision (each sum rounded to a float; the sums feed a choice, not the image), n
  * and nonzero are counts of the finite samples, and cost is the counted cost of all the
  * samples drawn (the film's dropped ones too: their time was spent) as a whole number of
@@ -59,8 +66,10 @@ typedef struct {
     double n, nonzero;
     double sum[3], sum2[3];
     double cost;
+    double gap[2], gap_n[2]; /* the beams': the sums of their gaps (mean over RGB) and their
+                                counts, on the even (0) and the odd (1) photon passes */
 } rd_select_pixel;
-#define RD_SELECT_PIXEL_DOUBLES 9
+#define RD_SELECT_PIXEL_DOUBLES 13
 
 /* A method's own estimate of the radiance along camera ray r (what its radiance() does
  * where the selection gives it the pixel). */
@@ -239,18 +248,22 @@ void rd_select_epoch(rd_select *sel, const rd_comm *comm, const rd_select_end *e
 /* The image's samples so far, for the rule (select_rule.c, "The samples the image holds"): P,
  * the sum over the pixels of their samples' variances (the squared error of their means times
  * n0^2), n0 the samples a pixel, T0 their counted cost; and the render's end: with left > 0 it
- * ends left samples a pixel from now, else R (in the units of the rule's costs) from now. */
+ * ends left samples a pixel from now, else R (in the units of the rule's costs) from now, and
+ * then w weighs a consistent estimator's squared bias: the squared share of the mean at the end
+ * that the samples to come make at the image's pace so far ("The beams' bias"; 0: none). */
 typedef struct {
-    double P, n0, T0, R, left;
+    double P, n0, T0, R, left, w;
 } rd_select_past;
 
 /* The rule: for n tiles with the per-sample variance and cost of each of the m estimators
  * (var[m k + e], cost[m k + e], e = 0 .. m-1, as sums over each tile's pixels), the choices
  * that minimise (sum V)(sum C), or with `past` (may be NULL) the image's squared error at the
- * end of the time left, (P + a sum V) / (n0 + a)^2 with a = R / sum C, or where the render ends
- * at a sample count (past->left > 0) that error times the render's time, (P + left sum V)(T0 +
- * left sum C); choice[k] the estimator of tile k. */
-void rd_select_choose(const double *var, const double *cost, int n, int m, const rd_select_past *past,
+ * end of the time left, (P + a sum V + a^2 sum B) / (n0 + a)^2 with a = R / sum C, or where the
+ * render ends at a sample count (past->left > 0) that error times the render's time, (P + left
+ * sum V + left^2 sum B)(T0 + left sum C); B the squared bias of a consistent estimator's samples
+ * (bias[m k + e], a sum over the tile's pixels; NULL: none), which only a known end weighs;
+ * choice[k] the estimator of tile k. */
+void rd_select_choose(const double *var, const double *cost, const double *bias, int n, int m, const rd_select_past *past,
                       uint8_t *choice);
 
 /* Every tile's estimator (sel->choice, sel->trial, and sel->unlit at the first call) from the

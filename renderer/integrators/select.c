@@ -91,8 +91,8 @@
  * A consistent method. The marcher with march.ls nee+beams is consistent, not unbiased: its
  * photon part carries the kernel's bias (shrinking with the progressive passes). It mixes with
  * delta's path only when settings.select names "tiles" or "pilot" (the default "auto" marches
- * every pixel with it). The choice compares variance and cost only, so it does not see that
- * bias; a tile it gives to delta's path sheds the bias with the marcher, and where a beam tile
+ * every pixel with it). The choice compares that method's variance and cost only, so it does
+ * not see that bias (the fifth estimator's it reads: below); a tile it gives to delta's path sheds the bias with the marcher, and where a beam tile
  * meets a delta tile a seam of the bias's size can show. Nor does it see the photon passes'
  * own noise: the samples of one pass share its photons, so what the photons add to the error
  * is common to them and absent from their variance about the pixel's mean (more so as a
@@ -109,7 +109,9 @@
  * photon passes of its own: its samples, not the method's, consume them (rd_select.pass_kind:
  * they carry the passes' share and their pixels pace the passes, rd_select_pass_pixels). It is
  * consistent, as the nee+beams marcher is (below), and the rule weighs it as it weighs the others
- * (docs/guided-marching.md "The beams beside the marcher": where it loses, and a bias term tried).
+ * (docs/guided-marching.md "The beams beside the marcher": where it loses, and a bias term tried),
+ * and since session 64 its bias too, which each of its samples estimates (select_rule.c, "The
+ * beams' bias": the sample's gap, estimate(), folded per pixel record by pixel_fold).
  *
  * The beams' pilot in two stages (session 60). A beams sample marches the whole ray and queries
  * the photon balls along it: 50-75 us of one thread on sphere-in-fog, where the pilot's 38400 of
@@ -217,14 +219,16 @@ static uint64_t sample_fixed_units(const rd_select *sel, int e)
 }
 
 /* Add one finite sample L to a pixel's record (its cost is added apart: the work of the
- * samples the film drops counts too). */
-static void pixel_add(rd_select_pixel *px, vec3 L)
+ * samples the film drops counts too); a beams sample's gap on photon pass `pass` with it
+ * (pass < 0: none, the other estimators). */
+static void pixel_add(rd_select_pixel *px, vec3 L, vec3 gap, int pass)
 {
     const double v[3] = {L.x, L.y, L.z};
     for (int c = 0; c < 3; c++) { /* float sums, as they always were: the same choices */
         px->sum[c] = (float)px->sum[c] + (float)v[c];
         px->sum2[c] = (float)px->sum2[c] + (float)(v[c] * v[c]);
     }
+    if (pass >= 0) px->gap[pass & 1] += (gap.x + gap.y + gap.z) / 3.0, px->gap_n[pass & 1]++;
     px->nonzero += L.x != 0.0 || L.y != 0.0 || L.z != 0.0;
     px->n++;
 }
@@ -239,6 +243,11 @@ static void pixel_fold(rd_select_stats *st, const rd_select_pixel *px)
         double s = px->sum[c];
         st->sum[c] += s;
         st->dev2[c] += fmax(0.0, (double)px->sum2[c] - s * s / n);
+    }
+    st->gap += px->gap[0] + px->gap[1];
+    if (px->gap_n[0] > 0.0 && px->gap_n[1] > 0.0) { /* (independent: E[product] = gap^2) */
+        double g2 = px->gap[0] / px->gap_n[0] * (px->gap[1] / px->gap_n[1]);
+        st->bias2 += g2, st->bias2_sq += g2 * g2, st->bias_n += 1.0;
     }
     st->n += n;
     st->dof += n - 1.0;
@@ -260,7 +269,7 @@ static void pixel_fold(rd_select_stats *st, const rd_select_pixel *px)
  * renders the pixel, and stay alive until it does or until rd_select_epoch. */
 typedef struct rd_select_run {
     _Alignas(RD_CACHE_LINE) float sum[3], sum2[3];
-    double n, nonzero;
+    double n, nonzero, gap[2], gap_n[2];
     uint64_t drawn;       /* the run's samples, finite or not */
     rd_select_work c;     /* the counters at the run's first sample */
     const rd_thread *th;  /* the thread whose counters c read; NULL: no run open */
@@ -272,6 +281,7 @@ static void run_open(rd_select *sel, rd_select_run *u, const rd_thread *th)
 {
     const rd_select_pixel *px = &sel->pixels[th->pixel];
     for (int c = 0; c < 3; c++) u->sum[c] = (float)px->sum[c], u->sum2[c] = (float)px->sum2[c]; /* exact */
+    for (int i = 0; i < 2; i++) u->gap[i] = px->gap[i], u->gap_n[i] = px->gap_n[i];
     u->n = px->n, u->nonzero = px->nonzero, u->drawn = 0;
     u->c = rd_select_work_now(th);
     u->th = th, u->pixel = th->pixel;
@@ -285,6 +295,7 @@ static void run_close(rd_select *sel, rd_select_run *u)
     if (!u->th) return;
     rd_select_pixel *px = &sel->pixels[u->pixel];
     for (int c = 0; c < 3; c++) px->sum[c] = u->sum[c], px->sum2[c] = u->sum2[c];
+    for (int i = 0; i < 2; i++) px->gap[i] = u->gap[i], px->gap_n[i] = u->gap_n[i];
     px->n = u->n, px->nonzero = u->nonzero;
     rd_select_work c1 = rd_select_work_now(u->th);
     px->cost += (double)(work_units(sel, u->use, &u->c, &c1) + u->drawn * sample_fixed_units(sel, u->use)); /* exact */
@@ -345,13 +356,22 @@ static uint64_t sample_units(const rd_select *sel, int e, const rd_thread *th, r
     return work_units(sel, e, &c0, &c1) + sample_fixed_units(sel, e);
 }
 
-/* Camera sample `smp` of ray r with estimator e (0 .. sel->n - 1, of kind sel->kind[e]). */
+/* Camera sample `smp` of ray r with estimator e (0 .. sel->n - 1, of kind sel->kind[e]); for
+ * the beams *gap their gap (rd_thread.beam_gap; select_rule.c, "The beams' bias") and *pass the
+ * photon pass it read, for the others *pass -1. */
 static vec3 estimate(const rd_render_ctx *ctx, const rd_select *sel, rd_thread *th, int e,
-                     rd_select_fn method, ray3 r, rd_sampler *smp)
+                     rd_select_fn method, ray3 r, rd_sampler *smp, vec3 *gap, int *pass)
 {
+    *gap = v3(0, 0, 0), *pass = -1;
     if (sel->kind[e] == RD_SEL_METHOD) return method(ctx, th, r, smp);
     if (sel->kind[e] == RD_SEL_PATH) return sel->path(ctx, th, r, smp);
-    if (sel->kind[e] == RD_SEL_BEAMS) return sel->beams(ctx, th, r, smp);
+    if (sel->kind[e] == RD_SEL_BEAMS) {
+        th->want_gap = 1;
+        vec3 L = sel->beams(ctx, th, r, smp);
+        th->want_gap = 0;
+        if (v3_finite(th->beam_gap)) *gap = th->beam_gap, *pass = ctx->photon_pass;
+        return L;
+    }
     int mode = sel->kind[e] == RD_SEL_DELTA_EQ ? RD_EQ_ALL : rd_eq_path_mode(ctx->scene->settings.equiangular);
     if (sel->delta) return sel->delta(ctx, th, r, smp, mode); /* the method's (its probes) */
     pcg32 rng = rd_sampler_stream(smp);
@@ -373,10 +393,12 @@ static void pilot_samples(const rd_render_ctx *ctx, rd_thread *th, const rd_sele
         rd_select_work c0 = rd_select_work_now(th);
         th->pixel = pix, th->x = x, th->y = y;
         th->pilot = 1; /* (not an image sample: march.probes "auto" learns from those only) */
-        vec3 L = estimate(ctx, sel, th, e, method, r, &smp);
+        vec3 gap;
+        int pass;
+        vec3 L = estimate(ctx, sel, th, e, method, r, &smp, &gap, &pass);
         th->pilot = 0;
         px->cost += (double)sample_units(sel, e, th, c0); /* (a dropped sample's work counts too) */
-        if (v3_finite(L)) pixel_add(px, L);
+        if (v3_finite(L)) pixel_add(px, L, gap, pass);
     }
 }
 
@@ -621,7 +643,7 @@ uint64_t rd_select_pass_pixels(const rd_select *sel, uint64_t all)
 
 void rd_select_observe(rd_select *sel, uint64_t pixel, vec3 L, double cost)
 {
-    pixel_add(&sel->pixels[pixel], L);
+    pixel_add(&sel->pixels[pixel], L, v3(0, 0, 0), -1);
     sel->pixels[pixel].cost += (double)cost_units(cost); /* (whole units, as every record's) */
 }
 
@@ -671,9 +693,11 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
         th->delta_eq_samples += sel->kind[use] == RD_SEL_DELTA_EQ;
         th->path_samples += sel->kind[use] == RD_SEL_PATH;
         th->beams_samples += sel->kind[use] == RD_SEL_BEAMS;
-        vec3 L = estimate(ctx, sel, th, use, method, r, smp);
+        vec3 gap;
+        int pass;
+        vec3 L = estimate(ctx, sel, th, use, method, r, smp, &gap, &pass);
         sel->pixels[th->pixel].cost += (double)sample_units(sel, use, th, c0); /* (a dropped sample's too) */
-        if (v3_finite(L)) pixel_add(&sel->pixels[th->pixel], L);
+        if (v3_finite(L)) pixel_add(&sel->pixels[th->pixel], L, gap, pass);
         return L;
     }
     rd_select_run *u = &sel->runs[th->index];
@@ -685,11 +709,14 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
     th->delta_eq_samples += sel->kind[u->use] == RD_SEL_DELTA_EQ;
     th->path_samples += sel->kind[u->use] == RD_SEL_PATH;
     th->beams_samples += sel->kind[u->use] == RD_SEL_BEAMS;
-    vec3 L = estimate(ctx, sel, th, u->use, method, r, smp);
+    vec3 gap;
+    int pass;
+    vec3 L = estimate(ctx, sel, th, u->use, method, r, smp, &gap, &pass);
     u->drawn++; /* (its work is read from the counters at the run's end: run_close) */
     if (v3_finite(L)) { /* pixel_add's sums, in the same order: the same to the bit */
         const float v[3] = {(float)L.x, (float)L.y, (float)L.z}, v2[3] = {(float)(L.x * L.x), (float)(L.y * L.y), (float)(L.z * L.z)};
         for (int c = 0; c < 3; c++) u->sum[c] += v[c], u->sum2[c] += v2[c];
+        if (pass >= 0) u->gap[pass & 1] += (gap.x + gap.y + gap.z) / 3.0, u->gap_n[pass & 1]++;
         u->nonzero += L.x != 0.0 || L.y != 0.0 || L.z != 0.0;
         u->n += 1.0;
     }

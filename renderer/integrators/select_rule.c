@@ -240,6 +240,51 @@
  * understood; docs/guided-marching.md "The samples the image holds"), and `delta`'s "tiles" was
  * not measured; both weigh the samples to come alone, as before.
  *
+ * The beams' bias (session 64). The beams are consistent, not unbiased: their kernel averages
+ * the in-scattered light over balls of radius r, which the passes shrink slowly (the mean r^2
+ * over n passes falls as n^(-2/7): bake/passes.c), so more samples leave a pixel's bias as it
+ * is. The figures held variance and cost only, and on cloud at 60 s the beams, on 31% of the
+ * samples, left a squared bias of 1.0e-5 a pixel, 89% of the image's error, where `guided`
+ * without them made 2.2x the efficiency (docs/benchmarks.md "Session 63"). So every beams sample
+ * also reads its picks with balls of half the volume, radius r / sqrt 2 (rd_march_beam_estimate's
+ * gap, rd_thread.beam_gap): where the bias grows as r^2 the small balls carry half of it and twice
+ * the gap estimates it (Richardson's extrapolation). On cloud, from renders of the beams alone at
+ * r and at r / sqrt 2 (128 spp, two seeds), the squared bias a pixel read 4.8e-6 from the gaps
+ * against 7.1e-6 from the two renders' errors (docs/guided-marching.md "The beams' bias read from
+ * their own samples").
+ *
+ * A blur's bias changes sign across an edge of the light, inside a tile too, so what counts is
+ * each pixel's squared gap, not a tile's mean gap squared (on cloud the tiles' squared bias was
+ * a quarter of the pixels'). It is read per pixel record (one epoch's samples of a pixel; the
+ * pilot's read pass 1 only and give none) as the product of the mean gaps of its samples on the
+ * odd and on the even photon passes (rd_select_pixel.gap): the two share no photons, so the
+ * product is an unbiased estimate of the squared gap. (A record's squared mean less its samples'
+ * spread over n read high: the samples of one pass share its photons' noise, which their spread
+ * does not show, and on hard-dense-block it read the squared bias at twice the variance a sample
+ * where the beams alone show none beyond their noise: `guided` fell from 2.9x to 0.79x `delta`
+ * in a 60-s round.) The products are noisy, and the weight of the bias grows with the samples to
+ * come (below), so a tile's own records (or its 3x3 tiles') could not tell cloud's bias from none
+ * at 60 s: per tile, the dense block lost 2.9x -> 0.68x and 2.0x -> 0.54x `delta` in two 60-s
+ * rounds, on noise. So the rule reads one figure for the image, the ratio of the beams' squared
+ * bias to their variance a sample over all their records (bias_figures), less SEL_BIAS_SIGMA
+ * standard errors and not below 0, and gives each tile B = that ratio times the beams' variance
+ * figure there: a bias that shows over the whole image is counted where the beams' noise is. On
+ * cloud at 30 s it read 0.018 +- 0.0033 (0.0080 after the margin), on the dense block -0.025 +-
+ * 0.020 (none). The half ball's term follows the big one's pick (half_ball_term): with the small
+ * ball's indicator at the pick instead, cloud's standard error was 0.0080 and no bias showed.
+ *
+ * The objective counts B as a pixel's mean carries it when the render ends: with a samples a
+ * pixel still to come of n0 + a, the samples to come make a / (n0 + a) of the mean, so at a
+ * deadline it adds w B with w = (a / (n0 + a))^2 (the past's bias left out: it is the same
+ * whatever the choice), and a tile's figure in the fixed point is V + lambda C + a B (w's
+ * derivative over the variance's, a / (n0 + a)^2); with a sample count it adds left^2 B to P +
+ * left V. w is taken at the image's pace so far (ahead n0 samples to come: past_of), not at the
+ * choices' own a: as a function of their cost it rewarded costly choices for drawing fewer
+ * samples (a smaller share of the mean, so less of its bias), and with a large B the fixed
+ * point's lambda went negative (hard-dense-block at 60 s: 77% of the samples to the beams where a
+ * noisy B counted). The pilot has no end known and weighs no bias. Measured in docs/benchmarks.md
+ * "Session 64".
+ *
  * The rule. At equal time the image's MSE is (sum_k V_k)(sum_k C_k) / time for the choices
  * m_k of the tiles k, so the best choices minimise the product. Its stationary point is where
  * every tile takes the m minimising V_k,m + lambda C_k,m with lambda = sum V / sum C of the
@@ -257,6 +302,7 @@
 #define SEL_TIE 1e-9  /* relative margin below which the method does not beat delta */
 #define SEL_LAG_SLACK 0.5 /* the beams' mean may be twice the truth (their kernel's bias) */
 #define SEL_LAG_SIGMA 3.0 /* standard errors of the two means taken off a lag: its noise */
+#define SEL_BIAS_SIGMA 3.0 /* standard errors taken off the beams' squared bias ratio: its noise */
 
 /* Channel c of a tile's mean, from its m statistics tile[0 .. m-1]: estimator centre's mean
  * where centre >= 0 has samples (the beams: see the head, "The bound's tile mean with the
@@ -310,18 +356,20 @@ static uint8_t least(const double *f, int m)
     return (uint8_t)b;
 }
 
-/* The rule's objective for figure sums V and C (see the head, "The rule" and "The samples the
- * image holds"): V C; with the image's samples so far and a deadline, the image's squared error
- * then (times the pixels), (P + a V) / (n0 + a)^2 with a = R / C the samples a pixel draws in the
- * time left; with a sample count, that error times the render's time, (P + left V)(T0 + left C)
- * (up to the constant (n0 + left)^2). */
-static double objective(double V, double C, const rd_select_past *past)
+/* The rule's objective for figure sums V, C and B (see the head, "The rule", "The samples the
+ * image holds" and "The beams' bias"): V C; with the image's samples so far and a deadline, the
+ * image's squared error then (times the pixels), (P + a V) / (n0 + a)^2 + w B with a = R / C the
+ * samples a pixel draws in the time left and w the bias's weight (rd_select_past.w); with a sample
+ * count, that error times the render's time, (P + left V + left^2 B)(T0 + left C) (up to the
+ * constant (n0 + left)^2). */
+static double objective(double V, double C, double B, const rd_select_past *past)
 {
     if (!past) return V * C;
-    if (past->left > 0.0) return (past->P + past->left * V) * (past->T0 + past->left * C);
+    const double l = past->left;
+    if (l > 0.0) return (past->P + l * V + l * l * B) * (past->T0 + l * C);
     if (!(C > 0.0)) return 0.0; /* (a figure of no cost draws samples without end: no error) */
     double a = past->R / C;
-    return (past->P + a * V) / ((past->n0 + a) * (past->n0 + a));
+    return (past->P + a * V) / ((past->n0 + a) * (past->n0 + a)) + past->w * B;
 }
 
 /* The weight lambda of cost against variance at which the objective is stationary (its
@@ -329,32 +377,46 @@ static double objective(double V, double C, const rd_select_past *past)
  * (2 P + (a - n0) V) / (C (n0 + a)), which is V / C when nothing is past (P = n0 = 0) or the
  * time left is long (a V >> P and a >> n0), and which is negative where a < n0 and the samples
  * to come would be noisier a sample than 2 P / (n0 - a): fewer of them then make a better mean;
- * with a sample count (P + left V) / (T0 + left C), never negative (the samples are drawn
- * whatever they cost). */
-static double slope(double V, double C, const rd_select_past *past)
+ * with a sample count (P + left V + left^2 B) / (T0 + left C), never negative (the samples are
+ * drawn whatever they cost). */
+static double slope(double V, double C, double B, const rd_select_past *past)
 {
     if (!past) return V / C;
-    if (past->left > 0.0) return (past->P + past->left * V) / (past->T0 + past->left * C);
+    const double l = past->left;
+    if (l > 0.0) return (past->P + l * V + l * l * B) / (past->T0 + l * C);
     double a = past->R / C;
     return (2.0 * past->P + (a - past->n0) * V) / (C * (past->n0 + a));
 }
 
-void rd_select_choose(const double *var, const double *cost, int n, int m, const rd_select_past *past,
-                      uint8_t *choice)
+/* The weight of the squared bias against the variance in the fixed point (their derivatives'
+ * ratio): with a sample count left, with a deadline w (n0 + a)^2 / a (past->w); 0 with no end
+ * known. */
+static double bias_weight(double C, const rd_select_past *past)
 {
+    if (!past) return 0.0;
+    if (past->left > 0.0) return past->left;
+    if (!(C > 0.0)) return 0.0;
+    double a = past->R / C;
+    return past->w * (past->n0 + a) * (past->n0 + a) / a;
+}
+
+void rd_select_choose(const double *var, const double *cost, const double *bias, int n, int m,
+                      const rd_select_past *past, uint8_t *choice)
+{
+#define BIAS(i) (bias ? bias[i] : 0.0)
     double f[RD_SEL_MAX];
     for (int k = 0; k < n; k++) { /* start: each tile's own best V C */
         for (int e = 0; e < m; e++) f[e] = var[m * k + e] * cost[m * k + e];
         choice[k] = least(f, m);
     }
     for (int round = 0; round < SEL_ROUNDS; round++) {
-        double V = 0.0, C = 0.0;
-        for (int k = 0; k < n; k++) V += var[m * k + choice[k]], C += cost[m * k + choice[k]];
+        double V = 0.0, C = 0.0, B = 0.0;
+        for (int k = 0; k < n; k++) V += var[m * k + choice[k]], C += cost[m * k + choice[k]], B += BIAS(m * k + choice[k]);
         if (!(C > 0.0)) return;
-        double lambda = slope(V, C, past);
+        double lambda = slope(V, C, B, past), mu = bias_weight(C, past);
         int changed = 0;
         for (int k = 0; k < n; k++) {
-            for (int e = 0; e < m; e++) f[e] = var[m * k + e] + lambda * cost[m * k + e];
+            for (int e = 0; e < m; e++) f[e] = var[m * k + e] + lambda * cost[m * k + e] + mu * BIAS(m * k + e);
             uint8_t u = least(f, m);
             changed += u != choice[k];
             choice[k] = u;
@@ -365,24 +427,26 @@ void rd_select_choose(const double *var, const double *cost, int n, int m, const
      * variance for cost can still lower the objective itself (the cross term dV dC < 0, and the
      * past's curvature): move such tiles, one at a time, to the first other estimator that
      * lowers it, until no single move helps. */
-    double V = 0.0, C = 0.0;
-    for (int k = 0; k < n; k++) V += var[m * k + choice[k]], C += cost[m * k + choice[k]];
-    double F = objective(V, C, past);
+    double V = 0.0, C = 0.0, B = 0.0;
+    for (int k = 0; k < n; k++) V += var[m * k + choice[k]], C += cost[m * k + choice[k]], B += BIAS(m * k + choice[k]);
     for (int round = 0, changed = 1; changed && round < SEL_ROUNDS; round++) {
         changed = 0;
+        double F = objective(V, C, B, past);
         for (int k = 0; k < n; k++)
             for (int e = 0; e < m; e++) {
                 int o = choice[k];
                 if (e == o) continue;
                 double V2 = V - var[m * k + o] + var[m * k + e], C2 = C - cost[m * k + o] + cost[m * k + e];
-                double F2 = objective(V2, C2, past);
+                double B2 = B - BIAS(m * k + o) + BIAS(m * k + e);
+                double F2 = objective(V2, C2, B2, past);
                 if (F2 < F * (1.0 - 1e-12)) {
                     choice[k] = (uint8_t)e;
-                    V = V2, C = C2, F = F2;
+                    V = V2, C = C2, B = B2, F = F2;
                     changed = 1;
                 }
             }
     }
+#undef BIAS
 }
 
 /* Each tile's figures a[m k + e] (one per estimator) replaced by the mean over its 3x3
@@ -487,6 +551,8 @@ static int past_of(const rd_select *sel, const rd_select_stats *all, const doubl
     if (!(held > 0.0 && T0 > 0.0)) return 0;
     past->P = P, past->n0 = held / ((double)sel->width * sel->height), past->T0 = T0;
     past->R = by_time ? end->ahead * T0 : 0.0, past->left = by_time ? 0.0 : end->left;
+    /* at the pace so far the image draws ahead n0 samples a pixel more: a share ahead / (1 + ahead) */
+    past->w = by_time ? (end->ahead / (1.0 + end->ahead)) * (end->ahead / (1.0 + end->ahead)) : 0.0;
     return 1;
 }
 
@@ -561,6 +627,32 @@ static void pooled_relative_variance(const rd_select *sel, const rd_select_stats
     }
 }
 
+/* The beams' squared bias in each tile, bias[m k + b] for the beams estimator b (the others
+ * 0), as a sum over the tile's pixels (see the head, "The beams' bias"): the image's ratio of
+ * the beams' squared bias to their variance a sample, less SEL_BIAS_SIGMA standard errors and
+ * not below 0, times the beams' variance figure var[m k + b] (figures()). The ratio: four times
+ * the mean of the pixel records' products of their odd and even passes' mean gaps in statistics
+ * st (over all tiles), over the mean of their tiles' variance a sample (tile_variance's sample
+ * variance, unbounded). */
+static void bias_figures(const rd_select *sel, const rd_select_stats *st, const double *var, double *bias)
+{
+    int n = sel->tiles_x * sel->tiles_y, m = sel->n;
+    memset(bias, 0, (size_t)m * n * sizeof *bias);
+    const int b = bound_centre(sel);
+    if (b < 0) return;
+    double sum = 0.0, sq = 0.0, records = 0.0, v = 0.0;
+    for (int k = 0; k < n; k++) {
+        const rd_select_stats *a = &st[m * k + b];
+        if (!(a->bias_n > 0.0 && a->dof > 0.0)) continue;
+        sum += a->bias2, sq += a->bias2_sq, records += a->bias_n;
+        v += a->bias_n * (a->dev2[0] + a->dev2[1] + a->dev2[2]) / (3.0 * a->dof);
+    }
+    if (!(records > 1.0 && v > 0.0)) return;
+    const double mean = sum / records, se = sqrt(fmax(0.0, sq - sum * mean) / (records - 1.0) / records);
+    const double ratio = fmax(0.0, 4.0 * (mean - SEL_BIAS_SIGMA * se) / (v / records));
+    for (int k = 0; k < n; k++) bias[m * k + b] = ratio * var[m * k + b];
+}
+
 /* Of delta's paths (sel->paths), the one the rule picks for the image as one tile: the least
  * V C, with the samples all[m k + e] summed over the lit tiles and each estimator's non-zero
  * prior pbar[e] (see the head, "Tiles no sample has lit"). */
@@ -601,13 +693,14 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
     int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
     size_t mn = (size_t)m * n;
     rd_select_stats *all = malloc(mn * sizeof *all);
-    double *buf = malloc(7 * mn * sizeof *buf);
+    double *buf = malloc(8 * mn * sizeof *buf);
     uint8_t *want = malloc(3 * (size_t)n); /* the two halves', and the image's (image_want) */
     if (!all || !buf || !want) { /* the choices stay as they are */
         free(all), free(buf), free(want);
         return;
     }
     double *var = buf, *cost = buf + mn, *all_cost = buf + 2 * mn, *tmp = buf + 3 * mn, *r = buf + 4 * mn;
+    double *bias = buf + 7 * mn;
     const rd_select_stats *half[2] = {sel->stats, sel->stats + mn};
     for (size_t i = 0; i < mn; i++) { /* a tile's samples: its two halves' */
         const rd_select_stats *a = &half[0][i], *b = &half[1][i];
@@ -616,7 +709,10 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
         t->cost = a->cost + b->cost;
         t->image_n = a->image_n + b->image_n, t->image_cost = a->image_cost + b->image_cost;
         for (int c = 0; c < 3; c++) t->sum[c] = a->sum[c] + b->sum[c], t->dev2[c] = a->dev2[c] + b->dev2[c];
+        t->gap = a->gap + b->gap, t->bias2 = a->bias2 + b->bias2, t->bias2_sq = a->bias2_sq + b->bias2_sq;
+        t->bias_n = a->bias_n + b->bias_n;
     }
+
     /* Each estimator's non-zero fraction over the lit tiles: the prior of every tile's p. */
     double nz[RD_SEL_MAX] = {0}, nn[RD_SEL_MAX] = {0}, pbar[RD_SEL_MAX];
     for (int k = 0; k < n; k++) {
@@ -632,7 +728,8 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
     rd_select_past past;
     for (int h = 0; h < 2; h++) {
         figures(sel, half[h], pbar, NULL, var, cost, tmp);
-        rd_select_choose(var, cost, n, m, past_of(sel, all, var, end, &past) ? &past : NULL, want + (size_t)h * n);
+        bias_figures(sel, all, var, bias); /* (the image's ratio, on each half's variance) */
+        rd_select_choose(var, cost, bias, n, m, past_of(sel, all, var, end, &past) ? &past : NULL, want + (size_t)h * n);
     }
     figures(sel, all, pbar, NULL, NULL, all_cost, tmp);
     /* What the tiles beyond a tile's pooling predict, for the tiles whose halves disagree (see
@@ -642,7 +739,8 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
     uint8_t *image_want = want + 2 * (size_t)n;
     pooled_relative_variance(sel, all, r, r + mn, r + 2 * mn);
     figures(sel, all, pbar, r, var, cost, tmp);
-    rd_select_choose(var, cost, n, m, past_of(sel, all, var, end, &past) ? &past : NULL, image_want);
+    bias_figures(sel, all, var, bias);
+    rd_select_choose(var, cost, bias, n, m, past_of(sel, all, var, end, &past) ? &past : NULL, image_want);
     for (int k = 0; k < n; k++)
         for (int e = 0; e < m; e++)
             if (!(r[m * k + e] > 0.0)) image_want[k] = RD_SEL_MAX;

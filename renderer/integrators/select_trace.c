@@ -16,7 +16,7 @@ rd_status rd_select_trace(rd_select *sel, long from, char *err, size_t errlen)
 {
     if (!sel->trace_path) return RD_OK;
     static const char *const names[RD_SEL_MAX] = {"delta", "method", "delta_equiangular", "guided_path", "beams"};
-    static const char *const keys[4] = {"samples", "mean", "variance", "cost"};
+    static const char *const keys[6] = {"samples", "mean", "variance", "cost", "gap", "bias2"};
     int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
     size_t mn = (size_t)m * n;
     rd_text *t = &sel->trace;
@@ -25,16 +25,19 @@ rd_status rd_select_trace(rd_select *sel, long from, char *err, size_t errlen)
     for (int e = 0; e < m; e++) rd_text_printf(t, "%s\"%s\"", e ? ", " : "", names[sel->kind[e]]);
     rd_text_printf(t, "], \"tiles\": [");
     for (int k = 0; k < n && !t->oom; k++) {
-        double fig[4][RD_SEL_MAX]; /* samples, mean, variance, cost */
+        double fig[6][RD_SEL_MAX]; /* samples, mean, variance, cost, the beams' gap and squared bias */
         for (int e = 0; e < m; e++) {
             const rd_select_stats *a = &sel->stats[(size_t)m * k + e], *b = &sel->stats[mn + (size_t)m * k + e];
             double N = a->n + b->n, dof = a->dof + b->dof, s = 0.0, d = 0.0;
             for (int ch = 0; ch < 3; ch++) s += a->sum[ch] + b->sum[ch], d += a->dev2[ch] + b->dev2[ch];
             fig[0][e] = N, fig[1][e] = N > 0.0 ? s / (3.0 * N) : 0.0, fig[2][e] = dof > 0.0 ? d / (3.0 * dof) : 0.0;
             fig[3][e] = N > 0.0 ? (a->cost + b->cost) / N : 0.0;
+            fig[4][e] = N > 0.0 ? (a->gap + b->gap) / N : 0.0;
+            double records = a->bias_n + b->bias_n;
+            fig[5][e] = records > 0.0 ? 4.0 * (a->bias2 + b->bias2) / records : 0.0;
         }
         rd_text_printf(t, "%s{\"choice\": %d, \"trial\": %d", k ? ", " : "", sel->choice[k], sel->trial[k]);
-        for (int f = 0; f < 4; f++) {
+        for (int f = 0; f < 6; f++) {
             rd_text_printf(t, ", \"%s\": [", keys[f]);
             for (int e = 0; e < m; e++) { /* (float sums can overflow: JSON has no inf) */
                 if (!isfinite(fig[f][e])) rd_text_printf(t, "%snull", e ? ", " : "");
