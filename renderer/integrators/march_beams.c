@@ -275,7 +275,9 @@ rd_status rd_march_photons_changed(rd_render_ctx *ctx, char *err, size_t errlen)
  * small one, and T there is the pick's times exp(-sigma (u' - u)), sigma the mean of sigma_t at
  * the two points (exact in a medium constant between them). The small term then follows the big
  * one pick for pick, and the gap is a smooth difference rather than an indicator's noise. 0
- * where the segment misses the small ball or u' lies outside the medium. One density lookup. */
+ * where the segment misses the small ball or u' lies outside the medium. One density lookup.
+ * Approximate near a density edge or a surface: the small term is dropped with the big one where
+ * the pick is empty or occluded (tested from x, not x'), and takes x's phase. */
 static double half_ball_term(const rd_scene *s, int region, ray3 r, vec3 q, double rk, const rd_beam_hit *h,
                              double u, double t0, double t1, const rd_medium *m, double sigma_x, double cw,
                              rd_track_counters *c)

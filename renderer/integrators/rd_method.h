@@ -39,8 +39,9 @@ typedef struct rd_thread {
                              * its flights' distance-pdf segments */
     uint64_t guide_vertices; /* guided-unbiased: path vertices whose policy read the guide */
     uint64_t beam_queries, beam_hits; /* march.ls nee+beams: segments queried, balls they crossed */
-    int want_gap;           /* nee+beams: 1 while the selection draws a beams sample, whose
-                             * beam_gap it reads (select.c); the gap is computed only then */
+    int want_gap;           /* nee+beams: 1 while the selection draws an image's beams sample
+                             * (not the pilot's, and with epochs to use it), whose beam_gap it
+                             * reads (select.c); the gap is computed only then */
     vec3 beam_gap;          /* ... the sample's beam estimates less the same with balls of half
                              * the volume (rd_march_beam_estimate's gap; its bias, select_rule.c) */
     uint64_t probes;        /* march.probes, settings.probes: the probes' camera chains (probes.c) */

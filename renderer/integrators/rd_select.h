@@ -40,8 +40,9 @@ typedef struct {
     /* The beams' (0 for the others; select_rule.c, "The beams' bias"): the sum of their
      * samples' gaps (rd_thread.beam_gap, the mean over RGB); and over each pixel record (a pilot
      * pixel's samples, or an epoch's) with samples of both an odd and an even photon pass, the
-     * product of the two sets' mean gaps (an unbiased estimate of the squared gap the pixel's
-     * samples expect: the two sets share no photons), in bias2, its square in bias2_sq, and the
+     * product of the two sets' mean gaps (a nearly unbiased estimate of the squared gap the
+     * pixel's samples expect: the two sets share no photons but pass 1's, which set the radii),
+     * in bias2, its square in bias2_sq, and the
      * records counted, bias_n. */
     double gap, bias2, bias2_sq, bias_n;
 } rd_select_stats;
@@ -258,11 +259,11 @@ typedef struct {
 /* The rule: for n tiles with the per-sample variance and cost of each of the m estimators
  * (var[m k + e], cost[m k + e], e = 0 .. m-1, as sums over each tile's pixels), the choices
  * that minimise (sum V)(sum C), or with `past` (may be NULL) the image's squared error at the
- * end of the time left, (P + a sum V + a^2 sum B) / (n0 + a)^2 with a = R / sum C, or where the
- * render ends at a sample count (past->left > 0) that error times the render's time, (P + left
- * sum V + left^2 sum B)(T0 + left sum C); B the squared bias of a consistent estimator's samples
- * (bias[m k + e], a sum over the tile's pixels; NULL: none), which only a known end weighs;
- * choice[k] the estimator of tile k. */
+ * end of the time left, (P + a sum V) / (n0 + a)^2 + w sum B with a = R / sum C and w =
+ * past->w, or where the render ends at a sample count (past->left > 0) that error times the
+ * render's time, (P + left sum V + left^2 sum B)(T0 + left sum C); B the squared bias a
+ * consistent estimator's samples add (bias[m k + e], a sum over the tile's pixels; NULL: none),
+ * which only a known end weighs; choice[k] the estimator of tile k. */
 void rd_select_choose(const double *var, const double *cost, const double *bias, int n, int m, const rd_select_past *past,
                       uint8_t *choice);
 

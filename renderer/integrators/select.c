@@ -366,7 +366,7 @@ static vec3 estimate(const rd_render_ctx *ctx, const rd_select *sel, rd_thread *
     if (sel->kind[e] == RD_SEL_METHOD) return method(ctx, th, r, smp);
     if (sel->kind[e] == RD_SEL_PATH) return sel->path(ctx, th, r, smp);
     if (sel->kind[e] == RD_SEL_BEAMS) {
-        th->want_gap = 1;
+        th->want_gap = !th->pilot && sel->epochs; /* (the pilot's read pass 1 only: no product) */
         vec3 L = sel->beams(ctx, th, r, smp);
         th->want_gap = 0;
         if (v3_finite(th->beam_gap)) *gap = th->beam_gap, *pass = ctx->photon_pass;

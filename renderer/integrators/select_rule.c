@@ -257,8 +257,10 @@
  * each pixel's squared gap, not a tile's mean gap squared (on cloud the tiles' squared bias was
  * a quarter of the pixels'). It is read per pixel record (one epoch's samples of a pixel; the
  * pilot's read pass 1 only and give none) as the product of the mean gaps of its samples on the
- * odd and on the even photon passes (rd_select_pixel.gap): the two share no photons, so the
- * product is an unbiased estimate of the squared gap. (A record's squared mean less its samples'
+ * odd and on the even photon passes (rd_select_pixel.gap): the two share no photons but pass
+ * 1's, which set every pass's radii, so the product is a nearly unbiased estimate of the squared
+ * gap (and an epoch's records share its few passes, so the standard error below, which takes
+ * them as independent, reads low). (A record's squared mean less its samples'
  * spread over n read high: the samples of one pass share its photons' noise, which their spread
  * does not show, and on hard-dense-block it read the squared bias at twice the variance a sample
  * where the beams alone show none beyond their noise: `guided` fell from 2.9x to 0.79x `delta`
@@ -274,11 +276,14 @@
  * ball's indicator at the pick instead, cloud's standard error was 0.0080 and no bias showed.
  *
  * The objective counts B as a pixel's mean carries it when the render ends: with a samples a
- * pixel still to come of n0 + a, the samples to come make a / (n0 + a) of the mean, so at a
- * deadline it adds w B with w = (a / (n0 + a))^2 (the past's bias left out: it is the same
- * whatever the choice), and a tile's figure in the fixed point is V + lambda C + a B (w's
- * derivative over the variance's, a / (n0 + a)^2); with a sample count it adds left^2 B to P +
- * left V. w is taken at the image's pace so far (ahead n0 samples to come: past_of), not at the
+ * pixel still to come of n0 + a, the samples to come make a / (n0 + a) of the mean, and a tile
+ * whose past samples were the beams' for a share s of them carries their bias too, so beams to
+ * come raise the mean's squared bias by (a^2 + 2 a n0 s) beta^2 / (n0 + a)^2 (the tile's B is
+ * scaled by 1 + 2 n0 s / a: bias_figures; the past's own square is the same whatever the
+ * choice). At a deadline the objective adds w B with w = (a / (n0 + a))^2, and a tile's figure
+ * in the fixed point is V + lambda C + w (n0 + a)^2 / a B (w's derivative over the variance's,
+ * a / (n0 + a)^2; bias_weight), which is a B at the image's pace; with a sample count it adds
+ * left^2 B to P + left V. w is taken at the image's pace so far (ahead n0 samples to come: past_of), not at the
  * choices' own a: as a function of their cost it rewarded costly choices for drawing fewer
  * samples (a smaller share of the mean, so less of its bias), and with a large B the fixed
  * point's lambda went negative (hard-dense-block at 60 s: 77% of the samples to the beams where a
@@ -395,7 +400,7 @@ static double bias_weight(double C, const rd_select_past *past)
 {
     if (!past) return 0.0;
     if (past->left > 0.0) return past->left;
-    if (!(C > 0.0)) return 0.0;
+    if (!(C > 0.0 && past->R > 0.0)) return 0.0;
     double a = past->R / C;
     return past->w * (past->n0 + a) * (past->n0 + a) / a;
 }
@@ -634,7 +639,8 @@ static void pooled_relative_variance(const rd_select *sel, const rd_select_stats
  * the mean of the pixel records' products of their odd and even passes' mean gaps in statistics
  * st (over all tiles), over the mean of their tiles' variance a sample (tile_variance's sample
  * variance, unbounded). */
-static void bias_figures(const rd_select *sel, const rd_select_stats *st, const double *var, double *bias)
+static void bias_figures(const rd_select *sel, const rd_select_stats *st, const double *var, const rd_select_past *past,
+                         double *bias)
 {
     int n = sel->tiles_x * sel->tiles_y, m = sel->n;
     memset(bias, 0, (size_t)m * n * sizeof *bias);
@@ -650,7 +656,18 @@ static void bias_figures(const rd_select *sel, const rd_select_stats *st, const 
     if (!(records > 1.0 && v > 0.0)) return;
     const double mean = sum / records, se = sqrt(fmax(0.0, sq - sum * mean) / (records - 1.0) / records);
     const double ratio = fmax(0.0, 4.0 * (mean - SEL_BIAS_SIGMA * se) / (v / records));
-    for (int k = 0; k < n; k++) bias[m * k + b] = ratio * var[m * k + b];
+    if (!isfinite(ratio)) return;
+    for (int k = 0; k < n; k++) {
+        /* the tile's past beams samples, a share s of its image samples, carry the same bias:
+         * beams to come add a^2 (1 + 2 n0 s / a) B to the squared bias of the mean's sum */
+        double held = 0.0;
+        for (int e = 0; e < m; e++) held += st[m * k + e].image_n;
+        const double share = held > 0.0 ? st[m * k + b].image_n / held : 0.0;
+        double grow = 1.0;
+        if (past && past->left > 0.0) grow += 2.0 * past->n0 * share / past->left;
+        else if (past && past->R > 0.0) grow += 2.0 * share * past->T0 / past->R; /* (a = ahead n0) */
+        bias[m * k + b] = ratio * grow * var[m * k + b];
+    }
 }
 
 /* Of delta's paths (sel->paths), the one the rule picks for the image as one tile: the least
@@ -728,8 +745,9 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
     rd_select_past past;
     for (int h = 0; h < 2; h++) {
         figures(sel, half[h], pbar, NULL, var, cost, tmp);
-        bias_figures(sel, all, var, bias); /* (the image's ratio, on each half's variance) */
-        rd_select_choose(var, cost, bias, n, m, past_of(sel, all, var, end, &past) ? &past : NULL, want + (size_t)h * n);
+        const rd_select_past *p = past_of(sel, all, var, end, &past) ? &past : NULL;
+        bias_figures(sel, all, var, p, bias); /* (the image's ratio, on each half's variance) */
+        rd_select_choose(var, cost, bias, n, m, p, want + (size_t)h * n);
     }
     figures(sel, all, pbar, NULL, NULL, all_cost, tmp);
     /* What the tiles beyond a tile's pooling predict, for the tiles whose halves disagree (see
@@ -739,8 +757,9 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
     uint8_t *image_want = want + 2 * (size_t)n;
     pooled_relative_variance(sel, all, r, r + mn, r + 2 * mn);
     figures(sel, all, pbar, r, var, cost, tmp);
-    bias_figures(sel, all, var, bias);
-    rd_select_choose(var, cost, bias, n, m, past_of(sel, all, var, end, &past) ? &past : NULL, image_want);
+    const rd_select_past *p = past_of(sel, all, var, end, &past) ? &past : NULL;
+    bias_figures(sel, all, var, p, bias);
+    rd_select_choose(var, cost, bias, n, m, p, image_want);
     for (int k = 0; k < n; k++)
         for (int e = 0; e < m; e++)
             if (!(r[m * k + e] > 0.0)) image_want[k] = RD_SEL_MAX;
