@@ -310,7 +310,7 @@ static rd_select_stats tile_stats(const rd_select *sel, int i)
 {
     const rd_select_stats *a = &sel->stats[i], *b = &sel->stats[(size_t)sel->n * sel->tiles_x * sel->tiles_y + i];
     rd_select_stats t = {a->n + b->n, a->nonzero + b->nonzero, a->dof + b->dof, {0, 0, 0}, {0, 0, 0}, a->cost + b->cost,
-                       a->image_n + b->image_n, a->image_cost + b->image_cost, 0, 0, 0, 0};
+                       a->image_n + b->image_n, a->image_cost + b->image_cost, 0, 0, 0};
     for (int c = 0; c < 3; c++) t.sum[c] = a->sum[c] + b->sum[c], t.dev2[c] = a->dev2[c] + b->dev2[c];
     return t;
 }
@@ -437,7 +437,7 @@ Test(select, a_move_that_pays_only_after_the_render_ends_is_not_made)
      * trial, as with no end known. At a sample count the same: with 256 samples a pixel left,
      * error times time (P + 256 V)(T0 + 256 C) is 101888 x 512 = 5.2e7 with delta against
      * 50995 x 2304 = 1.2e8 with the method; with 25600 left, 1.3e11 against 1.1e10. */
-    const rd_select_end ends[5] = {{1.0, 0.0}, {100.0, 0.0}, {0.0, 256.0}, {0.0, 25600.0}, {0.0, 0.0}};
+    const rd_select_end ends[5] = {{1.0, 0.0, 1.0}, {100.0, 0.0, 1.0}, {0.0, 256.0, 1.0}, {0.0, 25600.0, 1.0}, {0.0, 0.0, 1.0}};
     const int trial[5] = {0, 1 + RD_SEL_METHOD, 0, 1 + RD_SEL_METHOD, 1 + RD_SEL_METHOD};
     for (int i = 0; i < 5; i++) {
         rd_select sel;
@@ -1872,6 +1872,77 @@ Test(select, with_the_beams_a_mean_that_lags_theirs_reads_a_tail)
                           beams ? "beams" : "no beams", mean[i], k, sel.choice[k], sel.trial[k], want);
             rd_select_free(&sel);
         }
+}
+
+/* The beams' bias at an epoch (select.c bias_fold, select_rule.c bias_ratio and "The beams'
+ * bias"): a 6x5-tile selection (48x40 pixels) of delta and the method (variance 0.05 a sample)
+ * and the beams (0.001), all at cost 1, the image's 16 samples a pixel so far the beams', as much
+ * time left as taken. Every pixel's gaps so far (rd_select.gaps) have the mean gaps s g (1 + d_k)
+ * on its even passes and s g on its odd ones in tile k, with d_k = D, -D, 0 by k mod 3, s = +-1
+ * in a checkerboard of pixels (a blur's bias changes sign across an edge: a tile's mean gaps are
+ * 0, its pixels' products g^2 (1 + d_k)), and 3 + 5 samples on the two (weight 15/8) in even
+ * columns, 1 + 1 (weight 1/2) in odd ones. The ratio is 11.66 (RD_SELECT_BIAS_PER_GAP2, checked)
+ * x the weighted mean product x the radius's square (radius_scale 0.8) over the beams' variance
+ * a sample, its standard error is over the tiles (each tile's products one draw), both checked
+ * against this test's own sums, and a second epoch with no new samples reads the same. Then:
+ * - no gap (g 0): the beams take every tile;
+ * - g 0.046, D 0.3: a ratio of 15.8 +- 0.72, far beyond its standard errors; the beams' 50x lower
+ *   variance does not pay for a squared bias weighed ~16 (1 + 2) times: delta keeps every tile;
+ * - the same g, D 6: a ratio of 15.8 +- 14.4, so three standard errors take it all: the beams
+ *   take every tile again.
+ * Fails with the products taken from a tile's mean gaps instead of each pixel's, the factor or
+ * the radius left out, the standard error over the pixels (2.0 with D 6: the tiles would move),
+ * the margin left out, or the tiles' columns and rows swapped. */
+Test(select, the_beams_bias_is_read_from_every_pixel_s_gaps_with_a_standard_error_over_tiles)
+{
+    cr_assert(fabs(RD_SELECT_BIAS_PER_GAP2 - pow(1.0 - sqrt(0.5), -2.0)) < 1e-12, "the factor %.15g", RD_SELECT_BIAS_PER_GAP2);
+    const double g_of[3] = {0.0, 0.046, 0.046}, D_of[3] = {0.0, 0.3, 6.0};
+    enum { W = 48, H = 40, T = 30 };
+    for (int i = 0; i < 3; i++) {
+        rd_select sel;
+        char err[RD_ERRLEN];
+        cr_assert(rd_select_init(&sel, W, H, 1.0, 3, err, sizeof err) == RD_OK, "%s", err);
+        sel.kind[2] = RD_SEL_BEAMS, sel.paths &= ~(1u << 2);
+        cr_assert((sel.gaps = calloc(4 * W * H, sizeof *sel.gaps)) != NULL); /* (as rd_select_prepare_more with the beams) */
+        for (int k = 0; k < T; k++) {
+            fake_pilot(&sel, 3 * k, 0.5, 0.05, 1.0, 1.0);
+            fake_pilot(&sel, 3 * k + 1, 0.5, 0.05, 1.0, 1.0);
+            fake_pilot(&sel, 3 * k + 2, 0.5, 0.001, 1.0, 1.0);
+            for (int h = 0; h < 2; h++) { /* the image's 16 samples a pixel, 32 pixels a half */
+                rd_select_stats *st = &sel.stats[(size_t)h * 3 * T + 3 * k + 2];
+                st->image_n = 32.0 * 16.0, st->image_cost = 32.0 * 16.0;
+            }
+        }
+        const double g = g_of[i], r2 = 0.8 * 0.8;
+        double S[T] = {0}, Wk[T] = {0};
+        for (int y = 0; y < H; y++)
+            for (int x = 0; x < W; x++) {
+                int k = (y / 8) * 6 + x / 8;
+                double d = k % 3 == 0 ? D_of[i] : k % 3 == 1 ? -D_of[i] : 0.0, sg = (x + y) & 1 ? -g : g;
+                double ne = x & 1 ? 1.0 : 3.0, no = x & 1 ? 1.0 : 5.0, *gp = &sel.gaps[4 * (y * W + x)];
+                gp[0] = ne * sg * (1.0 + d), gp[1] = no * sg, gp[2] = ne, gp[3] = no;
+                double w = ne * no / (ne + no);
+                S[k] += w * g * g * (1.0 + d), Wk[k] += w;
+            }
+        double sum = 0.0, wsum = 0.0, d2 = 0.0;
+        for (int k = 0; k < T; k++) sum += S[k], wsum += Wk[k];
+        for (int k = 0; k < T; k++) d2 += (S[k] - Wk[k] * sum / wsum) * (S[k] - Wk[k] * sum / wsum);
+        const double ratio = 11.656854249492380 * sum / wsum * r2 / 0.001;
+        const double se = 11.656854249492380 * sqrt(T / (T - 1.0) * d2) / wsum * r2 / 0.001;
+        for (int epoch = 0; epoch < 2; epoch++) {
+            rd_select_epoch(&sel, NULL, &(rd_select_end){1.0, 0.0, 0.8});
+            if (g > 0.0)
+                cr_assert(fabs(sel.bias_ratio / ratio - 1.0) < 1e-9 && fabs(sel.bias_se / se - 1.0) < 1e-9,
+                          "g %g, D %g, epoch %d: the ratio read %g +- %g, want %g +- %g", g, D_of[i], epoch, sel.bias_ratio,
+                          sel.bias_se, ratio, se);
+            else cr_assert(sel.bias_ratio == 0.0 && sel.bias_se == 0.0, "no gap: the ratio read %g +- %g", sel.bias_ratio, sel.bias_se);
+        }
+        const int want = i == 1 ? RD_SEL_DELTA : 2;
+        for (int k = 0; k < T; k++)
+            cr_expect(sel.choice[k] == want && sel.trial[k] == 0, "g %g, D %g (ratio %g +- %g): tile %d took %d (trial %d), not %d",
+                      g, D_of[i], sel.bias_ratio, sel.bias_se, k, sel.choice[k], sel.trial[k], want);
+        rd_select_free(&sel);
+    }
 }
 
 /* The beams estimator is the selection's last, after the third and the method's second (the

@@ -165,7 +165,7 @@ static void epoch_guided(rd_render_ctx *ctx, int sample)
 {
     march_state *mst = ctx->state;
     if (rd_select_epoch_next(&mst->sel, sample - 1) == sample)
-        rd_select_epoch(&mst->sel, ctx->comm, &(rd_select_end){ctx->epoch_ahead, ctx->epoch_left});
+        rd_select_epoch(&mst->sel, ctx->comm, &(rd_select_end){ctx->epoch_ahead, ctx->epoch_left, ctx->radius_scale});
     if (rd_probes_epoch_next(&mst->probes, sample - 1) == sample) rd_probes_epoch(ctx, &mst->probes);
     if (mst->gpaths && rd_gu_paths_epoch_next(mst->gpaths, sample - 1) == sample) rd_gu_paths_epoch(ctx, mst->gpaths);
 }

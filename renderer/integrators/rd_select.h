@@ -38,14 +38,22 @@ typedef struct {
     double n, nonzero, dof, sum[3], dev2[3], cost;
     double image_n, image_cost;
     /* The beams' (0 for the others; select_rule.c, "The beams' bias"): the sum of their
-     * samples' gaps (rd_thread.beam_gap, the mean over RGB); and over each pixel record (a pilot
-     * pixel's samples, or an epoch's) with samples of both an odd and an even photon pass, the
-     * product of the two sets' mean gaps (a nearly unbiased estimate of the squared gap the
-     * pixel's samples expect: the two sets share no photons but pass 1's, which set the radii),
-     * in bias2, its square in bias2_sq, and the
-     * records counted, bias_n. */
-    double gap, bias2, bias2_sq, bias_n;
+     * samples' gaps at pass 1's radius (rd_thread.beam_gap, the mean over RGB, over the pass's
+     * radius_scale); and over the pixels whose image samples so far (rd_select.gaps) hold both
+     * an odd and an even photon pass, the product of the two sets' mean gaps (a nearly unbiased
+     * estimate of the squared gap: the two sets share no photons but pass 1's, which set the
+     * radii) times a weight w (select.c bias_fold) in bias2, and the weights in bias_n. Set anew
+     * at every epoch. */
+    double gap, bias2, bias_n;
 } rd_select_stats;
+
+/* The beams' squared bias over their squared gap (select_rule.c, "The beams' bias"): the gap is
+ * the estimate less the same picks in balls of half the volume (radius r / sqrt 2), and where
+ * the bias grows as r^p it is gap / (1 - 2^(-p/2)). A kernel's bias is first order in r (p = 1)
+ * where the radiance has a corner within the ball (a lit face, a shadow's edge), second order
+ * (p = 2) where it is smooth: the rule takes p = 1, (1 - 1/sqrt 2)^-2 = 11.66, which reads the
+ * smooth parts' squared bias 2.9x high rather than the edges' 2.9x low. */
+#define RD_SELECT_BIAS_PER_GAP2 11.656854249492380
 
 /* How the render ends, seen at an epoch (select_rule.c, "The samples the image holds"): at its
  * deadline, `ahead` the time left over the time its image has taken so far (> 0), or at its
@@ -53,6 +61,8 @@ typedef struct {
  * nothing left (the rule weighs the samples to come alone). */
 typedef struct {
     double ahead, left;
+    double radius_scale; /* the photon pass's gather radius over pass 1's now (rd_render_ctx.radius_scale;
+                            0 read as 1): the beams' bias is taken to scale as it */
 } rd_select_end;
 
 /* One pixel's samples since the last epoch (all of one estimator: the pixel's, rd_select_uses,
@@ -115,6 +125,16 @@ typedef struct {
                                 and estimator e, [n (tiles h + k) + e], tiles = tiles_x
                                 tiles_y: a tile's samples are the sum of its two halves' */
     rd_select_pixel *pixels; /* per pixel, the current epoch's samples */
+    double *gaps;            /* per pixel, the beams' gaps of all its image samples so far (the
+                                epochs' records'), as rd_select_pixel.gap and .gap_n: 4 doubles,
+                                the sums even, odd, then the counts (select_rule.c, "The beams'
+                                bias"); NULL without the beams or the epochs (rd_select_prepare_more) */
+    double bias_ratio, bias_se; /* the last choice's image-wide ratio of the beams' squared bias to
+                                   their variance a sample, at the radius then, before the margin,
+                                   and its standard error (select_rule.c bias_ratio; 0 without the
+                                   beams' products), and the radius's square then over pass 1's,
+                                   bias_r2 (1 without passes): traced */
+    double bias_r2;
     struct rd_select_run *runs; /* per worker thread (rd_thread.index), the samples of the pixel
                                    it renders now, written to `pixels` at rd_select_pixel_done
                                    (select.c); NULL before rd_select_prepare */

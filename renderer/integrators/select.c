@@ -111,7 +111,8 @@
  * consistent, as the nee+beams marcher is (below), and the rule weighs it as it weighs the others
  * (docs/guided-marching.md "The beams beside the marcher": where it loses, and a bias term tried),
  * and since session 64 its bias too, which each of its samples estimates (select_rule.c, "The
- * beams' bias": the sample's gap, estimate(), folded per pixel record by pixel_fold).
+ * beams' bias": the sample's gap, estimate(), summed per pixel over the epochs in rd_select.gaps
+ * and read by bias_fold).
  *
  * The beams' pilot in two stages (session 60). A beams sample marches the whole ray and queries
  * the photon balls along it: 50-75 us of one thread on sphere-in-fog, where the pilot's 38400 of
@@ -245,10 +246,6 @@ static void pixel_fold(rd_select_stats *st, const rd_select_pixel *px)
         st->dev2[c] += fmax(0.0, (double)px->sum2[c] - s * s / n);
     }
     st->gap += px->gap[0] + px->gap[1];
-    if (px->gap_n[0] > 0.0 && px->gap_n[1] > 0.0) { /* (independent: E[product] = gap^2) */
-        double g2 = px->gap[0] / px->gap_n[0] * (px->gap[1] / px->gap_n[1]);
-        st->bias2 += g2, st->bias2_sq += g2 * g2, st->bias_n += 1.0;
-    }
     st->n += n;
     st->dof += n - 1.0;
     st->nonzero += px->nonzero;
@@ -369,7 +366,9 @@ static vec3 estimate(const rd_render_ctx *ctx, const rd_select *sel, rd_thread *
         th->want_gap = !th->pilot && sel->epochs; /* (the pilot's read pass 1 only: no product) */
         vec3 L = sel->beams(ctx, th, r, smp);
         th->want_gap = 0;
-        if (v3_finite(th->beam_gap)) *gap = th->beam_gap, *pass = ctx->photon_pass;
+        /* the gap at pass 1's radius, taken to grow as the radius (select_rule.c, "The beams' bias") */
+        const double s = ctx->radius_scale > 0.0 ? ctx->radius_scale : 1.0;
+        if (v3_finite(th->beam_gap)) *gap = v3_scale(th->beam_gap, 1.0 / s), *pass = ctx->photon_pass;
         return L;
     }
     int mode = sel->kind[e] == RD_SEL_DELTA_EQ ? RD_EQ_ALL : rd_eq_path_mode(ctx->scene->settings.equiangular);
@@ -460,7 +459,7 @@ static void beams_pilot_fold(rd_select *sel, int b, int clear)
 /* Which tiles the beams (estimator b) contend for after their pilot's first stage: the rule on
  * the statistics so far gives them the tile or puts them on trial there, or in one of its 3x3
  * neighbours (the figures' pooling); contend[k] 1 for those. The selection's choices, trials,
- * statistics and unlit estimator are as before the call. Out of memory (here or in the rule,
+ * statistics, unlit estimator and bias figures are as before the call. Out of memory (here or in the rule,
  * which then leaves unlit unset): every tile contends. */
 static void beams_contend(rd_select *sel, int b, uint8_t *contend)
 {
@@ -476,6 +475,7 @@ static void beams_contend(rd_select *sel, int b, uint8_t *contend)
     memcpy(keep, sel->stats, bytes);
     memcpy(choice, sel->choice, (size_t)n), memcpy(choice + n, sel->trial, (size_t)n);
     const int unlit = sel->unlit;
+    const double bias[3] = {sel->bias_ratio, sel->bias_se, sel->bias_r2};
     beams_pilot_fold(sel, b, 0);
     sel->unlit = -1; /* (the rule sets it where it runs) */
     rd_select_choose_tiles(sel, NULL);
@@ -490,6 +490,7 @@ static void beams_contend(rd_select *sel, int b, uint8_t *contend)
     memcpy(sel->stats, keep, bytes);
     memcpy(sel->choice, choice, (size_t)n), memcpy(sel->trial, choice + n, (size_t)n);
     sel->unlit = unlit;
+    sel->bias_ratio = bias[0], sel->bias_se = bias[1], sel->bias_r2 = bias[2];
     free(keep), free(choice);
 }
 
@@ -569,6 +570,12 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
     if (third) sel->kind[next++] = RD_SEL_DELTA_EQ;
     if (path) sel->kind[next++] = RD_SEL_PATH, sel->path = path, sel->path_cell_cost = more->path_cell_cost;
     if (beams) sel->kind[next++] = RD_SEL_BEAMS, sel->beams = beams, sel->pass_kind = RD_SEL_BEAMS;
+    if (beams && s->settings.select != RD_SELECT_PILOT && /* (only the epochs read the beams' gaps) */
+        !(sel->gaps = calloc(4 * (size_t)cam->width * cam->height, sizeof *sel->gaps))) {
+        rd_select_free(sel);
+        snprintf(err, errlen, "out of memory for the tile selection's beams gaps (%dx%d pixels)", cam->width, cam->height);
+        return RD_ERR_NOMEM;
+    }
     if (!third) sel->paths = 1u << RD_SEL_DELTA;
     if (options & RD_SELECT_METHOD_IS_PATH) sel->paths |= 1u << RD_SEL_METHOD;
     if (options & RD_SELECT_PASSES) /* the method's share of a pass's work, a sample (the head) */
@@ -618,6 +625,7 @@ void rd_select_free(rd_select *sel)
     free(sel->trial);
     free(sel->stats);
     free(sel->pixels);
+    free(sel->gaps);
     free(sel->runs);
     free(sel->trace.s);
     memset(sel, 0, sizeof *sel);
@@ -658,6 +666,35 @@ int rd_select_epoch_next(const rd_select *sel, int sample)
     return b;
 }
 
+/* The beams' squared gaps (rd_select_stats.bias2, bias_n; select_rule.c, "The beams' bias"), set
+ * anew from every pixel's image samples so far (rd_select.gaps): the product of the mean gaps of
+ * its samples on the even and on the odd photon passes, in the half and tile of the pixel, of
+ * the beams estimator (the last), weighed by w = n_e n_o / (n_e + n_o) for n_e and n_o samples on
+ * each (bias2 the sum of w x product, bias_n of w): with no gap the product's variance falls as
+ * 1 / (n_e n_o), so a pixel with a sample or two of the beams (a trial's, a tile's that left them)
+ * weighs little. All of a pixel's samples, not an epoch's: an epoch's product of two means of few
+ * samples is noise squared, and the earlier epochs' records, each as noisy, would weigh as much
+ * as the last's. */
+static void bias_fold(rd_select *sel)
+{
+    if (!sel->gaps || sel->kind[sel->n - 1] != RD_SEL_BEAMS) return;
+    const int b = sel->n - 1;
+    for (int h = 0; h < 2; h++)
+        for (int k = 0; k < sel->tiles_x * sel->tiles_y; k++) {
+            rd_select_stats *st = &sel->stats[((size_t)h * sel->tiles_x * sel->tiles_y + k) * sel->n + b];
+            st->bias2 = st->bias_n = 0.0;
+        }
+    for (int y = 0; y < sel->height; y++)
+        for (int x = 0; x < sel->width; x++) {
+            const double *g = &sel->gaps[4 * ((size_t)y * sel->width + x)];
+            if (!(g[2] > 0.0 && g[3] > 0.0)) continue;
+            int k = (y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE;
+            rd_select_stats *st = &half_stats(sel, x, y)[sel->n * k + b];
+            const double w = g[2] * g[3] / (g[2] + g[3]);
+            st->bias2 += w * (g[0] / g[2]) * (g[1] / g[3]), st->bias_n += w;
+        }
+}
+
 void rd_select_epoch(rd_select *sel, const rd_comm *comm, const rd_select_end *end)
 {
     if (!sel->choice) return;
@@ -676,8 +713,13 @@ void rd_select_epoch(rd_select *sel, const rd_comm *comm, const rd_select_end *e
             rd_select_stats *st = &half_stats(sel, x, y)[sel->n * k + rd_select_uses(sel, x, y)];
             pixel_fold(st, px);
             st->image_n += px->n, st->image_cost += px->cost / RD_SELECT_COST_UNIT; /* (the image's) */
+            if (sel->gaps) {
+                double *g = &sel->gaps[4 * ((size_t)y * sel->width + x)];
+                g[0] += px->gap[0], g[1] += px->gap[1], g[2] += px->gap_n[0], g[3] += px->gap_n[1];
+            }
             memset(px, 0, sizeof *px);
         }
+    bias_fold(sel);
     rd_select_choose_tiles(sel, end);
     traced_choice(sel);
 }

@@ -255,25 +255,45 @@
  *
  * A blur's bias changes sign across an edge of the light, inside a tile too, so what counts is
  * each pixel's squared gap, not a tile's mean gap squared (on cloud the tiles' squared bias was
- * a quarter of the pixels'). It is read per pixel record (one epoch's samples of a pixel; the
- * pilot's read pass 1 only and give none) as the product of the mean gaps of its samples on the
- * odd and on the even photon passes (rd_select_pixel.gap): the two share no photons but pass
+ * a quarter of the pixels'). It is read per pixel, from all the pixel's image samples so far
+ * (rd_select.gaps; the pilot's read pass 1 only and give none), as the product of the mean gaps
+ * of its samples on the odd and on the even photon passes: the two share no photons but pass
  * 1's, which set every pass's radii, so the product is a nearly unbiased estimate of the squared
- * gap (and an epoch's records share its few passes, so the standard error below, which takes
- * them as independent, reads low). (A record's squared mean less its samples'
- * spread over n read high: the samples of one pass share its photons' noise, which their spread
- * does not show, and on hard-dense-block it read the squared bias at twice the variance a sample
- * where the beams alone show none beyond their noise: `guided` fell from 2.9x to 0.79x `delta`
+ * gap; the pixels weigh by their samples (bias_fold). Each sample's gap is read at pass 1's
+ * radius (over its pass's radius_scale: the bias taken to grow as r, below), and the ratio at the
+ * radius of the pass then (times radius_scale^2). (A pixel's squared mean gap
+ * less its samples' spread over n read high: the samples of one pass share its photons' noise,
+ * which their spread does not show; on hard-dense-block `guided` fell from 2.9x to 0.79x `delta`
  * in a 60-s round.) The products are noisy, and the weight of the bias grows with the samples to
- * come (below), so a tile's own records (or its 3x3 tiles') could not tell cloud's bias from none
+ * come (below), so a tile's own pixels (or its 3x3 tiles') could not tell cloud's bias from none
  * at 60 s: per tile, the dense block lost 2.9x -> 0.68x and 2.0x -> 0.54x `delta` in two 60-s
  * rounds, on noise. So the rule reads one figure for the image, the ratio of the beams' squared
- * bias to their variance a sample over all their records (bias_figures), less SEL_BIAS_SIGMA
+ * bias to their variance a sample over all their pixels (bias_ratio), less SEL_BIAS_SIGMA
  * standard errors and not below 0, and gives each tile B = that ratio times the beams' variance
- * figure there: a bias that shows over the whole image is counted where the beams' noise is. On
- * cloud at 30 s it read 0.018 +- 0.0033 (0.0080 after the margin), on the dense block -0.025 +-
- * 0.020 (none). The half ball's term follows the big one's pick (half_ball_term): with the small
- * ball's indicator at the pick instead, cloud's standard error was 0.0080 and no bias showed.
+ * figure there: a bias that shows over the whole image is counted where the beams' noise is.
+ * The standard error is taken over the tiles, each tile's sum of products one draw: the pixels
+ * near each other share the photons their balls hold, so their products' noise is shared too
+ * (and the bias's own spread over the tiles counts as noise: a bias held by a few tiles of many
+ * is not read; a noise-only error, from products over disjoint sets of passes, is left to do).
+ * Session 64 read it per record instead (an epoch's samples of a pixel, each record's product
+ * one draw, the records taken as independent): the early epochs' records, products of means of
+ * few samples, weighed as much as the last's, and the standard error read low; cloud's ratio
+ * swung between seeds (0.016 and 0.041 at the epoch at 256), and so did its beams' tiles (89 and
+ * 4) and `guided`'s efficiency (0.40x and 0.80x `delta` at 60 s). Read from all of a pixel's
+ * samples, with the standard error over the tiles, cloud's ratio read 0.0090 +- 0.0013 and
+ * 0.0075 +- 0.0010 at that epoch (the same two seeds, at the radius then and with the factor 4
+ * below), the dense block's 0.0020 +- 0.0039.
+ *
+ * The squared bias is RD_SELECT_BIAS_PER_GAP2 = (1 - 1/sqrt 2)^-2 = 11.66 squared gaps, not 4:
+ * where the bias grows as r^p the gap is (1 - 2^(-p/2)) of it, and p is 1, not 2, where the
+ * radiance has a corner within the ball, at a lit face or a shadow's edge, where a blur's bias
+ * lives (session 64's test: twice the gap read 0.59 of the bias at an edge of the light, which is
+ * p = 1's 1 - 1/sqrt 2 = 0.29 of it; the Richardson check above read 0.68 of cloud's squared
+ * bias with the factor 4). Taking p = 2 reads the edges' squared bias 2.9x low, p = 1 the smooth
+ * parts' 2.9x high, and where the beams' error is their bias a reading low costs more: with the
+ * factor 4 the rule kept the beams in 85-89 of cloud's tiles to the end at 60 s.
+ * The half ball's term follows the big one's pick (half_ball_term): with the small ball's
+ * indicator at the pick instead, the gaps were 2.5x noisier over cloud's image (session 64).
  *
  * The objective counts B as a pixel's mean carries it when the render ends: with a samples a
  * pixel still to come of n0 + a, the samples to come make a / (n0 + a) of the mean, and a tile
@@ -308,6 +328,7 @@
 #define SEL_LAG_SLACK 0.5 /* the beams' mean may be twice the truth (their kernel's bias) */
 #define SEL_LAG_SIGMA 3.0 /* standard errors of the two means taken off a lag: its noise */
 #define SEL_BIAS_SIGMA 3.0 /* standard errors taken off the beams' squared bias ratio: its noise */
+#define SEL_BIAS_TILES 8.0 /* tiles at least with the beams' products: a standard error of fewer is noise */
 
 /* Channel c of a tile's mean, from its m statistics tile[0 .. m-1]: estimator centre's mean
  * where centre >= 0 has samples (the beams: see the head, "The bound's tile mean with the
@@ -632,31 +653,57 @@ static void pooled_relative_variance(const rd_select *sel, const rd_select_stats
     }
 }
 
+/* The image's ratio of the beams' squared bias to their variance a sample (see the head, "The
+ * beams' bias"), less SEL_BIAS_SIGMA standard errors and not below 0; *raw and *se the ratio
+ * before the margin and its standard error (all 0 without the beams' products in at least
+ * SEL_BIAS_TILES tiles). RD_SELECT_BIAS_PER_GAP2 times the weighted mean over the pixels of the
+ * products of their odd and even passes' mean gaps (statistics st over all tiles: bias_fold),
+ * times r2, the radius's square now over pass 1's (the gaps are read at pass 1's radius), over
+ * the same weighted mean of their tiles' variance a sample (tile_variance's sample variance,
+ * unbounded). The standard error is over the tiles, not the pixels: the pixels of a tile share
+ * the photons of its passes and their gaps' noise, so a tile's pixels are one draw (the ratio
+ * estimator's variance over clusters, K / (K - 1) sum_k (S_k - W_k mean)^2 / W^2 for K tiles
+ * with weighted sums S_k of weights W_k, W in all). It counts the bias's own spread over the
+ * tiles as noise too, so a bias held by a few tiles of many is not read. */
+static double bias_ratio(const rd_select *sel, const rd_select_stats *st, double r2, double *raw, double *se_out)
+{
+    *raw = *se_out = 0.0;
+    int n = sel->tiles_x * sel->tiles_y, m = sel->n;
+    const int b = bound_centre(sel);
+    if (b < 0) return 0.0;
+    double sum = 0.0, weight = 0.0, v = 0.0, tiles = 0.0;
+    for (int k = 0; k < n; k++) {
+        const rd_select_stats *a = &st[m * k + b];
+        if (!(a->bias_n > 0.0 && a->dof > 0.0)) continue;
+        sum += a->bias2, weight += a->bias_n, tiles += 1.0;
+        v += a->bias_n * (a->dev2[0] + a->dev2[1] + a->dev2[2]) / (3.0 * a->dof);
+    }
+    if (!(tiles >= SEL_BIAS_TILES && v > 0.0)) return 0.0;
+    const double mean = sum / weight;
+    double d2 = 0.0;
+    for (int k = 0; k < n; k++) {
+        const rd_select_stats *a = &st[m * k + b];
+        if (!(a->bias_n > 0.0 && a->dof > 0.0)) continue;
+        double d = a->bias2 - a->bias_n * mean;
+        d2 += d * d;
+    }
+    const double se = sqrt(tiles / (tiles - 1.0) * d2) / weight, scale = RD_SELECT_BIAS_PER_GAP2 * r2 / (v / weight);
+    if (!isfinite(mean * scale) || !isfinite(se * scale)) return 0.0;
+    *raw = mean * scale, *se_out = se * scale;
+    return fmax(0.0, (mean - SEL_BIAS_SIGMA * se) * scale);
+}
+
 /* The beams' squared bias in each tile, bias[m k + b] for the beams estimator b (the others
- * 0), as a sum over the tile's pixels (see the head, "The beams' bias"): the image's ratio of
- * the beams' squared bias to their variance a sample, less SEL_BIAS_SIGMA standard errors and
- * not below 0, times the beams' variance figure var[m k + b] (figures()). The ratio: four times
- * the mean of the pixel records' products of their odd and even passes' mean gaps in statistics
- * st (over all tiles), over the mean of their tiles' variance a sample (tile_variance's sample
- * variance, unbounded). */
+ * 0), as a sum over the tile's pixels (see the head, "The beams' bias"): the image's ratio
+ * (bias_ratio) times the beams' variance figure var[m k + b] (figures()), times the factor by
+ * which the tile's past beams samples add to the bias of its mean (statistics st). */
 static void bias_figures(const rd_select *sel, const rd_select_stats *st, const double *var, const rd_select_past *past,
-                         double *bias)
+                         double ratio, double *bias)
 {
     int n = sel->tiles_x * sel->tiles_y, m = sel->n;
     memset(bias, 0, (size_t)m * n * sizeof *bias);
     const int b = bound_centre(sel);
-    if (b < 0) return;
-    double sum = 0.0, sq = 0.0, records = 0.0, v = 0.0;
-    for (int k = 0; k < n; k++) {
-        const rd_select_stats *a = &st[m * k + b];
-        if (!(a->bias_n > 0.0 && a->dof > 0.0)) continue;
-        sum += a->bias2, sq += a->bias2_sq, records += a->bias_n;
-        v += a->bias_n * (a->dev2[0] + a->dev2[1] + a->dev2[2]) / (3.0 * a->dof);
-    }
-    if (!(records > 1.0 && v > 0.0)) return;
-    const double mean = sum / records, se = sqrt(fmax(0.0, sq - sum * mean) / (records - 1.0) / records);
-    const double ratio = fmax(0.0, 4.0 * (mean - SEL_BIAS_SIGMA * se) / (v / records));
-    if (!isfinite(ratio)) return;
+    if (b < 0 || !(ratio > 0.0)) return;
     for (int k = 0; k < n; k++) {
         /* the tile's past beams samples, a share s of its image samples, carry the same bias:
          * beams to come add a^2 (1 + 2 n0 s / a) B to the squared bias of the mean's sum */
@@ -726,8 +773,7 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
         t->cost = a->cost + b->cost;
         t->image_n = a->image_n + b->image_n, t->image_cost = a->image_cost + b->image_cost;
         for (int c = 0; c < 3; c++) t->sum[c] = a->sum[c] + b->sum[c], t->dev2[c] = a->dev2[c] + b->dev2[c];
-        t->gap = a->gap + b->gap, t->bias2 = a->bias2 + b->bias2, t->bias2_sq = a->bias2_sq + b->bias2_sq;
-        t->bias_n = a->bias_n + b->bias_n;
+        t->gap = a->gap + b->gap, t->bias2 = a->bias2 + b->bias2, t->bias_n = a->bias_n + b->bias_n;
     }
 
     /* Each estimator's non-zero fraction over the lit tiles: the prior of every tile's p. */
@@ -742,11 +788,15 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
     for (int e = 0; e < m; e++) pbar[e] = (nz[e] + 1.0) / (nn[e] + 2.0);
     if (sel->unlit < 0) sel->unlit = image_path(sel, all, pbar); /* the pilot's samples */
     int two_paths = (sel->paths & (sel->paths - 1u)) != 0u;
+    /* the beams' bias ratio, one for the image (the gaps are at pass 1's radius: r^2 now) */
+    const double rs = end && end->radius_scale > 0.0 ? end->radius_scale : 1.0;
+    sel->bias_r2 = rs * rs;
+    const double ratio = bias_ratio(sel, all, sel->bias_r2, &sel->bias_ratio, &sel->bias_se);
     rd_select_past past;
     for (int h = 0; h < 2; h++) {
         figures(sel, half[h], pbar, NULL, var, cost, tmp);
         const rd_select_past *p = past_of(sel, all, var, end, &past) ? &past : NULL;
-        bias_figures(sel, all, var, p, bias); /* (the image's ratio, on each half's variance) */
+        bias_figures(sel, all, var, p, ratio, bias); /* (the image's ratio, on each half's variance) */
         rd_select_choose(var, cost, bias, n, m, p, want + (size_t)h * n);
     }
     figures(sel, all, pbar, NULL, NULL, all_cost, tmp);
@@ -758,7 +808,7 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
     pooled_relative_variance(sel, all, r, r + mn, r + 2 * mn);
     figures(sel, all, pbar, r, var, cost, tmp);
     const rd_select_past *p = past_of(sel, all, var, end, &past) ? &past : NULL;
-    bias_figures(sel, all, var, p, bias);
+    bias_figures(sel, all, var, p, ratio, bias);
     rd_select_choose(var, cost, bias, n, m, p, image_want);
     for (int k = 0; k < n; k++)
         for (int e = 0; e < m; e++)

@@ -20,8 +20,10 @@ rd_status rd_select_trace(rd_select *sel, long from, char *err, size_t errlen)
     int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
     size_t mn = (size_t)m * n;
     rd_text *t = &sel->trace;
-    rd_text_printf(t, "{\"from_sample\": %ld, \"tile\": %d, \"tiles_x\": %d, \"tiles_y\": %d, \"estimators\": [", from,
-                   RD_SELECT_TILE, nx, ny);
+    rd_text_printf(t, "{\"from_sample\": %ld, \"tile\": %d, \"tiles_x\": %d, \"tiles_y\": %d, ", from, RD_SELECT_TILE, nx, ny);
+    if (sel->kind[m - 1] == RD_SEL_BEAMS)
+        rd_text_printf(t, "\"bias_ratio\": %.6g, \"bias_se\": %.6g, ", sel->bias_ratio, sel->bias_se);
+    rd_text_printf(t, "\"estimators\": [");
     for (int e = 0; e < m; e++) rd_text_printf(t, "%s\"%s\"", e ? ", " : "", names[sel->kind[e]]);
     rd_text_printf(t, "], \"tiles\": [");
     for (int k = 0; k < n && !t->oom; k++) {
@@ -33,8 +35,8 @@ rd_status rd_select_trace(rd_select *sel, long from, char *err, size_t errlen)
             fig[0][e] = N, fig[1][e] = N > 0.0 ? s / (3.0 * N) : 0.0, fig[2][e] = dof > 0.0 ? d / (3.0 * dof) : 0.0;
             fig[3][e] = N > 0.0 ? (a->cost + b->cost) / N : 0.0;
             fig[4][e] = N > 0.0 ? (a->gap + b->gap) / N : 0.0;
-            double records = a->bias_n + b->bias_n;
-            fig[5][e] = records > 0.0 ? 4.0 * (a->bias2 + b->bias2) / records : 0.0;
+            double w = a->bias_n + b->bias_n; /* (the products' weights; they are at pass 1's radius) */
+            fig[5][e] = w > 0.0 ? RD_SELECT_BIAS_PER_GAP2 * (a->bias2 + b->bias2) / w * sel->bias_r2 : 0.0;
         }
         rd_text_printf(t, "%s{\"choice\": %d, \"trial\": %d", k ? ", " : "", sel->choice[k], sel->trial[k]);
         for (int f = 0; f < 6; f++) {
