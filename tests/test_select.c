@@ -310,7 +310,7 @@ static rd_select_stats tile_stats(const rd_select *sel, int i)
 {
     const rd_select_stats *a = &sel->stats[i], *b = &sel->stats[(size_t)sel->n * sel->tiles_x * sel->tiles_y + i];
     rd_select_stats t = {a->n + b->n, a->nonzero + b->nonzero, a->dof + b->dof, {0, 0, 0}, {0, 0, 0}, a->cost + b->cost,
-                       a->image_n + b->image_n, a->image_cost + b->image_cost, 0, 0, 0};
+                       a->image_n + b->image_n, a->image_cost + b->image_cost, 0, 0, 0, 0};
     for (int c = 0; c < 3; c++) t.sum[c] = a->sum[c] + b->sum[c], t.dev2[c] = a->dev2[c] + b->dev2[c];
     return t;
 }
@@ -1877,23 +1877,25 @@ Test(select, with_the_beams_a_mean_that_lags_theirs_reads_a_tail)
 /* The beams' bias at an epoch (select.c bias_fold, select_rule.c bias_ratio and "The beams'
  * bias"): a 6x5-tile selection (48x40 pixels) of delta and the method (variance 0.05 a sample)
  * and the beams (0.001), all at cost 1, the image's 16 samples a pixel so far the beams', as much
- * time left as taken. Every pixel's gaps so far (rd_select.gaps) have the mean gaps s g (1 + d_k)
- * on its even passes and s g on its odd ones in tile k, with d_k = D, -D, 0 by k mod 3, s = +-1
- * in a checkerboard of pixels (a blur's bias changes sign across an edge: a tile's mean gaps are
- * 0, its pixels' products g^2 (1 + d_k)), and 3 + 5 samples on the two (weight 15/8) in even
- * columns, 1 + 1 (weight 1/2) in odd ones. The ratio is 11.66 (RD_SELECT_BIAS_PER_GAP2, checked)
- * x the weighted mean product x the radius's square (radius_scale 0.8) over the beams' variance
- * a sample, its standard error is over the tiles (each tile's products one draw), both checked
- * against this test's own sums, and a second epoch with no new samples reads the same. Then:
+ * time left as taken. Every pixel's gaps so far (rd_select.gaps) have the mean gaps s g (1 + d_k),
+ * s g, s g (1 - d_k) and s g on its passes of classes 0, 1, 2 and 3 mod 4, with d_k = D, -D, 0
+ * by tile k mod 3 and s = +-1 in a checkerboard of pixels (a blur's bias changes sign across an
+ * edge: a tile's mean gaps are 0). Even columns hold 2, 3, 1 and 2 samples of the classes (weight
+ * 3 x 5 / 8), odd ones 1 of each (weight 1). The disjoint products (classes 0 x 1 against 2 x 3)
+ * differ by 2 g^2 d_k: noise, which D sets, while the mean product is the same for every D. The
+ * ratio is 11.66 (RD_SELECT_BIAS_PER_GAP2, checked) x the weighted mean product x the radius's
+ * square (radius_scale 0.8) over the beams' variance a sample, its standard error sqrt(sum_k
+ * D_k^2 / 8) over the weights' sum (D_k a tile's weighted differences), both checked against this
+ * test's own sums, and a second epoch with no new samples reads the same. Then:
  * - no gap (g 0): the beams take every tile;
- * - g 0.046, D 0.3: a ratio of 15.8 +- 0.72, far beyond its standard errors; the beams' 50x lower
- *   variance does not pay for a squared bias weighed ~16 (1 + 2) times: delta keeps every tile;
- * - the same g, D 6: a ratio of 15.8 +- 14.4, so three standard errors take it all: the beams
+ * - g 0.046, D 0.3: a ratio of 15.8 +- 0.50, far beyond its standard errors; the beams' 50x lower
+ *   variance does not pay for a squared bias weighed ~16 (1 + 2) times (the line is near a ratio
+ *   of 1): delta keeps every tile;
+ * - the same g, D 6: a ratio of 15.8 +- 10.0, so three standard errors take it all: the beams
  *   take every tile again.
  * Fails with the products taken from a tile's mean gaps instead of each pixel's, the factor or
- * the radius left out, the standard error over the pixels (2.0 with D 6: the tiles would move),
- * the margin left out, or the tiles' columns and rows swapped. */
-Test(select, the_beams_bias_is_read_from_every_pixel_s_gaps_with_a_standard_error_over_tiles)
+ * the radius left out, the margin left out, or the tiles' columns and rows swapped. */
+Test(select, the_beams_bias_is_read_from_every_pixel_s_gaps_with_its_noise_from_disjoint_passes)
 {
     cr_assert(fabs(RD_SELECT_BIAS_PER_GAP2 - pow(1.0 - sqrt(0.5), -2.0)) < 1e-12, "the factor %.15g", RD_SELECT_BIAS_PER_GAP2);
     const double g_of[3] = {0.0, 0.046, 0.046}, D_of[3] = {0.0, 0.3, 6.0};
@@ -1903,7 +1905,7 @@ Test(select, the_beams_bias_is_read_from_every_pixel_s_gaps_with_a_standard_erro
         char err[RD_ERRLEN];
         cr_assert(rd_select_init(&sel, W, H, 1.0, 3, err, sizeof err) == RD_OK, "%s", err);
         sel.kind[2] = RD_SEL_BEAMS, sel.paths &= ~(1u << 2);
-        cr_assert((sel.gaps = calloc(4 * W * H, sizeof *sel.gaps)) != NULL); /* (as rd_select_prepare_more with the beams) */
+        cr_assert((sel.gaps = calloc(8 * W * H, sizeof *sel.gaps)) != NULL); /* (as rd_select_prepare_more with the beams) */
         for (int k = 0; k < T; k++) {
             fake_pilot(&sel, 3 * k, 0.5, 0.05, 1.0, 1.0);
             fake_pilot(&sel, 3 * k + 1, 0.5, 0.05, 1.0, 1.0);
@@ -1914,21 +1916,23 @@ Test(select, the_beams_bias_is_read_from_every_pixel_s_gaps_with_a_standard_erro
             }
         }
         const double g = g_of[i], r2 = 0.8 * 0.8;
-        double S[T] = {0}, Wk[T] = {0};
+        double S[T] = {0}, Wk[T] = {0}, Dk[T] = {0};
         for (int y = 0; y < H; y++)
             for (int x = 0; x < W; x++) {
                 int k = (y / 8) * 6 + x / 8;
                 double d = k % 3 == 0 ? D_of[i] : k % 3 == 1 ? -D_of[i] : 0.0, sg = (x + y) & 1 ? -g : g;
-                double ne = x & 1 ? 1.0 : 3.0, no = x & 1 ? 1.0 : 5.0, *gp = &sel.gaps[4 * (y * W + x)];
-                gp[0] = ne * sg * (1.0 + d), gp[1] = no * sg, gp[2] = ne, gp[3] = no;
-                double w = ne * no / (ne + no);
-                S[k] += w * g * g * (1.0 + d), Wk[k] += w;
+                const double c[4] = {x & 1 ? 1.0 : 2.0, x & 1 ? 1.0 : 3.0, 1.0, x & 1 ? 1.0 : 2.0};
+                const double mean[4] = {sg * (1.0 + d), sg, sg * (1.0 - d), sg};
+                double *gp = &sel.gaps[8 * (y * W + x)];
+                for (int j = 0; j < 4; j++) gp[j] = c[j] * mean[j], gp[4 + j] = c[j];
+                const double ne = c[0] + c[2], no = c[1] + c[3], w = ne * no / (ne + no);
+                S[k] += w * (c[0] * mean[0] + c[2] * mean[2]) / ne * ((c[1] * mean[1] + c[3] * mean[3]) / no);
+                Wk[k] += w, Dk[k] += w * (mean[0] * mean[1] - mean[2] * mean[3]);
             }
         double sum = 0.0, wsum = 0.0, d2 = 0.0;
-        for (int k = 0; k < T; k++) sum += S[k], wsum += Wk[k];
-        for (int k = 0; k < T; k++) d2 += (S[k] - Wk[k] * sum / wsum) * (S[k] - Wk[k] * sum / wsum);
+        for (int k = 0; k < T; k++) sum += S[k], wsum += Wk[k], d2 += Dk[k] * Dk[k];
         const double ratio = 11.656854249492380 * sum / wsum * r2 / 0.001;
-        const double se = 11.656854249492380 * sqrt(T / (T - 1.0) * d2) / wsum * r2 / 0.001;
+        const double se = 11.656854249492380 * sqrt(d2 / 8.0) / wsum * r2 / 0.001;
         for (int epoch = 0; epoch < 2; epoch++) {
             rd_select_epoch(&sel, NULL, &(rd_select_end){1.0, 0.0, 0.8});
             if (g > 0.0)

@@ -39,12 +39,13 @@ typedef struct {
     double image_n, image_cost;
     /* The beams' (0 for the others; select_rule.c, "The beams' bias"): the sum of their
      * samples' gaps at pass 1's radius (rd_thread.beam_gap, the mean over RGB, over the pass's
-     * radius_scale); and over the pixels whose image samples so far (rd_select.gaps) hold both
-     * an odd and an even photon pass, the product of the two sets' mean gaps (a nearly unbiased
-     * estimate of the squared gap: the two sets share no photons but pass 1's, which set the
-     * radii) times a weight w (select.c bias_fold) in bias2, and the weights in bias_n. Set anew
-     * at every epoch. */
-    double gap, bias2, bias_n;
+     * radius_scale); and over the pixels whose image samples so far (rd_select.gaps) hold passes
+     * of all four classes mod 4, the product of their odd and even passes' mean gaps (a nearly
+     * unbiased estimate of the squared gap: the two sets share no photons but pass 1's, which
+     * set the radii) times a weight w (select.c bias_fold) in bias2, the weights in bias_n, and
+     * w times the difference of two such products over disjoint passes (its noise) in
+     * bias_split. Set anew at every epoch. */
+    double gap, bias2, bias_n, bias_split;
 } rd_select_stats;
 
 /* The beams' squared bias over their squared gap (select_rule.c, "The beams' bias"): the gap is
@@ -67,7 +68,7 @@ typedef struct {
 
 /* One pixel's samples since the last epoch (all of one estimator: the pixel's, rd_select_uses,
  * does not change within an epoch). Plain doubles, so that several ranks' arrays are summed as
- * one array of doubles (rd_select_epoch): 13 a pixel, 104 bytes. sum and sum2 are accumulated in
+ * one array of doubles (rd_select_epoch): 17 a pixel, 136 bytes. sum and sum2 are accumulated in
  * float precision (each sum rounded to a float; the sums feed a choice, not the image), n
  * and nonzero are counts of the finite samples, and cost is the counted cost of all the
  * samples drawn (the film's dropped ones too: their time was spent) as a whole number of
@@ -77,10 +78,10 @@ typedef struct {
     double n, nonzero;
     double sum[3], sum2[3];
     double cost;
-    double gap[2], gap_n[2]; /* the beams': the sums of their gaps (mean over RGB) and their
-                                counts, on the even (0) and the odd (1) photon passes */
+    double gap[4], gap_n[4]; /* the beams': the sums of their gaps (mean over RGB) and their
+                                counts, on the photon passes of each class mod 4 */
 } rd_select_pixel;
-#define RD_SELECT_PIXEL_DOUBLES 13
+#define RD_SELECT_PIXEL_DOUBLES 17
 
 /* A method's own estimate of the radiance along camera ray r (what its radiance() does
  * where the selection gives it the pixel). */
@@ -126,8 +127,8 @@ typedef struct {
                                 tiles_y: a tile's samples are the sum of its two halves' */
     rd_select_pixel *pixels; /* per pixel, the current epoch's samples */
     double *gaps;            /* per pixel, the beams' gaps of all its image samples so far (the
-                                epochs' records'), as rd_select_pixel.gap and .gap_n: 4 doubles,
-                                the sums even, odd, then the counts (select_rule.c, "The beams'
+                                epochs' records'), as rd_select_pixel.gap and .gap_n: 8 doubles,
+                                the sums by pass mod 4, then the counts (select_rule.c, "The beams'
                                 bias"); NULL without the beams or the epochs (rd_select_prepare_more) */
     double bias_ratio, bias_se; /* the last choice's image-wide ratio of the beams' squared bias to
                                    their variance a sample, at the radius then, before the margin,

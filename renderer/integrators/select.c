@@ -229,7 +229,7 @@ static void pixel_add(rd_select_pixel *px, vec3 L, vec3 gap, int pass)
         px->sum[c] = (float)px->sum[c] + (float)v[c];
         px->sum2[c] = (float)px->sum2[c] + (float)(v[c] * v[c]);
     }
-    if (pass >= 0) px->gap[pass & 1] += (gap.x + gap.y + gap.z) / 3.0, px->gap_n[pass & 1]++;
+    if (pass >= 0) px->gap[pass & 3] += (gap.x + gap.y + gap.z) / 3.0, px->gap_n[pass & 3]++;
     px->nonzero += L.x != 0.0 || L.y != 0.0 || L.z != 0.0;
     px->n++;
 }
@@ -245,7 +245,7 @@ static void pixel_fold(rd_select_stats *st, const rd_select_pixel *px)
         st->sum[c] += s;
         st->dev2[c] += fmax(0.0, (double)px->sum2[c] - s * s / n);
     }
-    st->gap += px->gap[0] + px->gap[1];
+    st->gap += px->gap[0] + px->gap[1] + px->gap[2] + px->gap[3];
     st->n += n;
     st->dof += n - 1.0;
     st->nonzero += px->nonzero;
@@ -266,7 +266,7 @@ static void pixel_fold(rd_select_stats *st, const rd_select_pixel *px)
  * renders the pixel, and stay alive until it does or until rd_select_epoch. */
 typedef struct rd_select_run {
     _Alignas(RD_CACHE_LINE) float sum[3], sum2[3];
-    double n, nonzero, gap[2], gap_n[2];
+    double n, nonzero, gap[4], gap_n[4];
     uint64_t drawn;       /* the run's samples, finite or not */
     rd_select_work c;     /* the counters at the run's first sample */
     const rd_thread *th;  /* the thread whose counters c read; NULL: no run open */
@@ -278,7 +278,7 @@ static void run_open(rd_select *sel, rd_select_run *u, const rd_thread *th)
 {
     const rd_select_pixel *px = &sel->pixels[th->pixel];
     for (int c = 0; c < 3; c++) u->sum[c] = (float)px->sum[c], u->sum2[c] = (float)px->sum2[c]; /* exact */
-    for (int i = 0; i < 2; i++) u->gap[i] = px->gap[i], u->gap_n[i] = px->gap_n[i];
+    for (int i = 0; i < 4; i++) u->gap[i] = px->gap[i], u->gap_n[i] = px->gap_n[i];
     u->n = px->n, u->nonzero = px->nonzero, u->drawn = 0;
     u->c = rd_select_work_now(th);
     u->th = th, u->pixel = th->pixel;
@@ -292,7 +292,7 @@ static void run_close(rd_select *sel, rd_select_run *u)
     if (!u->th) return;
     rd_select_pixel *px = &sel->pixels[u->pixel];
     for (int c = 0; c < 3; c++) px->sum[c] = u->sum[c], px->sum2[c] = u->sum2[c];
-    for (int i = 0; i < 2; i++) px->gap[i] = u->gap[i], px->gap_n[i] = u->gap_n[i];
+    for (int i = 0; i < 4; i++) px->gap[i] = u->gap[i], px->gap_n[i] = u->gap_n[i];
     px->n = u->n, px->nonzero = u->nonzero;
     rd_select_work c1 = rd_select_work_now(u->th);
     px->cost += (double)(work_units(sel, u->use, &u->c, &c1) + u->drawn * sample_fixed_units(sel, u->use)); /* exact */
@@ -571,7 +571,7 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
     if (path) sel->kind[next++] = RD_SEL_PATH, sel->path = path, sel->path_cell_cost = more->path_cell_cost;
     if (beams) sel->kind[next++] = RD_SEL_BEAMS, sel->beams = beams, sel->pass_kind = RD_SEL_BEAMS;
     if (beams && s->settings.select != RD_SELECT_PILOT && /* (only the epochs read the beams' gaps) */
-        !(sel->gaps = calloc(4 * (size_t)cam->width * cam->height, sizeof *sel->gaps))) {
+        !(sel->gaps = calloc(8 * (size_t)cam->width * cam->height, sizeof *sel->gaps))) {
         rd_select_free(sel);
         snprintf(err, errlen, "out of memory for the tile selection's beams gaps (%dx%d pixels)", cam->width, cam->height);
         return RD_ERR_NOMEM;
@@ -666,15 +666,18 @@ int rd_select_epoch_next(const rd_select *sel, int sample)
     return b;
 }
 
-/* The beams' squared gaps (rd_select_stats.bias2, bias_n; select_rule.c, "The beams' bias"), set
- * anew from every pixel's image samples so far (rd_select.gaps): the product of the mean gaps of
- * its samples on the even and on the odd photon passes, in the half and tile of the pixel, of
- * the beams estimator (the last), weighed by w = n_e n_o / (n_e + n_o) for n_e and n_o samples on
- * each (bias2 the sum of w x product, bias_n of w): with no gap the product's variance falls as
- * 1 / (n_e n_o), so a pixel with a sample or two of the beams (a trial's, a tile's that left them)
- * weighs little. All of a pixel's samples, not an epoch's: an epoch's product of two means of few
- * samples is noise squared, and the earlier epochs' records, each as noisy, would weigh as much
- * as the last's. */
+/* The beams' squared gaps (rd_select_stats.bias2, bias_n, bias_split; select_rule.c, "The beams'
+ * bias"), set anew from every pixel's image samples so far (rd_select.gaps), in the half and tile
+ * of the pixel, of the beams estimator (the last), over the pixels with samples on passes of all
+ * four classes mod 4. A pixel's product is its even passes' mean gap times its odd passes', P,
+ * weighed by w = n_e n_o / (n_e + n_o) for n_e and n_o samples on each (bias2 the sum of w P,
+ * bias_n of w): with no gap P's variance falls as 1 / (n_e n_o), so a pixel with a few samples of
+ * the beams (a trial's, a tile's that left them) weighs little. Its noise is read from two
+ * products over disjoint sets of passes, A = classes 0 x 1 and B = 2 x 3 (bias_split the sum of
+ * w (A - B)): both estimate the same squared gap, so their difference is noise alone, whatever the
+ * bias. All of a pixel's samples, not an epoch's: an epoch's product of two means of few samples
+ * is noise squared, and the earlier epochs' records, each as noisy, would weigh as much as the
+ * last's. */
 static void bias_fold(rd_select *sel)
 {
     if (!sel->gaps || sel->kind[sel->n - 1] != RD_SEL_BEAMS) return;
@@ -682,16 +685,18 @@ static void bias_fold(rd_select *sel)
     for (int h = 0; h < 2; h++)
         for (int k = 0; k < sel->tiles_x * sel->tiles_y; k++) {
             rd_select_stats *st = &sel->stats[((size_t)h * sel->tiles_x * sel->tiles_y + k) * sel->n + b];
-            st->bias2 = st->bias_n = 0.0;
+            st->bias2 = st->bias_n = st->bias_split = 0.0;
         }
     for (int y = 0; y < sel->height; y++)
         for (int x = 0; x < sel->width; x++) {
-            const double *g = &sel->gaps[4 * ((size_t)y * sel->width + x)];
-            if (!(g[2] > 0.0 && g[3] > 0.0)) continue;
+            const double *s = &sel->gaps[8 * ((size_t)y * sel->width + x)], *c = s + 4;
+            if (!(c[0] > 0.0 && c[1] > 0.0 && c[2] > 0.0 && c[3] > 0.0)) continue;
             int k = (y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE;
             rd_select_stats *st = &half_stats(sel, x, y)[sel->n * k + b];
-            const double w = g[2] * g[3] / (g[2] + g[3]);
-            st->bias2 += w * (g[0] / g[2]) * (g[1] / g[3]), st->bias_n += w;
+            const double ne = c[0] + c[2], no = c[1] + c[3], w = ne * no / (ne + no);
+            const double A = s[0] / c[0] * (s[1] / c[1]), B = s[2] / c[2] * (s[3] / c[3]);
+            st->bias2 += w * ((s[0] + s[2]) / ne) * ((s[1] + s[3]) / no), st->bias_n += w;
+            st->bias_split += w * (A - B);
         }
 }
 
@@ -714,8 +719,8 @@ void rd_select_epoch(rd_select *sel, const rd_comm *comm, const rd_select_end *e
             pixel_fold(st, px);
             st->image_n += px->n, st->image_cost += px->cost / RD_SELECT_COST_UNIT; /* (the image's) */
             if (sel->gaps) {
-                double *g = &sel->gaps[4 * ((size_t)y * sel->width + x)];
-                g[0] += px->gap[0], g[1] += px->gap[1], g[2] += px->gap_n[0], g[3] += px->gap_n[1];
+                double *g = &sel->gaps[8 * ((size_t)y * sel->width + x)];
+                for (int i = 0; i < 4; i++) g[i] += px->gap[i], g[4 + i] += px->gap_n[i];
             }
             memset(px, 0, sizeof *px);
         }
@@ -758,7 +763,7 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
     if (v3_finite(L)) { /* pixel_add's sums, in the same order: the same to the bit */
         const float v[3] = {(float)L.x, (float)L.y, (float)L.z}, v2[3] = {(float)(L.x * L.x), (float)(L.y * L.y), (float)(L.z * L.z)};
         for (int c = 0; c < 3; c++) u->sum[c] += v[c], u->sum2[c] += v2[c];
-        if (pass >= 0) u->gap[pass & 1] += (gap.x + gap.y + gap.z) / 3.0, u->gap_n[pass & 1]++;
+        if (pass >= 0) u->gap[pass & 3] += (gap.x + gap.y + gap.z) / 3.0, u->gap_n[pass & 3]++;
         u->nonzero += L.x != 0.0 || L.y != 0.0 || L.z != 0.0;
         u->n += 1.0;
     }

@@ -259,7 +259,8 @@
  * (rd_select.gaps; the pilot's read pass 1 only and give none), as the product of the mean gaps
  * of its samples on the odd and on the even photon passes: the two share no photons but pass
  * 1's, which set every pass's radii, so the product is a nearly unbiased estimate of the squared
- * gap; the pixels weigh by their samples (bias_fold). Each sample's gap is read at pass 1's
+ * gap; the pixels weigh by their samples and count once they hold passes of all four classes mod
+ * 4 (bias_fold). Each sample's gap is read at pass 1's
  * radius (over its pass's radius_scale: the bias taken to grow as r, below), and the ratio at the
  * radius of the pass then (times radius_scale^2). (A pixel's squared mean gap
  * less its samples' spread over n read high: the samples of one pass share its photons' noise,
@@ -271,10 +272,12 @@
  * bias to their variance a sample over all their pixels (bias_ratio), less SEL_BIAS_SIGMA
  * standard errors and not below 0, and gives each tile B = that ratio times the beams' variance
  * figure there: a bias that shows over the whole image is counted where the beams' noise is.
- * The standard error is taken over the tiles, each tile's sum of products one draw: the pixels
- * near each other share the photons their balls hold, so their products' noise is shared too
- * (and the bias's own spread over the tiles counts as noise: a bias held by a few tiles of many
- * is not read; a noise-only error, from products over disjoint sets of passes, is left to do).
+ * The standard error is the noise's alone: each pixel also reads two products over disjoint
+ * passes (classes 0 x 1 and 2 x 3 mod 4), which estimate the same squared gap, so their
+ * difference is noise whatever the bias, and it is summed over each tile before it is squared
+ * (the pixels near each other share the photons their balls hold, so their noise is shared).
+ * A first form took the spread of the tiles' sums of products instead, which counts the bias's
+ * own spread over the tiles as noise too.
  * Session 64 read it per record instead (an epoch's samples of a pixel, each record's product
  * one draw, the records taken as independent): the early epochs' records, products of means of
  * few samples, weighed as much as the last's, and the standard error read low; cloud's ratio
@@ -660,34 +663,29 @@ static void pooled_relative_variance(const rd_select *sel, const rd_select_stats
  * products of their odd and even passes' mean gaps (statistics st over all tiles: bias_fold),
  * times r2, the radius's square now over pass 1's (the gaps are read at pass 1's radius), over
  * the same weighted mean of their tiles' variance a sample (tile_variance's sample variance,
- * unbounded). The standard error is over the tiles, not the pixels: the pixels of a tile share
- * the photons of its passes and their gaps' noise, so a tile's pixels are one draw (the ratio
- * estimator's variance over clusters, K / (K - 1) sum_k (S_k - W_k mean)^2 / W^2 for K tiles
- * with weighted sums S_k of weights W_k, W in all). It counts the bias's own spread over the
- * tiles as noise too, so a bias held by a few tiles of many is not read. */
+ * unbounded). The standard error is the noise's alone, read from each tile's sum D_k of the
+ * weighted differences of two products over disjoint passes (bias_split), each tile one draw (the
+ * pixels of a tile share the photons of its passes, so their noise is shared): a product of two
+ * means over half the passes each has 8x the variance of one over all of them where the gap is
+ * small against its noise (and 4x where it is large, where the bias then shows many standard
+ * errors over), so the weighted sum's variance is sum_k D_k^2 / 8 over the weights' sum squared.
+ * The bias's own spread over the tiles is not noise and does not count. */
 static double bias_ratio(const rd_select *sel, const rd_select_stats *st, double r2, double *raw, double *se_out)
 {
     *raw = *se_out = 0.0;
     int n = sel->tiles_x * sel->tiles_y, m = sel->n;
     const int b = bound_centre(sel);
     if (b < 0) return 0.0;
-    double sum = 0.0, weight = 0.0, v = 0.0, tiles = 0.0;
+    double sum = 0.0, weight = 0.0, v = 0.0, tiles = 0.0, d2 = 0.0;
     for (int k = 0; k < n; k++) {
         const rd_select_stats *a = &st[m * k + b];
         if (!(a->bias_n > 0.0 && a->dof > 0.0)) continue;
-        sum += a->bias2, weight += a->bias_n, tiles += 1.0;
+        sum += a->bias2, weight += a->bias_n, tiles += 1.0, d2 += a->bias_split * a->bias_split;
         v += a->bias_n * (a->dev2[0] + a->dev2[1] + a->dev2[2]) / (3.0 * a->dof);
     }
     if (!(tiles >= SEL_BIAS_TILES && v > 0.0)) return 0.0;
-    const double mean = sum / weight;
-    double d2 = 0.0;
-    for (int k = 0; k < n; k++) {
-        const rd_select_stats *a = &st[m * k + b];
-        if (!(a->bias_n > 0.0 && a->dof > 0.0)) continue;
-        double d = a->bias2 - a->bias_n * mean;
-        d2 += d * d;
-    }
-    const double se = sqrt(tiles / (tiles - 1.0) * d2) / weight, scale = RD_SELECT_BIAS_PER_GAP2 * r2 / (v / weight);
+    const double mean = sum / weight, se = sqrt(d2 / 8.0) / weight;
+    const double scale = RD_SELECT_BIAS_PER_GAP2 * r2 / (v / weight);
     if (!isfinite(mean * scale) || !isfinite(se * scale)) return 0.0;
     *raw = mean * scale, *se_out = se * scale;
     return fmax(0.0, (mean - SEL_BIAS_SIGMA * se) * scale);
@@ -774,6 +772,7 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
         t->image_n = a->image_n + b->image_n, t->image_cost = a->image_cost + b->image_cost;
         for (int c = 0; c < 3; c++) t->sum[c] = a->sum[c] + b->sum[c], t->dev2[c] = a->dev2[c] + b->dev2[c];
         t->gap = a->gap + b->gap, t->bias2 = a->bias2 + b->bias2, t->bias_n = a->bias_n + b->bias_n;
+        t->bias_split = a->bias_split + b->bias_split;
     }
 
     /* Each estimator's non-zero fraction over the lit tiles: the prior of every tile's p. */
