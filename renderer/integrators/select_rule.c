@@ -283,7 +283,7 @@
  * few samples, weighed as much as the last's, and the standard error read low; cloud's ratio
  * swung between seeds (0.016 and 0.041 at the epoch at 256), and so did its beams' tiles (89 and
  * 4) and `guided`'s efficiency (0.40x and 0.80x `delta` at 60 s). Read from all of a pixel's
- * samples, with the standard error over the tiles, cloud's ratio read 0.0090 +- 0.0013 and
+ * samples, with the standard error from the tiles' spread (the first form of session 65), cloud's ratio read 0.0090 +- 0.0013 and
  * 0.0075 +- 0.0010 at that epoch (the same two seeds, at the radius then and with the factor 4
  * below), the dense block's 0.0020 +- 0.0039.
  *
