@@ -1878,27 +1878,28 @@ Test(select, with_the_beams_a_mean_that_lags_theirs_reads_a_tail)
  * bias"): a 6x5-tile selection (48x40 pixels) of delta and the method (variance 0.05 a sample)
  * and the beams (0.001), all at cost 1, the image's 16 samples a pixel so far the beams', as much
  * time left as taken. Every pixel's gaps so far (rd_select.gaps) have the mean gaps s g (1 + d_k),
- * s g, s g (1 - d_k) and s g on its passes of classes 0, 1, 2 and 3 mod 4, with d_k = D, -D, 0
- * by tile k mod 3 and s = +-1 in a checkerboard of pixels (a blur's bias changes sign across an
- * edge: a tile's mean gaps are 0). Even columns hold 2, 3, 1 and 2 samples of the classes (weight
- * 3 x 5 / 8), odd ones 1 of each (weight 1). The disjoint products (classes 0 x 1 against 2 x 3)
- * differ by 2 g^2 d_k: noise, which D sets, while the mean product is the same for every D. The
- * ratio is 11.66 (RD_SELECT_BIAS_PER_GAP2, checked) x the weighted mean product x the radius's
- * square (radius_scale 0.8) over the beams' variance a sample, its standard error sqrt(sum_k
- * D_k^2 / 8) over the weights' sum (D_k a tile's weighted differences), both checked against this
- * test's own sums, and a second epoch with no new samples reads the same. Then:
+ * s g (1 + d_k), s g (1 - d_k) and s g (1 - d_k) on its passes of classes 0, 1, 2 and 3 mod 4,
+ * with d_k = D, -D, 0 by tile k mod 3 and s = +-1 in a checkerboard of pixels (a blur's bias
+ * changes sign across an edge: a tile's mean gaps are 0). Even columns hold 2, 3, 1 and 2 samples
+ * of the classes (weight 3 x 5 / 8), odd ones 1 of each (weight 1). A pixel's product
+ * (m0 + m2)(m1 + m3) / 4 is g^2 for every D, its turned product (m0 - m2)(m1 - m3) / 4 g^2 d_k^2:
+ * noise, which D sets. The ratio is 11.66 (RD_SELECT_BIAS_PER_GAP2, checked) x the weighted mean
+ * product x the radius's square (radius_scale 0.8) over the beams' variance a sample, its
+ * standard error sqrt(sum_k D_k^2) over the weights' sum (D_k a tile's weighted turned products),
+ * both checked against this test's own sums, and a second epoch with no new samples reads the
+ * same. Then:
  * - no gap (g 0): the beams take every tile;
- * - g 0.046, D 0.3: a ratio of 15.8 +- 0.50, far beyond its standard errors; the beams' 50x lower
+ * - g 0.046, D 0.3: a ratio of 15.8 +- 0.21, far beyond its standard errors; the beams' 50x lower
  *   variance does not pay for a squared bias weighed ~16 (1 + 2) times (the line is near a ratio
  *   of 1): delta keeps every tile;
- * - the same g, D 6: a ratio of 15.8 +- 10.0, so three standard errors take it all: the beams
+ * - the same g, D 3: a ratio of 15.8 +- 21.2, so three standard errors take it all: the beams
  *   take every tile again.
  * Fails with the products taken from a tile's mean gaps instead of each pixel's, the factor or
  * the radius left out, the margin left out, or the tiles' columns and rows swapped. */
 Test(select, the_beams_bias_is_read_from_every_pixel_s_gaps_with_its_noise_from_disjoint_passes)
 {
     cr_assert(fabs(RD_SELECT_BIAS_PER_GAP2 - pow(1.0 - sqrt(0.5), -2.0)) < 1e-12, "the factor %.15g", RD_SELECT_BIAS_PER_GAP2);
-    const double g_of[3] = {0.0, 0.046, 0.046}, D_of[3] = {0.0, 0.3, 6.0};
+    const double g_of[3] = {0.0, 0.046, 0.046}, D_of[3] = {0.0, 0.3, 3.0};
     enum { W = 48, H = 40, T = 30 };
     for (int i = 0; i < 3; i++) {
         rd_select sel;
@@ -1922,17 +1923,17 @@ Test(select, the_beams_bias_is_read_from_every_pixel_s_gaps_with_its_noise_from_
                 int k = (y / 8) * 6 + x / 8;
                 double d = k % 3 == 0 ? D_of[i] : k % 3 == 1 ? -D_of[i] : 0.0, sg = (x + y) & 1 ? -g : g;
                 const double c[4] = {x & 1 ? 1.0 : 2.0, x & 1 ? 1.0 : 3.0, 1.0, x & 1 ? 1.0 : 2.0};
-                const double mean[4] = {sg * (1.0 + d), sg, sg * (1.0 - d), sg};
+                const double mean[4] = {sg * (1.0 + d), sg * (1.0 + d), sg * (1.0 - d), sg * (1.0 - d)};
                 double *gp = &sel.gaps[8 * (y * W + x)];
                 for (int j = 0; j < 4; j++) gp[j] = c[j] * mean[j], gp[4 + j] = c[j];
                 const double ne = c[0] + c[2], no = c[1] + c[3], w = ne * no / (ne + no);
-                S[k] += w * (c[0] * mean[0] + c[2] * mean[2]) / ne * ((c[1] * mean[1] + c[3] * mean[3]) / no);
-                Wk[k] += w, Dk[k] += w * (mean[0] * mean[1] - mean[2] * mean[3]);
+                S[k] += w * (mean[0] + mean[2]) * (mean[1] + mean[3]) / 4.0;
+                Wk[k] += w, Dk[k] += w * (mean[0] - mean[2]) * (mean[1] - mean[3]) / 4.0;
             }
         double sum = 0.0, wsum = 0.0, d2 = 0.0;
         for (int k = 0; k < T; k++) sum += S[k], wsum += Wk[k], d2 += Dk[k] * Dk[k];
         const double ratio = 11.656854249492380 * sum / wsum * r2 / 0.001;
-        const double se = 11.656854249492380 * sqrt(d2 / 8.0) / wsum * r2 / 0.001;
+        const double se = 11.656854249492380 * sqrt(d2) / wsum * r2 / 0.001;
         for (int epoch = 0; epoch < 2; epoch++) {
             rd_select_epoch(&sel, NULL, &(rd_select_end){1.0, 0.0, 0.8});
             if (g > 0.0)

@@ -40,11 +40,11 @@ typedef struct {
     /* The beams' (0 for the others; select_rule.c, "The beams' bias"): the sum of their
      * samples' gaps at pass 1's radius (rd_thread.beam_gap, the mean over RGB, over the pass's
      * radius_scale); and over the pixels whose image samples so far (rd_select.gaps) hold passes
-     * of all four classes mod 4, the product of their odd and even passes' mean gaps (a nearly
-     * unbiased estimate of the squared gap: the two sets share no photons but pass 1's, which
-     * set the radii) times a weight w (select.c bias_fold) in bias2, the weights in bias_n, and
-     * w times the difference of two such products over disjoint passes (its noise) in
-     * bias_split. Set anew at every epoch. */
+     * of all four classes mod 4, the product of their odd and even passes' mean gaps, each the
+     * mean of its two classes' (a nearly unbiased estimate of the squared gap: the two sets share
+     * no photons but pass 1's, which set the radii) times a weight w (select.c bias_fold) in
+     * bias2, the weights in bias_n, and w times the same product with two signs turned (its
+     * noise, of mean 0) in bias_split. Set anew at every epoch. */
     double gap, bias2, bias_n, bias_split;
 } rd_select_stats;
 

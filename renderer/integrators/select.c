@@ -669,14 +669,18 @@ int rd_select_epoch_next(const rd_select *sel, int sample)
 /* The beams' squared gaps (rd_select_stats.bias2, bias_n, bias_split; select_rule.c, "The beams'
  * bias"), set anew from every pixel's image samples so far (rd_select.gaps), in the half and tile
  * of the pixel, of the beams estimator (the last), over the pixels with samples on passes of all
- * four classes mod 4. A pixel's product is its even passes' mean gap times its odd passes', P,
- * weighed by w = n_e n_o / (n_e + n_o) for n_e and n_o samples on each (bias2 the sum of w P,
- * bias_n of w): with no gap P's variance falls as 1 / (n_e n_o), so a pixel with a few samples of
- * the beams (a trial's, a tile's that left them) weighs little. Its noise is read from two
- * products over disjoint sets of passes, A = classes 0 x 1 and B = 2 x 3 (bias_split the sum of
- * w (A - B)): both estimate the same squared gap, so their difference is noise alone, whatever the
- * bias. All of a pixel's samples, not an epoch's: an epoch's product of two means of few samples
- * is noise squared, and the earlier epochs' records, each as noisy, would weigh as much as the
+ * four classes mod 4. With m_j the mean gap of the pixel's samples on passes of class j, its
+ * product is P = (m0 + m2)(m1 + m3) / 4, even passes' times odd passes' (pass 1, class 1, sets
+ * the radii; the other passes are independent given it), weighed by w = n_e n_o / (n_e + n_o) for
+ * n_e and n_o samples on each (bias2 the sum of w P, bias_n of w): a pixel with a few samples of
+ * the beams (a trial's, a tile's that left them) weighs little. Its noise is read from
+ * D = (m0 - m2)(m1 - m3) / 4 (bias_split the sum of w D): P and D are the same four cross
+ * products m_i m_j, even x odd, with two signs turned, so where the gap is 0 they have the same
+ * variance whatever each class's (its samples, and the photon noise its passes share), and D's
+ * mean is 0 whatever the bias (the classes' gaps alike). The classes weigh equally, not by their
+ * samples: a pass that served many samples would weigh its photons' noise into P more than into
+ * D. All of a pixel's samples, not an epoch's: an epoch's product of two means of few samples is
+ * noise squared, and the earlier epochs' records, each as noisy, would weigh as much as the
  * last's. */
 static void bias_fold(rd_select *sel)
 {
@@ -694,9 +698,9 @@ static void bias_fold(rd_select *sel)
             int k = (y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE;
             rd_select_stats *st = &half_stats(sel, x, y)[sel->n * k + b];
             const double ne = c[0] + c[2], no = c[1] + c[3], w = ne * no / (ne + no);
-            const double A = s[0] / c[0] * (s[1] / c[1]), B = s[2] / c[2] * (s[3] / c[3]);
-            st->bias2 += w * ((s[0] + s[2]) / ne) * ((s[1] + s[3]) / no), st->bias_n += w;
-            st->bias_split += w * (A - B);
+            const double m0 = s[0] / c[0], m1 = s[1] / c[1], m2 = s[2] / c[2], m3 = s[3] / c[3];
+            st->bias2 += w * (m0 + m2) * (m1 + m3) / 4.0, st->bias_n += w;
+            st->bias_split += w * (m0 - m2) * (m1 - m3) / 4.0;
         }
 }
 

@@ -272,10 +272,11 @@
  * bias to their variance a sample over all their pixels (bias_ratio), less SEL_BIAS_SIGMA
  * standard errors and not below 0, and gives each tile B = that ratio times the beams' variance
  * figure there: a bias that shows over the whole image is counted where the beams' noise is.
- * The standard error is the noise's alone: each pixel also reads two products over disjoint
- * passes (classes 0 x 1 and 2 x 3 mod 4), which estimate the same squared gap, so their
- * difference is noise whatever the bias, and it is summed over each tile before it is squared
- * (the pixels near each other share the photons their balls hold, so their noise is shared).
+ * The standard error is the noise's alone: each pixel keeps its gaps by pass class mod 4 and
+ * reads, beside its product, the same four cross products (even x odd classes) with two signs
+ * turned, which have the product's variance where the gap is 0 and mean 0 whatever the bias
+ * (bias_fold); it is summed over each tile before it is squared (the pixels near each other share
+ * the photons their balls hold, so their noise is shared).
  * A first form took the spread of the tiles' sums of products instead, which counts the bias's
  * own spread over the tiles as noise too.
  * Session 64 read it per record instead (an epoch's samples of a pixel, each record's product
@@ -663,13 +664,14 @@ static void pooled_relative_variance(const rd_select *sel, const rd_select_stats
  * products of their odd and even passes' mean gaps (statistics st over all tiles: bias_fold),
  * times r2, the radius's square now over pass 1's (the gaps are read at pass 1's radius), over
  * the same weighted mean of their tiles' variance a sample (tile_variance's sample variance,
- * unbounded). The standard error is the noise's alone, read from each tile's sum D_k of the
- * weighted differences of two products over disjoint passes (bias_split), each tile one draw (the
- * pixels of a tile share the photons of its passes, so their noise is shared): a product of two
- * means over half the passes each has 8x the variance of one over all of them where the gap is
- * small against its noise (and 4x where it is large, where the bias then shows many standard
- * errors over), so the weighted sum's variance is sum_k D_k^2 / 8 over the weights' sum squared.
- * The bias's own spread over the tiles is not noise and does not count. */
+ * unbounded). The standard error is the noise's alone: each tile's sum D_k of its pixels'
+ * products with two signs turned (bias_split), which where the gap is 0 have the products' own
+ * variance and have mean 0 whatever the bias, each tile one draw (the pixels of a tile share the
+ * photons of its passes, so their noise is shared): sqrt(sum_k D_k^2) over the weights' sum. It
+ * reads low where a pixel's gap is large against its noise (D lacks the products' terms in the
+ * gap times the noise), where the bias then shows many standard errors over. The bias's own
+ * spread over the tiles is not noise and does not count (nor does the noise the tiles share with
+ * their neighbours: it reads low there). */
 static double bias_ratio(const rd_select *sel, const rd_select_stats *st, double r2, double *raw, double *se_out)
 {
     *raw = *se_out = 0.0;
@@ -684,7 +686,7 @@ static double bias_ratio(const rd_select *sel, const rd_select_stats *st, double
         v += a->bias_n * (a->dev2[0] + a->dev2[1] + a->dev2[2]) / (3.0 * a->dof);
     }
     if (!(tiles >= SEL_BIAS_TILES && v > 0.0)) return 0.0;
-    const double mean = sum / weight, se = sqrt(d2 / 8.0) / weight;
+    const double mean = sum / weight, se = sqrt(d2) / weight;
     const double scale = RD_SELECT_BIAS_PER_GAP2 * r2 / (v / weight);
     if (!isfinite(mean * scale) || !isfinite(se * scale)) return 0.0;
     *raw = mean * scale, *se_out = se * scale;
