@@ -1874,14 +1874,35 @@ Test(select, with_the_beams_a_mean_that_lags_theirs_reads_a_tail)
         }
 }
 
+/* The beams' gaps of a 6x5-tile selection's pixels so far (sel->gaps, 48x40 pixels): the mean
+ * gaps s g (1 + d_k), s g (1 + d_k), s g (1 - d_k) and s g (1 - d_k) on the passes of classes 0,
+ * 1, 2 and 3 mod 4, with d_k = D, -D, 0 by tile k mod 3 and s = +-1 in a checkerboard of pixels;
+ * even columns hold 2, 3, 1 and 2 samples of the classes, odd ones 1 of each. Per tile k, what
+ * bias_fold should read: the weighted products in S[k], the weights in Wk[k], the weighted
+ * turned products in Dk[k] (added to; NULL: not wanted). */
+static void beams_gaps(rd_select *sel, double g, double D, double *S, double *Wk, double *Dk)
+{
+    for (int y = 0; y < 40; y++)
+        for (int x = 0; x < 48; x++) {
+            int k = (y / 8) * 6 + x / 8;
+            double d = k % 3 == 0 ? D : k % 3 == 1 ? -D : 0.0, sg = (x + y) & 1 ? -g : g;
+            const double c[4] = {x & 1 ? 1.0 : 2.0, x & 1 ? 1.0 : 3.0, 1.0, x & 1 ? 1.0 : 2.0};
+            const double mean[4] = {sg * (1.0 + d), sg * (1.0 + d), sg * (1.0 - d), sg * (1.0 - d)};
+            double *gp = &sel->gaps[8 * (y * 48 + x)];
+            for (int j = 0; j < 4; j++) gp[j] = c[j] * mean[j], gp[4 + j] = c[j];
+            const double ne = c[0] + c[2], no = c[1] + c[3], w = ne * no / (ne + no);
+            if (!S) continue;
+            S[k] += w * (mean[0] + mean[2]) * (mean[1] + mean[3]) / 4.0;
+            Wk[k] += w, Dk[k] += w * (mean[0] - mean[2]) * (mean[1] - mean[3]) / 4.0;
+        }
+}
+
 /* The beams' bias at an epoch (select.c bias_fold, select_rule.c bias_ratio and "The beams'
  * bias"): a 6x5-tile selection (48x40 pixels) of delta and the method (variance 0.05 a sample)
  * and the beams (0.001), all at cost 1, the image's 16 samples a pixel so far the beams', as much
- * time left as taken. Every pixel's gaps so far (rd_select.gaps) have the mean gaps s g (1 + d_k),
- * s g (1 + d_k), s g (1 - d_k) and s g (1 - d_k) on its passes of classes 0, 1, 2 and 3 mod 4,
- * with d_k = D, -D, 0 by tile k mod 3 and s = +-1 in a checkerboard of pixels (a blur's bias
- * changes sign across an edge: a tile's mean gaps are 0). Even columns hold 2, 3, 1 and 2 samples
- * of the classes (weight 3 x 5 / 8), odd ones 1 of each (weight 1). A pixel's product
+ * time left as taken. Every pixel's gaps so far (rd_select.gaps) are beams_gaps' (the signs in a
+ * checkerboard: a blur's bias changes sign across an edge, so a tile's mean gaps are 0; even
+ * columns weigh 3 x 5 / 8, odd ones 1). A pixel's product
  * (m0 + m2)(m1 + m3) / 4 is g^2 for every D, its turned product (m0 - m2)(m1 - m3) / 4 g^2 d_k^2:
  * noise, which D sets. The ratio is 11.66 (RD_SELECT_BIAS_PER_GAP2, checked) x the weighted mean
  * product x the radius's square (radius_scale 0.8) over the beams' variance a sample, its
@@ -1918,18 +1939,7 @@ Test(select, the_beams_bias_is_read_from_every_pixel_s_gaps_with_its_noise_from_
         }
         const double g = g_of[i], r2 = 0.8 * 0.8;
         double S[T] = {0}, Wk[T] = {0}, Dk[T] = {0};
-        for (int y = 0; y < H; y++)
-            for (int x = 0; x < W; x++) {
-                int k = (y / 8) * 6 + x / 8;
-                double d = k % 3 == 0 ? D_of[i] : k % 3 == 1 ? -D_of[i] : 0.0, sg = (x + y) & 1 ? -g : g;
-                const double c[4] = {x & 1 ? 1.0 : 2.0, x & 1 ? 1.0 : 3.0, 1.0, x & 1 ? 1.0 : 2.0};
-                const double mean[4] = {sg * (1.0 + d), sg * (1.0 + d), sg * (1.0 - d), sg * (1.0 - d)};
-                double *gp = &sel.gaps[8 * (y * W + x)];
-                for (int j = 0; j < 4; j++) gp[j] = c[j] * mean[j], gp[4 + j] = c[j];
-                const double ne = c[0] + c[2], no = c[1] + c[3], w = ne * no / (ne + no);
-                S[k] += w * (mean[0] + mean[2]) * (mean[1] + mean[3]) / 4.0;
-                Wk[k] += w, Dk[k] += w * (mean[0] - mean[2]) * (mean[1] - mean[3]) / 4.0;
-            }
+        beams_gaps(&sel, g, D_of[i], S, Wk, Dk);
         double sum = 0.0, wsum = 0.0, d2 = 0.0;
         for (int k = 0; k < T; k++) sum += S[k], wsum += Wk[k], d2 += Dk[k] * Dk[k];
         const double ratio = 11.656854249492380 * sum / wsum * r2 / 0.001;
@@ -1946,6 +1956,46 @@ Test(select, the_beams_bias_is_read_from_every_pixel_s_gaps_with_its_noise_from_
         for (int k = 0; k < T; k++)
             cr_expect(sel.choice[k] == want && sel.trial[k] == 0, "g %g, D %g (ratio %g +- %g): tile %d took %d (trial %d), not %d",
                       g, D_of[i], sel.bias_ratio, sel.bias_se, k, sel.choice[k], sel.trial[k], want);
+        rd_select_free(&sel);
+    }
+}
+
+/* Off the biased beams at once (select_rule.c's head): the 6x5-tile selection of the test above
+ * (delta and the method at variance 0.05 a sample, cost 1), every tile on the beams, which hold
+ * 1152 of its samples against delta's 128 (the pilot's): evidence lopsided beyond
+ * RD_SELECT_TRIAL_RATIO, so a move to delta's path goes on trial, as it does where the beams'
+ * variance, 0.5 a sample, is what loses them the tiles and no bias is read (no gap). Where the
+ * image reads their bias (the gaps above, g 0.046, D 0.3: 15.8 +- 0.21) at a variance of 0.001,
+ * every tile leaves them at once, no tile on trial. Fails with the move put on trial. */
+Test(select, a_tile_leaves_the_beams_at_once_where_the_image_reads_their_bias)
+{
+    enum { T = 30 };
+    for (int biased = 0; biased < 2; biased++) {
+        rd_select sel;
+        char err[RD_ERRLEN];
+        cr_assert(rd_select_init(&sel, 48, 40, 1.0, 3, err, sizeof err) == RD_OK, "%s", err);
+        sel.kind[2] = RD_SEL_BEAMS, sel.paths &= ~(1u << 2);
+        cr_assert((sel.gaps = calloc(8 * 48 * 40, sizeof *sel.gaps)) != NULL);
+        const double vb = biased ? 0.001 : 0.5;
+        for (int k = 0; k < T; k++) {
+            fake_pilot(&sel, 3 * k, 0.5, 0.05, 1.0, 1.0);
+            fake_pilot(&sel, 3 * k + 1, 0.5, 0.05, 1.0, 1.0);
+            fake_pilot(&sel, 3 * k + 2, 0.5, vb, 1.0, 1.0);
+            for (int h = 0; h < 2; h++) { /* the image's 16 samples a pixel, 32 pixels a half: the beams' */
+                add_half(&sel, h, 3 * k + 2, 32.0, 16.0, 0.5, vb, 1.0, 1.0);
+                rd_select_stats *st = &sel.stats[(size_t)h * 3 * T + 3 * k + 2];
+                st->image_n = 32.0 * 16.0, st->image_cost = 32.0 * 16.0;
+            }
+            sel.choice[k] = 2;
+        }
+        beams_gaps(&sel, biased ? 0.046 : 0.0, 0.3, NULL, NULL, NULL);
+        rd_select_epoch(&sel, NULL, &(rd_select_end){1.0, 0.0, 0.8});
+        cr_assert(biased ? sel.bias_ratio > 3.0 * sel.bias_se + 1.0 : sel.bias_ratio == 0.0, "%s: the ratio read %g +- %g",
+                  biased ? "biased" : "no gap", sel.bias_ratio, sel.bias_se);
+        for (int k = 0; k < T; k++)
+            cr_expect(biased ? sel.choice[k] == RD_SEL_DELTA && sel.trial[k] == 0
+                             : sel.choice[k] == 2 && sel.trial[k] == 1 + RD_SEL_DELTA,
+                      "%s: tile %d took %d (trial %d)", biased ? "biased" : "no gap", k, sel.choice[k], sel.trial[k]);
         rd_select_free(&sel);
     }
 }

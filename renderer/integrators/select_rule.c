@@ -55,6 +55,17 @@
  * narrow beam that delta's paths rarely find), the trial shows it and the tile moves one epoch
  * later; where it only looked better, the trial shows its tail too.
  *
+ * Off the biased beams at once (session 66). A tile that leaves the beams while the image reads
+ * their bias (bias_ratio above its margin, "The beams' bias" below) moves without a trial: a
+ * trial would keep the beams on half its pixels for an epoch of 4x the samples so far, and their
+ * bias stays in those pixels' means to the render's end (no later sample averages it out), where
+ * a move that a tail in delta's few samples made look right costs variance only, until the next
+ * epoch moves the tile back (through a trial of its own). On cloud at 60 s the bias shows by the
+ * epoch at 64, when 89 tiles went on trial to delta's path, and the beams' samples of those
+ * tiles' first 256 a pixel stayed in the image: `guided` made 0.43-0.89x plain `delta` in four
+ * rounds, 0.80-1.13x with the moves made at once (docs/benchmarks.md "Session 66"). Moves onto
+ * the beams, and off them where no bias is read, still go on trial as above.
+ *
  * Replication (session 27). The rule takes in each tile the estimator whose figures came out
  * least, and where they are noisy that is in part the one whose noise ran low: a costlier
  * estimator then takes a tile for a variance gain that was noise, and pays its cost for sure.
@@ -836,10 +847,14 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
         }
         /* after a trial, only the estimator on trial is taken without the ratio's test: with
          * three, the rule may want the one that was not on trial, on its pilot's samples alone;
-         * a move the halves do not agree on always goes on trial first */
+         * a move the halves do not agree on goes on trial first, but off the biased beams */
         int on_trial = sel->trial[k] && w == sel->trial[k] - 1;
-        if (w == cur || on_trial || (!split && st[w].n * RD_SELECT_TRIAL_RATIO >= st[cur].n)) {
-            sel->choice[k] = (uint8_t)w; /* the same, after its trial, or on comparable evidence */
+        /* off the beams while the image reads their bias: at once (the head, "Off the biased
+         * beams at once") */
+        int off_biased = ratio > 0.0 && cur == bound_centre(sel) && w != cur;
+        if (w == cur || on_trial || off_biased || (!split && st[w].n * RD_SELECT_TRIAL_RATIO >= st[cur].n)) {
+            sel->choice[k] = (uint8_t)w; /* the same, after its trial, on comparable evidence, or
+                                            off the biased beams */
             sel->trial[k] = 0;
         } else {
             sel->trial[k] = (uint8_t)(1 + w); /* lopsided evidence, or halves that differ: half
