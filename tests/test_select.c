@@ -1875,19 +1875,24 @@ Test(select, with_the_beams_a_mean_that_lags_theirs_reads_a_tail)
 }
 
 /* The beams' gaps of a 6x5-tile selection's pixels so far (sel->gaps, 48x40 pixels): the mean
- * gaps s g (1 + d_k), s g (1 + d_k), s g (1 - d_k) and s g (1 - d_k) on the passes of classes 0,
- * 1, 2 and 3 mod 4, with d_k = D, -D, 0 by tile k mod 3 and s = +-1 in a checkerboard of pixels;
- * even columns hold 2, 3, 1 and 2 samples of the classes, odd ones 1 of each. Per tile k, what
- * bias_fold should read: the weighted products in S[k], the weights in Wk[k], the weighted
- * turned products in Dk[k] (added to; NULL: not wanted). */
-static void beams_gaps(rd_select *sel, double g, double D, double *S, double *Wk, double *Dk)
+ * gaps s g (1 + d_k), s g (1 + e_k), s g (1 - d_k) and s g (1 - e_k) on the passes of classes 0,
+ * 1, 2 and 3 mod 4, with d_k = D x (1, -1, 0, 1, -1, 0.5) by the tile's column (the last column's
+ * non-zero: a neighbour wrapped across the rows would count), e_k = d_k, or with `flip` -d_k in
+ * the tiles of odd column + row (a checkerboard of tiles), and s = +-1 in a checkerboard of
+ * pixels; even columns of pixels hold 2, 3, 1 and 2 samples of the classes, odd ones 1 of each.
+ * A pixel's turned product is g^2 d_k e_k: with `flip` the tiles that share an edge have turned
+ * products of opposite signs. Per tile k, what bias_fold should read: the weighted products in
+ * S[k], the weights in Wk[k], the weighted turned products in Dk[k] (added to; NULL: not
+ * wanted). */
+static void beams_gaps(rd_select *sel, double g, double D, int flip, double *S, double *Wk, double *Dk)
 {
+    static const double col[6] = {1.0, -1.0, 0.0, 1.0, -1.0, 0.5};
     for (int y = 0; y < 40; y++)
         for (int x = 0; x < 48; x++) {
             int k = (y / 8) * 6 + x / 8;
-            double d = k % 3 == 0 ? D : k % 3 == 1 ? -D : 0.0, sg = (x + y) & 1 ? -g : g;
+            double d = D * col[x / 8], e = flip && (x / 8 + y / 8) & 1 ? -d : d, sg = (x + y) & 1 ? -g : g;
             const double c[4] = {x & 1 ? 1.0 : 2.0, x & 1 ? 1.0 : 3.0, 1.0, x & 1 ? 1.0 : 2.0};
-            const double mean[4] = {sg * (1.0 + d), sg * (1.0 + d), sg * (1.0 - d), sg * (1.0 - d)};
+            const double mean[4] = {sg * (1.0 + d), sg * (1.0 + e), sg * (1.0 - d), sg * (1.0 - e)};
             double *gp = &sel->gaps[8 * (y * 48 + x)];
             for (int j = 0; j < 4; j++) gp[j] = c[j] * mean[j], gp[4 + j] = c[j];
             const double ne = c[0] + c[2], no = c[1] + c[3], w = ne * no / (ne + no);
@@ -1903,26 +1908,30 @@ static void beams_gaps(rd_select *sel, double g, double D, double *S, double *Wk
  * time left as taken. Every pixel's gaps so far (rd_select.gaps) are beams_gaps' (the signs in a
  * checkerboard: a blur's bias changes sign across an edge, so a tile's mean gaps are 0; even
  * columns weigh 3 x 5 / 8, odd ones 1). A pixel's product
- * (m0 + m2)(m1 + m3) / 4 is g^2 for every D, its turned product (m0 - m2)(m1 - m3) / 4 g^2 d_k^2:
+ * (m0 + m2)(m1 + m3) / 4 is g^2 for every D, its turned product (m0 - m2)(m1 - m3) / 4 g^2 d_k e_k:
  * noise, which D sets. The ratio is 11.66 (RD_SELECT_BIAS_PER_GAP2, checked) x the weighted mean
  * product x the radius's square (radius_scale 0.8) over the beams' variance a sample, its
- * standard error sqrt(sum_k D_k^2) over the weights' sum (D_k a tile's weighted turned products),
- * both checked against this test's own sums, and a second epoch with no new samples reads the
- * same. Then:
+ * standard error sqrt(sum_k D_k^2 + the sum of D_k D_j over the ordered pairs of touching tiles,
+ * that sum clamped at 0) over the weights' sum (D_k a tile's weighted turned products), both
+ * checked against this test's own sums, and a second epoch with no new samples reads the same.
+ * Then:
  * - no gap (g 0): the beams take every tile;
- * - g 0.046, D 0.3: a ratio of 15.8 +- 0.21, far beyond its standard errors; the beams' 50x lower
+ * - g 0.046, D 0.3: a ratio of 15.8 +- 0.50, far beyond its standard errors; the beams' 50x lower
  *   variance does not pay for a squared bias weighed ~16 (1 + 2) times (the line is near a ratio
  *   of 1): delta keeps every tile;
- * - the same g, D 3: a ratio of 15.8 +- 21.2, so three standard errors take it all: the beams
- *   take every tile again.
+ * - the same g, D 3: a ratio of 15.8 +- 50.0, so three standard errors take it all: the beams
+ *   take every tile again;
+ * - g 0.046, D 0.3 with `flip`: the touching tiles' covariances sum below 0 and count as 0, 15.8 +-
+ *   0.21: delta keeps every tile.
  * Fails with the products taken from a tile's mean gaps instead of each pixel's, the factor or
- * the radius left out, the margin left out, or the tiles' columns and rows swapped. */
+ * the radius left out, the margin left out, the tiles' columns and rows swapped, the neighbours
+ * wrapped across rows, or the clamp left out. */
 Test(select, the_beams_bias_is_read_from_every_pixel_s_gaps_with_its_noise_from_disjoint_passes)
 {
     cr_assert(fabs(RD_SELECT_BIAS_PER_GAP2 - pow(1.0 - sqrt(0.5), -2.0)) < 1e-12, "the factor %.15g", RD_SELECT_BIAS_PER_GAP2);
-    const double g_of[3] = {0.0, 0.046, 0.046}, D_of[3] = {0.0, 0.3, 3.0};
+    const double g_of[4] = {0.0, 0.046, 0.046, 0.046}, D_of[4] = {0.0, 0.3, 3.0, 0.3};
     enum { W = 48, H = 40, T = 30 };
-    for (int i = 0; i < 3; i++) {
+    for (int i = 0; i < 4; i++) {
         rd_select sel;
         char err[RD_ERRLEN];
         cr_assert(rd_select_init(&sel, W, H, 1.0, 3, err, sizeof err) == RD_OK, "%s", err);
@@ -1939,9 +1948,14 @@ Test(select, the_beams_bias_is_read_from_every_pixel_s_gaps_with_its_noise_from_
         }
         const double g = g_of[i], r2 = 0.8 * 0.8;
         double S[T] = {0}, Wk[T] = {0}, Dk[T] = {0};
-        beams_gaps(&sel, g, D_of[i], S, Wk, Dk);
-        double sum = 0.0, wsum = 0.0, d2 = 0.0;
+        beams_gaps(&sel, g, D_of[i], i == 3, S, Wk, Dk);
+        double sum = 0.0, wsum = 0.0, d2 = 0.0, cross = 0.0;
         for (int k = 0; k < T; k++) sum += S[k], wsum += Wk[k], d2 += Dk[k] * Dk[k];
+        for (int k = 0; k < T; k++) /* the touching tiles' covariances: every ordered pair */
+            for (int j = 0; j < T; j++)
+                if (j != k && abs(j % 6 - k % 6) <= 1 && abs(j / 6 - k / 6) <= 1) cross += Dk[k] * Dk[j];
+        cr_assert(i != 3 || cross < 0.0, "flip: the covariances sum to %g, not below 0: the clamp is not tried", cross);
+        d2 += fmax(0.0, cross);
         const double ratio = 11.656854249492380 * sum / wsum * r2 / 0.001;
         const double se = 11.656854249492380 * sqrt(d2) / wsum * r2 / 0.001;
         for (int epoch = 0; epoch < 2; epoch++) {
@@ -1952,7 +1966,7 @@ Test(select, the_beams_bias_is_read_from_every_pixel_s_gaps_with_its_noise_from_
                           sel.bias_se, ratio, se);
             else cr_assert(sel.bias_ratio == 0.0 && sel.bias_se == 0.0, "no gap: the ratio read %g +- %g", sel.bias_ratio, sel.bias_se);
         }
-        const int want = i == 1 ? RD_SEL_DELTA : 2;
+        const int want = i == 1 || i == 3 ? RD_SEL_DELTA : 2;
         for (int k = 0; k < T; k++)
             cr_expect(sel.choice[k] == want && sel.trial[k] == 0, "g %g, D %g (ratio %g +- %g): tile %d took %d (trial %d), not %d",
                       g, D_of[i], sel.bias_ratio, sel.bias_se, k, sel.choice[k], sel.trial[k], want);
@@ -1961,41 +1975,45 @@ Test(select, the_beams_bias_is_read_from_every_pixel_s_gaps_with_its_noise_from_
 }
 
 /* Off the biased beams at once (select_rule.c's head): the 6x5-tile selection of the test above
- * (delta and the method at variance 0.05 a sample, cost 1), every tile on the beams, which hold
- * 1152 of its samples against delta's 128 (the pilot's): evidence lopsided beyond
- * RD_SELECT_TRIAL_RATIO, so a move to delta's path goes on trial, as it does where the beams'
- * variance, 0.5 a sample, is what loses them the tiles and no bias is read (no gap). Where the
- * image reads their bias (the gaps above, g 0.046, D 0.3: 15.8 +- 0.21) at a variance of 0.001,
- * every tile leaves them at once, no tile on trial. Fails with the move put on trial. */
+ * (delta at variance 0.05 a sample, cost 1), every tile held by one estimator, which has 1152 of
+ * its samples against delta's 128 (the pilot's): evidence lopsided beyond RD_SELECT_TRIAL_RATIO.
+ * - The beams hold the tiles and lose them on their variance, 0.5 a sample, with no gap read:
+ *   the moves to delta's path go on trial.
+ * - The beams hold them at a variance of 0.001 and the image reads their bias (the gaps above,
+ *   g 0.046, D 0.3: 15.8 +- 0.50): every tile leaves them at once, none on trial.
+ * - The method holds them at a variance of 0.5 (the beams' 0.001, the same bias read): the moves
+ *   to delta's path go on trial (only a move off the beams skips it).
+ * Fails with the move put on trial, or with a move off any estimator made at once. */
 Test(select, a_tile_leaves_the_beams_at_once_where_the_image_reads_their_bias)
 {
     enum { T = 30 };
-    for (int biased = 0; biased < 2; biased++) {
+    for (int c = 0; c < 3; c++) {
         rd_select sel;
         char err[RD_ERRLEN];
         cr_assert(rd_select_init(&sel, 48, 40, 1.0, 3, err, sizeof err) == RD_OK, "%s", err);
         sel.kind[2] = RD_SEL_BEAMS, sel.paths &= ~(1u << 2);
         cr_assert((sel.gaps = calloc(8 * 48 * 40, sizeof *sel.gaps)) != NULL);
-        const double vb = biased ? 0.001 : 0.5;
+        const int held = c == 2 ? RD_SEL_METHOD : 2;
+        const double vb = c == 0 ? 0.5 : 0.001, vm = c == 2 ? 0.5 : 0.05;
         for (int k = 0; k < T; k++) {
             fake_pilot(&sel, 3 * k, 0.5, 0.05, 1.0, 1.0);
-            fake_pilot(&sel, 3 * k + 1, 0.5, 0.05, 1.0, 1.0);
+            fake_pilot(&sel, 3 * k + 1, 0.5, vm, 1.0, 1.0);
             fake_pilot(&sel, 3 * k + 2, 0.5, vb, 1.0, 1.0);
-            for (int h = 0; h < 2; h++) { /* the image's 16 samples a pixel, 32 pixels a half: the beams' */
-                add_half(&sel, h, 3 * k + 2, 32.0, 16.0, 0.5, vb, 1.0, 1.0);
-                rd_select_stats *st = &sel.stats[(size_t)h * 3 * T + 3 * k + 2];
+            for (int h = 0; h < 2; h++) { /* the image's 16 samples a pixel, 32 pixels a half: the holder's */
+                add_half(&sel, h, 3 * k + held, 32.0, 16.0, 0.5, held == 2 ? vb : vm, 1.0, 1.0);
+                rd_select_stats *st = &sel.stats[(size_t)h * 3 * T + 3 * k + held];
                 st->image_n = 32.0 * 16.0, st->image_cost = 32.0 * 16.0;
             }
-            sel.choice[k] = 2;
+            sel.choice[k] = (uint8_t)held;
         }
-        beams_gaps(&sel, biased ? 0.046 : 0.0, 0.3, NULL, NULL, NULL);
+        beams_gaps(&sel, c == 0 ? 0.0 : 0.046, 0.3, 0, NULL, NULL, NULL);
         rd_select_epoch(&sel, NULL, &(rd_select_end){1.0, 0.0, 0.8});
-        cr_assert(biased ? sel.bias_ratio > 3.0 * sel.bias_se + 1.0 : sel.bias_ratio == 0.0, "%s: the ratio read %g +- %g",
-                  biased ? "biased" : "no gap", sel.bias_ratio, sel.bias_se);
+        cr_assert(c ? sel.bias_ratio > 3.0 * sel.bias_se + 1.0 : sel.bias_ratio == 0.0, "case %d: the ratio read %g +- %g", c,
+                  sel.bias_ratio, sel.bias_se);
         for (int k = 0; k < T; k++)
-            cr_expect(biased ? sel.choice[k] == RD_SEL_DELTA && sel.trial[k] == 0
-                             : sel.choice[k] == 2 && sel.trial[k] == 1 + RD_SEL_DELTA,
-                      "%s: tile %d took %d (trial %d)", biased ? "biased" : "no gap", k, sel.choice[k], sel.trial[k]);
+            cr_expect(c == 1 ? sel.choice[k] == RD_SEL_DELTA && sel.trial[k] == 0
+                             : sel.choice[k] == held && sel.trial[k] == 1 + RD_SEL_DELTA,
+                      "case %d: tile %d took %d (trial %d)", c, k, sel.choice[k], sel.trial[k]);
         rd_select_free(&sel);
     }
 }

@@ -263,9 +263,9 @@ int rd_select_epoch_next(const rd_select *sel, int sample);
 void rd_select_epoch(rd_select *sel, const rd_comm *comm, const rd_select_end *end);
 /* The trial (see select_rule.c, "Evidence of unequal size"): a tile's choice moves to another
  * estimator at once only when that estimator's samples in the tile are at least
- * 1 / RD_SELECT_TRIAL_RATIO of the current one's, or when it leaves the beams while the image
- * reads their bias (select_rule.c, "Off the biased beams at once"); else the tile goes on trial
- * for one epoch first. */
+ * 1 / RD_SELECT_TRIAL_RATIO of the current one's and the tile's two halves agree on it, or when
+ * it leaves the beams while the image reads their bias (select_rule.c, "Off the biased beams at
+ * once"); else the tile goes on trial for one epoch first. */
 #define RD_SELECT_TRIAL_RATIO 4
 
 /* The image's samples so far, for the rule (select_rule.c, "The samples the image holds"): P,

@@ -56,15 +56,21 @@
  * later; where it only looked better, the trial shows its tail too.
  *
  * Off the biased beams at once (session 66). A tile that leaves the beams while the image reads
- * their bias (bias_ratio above its margin, "The beams' bias" below) moves without a trial: a
- * trial would keep the beams on half its pixels for an epoch of 4x the samples so far, and their
- * bias stays in those pixels' means to the render's end (no later sample averages it out), where
- * a move that a tail in delta's few samples made look right costs variance only, until the next
- * epoch moves the tile back (through a trial of its own). On cloud at 60 s the bias shows by the
- * epoch at 64, when 89 tiles went on trial to delta's path, and the beams' samples of those
- * tiles' first 256 a pixel stayed in the image: `guided` made 0.43-0.89x plain `delta` in four
- * rounds, 0.80-1.13x with the moves made at once (docs/benchmarks.md "Session 66"). Moves onto
- * the beams, and off them where no bias is read, still go on trial as above.
+ * their bias (bias_ratio above its margin, "The beams' bias" below, and the rule weighed it: an
+ * end known) moves without a trial, even where its halves disagree (the other half's wish to
+ * keep the beams is their variance's, which the bias outweighs in the image's choice or else in
+ * the cheaper of the two), and to whichever estimator the rule wants, not only one on trial. A
+ * trial would keep the beams on half its pixels until the samples a pixel are 4x what they are,
+ * and over those n samples the bias adds to a pixel's sum coherently, n^2 beta^2, where their
+ * noise adds n V: the later samples dilute it only as their share of the mean grows. A move that
+ * a tail in delta's few samples made look right costs variance, and the next epoch can move the
+ * tile back, at once where the beams' samples are then at least a quarter of the other's (they
+ * usually are after one epoch: a tile can swing between the two, each move on the rule's
+ * figures with the bias counted). On cloud at 60 s the bias shows by the epoch at 64, when 89
+ * tiles went on trial to delta's path, and the beams' samples of those tiles' first 256 a pixel
+ * stayed in the image: `guided` made 0.43-0.89x plain `delta` in four rounds, 0.80-1.13x with
+ * the moves made at once (docs/benchmarks.md "Session 66"). Moves onto the beams, and off them
+ * where no bias is read, go on trial as above.
  *
  * Replication (session 27). The rule takes in each tile the estimator whose figures came out
  * least, and where they are noisy that is in part the one whose noise ran low: a costlier
@@ -86,7 +92,8 @@
  * differ, the cheaper of the two by the counted cost of all the tile's samples, pooled as the
  * rule's figures are (cost is counted, so nearly exact; the noise is in the variance; an exact
  * tie goes to the lower index, as in `least`). A real gain shows in both halves, one firefly in
- * one. A move the halves do not agree on goes on trial first, whatever the evidence's size: one
+ * one. A move the halves do not agree on goes on trial first, whatever the evidence's size (but
+ * off the beams while their bias is read: "Off the biased beams at once" above): one
  * half's word is weak evidence, and taken at once it can strand a tile. On a 24x16 view of thin
  * fog (the compare tests' scene, sigma_t 0.25, seed 2, "tiles") one firefly of the strategy's
  * own in one half at the first epoch sent all six tiles to plain delta for good, where the
@@ -120,7 +127,7 @@
  * over 3x3 tiles, which would bring the neighbours' predictions back; the tiles' own costs,
  * pooled as always) picks between the halves' two (if it wants neither,
  * or an estimator has no prediction, r 0, the cheaper, as before). The move still goes on trial
- * first, and where the halves agree nothing changes. Measured, 10 s, paired rounds against the
+ * first (as above, but off the biased beams), and where the halves agree nothing changes. Measured, 10 s, paired rounds against the
  * build before (docs/benchmarks.md "Session 40"; rounds spread widely there, so read the
  * figures as "no loss" or "a gain", not as their digits): guided-unbiased's efficiency on
  * hard-dense-block 1.33x (1.16-1.70, four rounds), over plain `delta` 1.41 (1.36-1.68) against
@@ -287,7 +294,8 @@
  * reads, beside its product, the same four cross products (even x odd classes) with two signs
  * turned, which have the product's variance where the gap is 0 and mean 0 whatever the bias
  * (bias_fold); it is summed over each tile before it is squared (the pixels near each other share
- * the photons their balls hold, so their noise is shared).
+ * the photons their balls hold, so their noise is shared), with the covariances of the tiles
+ * that touch (bias_ratio).
  * A first form took the spread of the tiles' sums of products instead, which counts the bias's
  * own spread over the tiles as noise too.
  * Session 64 read it per record instead (an epoch's samples of a pixel, each record's product
@@ -681,23 +689,38 @@ static void pooled_relative_variance(const rd_select *sel, const rd_select_stats
  * photons of its passes, so their noise is shared): sqrt(sum_k D_k^2) over the weights' sum. It
  * reads low where a pixel's gap is large against its noise (D lacks the products' terms in the
  * gap times the noise), where the bias then shows many standard errors over. The bias's own
- * spread over the tiles is not noise and does not count (nor does the noise the tiles share with
- * their neighbours: it reads low there). */
+ * spread over the tiles is not noise and does not count. Neighbouring tiles share photons too
+ * (a ball reaches across a tile's edge), so the variance of the sum takes their covariances,
+ * 2 D_k D_j for each pair of tiles k, j that touch (8-neighbours, weight 1: a truncated
+ * uniform kernel, which assumes a ball's footprint on the screen under one tile, else it still
+ * reads low), their sum clamped at 0. The clamp is a positive part, not a bound: D_k is the
+ * product of an even-class difference and an odd-class one, independent and alike, so
+ * Cov(D_k, D_j) is the product of two nearly equal covariances, >= 0; a negative sum is noise
+ * (from few tiles the cross terms are noisy: SEL_BIAS_TILES is 8). */
 static double bias_ratio(const rd_select *sel, const rd_select_stats *st, double r2, double *raw, double *se_out)
 {
     *raw = *se_out = 0.0;
     int n = sel->tiles_x * sel->tiles_y, m = sel->n;
     const int b = bound_centre(sel);
     if (b < 0) return 0.0;
-    double sum = 0.0, weight = 0.0, v = 0.0, tiles = 0.0, d2 = 0.0;
+    const int nx = sel->tiles_x, ny = sel->tiles_y;
+    double sum = 0.0, weight = 0.0, v = 0.0, tiles = 0.0, d2 = 0.0, cross = 0.0;
     for (int k = 0; k < n; k++) {
         const rd_select_stats *a = &st[m * k + b];
         if (!(a->bias_n > 0.0 && a->dof > 0.0)) continue;
         sum += a->bias2, weight += a->bias_n, tiles += 1.0, d2 += a->bias_split * a->bias_split;
         v += a->bias_n * (a->dev2[0] + a->dev2[1] + a->dev2[2]) / (3.0 * a->dof);
+        /* each touching pair once: the neighbours to the right and in the row below */
+        static const int step[4][2] = {{1, 0}, {-1, 1}, {0, 1}, {1, 1}};
+        for (int i = 0; i < 4; i++) {
+            int x = k % nx + step[i][0], y = k / nx + step[i][1];
+            if (x < 0 || x >= nx || y >= ny) continue;
+            const rd_select_stats *o = &st[m * (y * nx + x) + b];
+            if (o->bias_n > 0.0 && o->dof > 0.0) cross += a->bias_split * o->bias_split;
+        }
     }
     if (!(tiles >= SEL_BIAS_TILES && v > 0.0)) return 0.0;
-    const double mean = sum / weight, se = sqrt(d2) / weight;
+    const double mean = sum / weight, se = sqrt(d2 + fmax(0.0, 2.0 * cross)) / weight;
     const double scale = RD_SELECT_BIAS_PER_GAP2 * r2 / (v / weight);
     if (!isfinite(mean * scale) || !isfinite(se * scale)) return 0.0;
     *raw = mean * scale, *se_out = se * scale;
@@ -761,8 +784,10 @@ static int image_path(const rd_select *sel, const rd_select_stats *all, const do
 /* Choose every tile's estimator from the statistics so far: the rule on each half of the
  * samples alone, the estimator both halves want, or else the rule's on the image's predicted
  * variances if it is one of their two, else the cheaper of their two (see the head, "Replication"
- * and "Where the halves disagree"); a move to the estimator with far fewer samples goes on trial
- * first ("Evidence of unequal size"). */
+ * and "Where the halves disagree"); a move to the estimator with far fewer samples, or one the
+ * halves disagree on, goes on trial first ("Evidence of unequal size"), but a tile no sample has
+ * lit ("Tiles no sample has lit") and one leaving the beams while their bias is read ("Off the
+ * biased beams at once") move at once. */
 void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
 {
     int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
@@ -851,7 +876,7 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
         int on_trial = sel->trial[k] && w == sel->trial[k] - 1;
         /* off the beams while the image reads their bias: at once (the head, "Off the biased
          * beams at once") */
-        int off_biased = ratio > 0.0 && cur == bound_centre(sel) && w != cur;
+        int off_biased = ratio > 0.0 && p && cur == bound_centre(sel) && w != cur;
         if (w == cur || on_trial || off_biased || (!split && st[w].n * RD_SELECT_TRIAL_RATIO >= st[cur].n)) {
             sel->choice[k] = (uint8_t)w; /* the same, after its trial, on comparable evidence, or
                                             off the biased beams */
