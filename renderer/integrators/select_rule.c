@@ -68,9 +68,9 @@
  * usually are after one epoch: a tile can swing between the two, each move on the rule's
  * figures with the bias counted). On cloud at 60 s the bias shows by the epoch at 64, when 89
  * tiles went on trial to delta's path, and the beams' samples of those tiles' first 256 a pixel
- * stayed in the image: `guided` made 0.43-0.89x plain `delta` in four rounds, 0.80-1.13x with
- * the moves made at once (docs/benchmarks.md "Session 66"). Moves onto the beams, and off them
- * where no bias is read, go on trial as above.
+ * stayed in the image: `guided` made 0.43-0.89x plain `delta` in six rounds (median 0.72),
+ * 0.80-1.13x (median 0.99) with the moves made at once (docs/benchmarks.md "Session 66").
+ * Moves onto the beams, and off them where no bias is read, go on trial as above.
  *
  * Replication (session 27). The rule takes in each tile the estimator whose figures came out
  * least, and where they are noisy that is in part the one whose noise ran low: a costlier
@@ -127,11 +127,12 @@
  * over 3x3 tiles, which would bring the neighbours' predictions back; the tiles' own costs,
  * pooled as always) picks between the halves' two (if it wants neither,
  * or an estimator has no prediction, r 0, the cheaper, as before). The move still goes on trial
- * first (as above, but off the biased beams), and where the halves agree nothing changes. Measured, 10 s, paired rounds against the
- * build before (docs/benchmarks.md "Session 40"; rounds spread widely there, so read the
- * figures as "no loss" or "a gain", not as their digits): guided-unbiased's efficiency on
- * hard-dense-block 1.33x (1.16-1.70, four rounds), over plain `delta` 1.41 (1.36-1.68) against
- * 1.05 (1.00-1.19) in the same rounds; the calibration scenes beam-vdb 1.21x (two rounds),
+ * first (as above, but off the biased beams), and where the halves agree nothing changes.
+ * Measured, 10 s, paired rounds against the build before (docs/benchmarks.md "Session 40";
+ * rounds spread widely there, so read the figures as "no loss" or "a gain", not as their digits):
+ * guided-unbiased's efficiency on hard-dense-block 1.33x (1.16-1.70, four rounds), over plain
+ * `delta` 1.41 (1.36-1.68) against 1.05 (1.00-1.19) in the same rounds; the calibration scenes
+ * beam-vdb 1.21x (two rounds),
  * hetero-forward 1.03x (0.99, 1.08), cloud 0.99x, sphere-in-fog 0.98x; beam 1.21x (one round);
  * hard-lens-caustic 0.95x (0.87-1.04, four rounds: 6-13% of its samples on the method's paths
  * against 5-7%, a loss there within the rounds' spread or a little beyond). Two earlier forms
@@ -303,9 +304,9 @@
  * few samples, weighed as much as the last's, and the standard error read low; cloud's ratio
  * swung between seeds (0.016 and 0.041 at the epoch at 256), and so did its beams' tiles (89 and
  * 4) and `guided`'s efficiency (0.40x and 0.80x `delta` at 60 s). Read from all of a pixel's
- * samples, with the standard error from the tiles' spread (the first form of session 65), cloud's ratio read 0.0090 +- 0.0013 and
- * 0.0075 +- 0.0010 at that epoch (the same two seeds, at the radius then and with the factor 4
- * below), the dense block's 0.0020 +- 0.0039.
+ * samples, with the standard error from the tiles' spread (the first form of session 65),
+ * cloud's ratio read 0.0090 +- 0.0013 and 0.0075 +- 0.0010 at that epoch (the same two seeds,
+ * at the radius then and with the factor 4 below), the dense block's 0.0020 +- 0.0039.
  *
  * The squared bias is RD_SELECT_BIAS_PER_GAP2 = (1 - 1/sqrt 2)^-2 = 11.66 squared gaps, not 4:
  * where the bias grows as r^p the gap is (1 - 2^(-p/2)) of it, and p is 1, not 2, where the
