@@ -91,7 +91,9 @@ static rd_status delta_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
             st = RD_ERR_NOMEM;
         } else {
             /* two estimators: its "method" is the path with the strategy already, no third */
-            st = rd_select_prepare(ctx, delta_every_flight, NULL, 0.0, RD_SELECT_METHOD_IS_PATH, ds->sel, err, errlen);
+            st = rd_select_prepare(ctx, delta_every_flight, NULL, 0.0,
+                                   RD_SELECT_METHOD_IS_PATH | (s->settings.adaptive && s->settings.select != RD_SELECT_PILOT ? RD_SELECT_ADAPTIVE : 0),
+                                   ds->sel, err, errlen);
         }
     }
     if (st != RD_OK) delta_release(ctx);
@@ -103,6 +105,14 @@ static vec3 delta_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_s
     const delta_state *ds = ctx->state;
     if (!ds || !ds->sel) return delta_method_radiance(ctx, th, r, smp);
     return rd_select_radiance(ctx, ds->sel, delta_every_flight, th, r, smp);
+}
+
+/* settings.adaptive on the tiles: the pixel's share of the samples (select_rule.c, "Samples
+ * where they pay"). */
+static double delta_sample_share(const rd_render_ctx *ctx, int x, int y)
+{
+    const delta_state *ds = ctx->state;
+    return ds && ds->sel && ds->sel->choice ? rd_select_share(ds->sel, x, y) : 1.0;
 }
 
 static void delta_pixel_done(const rd_render_ctx *ctx, rd_thread *th)
@@ -140,4 +150,5 @@ const rd_method rd_method_delta = {
     .release = delta_release,
     .radiance = delta_radiance,
     .pixel_done = delta_pixel_done,
+    .sample_share = delta_sample_share,
 };

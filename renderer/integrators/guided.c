@@ -128,7 +128,8 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
          * beams estimator's where there is one) */
         int options = (s->march.equiangular != RD_EQ_OFF ? RD_SELECT_THIRD : 0) |
                       ((s->march.ls == RD_LS_NEE_BEAMS || beams) && ctx->pass_emitted > 0.0 ? RD_SELECT_PASSES : 0) |
-                      (pass_maps_guided(s) & RD_PASS_NO_INDEX ? RD_SELECT_PASSES_ORDERED : 0);
+                      (pass_maps_guided(s) & RD_PASS_NO_INDEX ? RD_SELECT_PASSES_ORDERED : 0) |
+                      (s->settings.adaptive && sel != RD_SELECT_PILOT ? RD_SELECT_ADAPTIVE : 0);
         const rd_select_more more = {.path = mst->gpaths ? paths_guided : NULL, .path_cell_cost = RD_GU_CELL_COST,
                                      .beams = beams ? march_beams : NULL};
         st = rd_select_prepare_more(ctx, march_guided, NULL, RD_MARCH_CELL_COST, options, &more, &mst->sel, err, errlen);
@@ -148,6 +149,13 @@ static void pixel_done_guided(const rd_render_ctx *ctx, rd_thread *th)
 {
     march_state *mst = ctx->state;
     rd_select_pixel_done(&mst->sel, th);
+}
+
+/* march.adaptive: the pixel's share of the samples (select_rule.c, "Samples where they pay"). */
+static double sample_share_guided(const rd_render_ctx *ctx, int x, int y)
+{
+    const march_state *mst = ctx->state;
+    return mst->sel.choice ? rd_select_share(&mst->sel, x, y) : 1.0;
 }
 
 /* The epochs: the selection's (select.c: the tiles chosen again from the image's samples),
@@ -211,4 +219,5 @@ const rd_method rd_method_guided = {
     .release = rd_march_release,
     .radiance = radiance_guided,
     .pixel_done = pixel_done_guided,
+    .sample_share = sample_share_guided,
 };

@@ -639,6 +639,13 @@ static vec3 gu_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_samp
     return rd_select_radiance(ctx, &st->sel, gu_path, th, r, smp);
 }
 
+/* settings.adaptive: the pixel's share of the samples (select_rule.c, "Samples where they pay"). */
+static double gu_sample_share(const rd_render_ctx *ctx, int x, int y)
+{
+    const gu_state *st = ctx->state;
+    return st && st->sel.choice ? rd_select_share(&st->sel, x, y) : 1.0;
+}
+
 static void gu_pixel_done(const rd_render_ctx *ctx, rd_thread *th)
 {
     gu_state *st = ctx->state;
@@ -864,7 +871,9 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
          * delta's path itself, the same sample without the two calls between (a `delta` tile's
          * sample on hard-narrow-spot costs about 0.3 us, each call a few ns). */
         rd_select_delta_fn dfn = rd_probes_on(&st->probes) ? gu_delta : NULL;
-        rd_status rs = rd_select_prepare(ctx, gu_path, dfn, GU_CELL_COST, RD_SELECT_THIRD, &st->sel, err, errlen);
+        rd_status rs = rd_select_prepare(ctx, gu_path, dfn, GU_CELL_COST,
+                                          RD_SELECT_THIRD | (ctx->scene->settings.adaptive && ctx->scene->settings.select != RD_SELECT_PILOT ? RD_SELECT_ADAPTIVE : 0),
+                                          &st->sel, err, errlen);
         if (rs != RD_OK) {
             gu_release(ctx);
             return rs;
@@ -964,4 +973,5 @@ const rd_method rd_method_guided_unbiased = {
     .release = gu_release,
     .radiance = gu_radiance,
     .pixel_done = gu_pixel_done,
+    .sample_share = gu_sample_share,
 };

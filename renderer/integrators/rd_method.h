@@ -163,7 +163,15 @@ typedef struct rd_method {
     /* Optional: called by the thread that rendered them after each pixel's samples of a pass
      * (the tile selection writes back what it gathered over the pixel's samples: select.c). */
     void (*pixel_done)(const rd_render_ctx *ctx, rd_thread *th);
+    /* Optional: the share in [0, 1] of the samples past the first RD_SHARE_FIRST that pixel
+     * (x, y) draws (render.c draws sample i where floor((i + 1 - RD_SHARE_FIRST) share) passes
+     * a whole number); NULL: every sample (guided's march.adaptive: select_rule.c, "Samples
+     * where they pay"). Read once a pixel a pass. */
+    double (*sample_share)(const rd_render_ctx *ctx, int x, int y);
 } rd_method;
+
+/* The samples every pixel draws whatever its share (rd_method.sample_share): the first epoch's. */
+#define RD_SHARE_FIRST 4
 
 /* The table (methods.c). NULL for an unknown name. */
 const rd_method *rd_method_find(const char *name);

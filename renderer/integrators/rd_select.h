@@ -1,31 +1,24 @@
 /* rd_select.h: the guided methods' choice, per tile of the image, between the method and
  * delta's path, and delta's path with equiangular sampling on every flight (where `guided`'s
  * marcher samples with it; for `guided-unbiased` always: rd_select_prepare) (settings.select =
- * "tiles"; integrators/select.c, the rule in select_rule.c); and `delta`'s own between its path
- * without and with that strategy (settings.equiangular "tiles": the "method" is the path with
- * it; integrators/delta.c). Internal to integrators/ (tests and
- * bench/bench_select_score include it). */
+ * "tiles"; select.c, the rule in select_rule.c); and `delta`'s own between its path without and
+ * with it (settings.equiangular "tiles"; delta.c). Internal to integrators/ (and tests, bench). */
 #ifndef RD_SELECT_H
 #define RD_SELECT_H
 
 #include "core/rd_core.h"
 #include "integrators/rd_method.h"
 
-/* The tile edge in pixels. */
-#define RD_SELECT_TILE 8
+#define RD_SELECT_TILE 8 /* the tile edge in pixels */
 
 /* The kinds of estimator a tile can be given (rd_select.kind): delta's path with
- * settings.equiangular ("tiles" read as off: rd_eq_path_mode), the method, delta's path with
- * equiangular sampling on every flight, RD_EQ_ALL (only where rd_select_prepare's options have
- * RD_SELECT_THIRD, settings.equiangular is not RD_EQ_ALL, and the scene has a light the strategy
- * samples: a point or spot light, or a directional beam that delta's path does not connect to,
- * settings.beam_connect), and a second estimator of the method's own (rd_select_prepare_path's
- * `path`: `guided`'s selection holds guided-unbiased's paths, march.guided_paths), and the
- * method's beams estimator (rd_select_more's `beams`: `guided`'s marcher with the nee+beams
- * source, march.beams), whose samples consume the progressive photon passes in the method's
- * stead. A selection's estimators are numbered 0 .. n-1 (rd_select.choice): delta's path 0 and
- * the method 1 always, then the others it has, in the order of their kinds (so RD_SEL_DELTA_EQ
- * is estimator 2 where there is one). */
+ * settings.equiangular ("tiles" read as off), the method, delta's path with the strategy on every
+ * flight, RD_EQ_ALL (with RD_SELECT_THIRD, settings.equiangular not RD_EQ_ALL, and a point or
+ * spot light or a beam delta's path does not connect to), a second estimator of the method's own
+ * (rd_select_more's `path`: `guided`'s holds guided-unbiased's paths), and the method's beams
+ * (rd_select_more's `beams`: `guided`'s marcher with nee+beams, which consume the photon passes
+ * in the method's stead). Estimators are numbered 0 .. n-1: delta's path 0, the method 1, then
+ * the others it has in the order of their kinds. */
 enum { RD_SEL_DELTA = 0, RD_SEL_METHOD = 1, RD_SEL_DELTA_EQ = 2, RD_SEL_PATH = 3, RD_SEL_BEAMS = 4, RD_SEL_MAX = 5 };
 
 /* One estimator's samples in one half of one tile (rd_select.stats), from the pilot and the
@@ -66,13 +59,10 @@ typedef struct {
                             0 read as 1): the beams' bias is taken to scale as it */
 } rd_select_end;
 
-/* One pixel's samples since the last epoch (all of one estimator: the pixel's, rd_select_uses,
- * does not change within an epoch). Plain doubles, so that several ranks' arrays are summed as
- * one array of doubles (rd_select_epoch): 17 a pixel, 136 bytes. sum and sum2 are accumulated in
- * float precision (each sum rounded to a float; the sums feed a choice, not the image), n
- * and nonzero are counts of the finite samples, and cost is the counted cost of all the
- * samples drawn (the film's dropped ones too: their time was spent) as a whole number of
- * 1/RD_SELECT_COST_UNIT lookups, all exact in a double. */
+/* One pixel's samples since the last epoch (of one estimator: rd_select_uses is fixed within an
+ * epoch), plain doubles so that ranks sum them as one array (rd_select_epoch): sum and sum2 in
+ * float precision (they feed a choice, not the image), n and nonzero counts of the finite
+ * samples, cost that of all drawn (the dropped too) in whole 1/RD_SELECT_COST_UNIT lookups. */
 #define RD_SELECT_COST_UNIT 65536.0
 typedef struct {
     double n, nonzero;
@@ -94,6 +84,8 @@ typedef vec3 (*rd_select_delta_fn)(const rd_render_ctx *ctx, rd_thread *th, ray3
                                    int equiangular);
 
 typedef struct {
+    float *share;            /* RD_SELECT_ADAPTIVE: [n k + e], tile k's share of the samples with e
+                                (rd_select_share); NULL: every pixel draws every sample */
     uint8_t *choice;         /* per tile, the estimator that renders it (0 .. n-1, of kind kind[e]);
                                 NULL: the method everywhere (selection off, or not run) */
     uint8_t *trial;          /* per tile, 0, or 1 + the estimator on trial against the choice:
@@ -151,6 +143,9 @@ typedef struct {
 /* The estimator (0 .. n-1) the selection gives pixel (x, y): its tile's choice, or on a tile on
  * trial, the pixel's square of the checkerboard. */
 int rd_select_uses(const rd_select *sel, int x, int y);
+/* Pixel (x, y)'s share of the samples past the first RD_SHARE_FIRST (rd_method.sample_share):
+ * its tile's for the estimator it uses, 1 without shares or before the pilot's choice. */
+double rd_select_share(const rd_select *sel, int x, int y);
 /* Where the render asked for a trace (sel->trace_path), add the line of the choice just made,
  * which governs the samples from `from` on, and write the file again whole (select_trace.c): for every
  * tile, row by row, its estimator, its trial (0, or 1 + the estimator on trial) and, per
@@ -221,8 +216,9 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
  * the weights below; select.c, "The photon passes"); with RD_SELECT_PASSES_ORDERED too, the
  * passes after the first put their photons in spatial order without a kd-tree (RD_PASS_NO_INDEX:
  * nee+beams), and a photon counts RD_SELECT_COST_ORDERED instead of RD_SELECT_COST_INDEXED
- * (pass_indexed at most pass_emitted where those passes are thinned: render.c, RD_PASS_THIN). */
-enum { RD_SELECT_THIRD = 1, RD_SELECT_METHOD_IS_PATH = 2, RD_SELECT_PASSES = 4, RD_SELECT_PASSES_ORDERED = 8 };
+ * (pass_indexed at most pass_emitted where those passes are thinned: render.c, RD_PASS_THIN);
+ * RD_SELECT_ADAPTIVE: shares of the samples (rd_select.share; settings.adaptive). */
+enum { RD_SELECT_THIRD = 1, RD_SELECT_METHOD_IS_PATH = 2, RD_SELECT_PASSES = 4, RD_SELECT_PASSES_ORDERED = 8, RD_SELECT_ADAPTIVE = 16 };
 /* A progressive pass's work, in density lookups: a photon emitted, a tentative collision, a
  * photon indexed (stored and built into a kd-tree), a photon stored and put in order alone (the
  * indexed photon's weight less what the kd-tree cost on the calibration scenes: 0.152 us of
@@ -288,11 +284,17 @@ typedef struct {
  * which only a known end weighs; choice[k] the estimator of tile k. */
 void rd_select_choose(const double *var, const double *cost, const double *bias, int n, int m, const rd_select_past *past,
                       uint8_t *choice);
+/* With shares of the samples (RD_SELECT_ADAPTIVE; select_rule.c, "Samples where they pay"): the
+ * choices that minimise (sum sqrt(V C))^2, at a deadline (past->R > 0, no left) (sum sqrt(V
+ * C))^2 / R + w sum B; the arguments as rd_select_choose's (not its P, n0, T0 or left). */
+void rd_select_choose_adaptive(const double *var, const double *cost, const double *bias, int n, int m,
+                               const rd_select_past *past, uint8_t *choice);
+
 
 /* Every tile's estimator (sel->choice, sel->trial, and sel->unlit at the first call) from the
  * statistics of its two halves so far, sel->stats (select_rule.c): at the pilot's end (end
- * NULL) and at each epoch, for a render that ends as `end` says (NULL: no end known). Out of
- * memory: the choices stay as they are. */
+ * NULL) and at each epoch, for a render that ends as `end` says (NULL: no end known), and with
+ * rd_select.share the shares. Out of memory: the choices stay as they are. */
 void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end);
 
 #endif /* RD_SELECT_H */

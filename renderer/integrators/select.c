@@ -577,6 +577,15 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
         return RD_ERR_NOMEM;
     }
     if (!third) sel->paths = 1u << RD_SEL_DELTA;
+    if (options & RD_SELECT_ADAPTIVE) { /* every share 1 until the pilot's choice sets them */
+        size_t ns = (size_t)sel->n * sel->tiles_x * sel->tiles_y;
+        if (!(sel->share = malloc(ns * sizeof *sel->share))) {
+            rd_select_free(sel);
+            snprintf(err, errlen, "out of memory for the tile selection's shares (%dx%d pixels)", cam->width, cam->height);
+            return RD_ERR_NOMEM;
+        }
+        for (size_t i = 0; i < ns; i++) sel->share[i] = 1.0f;
+    }
     if (options & RD_SELECT_METHOD_IS_PATH) sel->paths |= 1u << RD_SEL_METHOD;
     if (options & RD_SELECT_PASSES) /* the method's share of a pass's work, a sample (the head) */
         sel->method_pass_cost = (RD_SELECT_COST_EMITTED * ctx->pass_emitted + RD_SELECT_COST_COLLISION * ctx->pass_collisions +
@@ -622,6 +631,7 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
 void rd_select_free(rd_select *sel)
 {
     free(sel->choice);
+    free(sel->share);
     free(sel->trial);
     free(sel->stats);
     free(sel->pixels);
@@ -629,6 +639,13 @@ void rd_select_free(rd_select *sel)
     free(sel->runs);
     free(sel->trace.s);
     memset(sel, 0, sizeof *sel);
+}
+
+double rd_select_share(const rd_select *sel, int x, int y)
+{
+    if (!sel->share || !sel->choices) return 1.0;
+    int k = (y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE;
+    return sel->share[sel->n * k + rd_select_uses(sel, x, y)];
 }
 
 int rd_select_uses(const rd_select *sel, int x, int y)
@@ -643,10 +660,12 @@ int rd_select_uses(const rd_select *sel, int x, int y)
 uint64_t rd_select_pass_pixels(const rd_select *sel, uint64_t all)
 {
     if (!sel->choice) return all;
-    uint64_t n = 0;
+    /* (with shares, each pixel counts its share: the pass samples it draws an index) */
+    double n = 0.0;
     for (int y = 0; y < sel->height; y++)
-        for (int x = 0; x < sel->width; x++) n += sel->kind[rd_select_uses(sel, x, y)] == sel->pass_kind;
-    return n;
+        for (int x = 0; x < sel->width; x++)
+            if (sel->kind[rd_select_uses(sel, x, y)] == sel->pass_kind) n += rd_select_share(sel, x, y);
+    return (uint64_t)ceil(n);
 }
 
 void rd_select_observe(rd_select *sel, uint64_t pixel, vec3 L, double cost)

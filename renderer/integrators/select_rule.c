@@ -340,7 +340,30 @@
  * choices themselves (d(VC) = C dV + V dC = 0): the fixed point is found by iterating from
  * each tile's own best V C, a few rounds; then single flips that lower the product itself are
  * made until none does (rd_select_choose). With the image's samples (above) the same holds for
- * (P + a V) / (n0 + a)^2, whose lambda is (2 P + (a - n0) V) / (C (n0 + a)) (slope). */
+ * (P + a V) / (n0 + a)^2, whose lambda is (2 P + (a - n0) V) / (C (n0 + a)) (slope).
+ *
+ * Samples where they pay (session 67; settings.adaptive). With every pixel drawing every
+ * sample, a tile's cost weighs against the whole image's variance (lambda above): an
+ * estimator nearly noiseless at 70x a path's cost (the beams in the narrow spot's dim glow,
+ * whose V C is 60-270x below delta's with the strategy in two thirds of the tiles) wins no tile,
+ * because it would be drawn at every sample of every pixel of its tiles. With shares, tile k's
+ * pixels draw n_k samples each; at a time R = sum C_k n_k the error sum V_k / n_k is least at
+ * n_k ~ sqrt(V_k / C_k) (Lagrange's multiplier), where it is (sum sqrt(V_k C_k))^2 / R: a sum
+ * over the tiles, so each takes the estimator of least V C, its own (rd_select_choose_adaptive),
+ * and the shares are sqrt(V / C) over the largest of the tiles' (set_shares, from the
+ * figures of all the tile's samples, pooled as the rule's). The beams' squared bias does not
+ * fall with a pixel's samples: at a deadline the rule weighs (sum sqrt(V C))^2 / R + w sum B,
+ * each tile the least of (2 S / R) sqrt(V C) + w B at the fixed point of S = sum sqrt(V C), then
+ * single moves. Every pixel draws its first RD_SHARE_FIRST samples (the first epoch's), and
+ * render.c draws sample i of a pixel of share s where (i + 1 - RD_SHARE_FIRST) s reaches a whole
+ * number: keyed by the sample's index as before, so the image does not depend on the threads.
+ * The photon passes are paced by the shares' sum over the beams' pixels (rd_select_pass_pixels).
+ * Not read with shares: the samples the image holds (P, n0) and a sample count's end (their
+ * forms assume every pixel draws alike). Each estimator is unbiased (the beams consistent)
+ * whatever samples a pixel draws; a pixel's own samples enter its share only through its tile's
+ * pooled figures (a high sample raises them and the samples that follow it, a bias of the order
+ * of one sample's weight in the 3x3 tiles' statistics, not measured: the image test holds to
+ * its z bounds). Measured in docs/guided-marching.md "Samples where they pay". */
 #include "integrators/rd_select.h"
 
 #include <math.h>
@@ -497,6 +520,72 @@ void rd_select_choose(const double *var, const double *cost, const double *bias,
             }
     }
 #undef BIAS
+}
+
+void rd_select_choose_adaptive(const double *var, const double *cost, const double *bias, int n, int m,
+                               const rd_select_past *past, uint8_t *choice)
+{
+#define BIAS(i) (bias ? bias[i] : 0.0)
+    double f[RD_SEL_MAX];
+    for (int k = 0; k < n; k++) { /* each tile's own best V C: the rule with no end known */
+        for (int e = 0; e < m; e++) f[e] = sqrt(var[m * k + e] * cost[m * k + e]);
+        choice[k] = least(f, m);
+    }
+    if (!past || !(past->R > 0.0) || past->left > 0.0 || !bias || !(past->w > 0.0)) return;
+    /* A deadline: E = S^2 / R + w B with S = sum sqrt(V C); d E = (2 S / R) d sqrt(V C) + w d B,
+     * so each tile takes the least of (2 S / R) sqrt(V C) + w B at the fixed point of S. */
+    const double R = past->R, w = past->w;
+    for (int round = 0; round < SEL_ROUNDS; round++) {
+        double S = 0.0;
+        for (int k = 0; k < n; k++) S += sqrt(var[m * k + choice[k]] * cost[m * k + choice[k]]);
+        int changed = 0;
+        for (int k = 0; k < n; k++) {
+            for (int e = 0; e < m; e++) f[e] = 2.0 * S / R * sqrt(var[m * k + e] * cost[m * k + e]) + w * BIAS(m * k + e);
+            uint8_t u = least(f, m);
+            changed += u != choice[k];
+            choice[k] = u;
+        }
+        if (!changed) break;
+    }
+    /* then single moves that lower E itself, until none does (as rd_select_choose) */
+    double S = 0.0, B = 0.0;
+    for (int k = 0; k < n; k++) S += sqrt(var[m * k + choice[k]] * cost[m * k + choice[k]]), B += BIAS(m * k + choice[k]);
+    for (int round = 0, changed = 1; changed && round < SEL_ROUNDS; round++) {
+        changed = 0;
+        double F = S * S / R + w * B;
+        for (int k = 0; k < n; k++)
+            for (int e = 0; e < m; e++) {
+                int o = choice[k];
+                if (e == o) continue;
+                double S2 = S - sqrt(var[m * k + o] * cost[m * k + o]) + sqrt(var[m * k + e] * cost[m * k + e]);
+                double B2 = B - BIAS(m * k + o) + BIAS(m * k + e), F2 = S2 * S2 / R + w * B2;
+                if (F2 < F * (1.0 - 1e-12)) {
+                    choice[k] = (uint8_t)e;
+                    S = S2, B = B2, F = F2;
+                    changed = 1;
+                }
+            }
+    }
+#undef BIAS
+}
+
+/* The shares of the samples (rd_select.share, [m k + e]) from the figures var and cost: sqrt(V /
+ * C) of each tile and estimator over the largest of the estimators the tiles use (choice and
+ * trial), at most 1; 0 where V or C is 0 (see the head, "Samples where they pay"). */
+static void set_shares(rd_select *sel, const double *var, const double *cost)
+{
+    if (!sel->share) return;
+    const int n = sel->tiles_x * sel->tiles_y, m = sel->n;
+    double top = 0.0;
+    for (int k = 0; k < n; k++) {
+        int used[2] = {sel->choice[k], sel->trial[k] ? sel->trial[k] - 1 : sel->choice[k]};
+        for (int i = 0; i < 2; i++) {
+            size_t j = (size_t)m * k + used[i];
+            if (cost[j] > 0.0 && var[j] > 0.0) top = fmax(top, sqrt(var[j] / cost[j]));
+        }
+    }
+    for (size_t j = 0; j < (size_t)m * n; j++)
+        sel->share[j] = top > 0.0 && cost[j] > 0.0 && var[j] > 0.0 ? (float)fmin(1.0, sqrt(var[j] / cost[j]) / top) : (top > 0.0 ? 0.0f : 1.0f);
 }
 
 /* Each tile's figures a[m k + e] (one per estimator) replaced by the mean over its 3x3
@@ -835,7 +924,7 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
         figures(sel, half[h], pbar, NULL, var, cost, tmp);
         const rd_select_past *p = past_of(sel, all, var, end, &past) ? &past : NULL;
         bias_figures(sel, all, var, p, ratio, bias); /* (the image's ratio, on each half's variance) */
-        rd_select_choose(var, cost, bias, n, m, p, want + (size_t)h * n);
+        (sel->share ? rd_select_choose_adaptive : rd_select_choose)(var, cost, bias, n, m, p, want + (size_t)h * n);
     }
     figures(sel, all, pbar, NULL, NULL, all_cost, tmp);
     /* What the tiles beyond a tile's pooling predict, for the tiles whose halves disagree (see
@@ -847,7 +936,7 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
     figures(sel, all, pbar, r, var, cost, tmp);
     const rd_select_past *p = past_of(sel, all, var, end, &past) ? &past : NULL;
     bias_figures(sel, all, var, p, ratio, bias);
-    rd_select_choose(var, cost, bias, n, m, p, image_want);
+    (sel->share ? rd_select_choose_adaptive : rd_select_choose)(var, cost, bias, n, m, p, image_want);
     for (int k = 0; k < n; k++)
         for (int e = 0; e < m; e++)
             if (!(r[m * k + e] > 0.0)) image_want[k] = RD_SEL_MAX;
@@ -886,6 +975,10 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
             sel->trial[k] = (uint8_t)(1 + w); /* lopsided evidence, or halves that differ: half
                                                  the pixels try w for an epoch */
         }
+    }
+    if (sel->share) { /* the shares of the samples from all the tile's samples (the head, "Samples where they pay") */
+        figures(sel, all, pbar, NULL, var, cost, tmp);
+        set_shares(sel, var, cost);
     }
     free(all), free(buf), free(want);
 }

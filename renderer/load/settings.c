@@ -104,12 +104,13 @@ rd_status ld_parse_settings(ld_ctx *c, const cJSON *j, rd_settings *s)
     s->beam_connect = RD_BC_AUTO;
     s->select = RD_SELECT_AUTO; /* integrators/select.c */
     s->probes = 1; /* measured in docs/guided-marching.md "Probes" */
+    s->adaptive = 0; /* docs/guided-marching.md "Samples where they pay" */
     if (!j) return RD_OK;
     const char *path = "settings";
     LD_TRY(ld_need_object(c, j, path));
     static const char *const keys[] = {"spp", "time", "seed", "max_depth", "rr_depth", "method",
                                        "tracker", "transmittance", "b", "m", "step", "equiangular", "thin_bias",
-                                       "beam_connect", "select", "probes", NULL};
+                                       "beam_connect", "select", "probes", "adaptive", NULL};
     LD_TRY(ld_check_keys(c, j, path, keys));
     long long v;
     LD_TRY(ld_get_int(c, j, path, "spp", 0, 16, 1, 1 << 24, &v));
@@ -150,6 +151,7 @@ rd_status ld_parse_settings(ld_ctx *c, const cJSON *j, rd_settings *s)
     static const char *const select[] = {"off", "tiles", "pilot", "auto", NULL}; /* RD_SELECT_* order */
     LD_TRY(ld_get_enum(c, j, path, "select", 0, select, RD_SELECT_AUTO, &s->select));
     LD_TRY(parse_probes(c, j, path, &s->probes));
+    LD_TRY(ld_get_bool(c, j, path, "adaptive", 0, &s->adaptive));
     /* The probes' transmittance estimate and the path's own pass or stop must be unbiased alike
      * (integrators/probes.c): not with a ray-marched one. */
     if (s->probes != 1 && (s->tracker == RD_FP_RAYMARCH || s->transmittance == RD_TR_RAYMARCH))

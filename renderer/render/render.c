@@ -24,6 +24,7 @@
 #include "integrators/rd_method.h"
 
 #include <limits.h>
+#include <math.h>
 #if defined(__GLIBC__) || defined(__linux__)
 #include <malloc.h>
 #endif
@@ -175,7 +176,16 @@ static int render_pass(const rd_render_ctx *ctx, rd_thread *th, film *f, int s0,
                 double acc[3] = {f->sum[3 * pix], f->sum[3 * pix + 1], f->sum[3 * pix + 2]};
                 double acc2[3] = {f->sum2[3 * pix], f->sum2[3 * pix + 1], f->sum2[3 * pix + 2]};
                 uint32_t count = f->n[pix];
+                /* The pixel's share of the samples past the first few (rd_method.sample_share):
+                 * sample i is drawn where (i + 1 - F) share reaches a whole number, so any run
+                 * of k indices draws k share of them, give or take one. */
+                const double share = m->sample_share ? m->sample_share(ctx, x, y) : 1.0;
+                int drew = 0;
                 for (int i = s0; i < s1; i++) {
+                    if (share < 1.0 && i >= RD_SHARE_FIRST &&
+                        floor((i + 1 - RD_SHARE_FIRST) * share) == floor((i - RD_SHARE_FIRST) * share))
+                        continue;
+                    drew = 1;
                     rd_sampler smp = rd_sampler_start(pix, (uint64_t)i, ctx->seed);
                     double jx = rd_sampler_1d(&smp), jy = rd_sampler_1d(&smp); /* RD_DIM_FILM */
                     if (!cam->jitter) jx = jy = 0.5; /* pixel centres (camera.jitter false) */
@@ -188,7 +198,7 @@ static int render_pass(const rd_render_ctx *ctx, rd_thread *th, film *f, int s0,
                     acc2[0] += L.x * L.x; acc2[1] += L.y * L.y; acc2[2] += L.z * L.z;
                     count++;
                 }
-                if (m->pixel_done) m->pixel_done(ctx, t);
+                if (m->pixel_done && drew) m->pixel_done(ctx, t); /* (none drawn: nothing to write) */
                 memcpy(&f->sum[3 * pix], acc, sizeof acc);
                 memcpy(&f->sum2[3 * pix], acc2, sizeof acc2);
                 f->n[pix] = count;

@@ -53,6 +53,11 @@ typedef struct {
     int probes;          /* `delta`: camera chains a sample takes for the light at the chain's
                           * end: M >= 1 (1, the default: the path's own only), or 0, "auto": M per
                           * pixel from its samples (integrators/probes.c) */
+    int adaptive;        /* the methods with a tile selection (select with epochs, or delta's
+                          * equiangular "tiles"): 1 gives each tile's pixels a share of the
+                          * samples, sqrt(V / C) of their estimator's figures over the largest
+                          * tile's (integrators/select_rule.c, "Samples where they pay"); 0
+                          * (default): every pixel draws every sample */
 } rd_settings;
 enum { RD_SELECT_OFF, RD_SELECT_TILES, RD_SELECT_PILOT, RD_SELECT_AUTO };
 enum { RD_BC_OFF, RD_BC_ON, RD_BC_AUTO }; /* settings.beam_connect */
@@ -153,9 +158,9 @@ typedef struct {
     int guided_paths;    /* guided with a tile selection: 1 (default) lets the selection give
                           * tiles to guided-unbiased's paths too (integrators/guided.c) */
     int beams;           /* guided with a tile selection and march.ls nee+paths or nee+delta: 1
-                          * lets the selection give tiles to the marcher with the nee+beams
-                          * source too, on progressive photon passes of its own (the beams
-                          * estimator, integrators/guided.c); 0 (default): not */
+                          * (default) lets the selection give tiles to the marcher with the
+                          * nee+beams source too, on progressive photon passes of its own (the
+                          * beams estimator, integrators/guided.c); 0: not */
 } rd_march_settings;
 
 /* What settings.beam_connect's sampling needs, set once when the scene is loaded
