@@ -283,16 +283,16 @@ Test(select, with_a_bias_no_move_lowers_the_error_at_the_end)
     cr_assert(blind_lowered > 0, "the choices blind to the bias were never lowered: the test shows nothing");
 }
 
-/* With shares of the samples (march.adaptive), tile k drawing n_k samples a pixel, the image's
+/* With shares of the samples (settings.adaptive), tile k drawing n_k samples a pixel, the image's
  * error at a time R is sum V_k / n_k + sum B_k, least at n_k ~ sqrt(V_k / C_k), where it is
  * (sum sqrt(V_k C_k))^2 / R + sum B (select_rule.c, "Samples where they pay"), written out here
- * apart from the rule's. */
+ * apart from the rule's (which reads past->w not at all: the test draws it at random). */
 static double error_with_shares(const double *var, const double *cost, const double *bias, int n, int m, const uint8_t *ch,
-                                double R, double w)
+                                double R)
 {
     double S = 0.0, B = 0.0;
     for (int k = 0; k < n; k++) S += sqrt(var[m * k + ch[k]] * cost[m * k + ch[k]]), B += bias ? bias[m * k + ch[k]] : 0.0;
-    return S * S / R + w * B;
+    return S * S / R + B;
 }
 
 Test(select, with_shares_each_tile_takes_its_own_least_v_c_and_no_move_lowers_the_error)
@@ -300,15 +300,17 @@ Test(select, with_shares_each_tile_takes_its_own_least_v_c_and_no_move_lowers_th
     /* Random instances over three estimators: with no end known each tile takes the estimator
      * of least V C, its own (the objective (sum sqrt(V C))^2 is a sum over tiles); at a
      * deadline, the last estimator with a squared bias, no single move lowers
-     * (sum sqrt(V C))^2 / R + w sum B. And a dim tile where the costly estimator has the least
+     * (sum sqrt(V C))^2 / R + sum B, while the choices blind to the bias are lowered by one in
+     * some instance (so the check sees the bias). And a dim tile where the costly estimator has the least
      * V C takes it with shares, where the rule without them keeps the cheap one (its cost
      * weighs against the whole image's variance): the two rules differ where the test looks. */
     pcg32 rng = pcg32_seed(2026, 12, 67);
     enum { N = 100, M = 3 };
     double var[M * N], cost[M * N], bias[M * N];
-    uint8_t m[N];
+    uint8_t m[N], blind[N];
+    int blind_lowered = 0;
     for (int inst = 0; inst < 60; inst++) {
-        const double R = pow(10.0, 1.0 + 3.0 * pcg32_uniform(&rng)), w = pcg32_uniform(&rng);
+        const double R = pow(10.0, 1.0 + 3.0 * pcg32_uniform(&rng)), w = pcg32_uniform(&rng); /* (not read) */
         for (int i = 0; i < M * N; i++) {
             var[i] = pow(10.0, -6.0 + 4.0 * pcg32_uniform(&rng));
             cost[i] = pow(10.0, 1.5 * pcg32_uniform(&rng));
@@ -320,15 +322,24 @@ Test(select, with_shares_each_tile_takes_its_own_least_v_c_and_no_move_lowers_th
                 cr_assert(var[M * k + m[k]] * cost[M * k + m[k]] <= var[M * k + e] * cost[M * k + e] * (1.0 + 1e-9),
                           "instance %d tile %d: %d chosen, %d has the lesser V C", inst, k, m[k], e);
         rd_select_past past = {0.0, 4.0, 0.0, R, 0.0, w};
+        rd_select_choose_adaptive(var, cost, NULL, N, M, &past, blind);
+        const double Fb = error_with_shares(var, cost, bias, N, M, blind, R);
+        for (int k = 0, low = 0; k < N && !low; k++)
+            for (int e = 0; e < M && !low; e++) {
+                uint8_t c2[N];
+                memcpy(c2, blind, sizeof c2);
+                c2[k] = (uint8_t)e;
+                if (error_with_shares(var, cost, bias, N, M, c2, R) < Fb * (1.0 - 1e-12)) low = 1, blind_lowered++;
+            }
         rd_select_choose_adaptive(var, cost, bias, N, M, &past, m);
-        const double F = error_with_shares(var, cost, bias, N, M, m, R, w);
+        const double F = error_with_shares(var, cost, bias, N, M, m, R);
         for (int k = 0; k < N; k++)
             for (int e = 0; e < M; e++) {
                 if (e == m[k]) continue;
                 uint8_t c2[N];
                 memcpy(c2, m, sizeof c2);
                 c2[k] = (uint8_t)e;
-                cr_assert(error_with_shares(var, cost, bias, N, M, c2, R, w) >= F * (1.0 - 1e-12),
+                cr_assert(error_with_shares(var, cost, bias, N, M, c2, R) >= F * (1.0 - 1e-12),
                           "instance %d tile %d: moving it to %d lowers the error", inst, k, e);
             }
     }
@@ -341,6 +352,7 @@ Test(select, with_shares_each_tile_takes_its_own_least_v_c_and_no_move_lowers_th
     rd_select_choose_adaptive(v2, c2, NULL, 10, 2, NULL, with);
     rd_select_choose(v2, c2, NULL, 10, 2, NULL, without);
     cr_assert(with[9] == 1 && without[9] == 0, "the dim tile: %d with shares, %d without", with[9], without[9]);
+    cr_assert(blind_lowered > 0, "the choices blind to the bias were never lowered: the test shows nothing");
 }
 
 /* ---- The epochs: the image's samples correct the pilot -------------------------------------- */
@@ -1324,21 +1336,21 @@ Test(select, tiles_of_both_kinds_give_delta_s_image, .timeout = 300)
     cr_assert(mixed, "delta's share of the samples is %g: one kind of tile only", share);
 }
 
-/* march.adaptive: the tiles' pixels draw shares of the samples (select_rule.c, "Samples where
+/* settings.adaptive: the tiles' pixels draw shares of the samples (select_rule.c, "Samples where
  * they pay"), and the image is still delta's (rt_expect_same's z bounds: 5 for the image, 4.5
- * for each 8x8 region): each estimator is unbiased whatever samples a pixel draws, and a pixel's
- * share is set at the epochs from the tiles' figures. The shares must thin some pixels (fewer
- * samples than the render's count), while every pixel keeps its first RD_SHARE_FIRST. */
+ * for each 8x8 region; the beams off: the unbiased estimators only). A tile where nothing was
+ * read draws every sample (share 1: the fog's empty half), so a mean below 0.9 x 256 samples a
+ * pixel means lit tiles were thinned. */
 Test(select, shares_of_the_samples_keep_delta_s_image, .timeout = 300)
 {
     rd_scene *s = rt_scene("selad.json", rt_spot_fog_json_with(32, 24, "{\"select\":\"tiles\",\"adaptive\":true}",
-                                                               "\"photons\":{\"count\":40000},\"march\":{\"equiangular\":false}"));
+                                                               "\"photons\":{\"count\":40000},\"march\":{\"equiangular\":false,\"beams\":false}"));
     rd_render_result d = rt_render(s, "delta", 512, 31, NULL);
     rd_render_result g = rt_render(s, "guided", 256, 33, NULL);
     const double spp = g.stats.spp_mean;
     cr_log_info("guided with shares: %.1f samples a pixel of 256", spp);
     cr_assert(spp < 0.9 * 256.0 && spp >= RD_SHARE_FIRST, "the shares drew %g samples a pixel of 256", spp);
-    rt_expect_same(&d, &g, "guided with march.adaptive");
+    rt_expect_same(&d, &g, "guided with settings.adaptive");
     rd_render_result_free(&g);
     rd_render_result_free(&d);
     rd_scene_free(s);
@@ -2100,12 +2112,12 @@ Test(select, a_tile_leaves_the_beams_at_once_where_the_image_reads_their_bias)
     }
 }
 
-/* march.adaptive's shares (RD_SELECT_ADAPTIVE; select_rule.c, "Samples where they pay"): a
+/* settings.adaptive's shares (RD_SELECT_ADAPTIVE; select_rule.c, "Samples where they pay"): a
  * tile's pixels draw sqrt(V / C) of their estimator's figures over the largest tile's. 6x5 tiles,
  * delta dominant in all (the choice), its variance a sample 4x as large in the left three
  * columns as in the right three at the same cost: the figures are pooled over 3x3 tiles, so the
  * edge columns 0 and 5 read their own side alone, and their shares are 1 and sqrt(1/4) = 1/2.
- * Before the first choice, and without the option, every pixel draws every sample. Fails with
+ * Before the first epoch's choice, and without the option, every pixel draws every sample. Fails with
  * the share taken as V / C (1/4), or read from the estimator the tile does not use. */
 Test(select, a_tile_s_share_of_the_samples_is_the_root_of_its_variance_over_its_cost)
 {
@@ -2122,7 +2134,9 @@ Test(select, a_tile_s_share_of_the_samples_is_the_root_of_its_variance_over_its_
         fake_pilot(&sel, 2 * k + 1, 0.5, 9.0, 1.0, 2.0); /* the method: more variance and cost */
     }
     cr_assert(rd_select_share(&sel, 3, 3) == 1.0, "before the first choice a pixel draws every sample");
-    rd_select_epoch(&sel, NULL, NULL);
+    rd_select_epoch(&sel, NULL, NULL); /* as the pilot's choice: it governs the samples all draw */
+    cr_assert(rd_select_share(&sel, 3, 3) == 1.0, "under the pilot's choice a pixel draws every sample");
+    rd_select_epoch(&sel, NULL, NULL); /* the first epoch's, with the same statistics */
     for (int k = 0; k < T; k++) cr_assert(sel.choice[k] == RD_SEL_DELTA && sel.trial[k] == 0, "tile %d: %d", k, sel.choice[k]);
     for (int ty = 0; ty < NY; ty++) {
         const double left = rd_select_share(&sel, 1, 8 * ty + 2), right = rd_select_share(&sel, 8 * 5 + 6, 8 * ty + 5);

@@ -229,7 +229,7 @@ static rd_status reference_part(rd_comparison *c, const rd_scene *s, int first, 
                                 ref_progress_ctx *pc, rd_render_result *res, char *err, size_t errlen)
 {
     const rd_cmp_opts *o = &c->opts;
-    if (c->photon_ref || c->tiles_ref) s = &c->ref_scene;
+    s = &c->ref_scene; /* (the scene, or as reference_scene changed it) */
     rd_render_opts ro = {.method = c->photon_ref ? "guided" : "delta", .spp = spp, .time_limit = time_limit,
                          .seed = REF_SEED(o->seed),
                          .threads = o->threads, .cancel = o->cancel, .progress = reference_progress,
@@ -396,6 +396,10 @@ int rd_cmp_reference_is_auto(const rd_cmp_opts *o)
  * beam that its beam connections (settings.beam_connect) do not serve. */
 static void reference_scene(rd_comparison *c, const rd_scene *s)
 {
+    /* The reference draws every sample of every pixel (its parts are pooled by their sample
+     * counts): never settings.adaptive's shares. */
+    c->ref_scene = *s;
+    c->ref_scene.settings.adaptive = 0;
     double share = rd_scene_hidden_light(s); /* measured at load (load/load.c) */
     c->sum.hidden_share = share;
     c->photon_ref = share > RD_HIDDEN_SHARE && !c->opts.reference;
@@ -411,14 +415,12 @@ static void reference_scene(rd_comparison *c, const rd_scene *s)
              : c->tiles_ref   ? "delta, settings.equiangular tiles"
                               : "delta");
     if (c->tiles_ref) {
-        c->ref_scene = *s;
         c->ref_scene.settings.equiangular = RD_EQ_TILES;
         /* delta's tiles read settings.select ("pilot": no epochs), which is not in the key:
          * the reference takes the default whatever the scene asks of the guided methods */
         c->ref_scene.settings.select = RD_SELECT_AUTO;
     }
     if (c->photon_ref) {
-        c->ref_scene = *s;
         c->ref_scene.march.ls = RD_LS_PHOTONS;
         c->ref_scene.photons.store_direct = 1; /* no NEE: every collision's photon, first ones too */
         c->ref_scene.photons.progressive = 1;
@@ -445,7 +447,7 @@ rd_status rd_cmp_reference_get(rd_comparison *c, const rd_scene *s, char *err, s
         ref_spp = o->equal_spp ? (int)fmin(RD_CMP_REF_FIRST * o->budget, 1 << 24) : 0;
         ref_time = o->equal_spp ? 0.0 : RD_CMP_REF_FIRST * o->budget;
     }
-    c->ref_key = reference_key(c->photon_ref || c->tiles_ref ? &c->ref_scene : s, auto_ref, c->photon_ref, auto_ref ? 0 : ref_spp,
+    c->ref_key = reference_key(&c->ref_scene, auto_ref, c->photon_ref, auto_ref ? 0 : ref_spp,
                                auto_ref ? 0.0 : ref_time, REF_SEED(o->seed));
     c->ref_base[0] = 0;
     if (o->cache_dir) {

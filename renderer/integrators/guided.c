@@ -151,7 +151,7 @@ static void pixel_done_guided(const rd_render_ctx *ctx, rd_thread *th)
     rd_select_pixel_done(&mst->sel, th);
 }
 
-/* march.adaptive: the pixel's share of the samples (select_rule.c, "Samples where they pay"). */
+/* settings.adaptive: the pixel's share of the samples (select_rule.c, "Samples where they pay"). */
 static double sample_share_guided(const rd_render_ctx *ctx, int x, int y)
 {
     const march_state *mst = ctx->state;

@@ -165,7 +165,7 @@ typedef struct rd_method {
     void (*pixel_done)(const rd_render_ctx *ctx, rd_thread *th);
     /* Optional: the share in [0, 1] of the samples past the first RD_SHARE_FIRST that pixel
      * (x, y) draws (render.c draws sample i where floor((i + 1 - RD_SHARE_FIRST) share) passes
-     * a whole number); NULL: every sample (guided's march.adaptive: select_rule.c, "Samples
+     * a whole number); NULL: every sample (settings.adaptive: select_rule.c, "Samples
      * where they pay"). Read once a pixel a pass. */
     double (*sample_share)(const rd_render_ctx *ctx, int x, int y);
 } rd_method;

@@ -286,7 +286,7 @@ void rd_select_choose(const double *var, const double *cost, const double *bias,
                       uint8_t *choice);
 /* With shares of the samples (RD_SELECT_ADAPTIVE; select_rule.c, "Samples where they pay"): the
  * choices that minimise (sum sqrt(V C))^2, at a deadline (past->R > 0, no left) (sum sqrt(V
- * C))^2 / R + w sum B; the arguments as rd_select_choose's (not its P, n0, T0 or left). */
+ * C))^2 / R + sum B; the arguments as rd_select_choose's (not its P, n0, T0, left or w). */
 void rd_select_choose_adaptive(const double *var, const double *cost, const double *bias, int n, int m,
                                const rd_select_past *past, uint8_t *choice);
 

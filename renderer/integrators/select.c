@@ -459,7 +459,8 @@ static void beams_pilot_fold(rd_select *sel, int b, int clear)
 /* Which tiles the beams (estimator b) contend for after their pilot's first stage: the rule on
  * the statistics so far gives them the tile or puts them on trial there, or in one of its 3x3
  * neighbours (the figures' pooling); contend[k] 1 for those. The selection's choices, trials,
- * statistics, unlit estimator and bias figures are as before the call. Out of memory (here or in the rule,
+ * statistics, unlit estimator and bias figures are as before the call (its shares are the dry
+ * run's, read from the first epoch's choice on, which sets them anew: rd_select_share). Out of memory (here or in the rule,
  * which then leaves unlit unset): every tile contends. */
 static void beams_contend(rd_select *sel, int b, uint8_t *contend)
 {
@@ -643,7 +644,9 @@ void rd_select_free(rd_select *sel)
 
 double rd_select_share(const rd_select *sel, int x, int y)
 {
-    if (!sel->share || !sel->choices) return 1.0;
+    /* (the pilot's choice governs samples 0 .. RD_SHARE_FIRST - 1, which every pixel draws) */
+    _Static_assert(RD_SHARE_FIRST == SEL_EPOCH_FIRST, "the shares begin at the first epoch");
+    if (!sel->share || sel->choices < 2) return 1.0;
     int k = (y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE;
     return sel->share[sel->n * k + rd_select_uses(sel, x, y)];
 }

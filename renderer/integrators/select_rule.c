@@ -376,6 +376,7 @@
 #define SEL_LAG_SIGMA 3.0 /* standard errors of the two means taken off a lag: its noise */
 #define SEL_BIAS_SIGMA 3.0 /* standard errors taken off the beams' squared bias ratio: its noise */
 #define SEL_BIAS_TILES 8.0 /* tiles at least with the beams' products: a standard error of fewer is noise */
+#define SEL_SHARE_MIN (1.0 / 4096.0) /* the least share of a tile with a variance: its samples grow with the render's */
 
 /* Channel c of a tile's mean, from its m statistics tile[0 .. m-1]: estimator centre's mean
  * where centre >= 0 has samples (the beams: see the head, "The bound's tile mean with the
@@ -531,10 +532,12 @@ void rd_select_choose_adaptive(const double *var, const double *cost, const doub
         for (int e = 0; e < m; e++) f[e] = sqrt(var[m * k + e] * cost[m * k + e]);
         choice[k] = least(f, m);
     }
-    if (!past || !(past->R > 0.0) || past->left > 0.0 || !bias || !(past->w > 0.0)) return;
-    /* A deadline: E = S^2 / R + w B with S = sum sqrt(V C); d E = (2 S / R) d sqrt(V C) + w d B,
-     * so each tile takes the least of (2 S / R) sqrt(V C) + w B at the fixed point of S. */
-    const double R = past->R, w = past->w;
+    if (!past || !(past->R > 0.0) || past->left > 0.0 || !bias) return;
+    /* A deadline: E = S^2 / R + B with S = sum sqrt(V C), the variance and the squared bias of a
+     * mean of the samples to come (the past's not read: both would take the same factor);
+     * d E = (2 S / R) d sqrt(V C) + d B, so each tile takes the least of (2 S / R) sqrt(V C) + B
+     * at the fixed point of S. */
+    const double R = past->R, w = 1.0;
     for (int round = 0; round < SEL_ROUNDS; round++) {
         double S = 0.0;
         for (int k = 0; k < n; k++) S += sqrt(var[m * k + choice[k]] * cost[m * k + choice[k]]);
@@ -571,7 +574,8 @@ void rd_select_choose_adaptive(const double *var, const double *cost, const doub
 
 /* The shares of the samples (rd_select.share, [m k + e]) from the figures var and cost: sqrt(V /
  * C) of each tile and estimator over the largest of the estimators the tiles use (choice and
- * trial), at most 1; 0 where V or C is 0 (see the head, "Samples where they pay"). */
+ * trial), in [SEL_SHARE_MIN, 1]; 1 where V or C is 0, a tile with nothing read yet (see the
+ * head, "Samples where they pay"). */
 static void set_shares(rd_select *sel, const double *var, const double *cost)
 {
     if (!sel->share) return;
@@ -585,7 +589,9 @@ static void set_shares(rd_select *sel, const double *var, const double *cost)
         }
     }
     for (size_t j = 0; j < (size_t)m * n; j++)
-        sel->share[j] = top > 0.0 && cost[j] > 0.0 && var[j] > 0.0 ? (float)fmin(1.0, sqrt(var[j] / cost[j]) / top) : (top > 0.0 ? 0.0f : 1.0f);
+        sel->share[j] = top > 0.0 && cost[j] > 0.0 && var[j] > 0.0
+                            ? (float)fmin(1.0, fmax(SEL_SHARE_MIN, sqrt(var[j] / cost[j]) / top))
+                            : 1.0f;
 }
 
 /* Each tile's figures a[m k + e] (one per estimator) replaced by the mean over its 3x3
