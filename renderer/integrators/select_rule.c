@@ -344,26 +344,31 @@
  *
  * Samples where they pay (session 67; settings.adaptive). With every pixel drawing every
  * sample, a tile's cost weighs against the whole image's variance (lambda above): an
- * estimator nearly noiseless at 70x a path's cost (the beams in the narrow spot's dim glow,
- * whose V C is 60-270x below delta's with the strategy in two thirds of the tiles) wins no tile,
- * because it would be drawn at every sample of every pixel of its tiles. With shares, tile k's
+ * estimator nearly noiseless at 54x a path's time (70x in the counted cost: the beams in the
+ * narrow spot's dim glow, whose V C is 97x or more below delta's with the strategy in three
+ * quarters of the tiles) wins no tile, because it would be drawn at every sample of every pixel
+ * of its tiles. With shares, tile k's
  * pixels draw n_k samples each; at a time R = sum C_k n_k the error sum V_k / n_k is least at
  * n_k ~ sqrt(V_k / C_k) (Lagrange's multiplier), where it is (sum sqrt(V_k C_k))^2 / R: a sum
  * over the tiles, so each takes the estimator of least V C, its own (rd_select_choose_adaptive),
  * and the shares are sqrt(V / C) over the largest of the tiles' (set_shares, from the
  * figures of all the tile's samples, pooled as the rule's). The beams' squared bias does not
- * fall with a pixel's samples: at a deadline the rule weighs (sum sqrt(V C))^2 / R + w sum B,
- * each tile the least of (2 S / R) sqrt(V C) + w B at the fixed point of S = sum sqrt(V C), then
- * single moves. Every pixel draws its first RD_SHARE_FIRST samples (the first epoch's), and
- * render.c draws sample i of a pixel of share s where (i + 1 - RD_SHARE_FIRST) s reaches a whole
- * number: keyed by the sample's index as before, so the image does not depend on the threads.
- * The photon passes are paced by the shares' sum over the beams' pixels (rd_select_pass_pixels).
- * Not read with shares: the samples the image holds (P, n0) and a sample count's end (their
- * forms assume every pixel draws alike). Each estimator is unbiased (the beams consistent)
- * whatever samples a pixel draws; a pixel's own samples enter its share only through its tile's
- * pooled figures (a high sample raises them and the samples that follow it, a bias of the order
- * of one sample's weight in the 3x3 tiles' statistics, not measured: the image test holds to
- * its z bounds). Measured in docs/guided-marching.md "Samples where they pay". */
+ * fall with a pixel's samples: at a deadline the rule weighs (sum sqrt(V C))^2 / R + sum B (the
+ * variance and the squared bias of a mean of the samples to come), each tile the least of
+ * (2 S / R) sqrt(V C) + B at the fixed point of S = sum sqrt(V C), then single moves. Every
+ * pixel draws its first RD_SHARE_FIRST samples (the first epoch's: the pilot's choice sets no
+ * share), a tile whose figures read nothing yet (V or C 0) every sample, every other at least
+ * SEL_SHARE_MIN of them; render.c draws sample i of a pixel of share s where
+ * (i + 1 - RD_SHARE_FIRST) s reaches a whole number, keyed by the sample's index as before, so
+ * the image does not depend on the threads. The photon passes are paced by the shares' sum over
+ * the beams' pixels (rd_select_pass_pixels). Not read with shares: the samples the image holds
+ * (P, n0) and a sample count's end (no bias is weighed there), and the bias's growth with a
+ * tile's own samples to come (bias_figures and past_of take the image's pace, which a tile of a
+ * small share does not keep). With shares the image is consistent, not unbiased: a pixel's
+ * sample count follows its tile's figures, which its own samples enter (a high sample raises its
+ * tile's V and so the count of the samples after it, which dilute it), and every pixel's count
+ * grows with the render's (the floor), so its mean converges. The bias is not measured beyond
+ * the image test's z bounds. Measured in docs/guided-marching.md "Samples where they pay". */
 #include "integrators/rd_select.h"
 
 #include <math.h>
