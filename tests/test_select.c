@@ -232,6 +232,16 @@ Test(select, a_bias_is_weighed_by_the_samples_still_to_come)
             }
 }
 
+/* Random figures for the rule's tests: variances over four decades and costs over one and a
+ * half, count of each. */
+static void draw_figures(pcg32 *rng, double *var, double *cost, int count)
+{
+    for (int i = 0; i < count; i++) {
+        var[i] = pow(10.0, -6.0 + 4.0 * pcg32_uniform(rng));
+        cost[i] = pow(10.0, 1.5 * pcg32_uniform(rng));
+    }
+}
+
 Test(select, with_a_bias_no_move_lowers_the_error_at_the_end)
 {
     /* Random instances over three estimators, the last with a squared bias (0.01-100x its
@@ -246,11 +256,9 @@ Test(select, with_a_bias_no_move_lowers_the_error_at_the_end)
     for (int inst = 0; inst < 80; inst++) {
         const double n0 = 4.0 * pow(4.0, (double)(inst % 5)), ahead = pow(10.0, -1.0 + 3.0 * pcg32_uniform(&rng));
         const int by_samples = inst & 1;
-        for (int i = 0; i < M * N; i++) {
-            var[i] = pow(10.0, -6.0 + 4.0 * pcg32_uniform(&rng));
-            cost[i] = pow(10.0, 1.5 * pcg32_uniform(&rng));
+        draw_figures(&rng, var, cost, M * N);
+        for (int i = 0; i < M * N; i++)
             bias[i] = i % M == M - 1 ? var[i] / (ahead * n0) * pow(10.0, -2.0 + 4.0 * pcg32_uniform(&rng)) : 0.0;
-        }
         uint8_t plain[N];
         rd_select_choose(var, cost, NULL, N, M, NULL, plain);
         double V0 = sum_of(var, N, M, plain, 0), C0 = sum_of(cost, N, M, plain, 0);
@@ -301,9 +309,9 @@ Test(select, with_shares_each_tile_takes_its_own_least_v_c_and_no_move_lowers_th
      * of least V C, its own (the objective (sum sqrt(V C))^2 is a sum over tiles); at a
      * deadline, the last estimator with a squared bias, no single move lowers
      * (sum sqrt(V C))^2 / R + sum B, while the choices blind to the bias are lowered by one in
-     * some instance (so the check sees the bias). And a dim tile where the costly estimator has the least
-     * V C takes it with shares, where the rule without them keeps the cheap one (its cost
-     * weighs against the whole image's variance): the two rules differ where the test looks. */
+     * some instance (so the check sees the bias). And a dim tile where the costly estimator has
+     * the least V C takes it with shares, where the rule without them keeps the cheap one (its
+     * cost weighs against the whole image's variance): the two rules differ where it looks. */
     pcg32 rng = pcg32_seed(2026, 12, 67);
     enum { N = 100, M = 3 };
     double var[M * N], cost[M * N], bias[M * N];
@@ -311,11 +319,8 @@ Test(select, with_shares_each_tile_takes_its_own_least_v_c_and_no_move_lowers_th
     int blind_lowered = 0;
     for (int inst = 0; inst < 60; inst++) {
         const double R = pow(10.0, 1.0 + 3.0 * pcg32_uniform(&rng)), w = pcg32_uniform(&rng); /* (not read) */
-        for (int i = 0; i < M * N; i++) {
-            var[i] = pow(10.0, -6.0 + 4.0 * pcg32_uniform(&rng));
-            cost[i] = pow(10.0, 1.5 * pcg32_uniform(&rng));
-            bias[i] = i % M == M - 1 ? var[i] * pow(10.0, -3.0 + 4.0 * pcg32_uniform(&rng)) : 0.0;
-        }
+        draw_figures(&rng, var, cost, M * N);
+        for (int i = 0; i < M * N; i++) bias[i] = i % M == M - 1 ? var[i] * pow(10.0, -3.0 + 4.0 * pcg32_uniform(&rng)) : 0.0;
         rd_select_choose_adaptive(var, cost, NULL, N, M, NULL, m);
         for (int k = 0; k < N; k++)
             for (int e = 0; e < M; e++)
