@@ -2117,7 +2117,7 @@ Test(select, a_tile_leaves_the_beams_at_once_where_the_image_reads_their_bias)
     }
 }
 
-/* settings.adaptive's shares (RD_SELECT_ADAPTIVE; select_rule.c, "Samples where they pay"): a
+/* settings.adaptive's shares (rd_select.share; select_rule.c, "Samples where they pay"): a
  * tile's pixels draw sqrt(V / C) of their estimator's figures over the largest tile's. 6x5 tiles,
  * delta dominant in all (the choice), its variance a sample 4x as large in the left three
  * columns as in the right three at the same cost: the figures are pooled over 3x3 tiles, so the

@@ -91,9 +91,7 @@ static rd_status delta_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
             st = RD_ERR_NOMEM;
         } else {
             /* two estimators: its "method" is the path with the strategy already, no third */
-            st = rd_select_prepare(ctx, delta_every_flight, NULL, 0.0,
-                                   RD_SELECT_METHOD_IS_PATH | (s->settings.adaptive && s->settings.select != RD_SELECT_PILOT ? RD_SELECT_ADAPTIVE : 0),
-                                   ds->sel, err, errlen);
+            st = rd_select_prepare(ctx, delta_every_flight, NULL, 0.0, RD_SELECT_METHOD_IS_PATH, ds->sel, err, errlen);
         }
     }
     if (st != RD_OK) delta_release(ctx);

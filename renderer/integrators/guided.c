@@ -128,8 +128,7 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
          * beams estimator's where there is one) */
         int options = (s->march.equiangular != RD_EQ_OFF ? RD_SELECT_THIRD : 0) |
                       ((s->march.ls == RD_LS_NEE_BEAMS || beams) && ctx->pass_emitted > 0.0 ? RD_SELECT_PASSES : 0) |
-                      (pass_maps_guided(s) & RD_PASS_NO_INDEX ? RD_SELECT_PASSES_ORDERED : 0) |
-                      (s->settings.adaptive && sel != RD_SELECT_PILOT ? RD_SELECT_ADAPTIVE : 0);
+                      (pass_maps_guided(s) & RD_PASS_NO_INDEX ? RD_SELECT_PASSES_ORDERED : 0);
         const rd_select_more more = {.path = mst->gpaths ? paths_guided : NULL, .path_cell_cost = RD_GU_CELL_COST,
                                      .beams = beams ? march_beams : NULL};
         st = rd_select_prepare_more(ctx, march_guided, NULL, RD_MARCH_CELL_COST, options, &more, &mst->sel, err, errlen);

@@ -84,7 +84,7 @@ typedef vec3 (*rd_select_delta_fn)(const rd_render_ctx *ctx, rd_thread *th, ray3
                                    int equiangular);
 
 typedef struct {
-    float *share;            /* RD_SELECT_ADAPTIVE: [n k + e], tile k's share of the samples with e
+    float *share;            /* settings.adaptive: [n k + e], tile k's share of the samples with e
                                 (rd_select_share); NULL: every pixel draws every sample */
     uint8_t *choice;         /* per tile, the estimator that renders it (0 .. n-1, of kind kind[e]);
                                 NULL: the method everywhere (selection off, or not run) */
@@ -216,9 +216,9 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
  * the weights below; select.c, "The photon passes"); with RD_SELECT_PASSES_ORDERED too, the
  * passes after the first put their photons in spatial order without a kd-tree (RD_PASS_NO_INDEX:
  * nee+beams), and a photon counts RD_SELECT_COST_ORDERED instead of RD_SELECT_COST_INDEXED
- * (pass_indexed at most pass_emitted where those passes are thinned: render.c, RD_PASS_THIN);
- * RD_SELECT_ADAPTIVE: shares of the samples (rd_select.share; settings.adaptive). */
-enum { RD_SELECT_THIRD = 1, RD_SELECT_METHOD_IS_PATH = 2, RD_SELECT_PASSES = 4, RD_SELECT_PASSES_ORDERED = 8, RD_SELECT_ADAPTIVE = 16 };
+ * (pass_indexed at most pass_emitted where those passes are thinned: render.c, RD_PASS_THIN).
+ * Every selection with epochs takes settings.adaptive's shares (rd_select.share). */
+enum { RD_SELECT_THIRD = 1, RD_SELECT_METHOD_IS_PATH = 2, RD_SELECT_PASSES = 4, RD_SELECT_PASSES_ORDERED = 8 };
 /* A progressive pass's work, in density lookups: a photon emitted, a tentative collision, a
  * photon indexed (stored and built into a kd-tree), a photon stored and put in order alone (the
  * indexed photon's weight less what the kd-tree cost on the calibration scenes: 0.152 us of
@@ -284,7 +284,7 @@ typedef struct {
  * which only a known end weighs; choice[k] the estimator of tile k. */
 void rd_select_choose(const double *var, const double *cost, const double *bias, int n, int m, const rd_select_past *past,
                       uint8_t *choice);
-/* With shares of the samples (RD_SELECT_ADAPTIVE; select_rule.c, "Samples where they pay"): the
+/* With shares of the samples (settings.adaptive; select_rule.c, "Samples where they pay"): the
  * choices that minimise (sum sqrt(V C))^2, at a deadline (past->R > 0, no left) (sum sqrt(V
  * C))^2 / R + sum B; the arguments as rd_select_choose's (not its P, n0, T0, left or w). */
 void rd_select_choose_adaptive(const double *var, const double *cost, const double *bias, int n, int m,

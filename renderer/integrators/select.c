@@ -578,7 +578,8 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
         return RD_ERR_NOMEM;
     }
     if (!third) sel->paths = 1u << RD_SEL_DELTA;
-    if (options & RD_SELECT_ADAPTIVE) { /* every share 1 until the pilot's choice sets them */
+    /* settings.adaptive, where the epochs choose again: every share 1 until they set them */
+    if (s->settings.adaptive && s->settings.select != RD_SELECT_PILOT) {
         size_t ns = (size_t)sel->n * sel->tiles_x * sel->tiles_y;
         if (!(sel->share = malloc(ns * sizeof *sel->share))) {
             rd_select_free(sel);

@@ -542,13 +542,13 @@ void rd_select_choose_adaptive(const double *var, const double *cost, const doub
      * mean of the samples to come (the past's not read: both would take the same factor);
      * d E = (2 S / R) d sqrt(V C) + d B, so each tile takes the least of (2 S / R) sqrt(V C) + B
      * at the fixed point of S. */
-    const double R = past->R, w = 1.0;
+    const double R = past->R;
     for (int round = 0; round < SEL_ROUNDS; round++) {
         double S = 0.0;
         for (int k = 0; k < n; k++) S += sqrt(var[m * k + choice[k]] * cost[m * k + choice[k]]);
         int changed = 0;
         for (int k = 0; k < n; k++) {
-            for (int e = 0; e < m; e++) f[e] = 2.0 * S / R * sqrt(var[m * k + e] * cost[m * k + e]) + w * BIAS(m * k + e);
+            for (int e = 0; e < m; e++) f[e] = 2.0 * S / R * sqrt(var[m * k + e] * cost[m * k + e]) + BIAS(m * k + e);
             uint8_t u = least(f, m);
             changed += u != choice[k];
             choice[k] = u;
@@ -560,13 +560,13 @@ void rd_select_choose_adaptive(const double *var, const double *cost, const doub
     for (int k = 0; k < n; k++) S += sqrt(var[m * k + choice[k]] * cost[m * k + choice[k]]), B += BIAS(m * k + choice[k]);
     for (int round = 0, changed = 1; changed && round < SEL_ROUNDS; round++) {
         changed = 0;
-        double F = S * S / R + w * B;
+        double F = S * S / R + B;
         for (int k = 0; k < n; k++)
             for (int e = 0; e < m; e++) {
                 int o = choice[k];
                 if (e == o) continue;
                 double S2 = S - sqrt(var[m * k + o] * cost[m * k + o]) + sqrt(var[m * k + e] * cost[m * k + e]);
-                double B2 = B - BIAS(m * k + o) + BIAS(m * k + e), F2 = S2 * S2 / R + w * B2;
+                double B2 = B - BIAS(m * k + o) + BIAS(m * k + e), F2 = S2 * S2 / R + B2;
                 if (F2 < F * (1.0 - 1e-12)) {
                     choice[k] = (uint8_t)e;
                     S = S2, B = B2, F = F2;
