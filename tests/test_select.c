@@ -15,7 +15,7 @@
  *  - where a tile's halves disagree, the rule on the image's predicted variances (its pooled
  *    relative variance times the tile's mean squared) picks between their two;
  *  - with shares of the samples (settings.adaptive), each tile's own least V C, shares
- *    sqrt(V / C), and delta's image still. */
+ *    sqrt(V / C), the least share where no sample lit a tile, and delta's image still. */
 #include "support/rd_test.h"
 #include "integrators/rd_select.h"
 
@@ -1343,13 +1343,20 @@ Test(select, tiles_of_both_kinds_give_delta_s_image, .timeout = 300)
 
 /* settings.adaptive: the tiles' pixels draw shares of the samples (select_rule.c, "Samples where
  * they pay"), and the image is still delta's (rt_expect_same's z bounds: 5 for the image, 4.5
- * for each 8x8 region; the beams off: the unbiased estimators only). A tile where nothing was
- * read draws every sample (share 1: the fog's empty half), so a mean below 0.9 x 256 samples a
- * pixel means lit tiles were thinned. */
+ * for each 8x8 region; the beams off: the unbiased estimators only). The fog spans the whole
+ * image (rt_spot_fog_json_with's cut at x = 0 moved past the frame), so that every tile reads
+ * light and none draws the dark tiles' least share: a mean below 0.9 x 256 samples a pixel
+ * means lit tiles were thinned. */
 Test(select, shares_of_the_samples_keep_delta_s_image, .timeout = 300)
 {
-    rd_scene *s = rt_scene("selad.json", rt_spot_fog_json_with(32, 24, "{\"select\":\"tiles\",\"adaptive\":true}",
-                                                               "\"photons\":{\"count\":40000},\"march\":{\"equiangular\":false,\"beams\":false}"));
+    char json[2048];
+    snprintf(json, sizeof json, "%s",
+             rt_spot_fog_json_with(32, 24, "{\"select\":\"tiles\",\"adaptive\":true}",
+                                   "\"photons\":{\"count\":40000},\"march\":{\"equiangular\":false,\"beams\":false}"));
+    char *cut = strstr(json, "\"max\":[0.0,");
+    cr_assert(cut != NULL, "the fog's cut at x = 0 is not in the scene");
+    memcpy(cut + 7, "2.2", 3); /* [0.0, ...] -> [2.2, ...]: the fog to the frame's right edge */
+    rd_scene *s = rt_scene("selad.json", json);
     rd_render_result d = rt_render(s, "delta", 512, 31, NULL);
     rd_render_result g = rt_render(s, "guided", 256, 33, NULL);
     const double spp = g.stats.spp_mean;
@@ -2148,6 +2155,42 @@ Test(select, a_tile_s_share_of_the_samples_is_the_root_of_its_variance_over_its_
         cr_assert(fabs(left - 1.0) < 1e-6, "row %d: the noisier side's share %g, not 1", ty, left);
         cr_assert(fabs(right - 0.5) < 1e-6, "row %d: the quieter side's share %g, not 1/2", ty, right);
     }
+    rd_select_free(&sel);
+}
+
+/* A tile that no sample lit, nor any of its 8 neighbours (its pooled variance 0), draws the least
+ * share (select_rule.c SEL_SHARE_MIN, 1/4096), not every sample: its pixels are cheap, and at
+ * share 1 they set the pace of the sample index, so in scenes/hard-dense-block.json (182 of 300
+ * tiles black) they drew 20000 samples each while the lit tiles drew 100. A tile beside a lit one
+ * reads a pooled variance and its own share; a tile with no samples at all has read nothing and
+ * draws every sample. 6x5 tiles: columns 0-2 lit (delta's variance 0.04 a sample), 3-5 dark
+ * (every sample 0); tile (5, 4) has no samples. Fails with the dark tiles given share 1 (the rule
+ * before session 68) or the floor given to the tile with no samples. */
+Test(select, a_tile_no_sample_lit_draws_the_least_share_and_one_with_no_samples_draws_all)
+{
+    enum { NX = 6, NY = 5, T = NX * NY };
+    rd_select sel;
+    char err[RD_ERRLEN];
+    cr_assert(rd_select_init(&sel, 8 * NX, 8 * NY, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert((sel.share = malloc(2 * T * sizeof *sel.share)) != NULL);
+    for (int i = 0; i < 2 * T; i++) sel.share[i] = 1.0f;
+    for (int k = 0; k < T - 1; k++) {
+        const int lit = k % NX < 3;
+        fake_pilot(&sel, 2 * k, lit ? 0.5 : 0.0, lit ? 0.04 : 0.0, lit ? 1.0 : 0.0, 1.0);     /* delta */
+        fake_pilot(&sel, 2 * k + 1, lit ? 0.5 : 0.0, lit ? 9.0 : 0.0, lit ? 1.0 : 0.0, 2.0); /* the method */
+    }
+    rd_select_epoch(&sel, NULL, NULL); /* the pilot's choice */
+    rd_select_epoch(&sel, NULL, NULL); /* the first epoch's, with the same statistics */
+    for (int ty = 0; ty < NY; ty++)
+        for (int tx = 0; tx < NX; tx++) {
+            const double s = rd_select_share(&sel, 8 * tx + 3, 8 * ty + 4);
+            if (tx == NX - 1 && ty == NY - 1)
+                cr_assert(s == 1.0, "the tile with no samples: share %g, not 1", s);
+            else if (tx >= 4)
+                cr_assert(fabs(s - 1.0 / 4096.0) < 1e-9, "dark tile (%d, %d): share %g, not 1/4096", tx, ty, s);
+            else
+                cr_assert(s > 0.01 && s <= 1.0, "tile (%d, %d) reads a variance: share %g", tx, ty, s);
+        }
     rd_select_free(&sel);
 }
 

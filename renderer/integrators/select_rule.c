@@ -357,8 +357,11 @@
  * variance and the squared bias of a mean of the samples to come), each tile the least of
  * (2 S / R) sqrt(V C) + B at the fixed point of S = sum sqrt(V C), then single moves. Every
  * pixel draws its first RD_SHARE_FIRST samples (the first epoch's: the pilot's choice sets no
- * share), a tile whose figures read nothing yet (V or C 0) every sample, every other at least
- * SEL_SHARE_MIN of them; render.c draws sample i of a pixel of share s where
+ * share), a tile whose estimator has no samples yet every sample, a tile that reads dark (its
+ * pooled V 0: no sample lit it or its neighbours) SEL_SHARE_MIN of them (session 68: at share 1
+ * the cheap dark pixels set the pace of the sample index and drew most of the time, 20000
+ * samples each in hard-dense-block against the lit tiles' 100), every other at least
+ * SEL_SHARE_MIN; render.c draws sample i of a pixel of share s where
  * (i + 1 - RD_SHARE_FIRST) s reaches a whole number, keyed by the sample's index as before, so
  * the image does not depend on the threads. The photon passes are paced by the shares' sum over
  * the beams' pixels (rd_select_pass_pixels). Not read with shares: the samples the image holds
@@ -381,7 +384,7 @@
 #define SEL_LAG_SIGMA 3.0 /* standard errors of the two means taken off a lag: its noise */
 #define SEL_BIAS_SIGMA 3.0 /* standard errors taken off the beams' squared bias ratio: its noise */
 #define SEL_BIAS_TILES 8.0 /* tiles at least with the beams' products: a standard error of fewer is noise */
-#define SEL_SHARE_MIN (1.0 / 4096.0) /* the least share of a tile with a variance: its samples grow with the render's */
+#define SEL_SHARE_MIN (1.0 / 4096.0) /* the least share (a dark tile's): its samples grow with the render's */
 
 /* Channel c of a tile's mean, from its m statistics tile[0 .. m-1]: estimator centre's mean
  * where centre >= 0 has samples (the beams: see the head, "The bound's tile mean with the
@@ -577,11 +580,13 @@ void rd_select_choose_adaptive(const double *var, const double *cost, const doub
 #undef BIAS
 }
 
-/* The shares of the samples (rd_select.share, [m k + e]) from the figures var and cost: sqrt(V /
- * C) of each tile and estimator over the largest of the estimators the tiles use (choice and
- * trial), in [SEL_SHARE_MIN, 1]; 1 where V or C is 0, a tile with nothing read yet (see the
+/* The shares of the samples (rd_select.share, [m k + e]) from the figures var and cost and the
+ * tiles' statistics st (all of their samples): sqrt(V / C) of each tile and estimator over the
+ * largest of the estimators the tiles use (choice and trial), in [SEL_SHARE_MIN, 1]; where V is 0
+ * and the estimator has samples in the tile (no sample lit it or its 8 neighbours: the figures
+ * are pooled) SEL_SHARE_MIN, and 1 where nothing was read yet, no sample or no cost (see the
  * head, "Samples where they pay"). */
-static void set_shares(rd_select *sel, const double *var, const double *cost)
+static void set_shares(rd_select *sel, const rd_select_stats *st, const double *var, const double *cost)
 {
     if (!sel->share) return;
     const int n = sel->tiles_x * sel->tiles_y, m = sel->n;
@@ -593,10 +598,13 @@ static void set_shares(rd_select *sel, const double *var, const double *cost)
             if (cost[j] > 0.0 && var[j] > 0.0) top = fmax(top, sqrt(var[j] / cost[j]));
         }
     }
-    for (size_t j = 0; j < (size_t)m * n; j++)
-        sel->share[j] = top > 0.0 && cost[j] > 0.0 && var[j] > 0.0
-                            ? (float)fmin(1.0, fmax(SEL_SHARE_MIN, sqrt(var[j] / cost[j]) / top))
-                            : 1.0f;
+    for (size_t j = 0; j < (size_t)m * n; j++) {
+        double s = 1.0; /* nothing read */
+        if (cost[j] > 0.0 && st[j].n > 0.0)
+            s = var[j] > 0.0 && top > 0.0 ? fmin(1.0, fmax(SEL_SHARE_MIN, sqrt(var[j] / cost[j]) / top))
+                : SEL_SHARE_MIN; /* read dark (with top 0, the whole image: the floor) */
+        sel->share[j] = (float)s;
+    }
 }
 
 /* Each tile's figures a[m k + e] (one per estimator) replaced by the mean over its 3x3
@@ -989,7 +997,7 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
     }
     if (sel->share) { /* the shares of the samples from all the tile's samples (the head, "Samples where they pay") */
         figures(sel, all, pbar, NULL, var, cost, tmp);
-        set_shares(sel, var, cost);
+        set_shares(sel, all, var, cost);
     }
     free(all), free(buf), free(want);
 }
