@@ -15,7 +15,7 @@
  *  - where a tile's halves disagree, the rule on the image's predicted variances (its pooled
  *    relative variance times the tile's mean squared) picks between their two;
  *  - with shares of the samples (settings.adaptive), each tile's own least V C, shares
- *    sqrt(V / C), the least share where no sample lit a tile, and delta's image still. */
+ *    sqrt(V / C), a dark tile's by the rule of succession, and delta's image still. */
 #include "support/rd_test.h"
 #include "integrators/rd_select.h"
 
@@ -2158,39 +2158,65 @@ Test(select, a_tile_s_share_of_the_samples_is_the_root_of_its_variance_over_its_
     rd_select_free(&sel);
 }
 
-/* A tile that no sample lit, nor any of its 8 neighbours (its pooled variance 0), draws the least
- * share (select_rule.c SEL_SHARE_MIN, 1/4096), not every sample: its pixels are cheap, and at
- * share 1 they set the pace of the sample index, so in scenes/hard-dense-block.json (182 of 300
- * tiles black) they drew 20000 samples each while the lit tiles drew 100. A tile beside a lit one
- * reads a pooled variance and its own share; a tile with no samples at all has read nothing and
- * draws every sample. 6x5 tiles: columns 0-2 lit (delta's variance 0.04 a sample), 3-5 dark
- * (every sample 0); tile (5, 4) has no samples. Fails with the dark tiles given share 1 (the rule
- * before session 68) or the floor given to the tile with no samples. */
-Test(select, a_tile_no_sample_lit_draws_the_least_share_and_one_with_no_samples_draws_all)
+/* The share of a dark tile (no sample of any estimator lit it or its 8 neighbours: its pooled
+ * variance 0) by Laplace's rule of succession (select_rule.c set_shares, the head's "Dark
+ * tiles"): after N samples over its 3x3 tiles, all 0, its variance a sample is M / (N + 2), M the
+ * image's mean square of the estimator's lit samples, so its share shrinks as its samples prove
+ * it dark and never reaches the floor at once. At share 1, session 67's rule, the cheap black
+ * tiles of scenes/hard-dense-block.json drew 20000 samples a pixel where the lit ones drew 100.
+ * 6x5 tiles: columns 0-2 lit (delta's variance 0.04 a sample, mean 0.5, every sample lit), 3-5
+ * dark; tile (5, 4) has no samples (share 1: nothing read). Column 3 reads a pooled variance from
+ * column 2; columns 4 and 5 are dark. Then the dark tiles draw as many samples again, and their
+ * shares fall by sqrt((N + 2) / (2 N + 2)). Fails with share 1 or the floor (1/4096) for the
+ * dark tiles, with N not counted over the 3x3 tiles, and with the floor given to the tile with
+ * no samples. */
+Test(select, a_dark_tile_s_share_follows_the_rule_of_succession_and_one_with_no_samples_draws_all)
 {
-    enum { NX = 6, NY = 5, T = NX * NY };
+    enum { NX = 6, NY = 5, T = NX * NY, SPP = 128 /* a fake pilot's samples a tile */ };
     rd_select sel;
     char err[RD_ERRLEN];
     cr_assert(rd_select_init(&sel, 8 * NX, 8 * NY, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
     cr_assert((sel.share = malloc(2 * T * sizeof *sel.share)) != NULL);
     for (int i = 0; i < 2 * T; i++) sel.share[i] = 1.0f;
+    const double v = 0.04, mu = 0.5;
     for (int k = 0; k < T - 1; k++) {
         const int lit = k % NX < 3;
-        fake_pilot(&sel, 2 * k, lit ? 0.5 : 0.0, lit ? 0.04 : 0.0, lit ? 1.0 : 0.0, 1.0);     /* delta */
-        fake_pilot(&sel, 2 * k + 1, lit ? 0.5 : 0.0, lit ? 9.0 : 0.0, lit ? 1.0 : 0.0, 2.0); /* the method */
+        fake_pilot(&sel, 2 * k, lit ? mu : 0.0, lit ? v : 0.0, lit ? 1.0 : 0.0, 1.0);     /* delta */
+        fake_pilot(&sel, 2 * k + 1, lit ? mu : 0.0, lit ? 9.0 : 0.0, lit ? 1.0 : 0.0, 2.0); /* the method */
     }
-    rd_select_epoch(&sel, NULL, NULL); /* the pilot's choice */
-    rd_select_epoch(&sel, NULL, NULL); /* the first epoch's, with the same statistics */
-    for (int ty = 0; ty < NY; ty++)
-        for (int tx = 0; tx < NX; tx++) {
-            const double s = rd_select_share(&sel, 8 * tx + 3, 8 * ty + 4);
-            if (tx == NX - 1 && ty == NY - 1)
-                cr_assert(s == 1.0, "the tile with no samples: share %g, not 1", s);
-            else if (tx >= 4)
-                cr_assert(fabs(s - 1.0 / 4096.0) < 1e-9, "dark tile (%d, %d): share %g, not 1/4096", tx, ty, s);
-            else
-                cr_assert(s > 0.01 && s <= 1.0, "tile (%d, %d) reads a variance: share %g", tx, ty, s);
-        }
+    /* M: per lit tile, dev2 = v dof (dof = 112 of 128 samples) and n mu^2, over its 128 lit samples;
+     * the largest sqrt(V / C) is a lit tile's, sqrt(v) (64 pixels' V and C alike) */
+    const double M = (v * 112.0 + mu * mu * SPP) / SPP, top = sqrt(v);
+    for (int round = 1; round <= 2; round++) {
+        rd_select_epoch(&sel, NULL, NULL); /* (round 1: the pilot's choice, then the first epoch's) */
+        if (round == 1) rd_select_epoch(&sel, NULL, NULL);
+        for (int ty = 0; ty < NY; ty++)
+            for (int tx = 0; tx < NX; tx++) {
+                const double s = rd_select_share(&sel, 8 * tx + 3, 8 * ty + 4);
+                if (tx == NX - 1 && ty == NY - 1) {
+                    cr_assert(s == 1.0, "the tile with no samples: share %g, not 1", s);
+                } else if (tx >= 4) {
+                    /* delta's samples over the 3x3 tiles, and its cost a sample pooled over them
+                     * (the tile with no samples counts 0: select_rule.c pool) */
+                    double N = 0.0, tiles = 0.0, with = 0.0;
+                    for (int y = ty - 1; y <= ty + 1; y++)
+                        for (int x = tx - 1; x <= tx + 1; x++) {
+                            if (x < 0 || y < 0 || x >= NX || y >= NY) continue;
+                            tiles += 1.0;
+                            if (x == NX - 1 && y == NY - 1) continue;
+                            N += (x < 3 ? 1 : round) * SPP, with += 1.0;
+                        }
+                    const double want = sqrt(M / (N + 2.0) / (with / tiles)) / top;
+                    cr_assert(fabs(s - want) <= 1e-5 * want, "round %d, dark tile (%d, %d): share %g, not %g", round, tx,
+                              ty, s, want);
+                } else {
+                    cr_assert(s > 0.1 && s <= 1.0, "round %d, tile (%d, %d) reads a variance: share %g", round, tx, ty, s);
+                }
+            }
+        for (int k = 0; k < T - 1; k++) /* the dark tiles draw as many samples again, all 0 */
+            if (k % NX >= 3)
+                for (int h = 0; h < 2; h++) add_half(&sel, h, 2 * k, 8, 8, 0.0, 0.0, 0.0, 1.0);
+    }
     rd_select_free(&sel);
 }
 

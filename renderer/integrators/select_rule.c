@@ -357,11 +357,16 @@
  * variance and the squared bias of a mean of the samples to come), each tile the least of
  * (2 S / R) sqrt(V C) + B at the fixed point of S = sum sqrt(V C), then single moves. Every
  * pixel draws its first RD_SHARE_FIRST samples (the first epoch's: the pilot's choice sets no
- * share), a tile whose estimator has no samples yet every sample, a tile that reads dark (its
- * pooled V 0: no sample lit it or its neighbours) SEL_SHARE_MIN of them (session 68: at share 1
- * the cheap dark pixels set the pace of the sample index and drew most of the time, 20000
- * samples each in hard-dense-block against the lit tiles' 100), every other at least
- * SEL_SHARE_MIN; render.c draws sample i of a pixel of share s where
+ * share), a tile whose estimator has no samples yet every sample, every other at least
+ * SEL_SHARE_MIN of them. Dark tiles (session 68): where no sample of any estimator lit a tile
+ * or its 8 neighbours, its V is 0, and share 1 (session 67's) let its cheap pixels set the pace
+ * of the sample index and draw most of the time (20000 samples each in hard-dense-block's black
+ * background against the lit tiles' 100); the floor instead would leave a rarely lit tile (the
+ * narrow spot's, whose first lit sample came after 64-1024; "Tiles no sample has lit" above) at a
+ * few samples for good. Such a tile's V is Laplace's rule of succession's, M / (N + 2) a sample
+ * after N samples of its estimator over the 3x3 tiles, all 0, with M the image's mean square of
+ * the estimator's lit samples (set_shares): its share falls as its samples prove it dark, as
+ * 1 / sqrt(N), and its pixels keep drawing; render.c draws sample i of a pixel of share s where
  * (i + 1 - RD_SHARE_FIRST) s reaches a whole number, keyed by the sample's index as before, so
  * the image does not depend on the threads. The photon passes are paced by the shares' sum over
  * the beams' pixels (rd_select_pass_pixels). Not read with shares: the samples the image holds
@@ -384,7 +389,7 @@
 #define SEL_LAG_SIGMA 3.0 /* standard errors of the two means taken off a lag: its noise */
 #define SEL_BIAS_SIGMA 3.0 /* standard errors taken off the beams' squared bias ratio: its noise */
 #define SEL_BIAS_TILES 8.0 /* tiles at least with the beams' products: a standard error of fewer is noise */
-#define SEL_SHARE_MIN (1.0 / 4096.0) /* the least share (a dark tile's): its samples grow with the render's */
+#define SEL_SHARE_MIN (1.0 / 4096.0) /* the least share: its samples grow with the render's */
 
 /* Channel c of a tile's mean, from its m statistics tile[0 .. m-1]: estimator centre's mean
  * where centre >= 0 has samples (the beams: see the head, "The bound's tile mean with the
@@ -580,33 +585,6 @@ void rd_select_choose_adaptive(const double *var, const double *cost, const doub
 #undef BIAS
 }
 
-/* The shares of the samples (rd_select.share, [m k + e]) from the figures var and cost and the
- * tiles' statistics st (all of their samples): sqrt(V / C) of each tile and estimator over the
- * largest of the estimators the tiles use (choice and trial), in [SEL_SHARE_MIN, 1]; where V is 0
- * and the estimator has samples in the tile (no sample lit it or its 8 neighbours: the figures
- * are pooled) SEL_SHARE_MIN, and 1 where nothing was read yet, no sample or no cost (see the
- * head, "Samples where they pay"). */
-static void set_shares(rd_select *sel, const rd_select_stats *st, const double *var, const double *cost)
-{
-    if (!sel->share) return;
-    const int n = sel->tiles_x * sel->tiles_y, m = sel->n;
-    double top = 0.0;
-    for (int k = 0; k < n; k++) {
-        int used[2] = {sel->choice[k], sel->trial[k] ? sel->trial[k] - 1 : sel->choice[k]};
-        for (int i = 0; i < 2; i++) {
-            size_t j = (size_t)m * k + used[i];
-            if (cost[j] > 0.0 && var[j] > 0.0) top = fmax(top, sqrt(var[j] / cost[j]));
-        }
-    }
-    for (size_t j = 0; j < (size_t)m * n; j++) {
-        double s = 1.0; /* nothing read */
-        if (cost[j] > 0.0 && st[j].n > 0.0)
-            s = var[j] > 0.0 && top > 0.0 ? fmin(1.0, fmax(SEL_SHARE_MIN, sqrt(var[j] / cost[j]) / top))
-                : SEL_SHARE_MIN; /* read dark (with top 0, the whole image: the floor) */
-        sel->share[j] = (float)s;
-    }
-}
-
 /* Each tile's figures a[m k + e] (one per estimator) replaced by the mean over its 3x3
  * neighbourhood (clipped at the image's edge), in tmp's room of m nx ny doubles. A tile's own
  * pilot has 16 pixels x SEL_SPP (select.c) samples (8 pixels in each half), and delta's variance is
@@ -639,6 +617,63 @@ static double tile_pixels(const rd_select *sel, int tx, int ty)
 {
     int w = sel->width - tx * RD_SELECT_TILE, h = sel->height - ty * RD_SELECT_TILE;
     return (double)(w < RD_SELECT_TILE ? w : RD_SELECT_TILE) * (h < RD_SELECT_TILE ? h : RD_SELECT_TILE);
+}
+
+/* The shares of the samples (rd_select.share, [m k + e]) from the figures var and cost and the
+ * tiles' statistics st (all of their samples, [m k + e]): sqrt(V / C) of each tile and estimator
+ * over the largest of the estimators the tiles use (choice and trial), in [SEL_SHARE_MIN, 1]
+ * (see the head, "Samples where they pay"). 1 where nothing was read yet (no sample or no cost),
+ * where no sample of the image is lit (nothing to weigh), and where V is 0 beside a lit sample
+ * (an estimator that reads 0 where another reads light: no figure to trust). Where no sample
+ * of any estimator lit the tile or its 8 neighbours (a dark tile), V is Laplace's rule of
+ * succession's: after N samples of the estimator over the 3x3 tiles, all 0, a sample is lit
+ * with probability 1 / (N + 2), and a lit one's square is taken as the image's mean over the
+ * estimator's lit samples (or over every estimator's, where it has none): V = pixels M / (N +
+ * 2) (the head, "Samples where they pay"). A dark tile's share so shrinks as its samples prove it dark, and
+ * a rarely lit one keeps drawing. */
+static void set_shares(rd_select *sel, const rd_select_stats *st, const double *var, const double *cost)
+{
+    if (!sel->share) return;
+    const int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
+    /* M per estimator (and over all in slot RD_SEL_MAX): the squares of the samples, per
+     * channel the deviations from the pixels' means and the tile's mean's n mu^2 (at most the
+     * pixels' means'), over the lit samples */
+    double sq[RD_SEL_MAX + 1] = {0}, lit[RD_SEL_MAX + 1] = {0}, M[RD_SEL_MAX + 1];
+    for (int k = 0; k < n; k++)
+        for (int e = 0; e < m; e++) {
+            const rd_select_stats *t = &st[m * k + e];
+            if (!(t->nonzero > 0.0)) continue;
+            double q = 0.0;
+            for (int c = 0; c < 3; c++) q += (t->dev2[c] + t->sum[c] * t->sum[c] / t->n) / 3.0;
+            sq[e] += q, lit[e] += t->nonzero, sq[RD_SEL_MAX] += q, lit[RD_SEL_MAX] += t->nonzero;
+        }
+    for (int e = 0; e <= RD_SEL_MAX; e++) M[e] = lit[e] > 0.0 ? sq[e] / lit[e] : 0.0;
+    double top = 0.0;
+    for (int k = 0; k < n; k++) {
+        int used[2] = {sel->choice[k], sel->trial[k] ? sel->trial[k] - 1 : sel->choice[k]};
+        for (int i = 0; i < 2; i++) {
+            size_t j = (size_t)m * k + used[i];
+            if (cost[j] > 0.0 && var[j] > 0.0) top = fmax(top, sqrt(var[j] / cost[j]));
+        }
+    }
+    for (int k = 0; k < n; k++) {
+        int tx = k % nx, ty = k / nx;
+        double around = 0.0, N[RD_SEL_MAX] = {0}; /* the 3x3 tiles' lit samples, and e's samples */
+        for (int y = ty - 1; y <= ty + 1; y++)
+            for (int x = tx - 1; x <= tx + 1; x++) {
+                if (x < 0 || y < 0 || x >= nx || y >= ny) continue;
+                for (int e = 0; e < m; e++) around += st[m * (y * nx + x) + e].nonzero, N[e] += st[m * (y * nx + x) + e].n;
+            }
+        for (int e = 0; e < m; e++) {
+            size_t j = (size_t)m * k + e;
+            double v = var[j], s = 1.0;
+            if (!(v > 0.0) && !(around > 0.0)) /* a dark tile: the rule of succession */
+                v = tile_pixels(sel, tx, ty) * (M[e] > 0.0 ? M[e] : M[RD_SEL_MAX]) / (N[e] + 2.0);
+            if (cost[j] > 0.0 && st[j].n > 0.0 && v > 0.0 && top > 0.0)
+                s = fmin(1.0, fmax(SEL_SHARE_MIN, sqrt(v / cost[j]) / top));
+            sel->share[j] = (float)s;
+        }
+    }
 }
 
 /* The squared standard error of channel c of the mean of statistics st (0 without a deviation). */
