@@ -102,10 +102,7 @@
  * A tile of at most 2x2 pixels (at the image's right and bottom edges) lies in one half: the
  * other half's figures for it are zero and its choice is the half that has samples.
  *
- * Measured at 10 s, medians of four alternating rounds (docs/benchmarks.md "Session 27": each
- * scene's figures before and after): within the rounds' spread or a gain on the calibration
- * scenes and the benchmark's; the dense block's lit tiles on the strategy went from 30-41 to
- * 7-23, and "tiles" there from 0.851x to 0.913x plain `delta`.
+ * Measured in docs/benchmarks.md "Session 27" (the dense block's "tiles" 0.851x -> 0.913x).
  *
  * Where the halves disagree, the image decides (session 40). Until then the cheaper of the two
  * took such a tile, and on hard-dense-block that was most of the lit tiles at the first epochs
@@ -128,22 +125,9 @@
  * pooled as always) picks between the halves' two (if it wants neither,
  * or an estimator has no prediction, r 0, the cheaper, as before). The move still goes on trial
  * first (as above, but off the biased beams), and where the halves agree nothing changes.
- * Measured, 10 s, paired rounds against the build before (docs/benchmarks.md "Session 40";
- * rounds spread widely there, so read the figures as "no loss" or "a gain", not as their digits):
- * guided-unbiased's efficiency on hard-dense-block 1.33x (1.16-1.70, four rounds), over plain
- * `delta` 1.41 (1.36-1.68) against 1.05 (1.00-1.19) in the same rounds; the calibration scenes
- * beam-vdb 1.21x (two rounds),
- * hetero-forward 1.03x (0.99, 1.08), cloud 0.99x, sphere-in-fog 0.98x; beam 1.21x (one round);
- * hard-lens-caustic 0.95x (0.87-1.04, four rounds: 6-13% of its samples on the method's paths
- * against 5-7%, a loss there within the rounds' spread or a little beyond). Two earlier forms
- * (r over all the lit tiles; r without the tile alone, pooled): the dense block 1.17x and
- * 1.14x, 0.99-1.07x elsewhere, the second's beam-vdb, beam and narrow spot 1.19-1.37x. Tried
- * and not kept (docs/benchmarks.md "Session 40", "41", "53"): r read everywhere, as a prior of nu
- * pseudo-samples (dense block 1.36-1.43x, sphere-in-fog 0.72x in one round of two, 0.65x scored
- * offline in session 53) or by empirical Bayes (dense block 1.22x, beam-vdb 0.74x): tiles differ,
- * and a figure for the whole image overrode tiles whose halves agreed; as a veto on moves to a
- * costlier estimator (beam-vdb, dense block 0.76-0.85x); the 3x3 pooling weakened as a tile's
- * samples grow (beam-vdb 0.89-0.92x, beam 0.66-1.07x: neighbours' fireflies show tails sooner).
+ * Measured (guided-unbiased's dense block 1.33x, the calibration scenes 0.98-1.21x), and the
+ * forms tried and not kept (r everywhere as a prior, by empirical Bayes, as a veto; weaker
+ * pooling): docs/benchmarks.md "Session 40", "41" and "53".
  *
  * Tiles no sample has lit (session 42). Where no estimator has drawn a non-zero sample in a
  * tile or its neighbours, every variance the rule reads there is 0 and it gives the tile the
@@ -162,10 +146,8 @@
  * no evidence to weigh. Where the image prefers plain delta (the dense block, default, cloud,
  * hetero-forward) nothing changes; where it prefers the strategy (the narrow spot, the window
  * beam, homogeneous, glass-fog) a tile that stays dark pays the strategy's set-up on flights
- * that find nothing. Measured on new seeds (11-14, the same 1024 spp; docs/benchmarks.md
- * "Session 42"): the squared error of "tiles" 1.71e-6 -> 1.49e-6 and of guided-unbiased 1.56e-6
- * -> 1.48e-6, against `true`'s 1.45e-6; at 10 s (two paired rounds on six scenes) within the
- * rounds' spread everywhere, the gain spread over 4000 samples a pixel.
+ * that find nothing. Measured in docs/benchmarks.md "Session 42" ("tiles"' squared error
+ * 1.71e-6 -> 1.49e-6 at 1024 spp, `true`'s 1.45e-6).
  *
  * The bound's tile mean with the beams (session 58). The mean of the estimators' means is
  * unbiased, but one estimator's firefly lifts it, and with it every other estimator's bound:
@@ -343,40 +325,31 @@
  * (P + a V) / (n0 + a)^2, whose lambda is (2 P + (a - n0) V) / (C (n0 + a)) (slope).
  *
  * Samples where they pay (session 67; settings.adaptive). With every pixel drawing every
- * sample, a tile's cost weighs against the whole image's variance (lambda above): an
- * estimator nearly noiseless at 54x a path's time (70x in the counted cost: the beams in the
- * narrow spot's dim glow, whose V C is 97x or more below delta's with the strategy in three
- * quarters of the tiles) wins no tile, because it would be drawn at every sample of every pixel
- * of its tiles. With shares, tile k's
- * pixels draw n_k samples each; at a time R = sum C_k n_k the error sum V_k / n_k is least at
- * n_k ~ sqrt(V_k / C_k) (Lagrange's multiplier), where it is (sum sqrt(V_k C_k))^2 / R: a sum
- * over the tiles, so each takes the estimator of least V C, its own (rd_select_choose_adaptive),
- * and the shares are sqrt(V / C) over the largest of the tiles' (set_shares, from the
- * figures of all the tile's samples, pooled as the rule's). The beams' squared bias does not
- * fall with a pixel's samples: at a deadline the rule weighs (sum sqrt(V C))^2 / R + sum B (the
- * variance and the squared bias of a mean of the samples to come), each tile the least of
- * (2 S / R) sqrt(V C) + B at the fixed point of S = sum sqrt(V C), then single moves. Every
- * pixel draws its first RD_SHARE_FIRST samples (the first epoch's: the pilot's choice sets no
+ * sample, a tile's cost weighs against the whole image's variance (lambda above): an estimator
+ * nearly noiseless at 70x a path's counted cost (the beams in the narrow spot's dim glow) wins no
+ * tile. With shares, tile k's pixels draw n_k samples each; at a time R = sum C_k n_k the error
+ * sum V_k / n_k is least at n_k ~ sqrt(V_k / C_k) (Lagrange's multiplier), where it is (sum
+ * sqrt(V_k C_k))^2 / R: a sum over the tiles, so each takes the estimator of least V C, its own
+ * (rd_select_choose_adaptive), and the shares are sqrt(V / C) over the largest tile's
+ * (set_shares, from the pooled figures of all the tile's samples). The beams' squared bias does
+ * not fall with a pixel's samples: at a deadline the rule weighs (sum sqrt(V C))^2 / R + sum B,
+ * each tile the least of (2 S / R) sqrt(V C) + B at the fixed point of S = sum sqrt(V C), then
+ * single moves. Every pixel draws its first RD_SHARE_FIRST samples (the pilot's choice sets no
  * share), a tile whose estimator has no samples yet every sample, every other at least
- * SEL_SHARE_MIN of them. Dark tiles (session 68): where no sample of any estimator lit a tile
- * or its 8 neighbours, its V is 0, and share 1 (session 67's) let its cheap pixels set the pace
- * of the sample index and draw most of the time (20000 samples each in hard-dense-block's black
- * background against the lit tiles' 100); the floor instead would leave a rarely lit tile (the
- * narrow spot's, whose first lit sample came after 64-1024; "Tiles no sample has lit" above) at a
- * few samples for good. Such a tile's V is Laplace's rule of succession's, M / (N + 2) a sample
- * after N samples of its estimator over the 3x3 tiles, all 0, with M the image's mean square of
- * the estimator's lit samples (set_shares): its share falls as its samples prove it dark, as
- * 1 / sqrt(N), and its pixels keep drawing; render.c draws sample i of a pixel of share s where
- * (i + 1 - RD_SHARE_FIRST) s reaches a whole number, keyed by the sample's index as before, so
- * the image does not depend on the threads. The photon passes are paced by the shares' sum over
- * the beams' pixels (rd_select_pass_pixels). Not read with shares: the samples the image holds
- * (P, n0) and a sample count's end (no bias is weighed there), and the bias's growth with a
- * tile's own samples to come (bias_figures and past_of take the image's pace, which a tile of a
- * small share does not keep). With shares the image is consistent, not unbiased: a pixel's
- * sample count follows its tile's figures, which its own samples enter (a high sample raises its
- * tile's V and so the count of the samples after it, which dilute it), and every pixel's count
- * grows with the render's (the floor), so its mean converges. The bias is not measured beyond
- * the image test's z bounds. Measured in docs/guided-marching.md "Samples where they pay". */
+ * SEL_SHARE_MIN. Dark tiles (session 68): where no sample of any estimator lit a tile or its 8
+ * neighbours, V is 0; at share 1 their cheap pixels set the pace of the sample index and took
+ * most of the time (hard-dense-block's black background), and at the floor a rarely lit tile
+ * ("Tiles no sample has lit" above) would keep a few samples for good. Their V is Laplace's rule
+ * of succession's, M / (N + 2) after N samples over the 3x3 tiles, all 0, M the image's mean
+ * square of a lit sample: the share falls as 1 / sqrt(N) and never stops. render.c draws sample
+ * i of a pixel of share s where (i + 1 - RD_SHARE_FIRST) s reaches a whole number, keyed by the
+ * index, so the image does not depend on the threads; the photon passes are paced by the
+ * shares' sum over the beams' pixels (rd_select_pass_pixels). Not read with shares: the samples
+ * the image holds (P, n0), a sample count's end, and the bias's growth with a tile's own samples
+ * to come (bias_figures and past_of take the image's pace). The image is consistent, not
+ * unbiased: a pixel's count follows its tile's figures, which its own samples enter, and every
+ * count grows with the render's, so its mean converges. Measured in docs/guided-marching.md
+ * "Samples where they pay" and "Dark tiles". */
 #include "integrators/rd_select.h"
 
 #include <math.h>
@@ -620,24 +593,16 @@ static double tile_pixels(const rd_select *sel, int tx, int ty)
 }
 
 /* The shares of the samples (rd_select.share, [m k + e]) from the figures var and cost and the
- * tiles' statistics st (all of their samples, [m k + e]): sqrt(V / C) of each tile and estimator
- * over the largest of the estimators the tiles use (choice and trial), in [SEL_SHARE_MIN, 1]
- * (see the head, "Samples where they pay"). 1 where nothing was read yet (no sample or no cost),
- * where no sample of the image is lit (nothing to weigh), and where V is 0 beside a lit sample
- * (an estimator that reads 0 where another reads light: no figure to trust). Where no sample
- * of any estimator lit the tile or its 8 neighbours (a dark tile), V is Laplace's rule of
- * succession's: after N samples of the estimator over the 3x3 tiles, all 0, a sample is lit
- * with probability 1 / (N + 2), and a lit one's square is taken as the image's mean over the
- * estimator's lit samples (or over every estimator's, where it has none): V = pixels M / (N +
- * 2) (the head, "Samples where they pay"). A dark tile's share so shrinks as its samples prove it dark, and
- * a rarely lit one keeps drawing. */
+ * tiles' statistics st (all their samples): sqrt(V / C) over the largest of the estimators the
+ * tiles use, in [SEL_SHARE_MIN, 1]; a dark tile's V by the rule of succession (the head, "Samples
+ * where they pay"); 1 where nothing was read (no sample or no cost), where no sample of the image
+ * is lit, and where V is 0 beside lit samples (the beams can read 0 where `delta` reads light). */
 static void set_shares(rd_select *sel, const rd_select_stats *st, const double *var, const double *cost)
 {
     if (!sel->share) return;
     const int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
-    /* M per estimator (and over all in slot RD_SEL_MAX): the squares of the samples, per
-     * channel the deviations from the pixels' means and the tile's mean's n mu^2 (at most the
-     * pixels' means'), over the lit samples */
+    /* M per estimator (all of them in slot RD_SEL_MAX): the samples' squares (dev2 and the tile
+     * mean's n mu^2, a lower bound of the pixels' means'), over the lit samples */
     double sq[RD_SEL_MAX + 1] = {0}, lit[RD_SEL_MAX + 1] = {0}, M[RD_SEL_MAX + 1];
     for (int k = 0; k < n; k++)
         for (int e = 0; e < m; e++) {
@@ -648,22 +613,19 @@ static void set_shares(rd_select *sel, const rd_select_stats *st, const double *
             sq[e] += q, lit[e] += t->nonzero, sq[RD_SEL_MAX] += q, lit[RD_SEL_MAX] += t->nonzero;
         }
     for (int e = 0; e <= RD_SEL_MAX; e++) M[e] = lit[e] > 0.0 ? sq[e] / lit[e] : 0.0;
-    double top = 0.0;
-    for (int k = 0; k < n; k++) {
-        int used[2] = {sel->choice[k], sel->trial[k] ? sel->trial[k] - 1 : sel->choice[k]};
+    double top = 0.0; /* the largest sqrt(V / C) of the estimators the tiles use */
+    for (int k = 0; k < n; k++)
         for (int i = 0; i < 2; i++) {
-            size_t j = (size_t)m * k + used[i];
+            size_t j = (size_t)m * k + (i && sel->trial[k] ? sel->trial[k] - 1 : sel->choice[k]);
             if (cost[j] > 0.0 && var[j] > 0.0) top = fmax(top, sqrt(var[j] / cost[j]));
         }
-    }
     for (int k = 0; k < n; k++) {
         int tx = k % nx, ty = k / nx;
         double around = 0.0, N[RD_SEL_MAX] = {0}; /* the 3x3 tiles' lit samples, and e's samples */
         for (int y = ty - 1; y <= ty + 1; y++)
-            for (int x = tx - 1; x <= tx + 1; x++) {
-                if (x < 0 || y < 0 || x >= nx || y >= ny) continue;
-                for (int e = 0; e < m; e++) around += st[m * (y * nx + x) + e].nonzero, N[e] += st[m * (y * nx + x) + e].n;
-            }
+            for (int x = tx - 1; x <= tx + 1; x++)
+                for (int e = 0; x >= 0 && y >= 0 && x < nx && y < ny && e < m; e++)
+                    around += st[m * (y * nx + x) + e].nonzero, N[e] += st[m * (y * nx + x) + e].n;
         for (int e = 0; e < m; e++) {
             size_t j = (size_t)m * k + e;
             double v = var[j], s = 1.0;
