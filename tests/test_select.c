@@ -1368,6 +1368,87 @@ Test(select, shares_of_the_samples_keep_delta_s_image, .timeout = 300)
     rd_scene_free(s);
 }
 
+/* Pixel (x, y)'s estimator under a trace line's tile (rd_select_uses from the trace). */
+static int traced_use(const cJSON *tile, int x, int y)
+{
+    int c = cJSON_GetObjectItem(tile, "choice")->valueint, trial = cJSON_GetObjectItem(tile, "trial")->valueint;
+    int hi = trial && trial - 1 > c ? trial - 1 : c, lo = trial && trial - 1 < c ? trial - 1 : c;
+    return trial ? ((x + y) & 1 ? hi : lo) : c;
+}
+
+/* With shares the film weighs each sample by its tile's weight for its estimator (select_share.c,
+ * "Weights"; render.c), and reports the sandwich estimate of the weighted mean's standard
+ * error. Over K renders (seeds) of the spot in fog of the test above (32x24 pixels, 64 spp, the
+ * beams off: every estimator unbiased), the pixels whose samples came from two estimators (of
+ * different weights; read from each render's trace) are compared with a long `delta` render:
+ * R = sum (mean - ref)^2 / sum (se^2 + se_ref^2) over those pixels should be 1, as over the
+ * pixels of one estimator. Tolerance 5 standard errors of R, estimated from the pixels
+ * themselves (the delta method: the errors are heavy-tailed, and the chi-square's
+ * sqrt(2 / pixels) is 3x too small for them); at least 200 such pixels. Seed sets 700, 800, 900
+ * and 1000 gave R = 0.85 +- 0.10, 0.98 +- 0.10, 1.02 +- 0.03 and 1.17 +- 0.28 over 643-1506
+ * pixels. The error from a weighted spread instead, (sum w^2 L^2 / W - mu^2) sum w^2 / W^2,
+ * gives R = 0.018 +- 0.013. */
+Test(select, weighted_samples_report_an_honest_standard_error, .timeout = 300)
+{
+    char json[2048];
+    snprintf(json, sizeof json, "%s",
+             rt_spot_fog_json_with(32, 24, "{\"select\":\"tiles\",\"adaptive\":true}",
+                                   "\"photons\":{\"count\":20000},\"march\":{\"equiangular\":false,\"beams\":false}"));
+    char *cut = strstr(json, "\"max\":[0.0,");
+    cr_assert(cut != NULL, "the fog's cut at x = 0 is not in the scene");
+    memcpy(cut + 7, "2.2", 3); /* (the fog over the whole frame, as above) */
+    rd_scene *s = rt_scene("selw.json", json);
+    enum { K = 24, W = 32, H = 24 };
+    rd_render_result ref = rt_render(s, "delta", 8192, 699, NULL);
+    const char *path = rt_tmp_path("selw.jsonl");
+    enum { N = K * W * H };
+    static double d2[2][N], s2[2][N]; /* per pixel and render: (mean - ref)^2 and se^2 */
+    int n[2] = {0, 0};
+    char err[RD_ERRLEN];
+    static char line[1 << 16];
+    for (int k = 0; k < K; k++) {
+        rd_render_opts o = {.method = "guided", .spp = 64, .seed = 700 + k, .threads = 2, .select_trace = path};
+        rd_render_result r;
+        cr_assert(rd_render(s, &o, &r, err, sizeof err) == RD_OK, "%s", err);
+        int used[W * H] = {0}; /* a bit per estimator a pixel drew from */
+        FILE *f = fopen(path, "r");
+        cr_assert(f, "no trace at %s", path);
+        while (fgets(line, sizeof line, f)) {
+            cJSON *j = cJSON_Parse(line);
+            cr_assert(j, "the trace's line is not JSON");
+            const cJSON *tiles = cJSON_GetObjectItem(j, "tiles");
+            for (int y = 0; y < H; y++)
+                for (int x = 0; x < W; x++) used[y * W + x] |= 1 << traced_use(cJSON_GetArrayItem(tiles, (y / 8) * 4 + x / 8), x, y);
+            cJSON_Delete(j);
+        }
+        fclose(f);
+        for (int p = 0; p < W * H; p++) {
+            const int two = (used[p] & (used[p] - 1)) != 0;
+            const double d = r.image.rgb[3 * p + 1] - ref.image.rgb[3 * p + 1];
+            const double se2 = (double)r.stderr_img.rgb[3 * p + 1] * r.stderr_img.rgb[3 * p + 1] +
+                               (double)ref.stderr_img.rgb[3 * p + 1] * ref.stderr_img.rgb[3 * p + 1];
+            if (!(se2 > 0.0) || n[two] == N) continue;
+            d2[two][n[two]] = d * d, s2[two][n[two]] = se2, n[two]++;
+        }
+        rd_render_result_free(&r);
+    }
+    double R[2], se[2];
+    for (int i = 0; i < 2; i++) { /* the ratio of sums and its standard error (the delta method) */
+        double a = 0.0, b = 0.0, v = 0.0;
+        for (int j = 0; j < n[i]; j++) a += d2[i][j], b += s2[i][j];
+        R[i] = a / b;
+        for (int j = 0; j < n[i]; j++) v += (d2[i][j] - R[i] * s2[i][j]) * (d2[i][j] - R[i] * s2[i][j]);
+        se[i] = sqrt(v) / b;
+    }
+    cr_log_info("weighted samples: (mean - ref)^2 / se^2 = %.3f +- %.3f over %d pixels of two estimators, %.3f +- %.3f over %d of one",
+                R[1], se[1], n[1], R[0], se[0], n[0]);
+    cr_assert(n[1] >= 200, "only %d pixels drew from two estimators: the test shows little", n[1]);
+    cr_expect(fabs(R[1] - 1.0) < 5.0 * se[1] && fabs(R[0] - 1.0) < 5.0 * se[0], "(mean - ref)^2 / se^2 = %.3f +- %.3f and %.3f +- %.3f",
+              R[1], se[1], R[0], se[0]);
+    rd_render_result_free(&ref);
+    rd_scene_free(s);
+}
+
 /* A small dense, bright block lit on one side by a spot and seen from the other
  * (scenes/hard-dense-block.json made small and seen closer), 32x24 pixels, settings
  * `settings`, `guided`'s beams off (march.beams: consistent, not unbiased; the test below is of
@@ -2137,7 +2218,7 @@ Test(select, a_tile_s_share_of_the_samples_is_the_root_of_its_variance_over_its_
     rd_select sel;
     char err[RD_ERRLEN];
     cr_assert(rd_select_init(&sel, 8 * NX, 8 * NY, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
-    cr_assert(rd_select_share(&sel, 3, 3) == 1.0, "without shares a pixel draws every sample");
+    cr_assert(rd_select_share(&sel, 3, 3, NULL) == 1.0, "without shares a pixel draws every sample");
     cr_assert((sel.share = malloc(2 * T * sizeof *sel.share)) != NULL);
     for (int i = 0; i < 2 * T; i++) sel.share[i] = 1.0f;
     for (int k = 0; k < T; k++) {
@@ -2145,13 +2226,13 @@ Test(select, a_tile_s_share_of_the_samples_is_the_root_of_its_variance_over_its_
         fake_pilot(&sel, 2 * k, 0.5, v, 1.0, 1.0);       /* delta */
         fake_pilot(&sel, 2 * k + 1, 0.5, 9.0, 1.0, 2.0); /* the method: more variance and cost */
     }
-    cr_assert(rd_select_share(&sel, 3, 3) == 1.0, "before the first choice a pixel draws every sample");
+    cr_assert(rd_select_share(&sel, 3, 3, NULL) == 1.0, "before the first choice a pixel draws every sample");
     rd_select_epoch(&sel, NULL, NULL); /* as the pilot's choice: it governs the samples all draw */
-    cr_assert(rd_select_share(&sel, 3, 3) == 1.0, "under the pilot's choice a pixel draws every sample");
+    cr_assert(rd_select_share(&sel, 3, 3, NULL) == 1.0, "under the pilot's choice a pixel draws every sample");
     rd_select_epoch(&sel, NULL, NULL); /* the first epoch's, with the same statistics */
     for (int k = 0; k < T; k++) cr_assert(sel.choice[k] == RD_SEL_DELTA && sel.trial[k] == 0, "tile %d: %d", k, sel.choice[k]);
     for (int ty = 0; ty < NY; ty++) {
-        const double left = rd_select_share(&sel, 1, 8 * ty + 2), right = rd_select_share(&sel, 8 * 5 + 6, 8 * ty + 5);
+        const double left = rd_select_share(&sel, 1, 8 * ty + 2, NULL), right = rd_select_share(&sel, 8 * 5 + 6, 8 * ty + 5, NULL);
         cr_assert(fabs(left - 1.0) < 1e-6, "row %d: the noisier side's share %g, not 1", ty, left);
         cr_assert(fabs(right - 0.5) < 1e-6, "row %d: the quieter side's share %g, not 1/2", ty, right);
     }
@@ -2159,8 +2240,8 @@ Test(select, a_tile_s_share_of_the_samples_is_the_root_of_its_variance_over_its_
 }
 
 /* The share of a dark tile (no sample of any estimator lit it or its 8 neighbours: its pooled
- * variance 0) by Laplace's rule of succession (select_rule.c set_shares, the head's "Dark
- * tiles"): after N samples over its 3x3 tiles, all 0, its variance a sample is M / (N + 2), M the
+ * variance 0) by Laplace's rule of succession (select_share.c, "Dark tiles"): after N samples
+ * over its 3x3 tiles, all 0, its variance a sample is M / (N + 2), M the
  * image's mean square of the estimator's lit samples, so its share shrinks as its samples prove
  * it dark and never reaches the floor at once. At share 1, session 67's rule, the cheap black
  * tiles of scenes/hard-dense-block.json drew 20000 samples a pixel where the lit ones drew 100.
@@ -2192,7 +2273,7 @@ Test(select, a_dark_tile_s_share_follows_the_rule_of_succession_and_one_with_no_
         if (round == 1) rd_select_epoch(&sel, NULL, NULL);
         for (int ty = 0; ty < NY; ty++)
             for (int tx = 0; tx < NX; tx++) {
-                const double s = rd_select_share(&sel, 8 * tx + 3, 8 * ty + 4);
+                const double s = rd_select_share(&sel, 8 * tx + 3, 8 * ty + 4, NULL);
                 if (tx == NX - 1 && ty == NY - 1) {
                     cr_assert(s == 1.0, "the tile with no samples: share %g, not 1", s);
                 } else if (tx >= 4) {
@@ -2217,6 +2298,63 @@ Test(select, a_dark_tile_s_share_follows_the_rule_of_succession_and_one_with_no_
             if (k % NX >= 3)
                 for (int h = 0; h < 2; h++) add_half(&sel, h, 2 * k, 8, 8, 0.0, 0.0, 0.0, 1.0);
     }
+    rd_select_free(&sel);
+}
+
+/* The weights of the samples (select_share.c, "Weights"), set by rd_select_set_shares from the
+ * figures it is given: a tile's first estimator weighs 1; an estimator the tile takes later
+ * weighs w_o V_o / V_e, o the tile's weighed estimator with the most image samples, V the figures
+ * then; a weight once set stays, whatever the figures do after. 2x1 tiles, three estimators, every
+ * sample lit (no floor reached). Fails with a weight that follows each call's figures (tile 0's
+ * delta after its variance doubles), with o the first weighed estimator instead of the one of
+ * the most samples (the third move), and with the trial's estimator left unweighed. */
+Test(select, a_tile_s_weights_are_set_once_per_estimator_by_the_variances_at_the_move)
+{
+    enum { T = 2, M = 3 };
+    rd_select sel;
+    char err[RD_ERRLEN];
+    cr_assert(rd_select_init(&sel, 8 * T, 8, 1.0, M, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert((sel.share = malloc(M * T * sizeof *sel.share)) != NULL);
+    cr_assert((sel.weight = calloc(M * T, sizeof *sel.weight)) != NULL);
+    rd_select_stats st[M * T];
+    memset(st, 0, sizeof st);
+    for (int i = 0; i < M * T; i++) st[i].n = st[i].nonzero = 128.0, st[i].sum[0] = st[i].sum[1] = st[i].sum[2] = 64.0;
+    double var[M * T] = {0.08, 0.002, 0.01, 0.08, 0.002, 0.01}, cost[M * T] = {1, 30, 2, 1, 30, 2};
+    double w;
+    sel.choices = 1, sel.choice[0] = 0, sel.choice[1] = 1; /* the pilot's choice */
+    rd_select_set_shares(&sel, st, var, cost);
+    rd_select_share(&sel, 2, 2, &w);
+    cr_assert(w == 1.0 && sel.weight[0] == 1.0f && sel.weight[4] == 1.0f, "a tile's first estimator weighs %g, not 1", w);
+    cr_assert(sel.weight[1] == 0.0f && sel.weight[2] == 0.0f, "an estimator the tile does not use is weighed");
+    /* an epoch: delta's variance doubles in tile 0, which keeps it: its weight stays 1 */
+    sel.choices = 2, var[0] = 0.16, st[0].image_n = 4096.0;
+    rd_select_set_shares(&sel, st, var, cost);
+    cr_assert(sel.weight[0] == 1.0f, "delta's weight moved with its figures: %g", sel.weight[0]);
+    /* tile 0 moves to the method: its weight 1 x 0.16 / 0.002 = 80 */
+    sel.choice[0] = 1;
+    rd_select_set_shares(&sel, st, var, cost);
+    rd_select_share(&sel, 2, 2, &w);
+    cr_assert(fabs(w - 80.0) < 1e-4, "the method's weight after the move: %g, not 80", w);
+    /* the method gathers more image samples than delta had; then the tile moves to the third, against
+     * the method's figures: 80 x 0.004 / 0.01 = 32 (against delta's, 1 x 0.16 / 0.01 = 16) */
+    st[1].image_n = 8192.0, var[1] = 0.004, sel.choice[0] = 2;
+    rd_select_set_shares(&sel, st, var, cost);
+    cr_assert(fabs(sel.weight[2] - 32.0) < 1e-4, "the third's weight: %g, not 32", sel.weight[2]);
+    cr_assert(sel.weight[0] == 1.0f && fabs(sel.weight[1] - 80.0) < 1e-4, "the weights set before changed");
+    /* tile 1 puts the third on trial: half its pixels draw it, at 1 x 0.002 / 0.01 = 0.2 */
+    sel.trial[1] = 1 + 2;
+    rd_select_set_shares(&sel, st, var, cost);
+    int seen[2] = {0, 0};
+    for (int y = 0; y < 8; y++)
+        for (int x = 8; x < 16; x++) {
+            const int e = rd_select_uses(&sel, x, y);
+            rd_select_share(&sel, x, y, &w);
+            cr_assert(e == 1 || e == 2, "pixel (%d, %d) of the trial uses %d", x, y, e);
+            const double want = e == 1 ? 1.0 : 0.2;
+            cr_assert(fabs(w - want) < 1e-6, "pixel (%d, %d) with estimator %d weighs %g, not %g", x, y, e, w, want);
+            seen[e - 1] = 1;
+        }
+    cr_assert(seen[0] && seen[1], "the trial's checkerboard did not hold both estimators");
     rd_select_free(&sel);
 }
 

@@ -105,12 +105,12 @@ static vec3 delta_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_s
     return rd_select_radiance(ctx, ds->sel, delta_every_flight, th, r, smp);
 }
 
-/* settings.adaptive on the tiles: the pixel's share of the samples (select_rule.c, "Samples
- * where they pay"). */
-static double delta_sample_share(const rd_render_ctx *ctx, int x, int y)
+/* settings.adaptive on the tiles: the pixel's share of the samples and their weight
+ * (select_share.c). */
+static double delta_sample_share(const rd_render_ctx *ctx, int x, int y, double *weight)
 {
     const delta_state *ds = ctx->state;
-    return ds && ds->sel && ds->sel->choice ? rd_select_share(ds->sel, x, y) : 1.0;
+    return ds && ds->sel && ds->sel->choice ? rd_select_share(ds->sel, x, y, weight) : 1.0;
 }
 
 static void delta_pixel_done(const rd_render_ctx *ctx, rd_thread *th)

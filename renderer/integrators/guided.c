@@ -150,11 +150,11 @@ static void pixel_done_guided(const rd_render_ctx *ctx, rd_thread *th)
     rd_select_pixel_done(&mst->sel, th);
 }
 
-/* settings.adaptive: the pixel's share of the samples (select_rule.c, "Samples where they pay"). */
-static double sample_share_guided(const rd_render_ctx *ctx, int x, int y)
+/* settings.adaptive: the pixel's share of the samples and their weight (select_share.c). */
+static double sample_share_guided(const rd_render_ctx *ctx, int x, int y, double *weight)
 {
     const march_state *mst = ctx->state;
-    return mst->sel.choice ? rd_select_share(&mst->sel, x, y) : 1.0;
+    return mst->sel.choice ? rd_select_share(&mst->sel, x, y, weight) : 1.0;
 }
 
 /* The epochs: the selection's (select.c: the tiles chosen again from the image's samples),

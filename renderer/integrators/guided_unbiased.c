@@ -639,11 +639,11 @@ static vec3 gu_radiance(const rd_render_ctx *ctx, rd_thread *th, ray3 r, rd_samp
     return rd_select_radiance(ctx, &st->sel, gu_path, th, r, smp);
 }
 
-/* settings.adaptive: the pixel's share of the samples (select_rule.c, "Samples where they pay"). */
-static double gu_sample_share(const rd_render_ctx *ctx, int x, int y)
+/* settings.adaptive: the pixel's share of the samples and their weight (select_share.c). */
+static double gu_sample_share(const rd_render_ctx *ctx, int x, int y, double *weight)
 {
     const gu_state *st = ctx->state;
-    return st && st->sel.choice ? rd_select_share(&st->sel, x, y) : 1.0;
+    return st && st->sel.choice ? rd_select_share(&st->sel, x, y, weight) : 1.0;
 }
 
 static void gu_pixel_done(const rd_render_ctx *ctx, rd_thread *th)

@@ -84,8 +84,9 @@ typedef vec3 (*rd_select_delta_fn)(const rd_render_ctx *ctx, rd_thread *th, ray3
                                    int equiangular);
 
 typedef struct {
-    float *share;            /* settings.adaptive: [n k + e], tile k's share of the samples with e
-                                (rd_select_share); NULL: every pixel draws every sample */
+    float *share, *weight;   /* settings.adaptive: [n k + e], tile k's share of the samples with e and
+                                their weight (0: none yet; select_share.c); NULL: every pixel draws
+                                every sample, each of weight 1 */
     uint8_t *choice;         /* per tile, the estimator that renders it (0 .. n-1, of kind kind[e]);
                                 NULL: the method everywhere (selection off, or not run) */
     uint8_t *trial;          /* per tile, 0, or 1 + the estimator on trial against the choice:
@@ -111,9 +112,9 @@ typedef struct {
                                 cell_cost, the method's) */
     int pass_kind;           /* the kind whose samples consume the progressive photon passes:
                                 RD_SEL_BEAMS where there is one, else RD_SEL_METHOD */
-    double method_pass_cost; /* per camera sample of pass_kind (the method's, or the beams'), its share of the progressive
-                                photon passes, which no thread's counters see, in density
-                                lookups (RD_SELECT_PASSES); 0: none */
+    double method_pass_cost; /* per camera sample of pass_kind (the method's, or the beams'), its
+                                share of the progressive photon passes, which no thread's counters
+                                see, in density lookups (RD_SELECT_PASSES); 0: none */
     rd_select_stats *stats;  /* per half h of the samples (select_rule.c, "Replication"), tile k
                                 and estimator e, [n (tiles h + k) + e], tiles = tiles_x
                                 tiles_y: a tile's samples are the sum of its two halves' */
@@ -143,9 +144,9 @@ typedef struct {
 /* The estimator (0 .. n-1) the selection gives pixel (x, y): its tile's choice, or on a tile on
  * trial, the pixel's square of the checkerboard. */
 int rd_select_uses(const rd_select *sel, int x, int y);
-/* Pixel (x, y)'s share of the samples past the first RD_SHARE_FIRST (rd_method.sample_share):
- * its tile's for the estimator it uses, 1 without shares or before the pilot's choice. */
-double rd_select_share(const rd_select *sel, int x, int y);
+/* Pixel (x, y)'s share of the samples past the first RD_SHARE_FIRST (rd_method.sample_share), its
+ * tile's for the estimator it uses (1 before the first epoch), and in *weight (unless NULL) theirs. */
+double rd_select_share(const rd_select *sel, int x, int y, double *weight);
 /* Where the render asked for a trace (sel->trace_path), add the line of the choice just made,
  * which governs the samples from `from` on, and write the file again whole (select_trace.c): for every
  * tile, row by row, its estimator, its trial (0, or 1 + the estimator on trial) and, per
@@ -178,12 +179,11 @@ rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost
 /* Run the pilot and make the first choice: on random numbers of its own, the variance and cost
  * per sample of `method` and of delta's path in every tile (and of delta's path with the
  * equiangular strategy on every flight, where the method asks for it, options with
- * RD_SELECT_THIRD
- * (`guided`: where its marcher samples with the strategy, march.equiangular not off;
- * `guided-unbiased`: always since session 39; `delta`'s "tiles": never), settings.equiangular is not RD_EQ_ALL, and the scene has a
- * point or spot light, or a directional beam that delta's path does not connect to, to
- * sample); keeps the choices
- * that give the image the least error at equal time. The cost is counted work (select.c):
+ * RD_SELECT_THIRD (`guided`: where its marcher samples with the strategy, march.equiangular not
+ * off; `guided-unbiased`: always since session 39; `delta`'s "tiles": never),
+ * settings.equiangular is not RD_EQ_ALL, and the scene has a point or spot light, or a
+ * directional beam that delta's path does not connect to, to sample); keeps the choices that
+ * give the image the least error at equal time. The cost is counted work (select.c):
  * `cell_cost` is what one of the method's PDF segments (rd_thread.cells) costs, in density
  * lookups, fitted on the calibration scenes. delta's path is `delta` where the method gives
  * one (its probes), else rd_delta_radiance_eq. Call at the end of the method's prepare
@@ -212,8 +212,9 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
  * own path with the strategy on every flight (`delta`'s "tiles": one of delta's paths,
  * rd_select.paths); the samples of rd_select.pass_kind (the beams estimator where there is
  * one, else the method) consume the progressive photon passes (a pass serves photons.pass_spp x
- * the image's pixels of them): each adds its share of pass 1's work to its cost (rd_select.method_pass_cost: ctx's pass_emitted, pass_collisions and pass_indexed, at
- * the weights below; select.c, "The photon passes"); with RD_SELECT_PASSES_ORDERED too, the
+ * the image's pixels of them): each adds its share of pass 1's work to its cost
+ * (rd_select.method_pass_cost: ctx's pass_emitted, pass_collisions and pass_indexed, at the
+ * weights below; select.c, "The photon passes"); with RD_SELECT_PASSES_ORDERED too, the
  * passes after the first put their photons in spatial order without a kd-tree (RD_PASS_NO_INDEX:
  * nee+beams), and a photon counts RD_SELECT_COST_ORDERED instead of RD_SELECT_COST_INDEXED
  * (pass_indexed at most pass_emitted where those passes are thinned: render.c, RD_PASS_THIN).
@@ -228,19 +229,17 @@ enum { RD_SELECT_THIRD = 1, RD_SELECT_METHOD_IS_PATH = 2, RD_SELECT_PASSES = 4, 
 #define RD_SELECT_COST_INDEXED 2.75
 #define RD_SELECT_COST_ORDERED 1.82
 void rd_select_free(rd_select *sel);
-/* The camera sample of `th->pixel` (column th->x, row th->y): `method` where the selection
- * gives it the pixel's tile, the method's second estimator or the beams where it gives it those
- * (rd_select.path, rd_select.beams; counted in th->path_samples, th->beams_samples), else delta's path in the estimator's equiangular mode (counted in th->delta_samples, and
- * th->delta_eq_samples for RD_SEL_DELTA_EQ). The sample is recorded
- * for the next epoch (rd_select_pixel_done): sel is written at th->pixel only, which one
- * thread renders at a time, in sample order. */
+/* The camera sample of `th->pixel` (column th->x, row th->y): the estimator the selection gives
+ * the pixel: `method`, the method's second estimator or the beams (rd_select.path, .beams;
+ * counted in th->path_samples, th->beams_samples), or delta's path in the estimator's equiangular
+ * mode (th->delta_samples, and th->delta_eq_samples for RD_SEL_DELTA_EQ). Recorded for the next
+ * epoch (rd_select_pixel_done): sel is written at th->pixel only, by one thread, in sample order. */
 vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn method,
                         rd_thread *th, ray3 r, rd_sampler *smp);
 /* After th's samples of one pixel in a pass (rd_method.pixel_done): what rd_select_radiance
  * gathered over them, with their counted cost (th's work counters' change since the first of
- * them), goes into the pixel's record for the next epoch. Without it, the thread's next pixel
- * or the next epoch writes it, reading th's counters then: th must live, its counters not
- * reset, until one of them does. */
+ * them), goes into the pixel's record for the next epoch. Without it, the thread's next pixel or
+ * the next epoch writes it, reading th's counters then: th must live, unreset, until then. */
 void rd_select_pixel_done(rd_select *sel, const rd_thread *th);
 /* Record one sample L of `pixel`, with its counted cost (in lookups; kept in whole units of
  * 1/RD_SELECT_COST_UNIT), for the next epoch. */
@@ -252,16 +251,14 @@ void rd_select_observe(rd_select *sel, uint64_t pixel, vec3 L, double cost);
  * (rd_render_ctx.epoch_ahead and epoch_left; NULL or both 0: no end known, and the rule weighs
  * the samples to come alone: select_rule.c). */
 int rd_select_epoch_next(const rd_select *sel, int sample);
-/* With comm (several ranks, each with the samples of the pixels it renders and zeros
- * elsewhere), the pixels' samples are first summed over the ranks (exactly: one rank holds each
- * pixel's), so every rank folds the same statistics and makes the same choice as one process.
- * Collective then: every rank calls it at the same epoch. comm NULL: this process alone. */
+/* With comm (several ranks, each with the samples of the pixels it renders and zeros elsewhere),
+ * the pixels' samples are first summed over the ranks (exactly: one rank holds each pixel's), so
+ * every rank makes the same choice as one process: collective, at the same epoch on every rank. */
 void rd_select_epoch(rd_select *sel, const rd_comm *comm, const rd_select_end *end);
-/* The trial (see select_rule.c, "Evidence of unequal size"): a tile's choice moves to another
- * estimator at once only when that estimator's samples in the tile are at least
- * 1 / RD_SELECT_TRIAL_RATIO of the current one's and the tile's two halves agree on it, or when
- * it leaves the beams while the image reads their bias (select_rule.c, "Off the biased beams at
- * once"); else the tile goes on trial for one epoch first. */
+/* The trial (select_rule.c, "Evidence of unequal size"): a tile moves to another estimator at
+ * once only when that one's samples in the tile are at least 1 / RD_SELECT_TRIAL_RATIO of the
+ * current one's and the tile's halves agree on it, or when it leaves the beams while the image
+ * reads their bias ("Off the biased beams at once"); else it goes on trial for one epoch first. */
 #define RD_SELECT_TRIAL_RATIO 4
 
 /* The image's samples so far, for the rule (select_rule.c, "The samples the image holds"): P,
@@ -284,12 +281,15 @@ typedef struct {
  * which only a known end weighs; choice[k] the estimator of tile k. */
 void rd_select_choose(const double *var, const double *cost, const double *bias, int n, int m, const rd_select_past *past,
                       uint8_t *choice);
-/* With shares of the samples (settings.adaptive; select_rule.c, "Samples where they pay"): the
+/* With shares of the samples (settings.adaptive; select_share.c, "Samples where they pay"): the
  * choices that minimise (sum sqrt(V C))^2, at a deadline (past->R > 0, no left) (sum sqrt(V
  * C))^2 / R + sum B; the arguments as rd_select_choose's (not its P, n0, T0, left or w). */
 void rd_select_choose_adaptive(const double *var, const double *cost, const double *bias, int n, int m,
                                const rd_select_past *past, uint8_t *choice);
-
+/* After a choice, the shares and weights (select_share.c) from statistics st (all the tiles'
+ * samples) and the rule's pooled figures; nothing without shares. A tile's pixels: at most 64. */
+void rd_select_set_shares(rd_select *sel, const rd_select_stats *st, const double *var, const double *cost);
+double rd_select_tile_pixels(const rd_select *sel, int tx, int ty);
 
 /* Every tile's estimator (sel->choice, sel->trial, and sel->unlit at the first call) from the
  * statistics of its two halves so far, sel->stats (select_rule.c): at the pilot's end (end

@@ -459,8 +459,8 @@ static void beams_pilot_fold(rd_select *sel, int b, int clear)
 /* Which tiles the beams (estimator b) contend for after their pilot's first stage: the rule on
  * the statistics so far gives them the tile or puts them on trial there, or in one of its 3x3
  * neighbours (the figures' pooling); contend[k] 1 for those. The selection's choices, trials,
- * statistics, unlit estimator and bias figures are as before the call (its shares are the dry
- * run's, read from the first epoch's choice on, which sets them anew: rd_select_share). Out of memory (here or in the rule,
+ * statistics, unlit estimator and bias figures are as before the call, and no weight set (its
+ * shares are the dry run's, read from the first epoch's choice on, which sets them anew). Out of memory (here or in the rule,
  * which then leaves unlit unset): every tile contends. */
 static void beams_contend(rd_select *sel, int b, uint8_t *contend)
 {
@@ -490,6 +490,7 @@ static void beams_contend(rd_select *sel, int b, uint8_t *contend)
     }
     memcpy(sel->stats, keep, bytes);
     memcpy(sel->choice, choice, (size_t)n), memcpy(sel->trial, choice + n, (size_t)n);
+    if (sel->weight) memset(sel->weight, 0, (size_t)sel->n * n * sizeof *sel->weight); /* (the dry run's) */
     sel->unlit = unlit;
     sel->bias_ratio = bias[0], sel->bias_se = bias[1], sel->bias_r2 = bias[2];
     free(keep), free(choice);
@@ -578,10 +579,11 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
         return RD_ERR_NOMEM;
     }
     if (!third) sel->paths = 1u << RD_SEL_DELTA;
-    /* settings.adaptive, where the epochs choose again: every share 1 until they set them */
+    /* settings.adaptive, where the epochs choose again: every share 1 until they set them, no
+     * weight until the choices set them (select_share.c) */
     if (s->settings.adaptive && s->settings.select != RD_SELECT_PILOT) {
         size_t ns = (size_t)sel->n * sel->tiles_x * sel->tiles_y;
-        if (!(sel->share = malloc(ns * sizeof *sel->share))) {
+        if (!(sel->share = malloc(ns * sizeof *sel->share)) || !(sel->weight = calloc(ns, sizeof *sel->weight))) {
             rd_select_free(sel);
             snprintf(err, errlen, "out of memory for the tile selection's shares (%dx%d pixels)", cam->width, cam->height);
             return RD_ERR_NOMEM;
@@ -633,7 +635,7 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
 void rd_select_free(rd_select *sel)
 {
     free(sel->choice);
-    free(sel->share);
+    free(sel->share), free(sel->weight);
     free(sel->trial);
     free(sel->stats);
     free(sel->pixels);
@@ -643,13 +645,14 @@ void rd_select_free(rd_select *sel)
     memset(sel, 0, sizeof *sel);
 }
 
-double rd_select_share(const rd_select *sel, int x, int y)
+double rd_select_share(const rd_select *sel, int x, int y, double *weight)
 {
     /* (the pilot's choice governs samples 0 .. RD_SHARE_FIRST - 1, which every pixel draws) */
     _Static_assert(RD_SHARE_FIRST == SEL_EPOCH_FIRST, "the shares begin at the first epoch");
-    if (!sel->share || sel->choices < 2) return 1.0;
     int k = (y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE;
-    return sel->share[sel->n * k + rd_select_uses(sel, x, y)];
+    const size_t j = (size_t)sel->n * k + (sel->choice ? rd_select_uses(sel, x, y) : 0);
+    if (weight) *weight = sel->weight && sel->choices > 0 && sel->weight[j] > 0.0f ? sel->weight[j] : 1.0;
+    return sel->share && sel->choices >= 2 ? sel->share[j] : 1.0;
 }
 
 int rd_select_uses(const rd_select *sel, int x, int y)
@@ -668,7 +671,7 @@ uint64_t rd_select_pass_pixels(const rd_select *sel, uint64_t all)
     double n = 0.0;
     for (int y = 0; y < sel->height; y++)
         for (int x = 0; x < sel->width; x++)
-            if (sel->kind[rd_select_uses(sel, x, y)] == sel->pass_kind) n += rd_select_share(sel, x, y);
+            if (sel->kind[rd_select_uses(sel, x, y)] == sel->pass_kind) n += rd_select_share(sel, x, y, NULL);
     return (uint64_t)ceil(n);
 }
 

@@ -324,32 +324,7 @@
  * made until none does (rd_select_choose). With the image's samples (above) the same holds for
  * (P + a V) / (n0 + a)^2, whose lambda is (2 P + (a - n0) V) / (C (n0 + a)) (slope).
  *
- * Samples where they pay (session 67; settings.adaptive). With every pixel drawing every
- * sample, a tile's cost weighs against the whole image's variance (lambda above): an estimator
- * nearly noiseless at 70x a path's counted cost (the beams in the narrow spot's dim glow) wins no
- * tile. With shares, tile k's pixels draw n_k samples each; at a time R = sum C_k n_k the error
- * sum V_k / n_k is least at n_k ~ sqrt(V_k / C_k) (Lagrange's multiplier), where it is (sum
- * sqrt(V_k C_k))^2 / R: a sum over the tiles, so each takes the estimator of least V C, its own
- * (rd_select_choose_adaptive), and the shares are sqrt(V / C) over the largest tile's
- * (set_shares, from the pooled figures of all the tile's samples). The beams' squared bias does
- * not fall with a pixel's samples: at a deadline the rule weighs (sum sqrt(V C))^2 / R + sum B,
- * each tile the least of (2 S / R) sqrt(V C) + B at the fixed point of S = sum sqrt(V C), then
- * single moves. Every pixel draws its first RD_SHARE_FIRST samples (the pilot's choice sets no
- * share), a tile whose estimator has no samples yet every sample, every other at least
- * SEL_SHARE_MIN. Dark tiles (session 68): where no sample of any estimator lit a tile or its 8
- * neighbours, V is 0; at share 1 their cheap pixels set the pace of the sample index and took
- * most of the time (hard-dense-block's black background), and at the floor a rarely lit tile
- * ("Tiles no sample has lit" above) would keep a few samples for good. Their V is Laplace's rule
- * of succession's, M / (N + 2) after N samples over the 3x3 tiles, all 0, M the image's mean
- * square of a lit sample: the share falls as 1 / sqrt(N) and never stops. render.c draws sample
- * i of a pixel of share s where (i + 1 - RD_SHARE_FIRST) s reaches a whole number, keyed by the
- * index, so the image does not depend on the threads; the photon passes are paced by the
- * shares' sum over the beams' pixels (rd_select_pass_pixels). Not read with shares: the samples
- * the image holds (P, n0), a sample count's end, and the bias's growth with a tile's own samples
- * to come (bias_figures and past_of take the image's pace). The image is consistent, not
- * unbiased: a pixel's count follows its tile's figures, which its own samples enter, and every
- * count grows with the render's, so its mean converges. Measured in docs/guided-marching.md
- * "Samples where they pay" and "Dark tiles". */
+ * The shares of the samples and their weights (settings.adaptive): select_share.c. */
 #include "integrators/rd_select.h"
 
 #include <math.h>
@@ -362,7 +337,6 @@
 #define SEL_LAG_SIGMA 3.0 /* standard errors of the two means taken off a lag: its noise */
 #define SEL_BIAS_SIGMA 3.0 /* standard errors taken off the beams' squared bias ratio: its noise */
 #define SEL_BIAS_TILES 8.0 /* tiles at least with the beams' products: a standard error of fewer is noise */
-#define SEL_SHARE_MIN (1.0 / 4096.0) /* the least share: its samples grow with the render's */
 
 /* Channel c of a tile's mean, from its m statistics tile[0 .. m-1]: estimator centre's mean
  * where centre >= 0 has samples (the beams: see the head, "The bound's tile mean with the
@@ -585,59 +559,6 @@ static void pool(double *a, double *tmp, int nx, int ny, int m)
         }
 }
 
-/* The pixels of tile (tx, ty): RD_SELECT_TILE^2, fewer at the image's right and bottom edges. */
-static double tile_pixels(const rd_select *sel, int tx, int ty)
-{
-    int w = sel->width - tx * RD_SELECT_TILE, h = sel->height - ty * RD_SELECT_TILE;
-    return (double)(w < RD_SELECT_TILE ? w : RD_SELECT_TILE) * (h < RD_SELECT_TILE ? h : RD_SELECT_TILE);
-}
-
-/* The shares of the samples (rd_select.share, [m k + e]) from the figures var and cost and the
- * tiles' statistics st (all their samples): sqrt(V / C) over the largest of the estimators the
- * tiles use, in [SEL_SHARE_MIN, 1]; a dark tile's V by the rule of succession (the head, "Samples
- * where they pay"); 1 where nothing was read (no sample or no cost), where no sample of the image
- * is lit, and where V is 0 beside lit samples (the beams can read 0 where `delta` reads light). */
-static void set_shares(rd_select *sel, const rd_select_stats *st, const double *var, const double *cost)
-{
-    if (!sel->share) return;
-    const int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
-    /* M per estimator (all of them in slot RD_SEL_MAX): the samples' squares (dev2 and the tile
-     * mean's n mu^2, a lower bound of the pixels' means'), over the lit samples */
-    double sq[RD_SEL_MAX + 1] = {0}, lit[RD_SEL_MAX + 1] = {0}, M[RD_SEL_MAX + 1];
-    for (int k = 0; k < n; k++)
-        for (int e = 0; e < m; e++) {
-            const rd_select_stats *t = &st[m * k + e];
-            if (!(t->nonzero > 0.0)) continue;
-            double q = 0.0;
-            for (int c = 0; c < 3; c++) q += (t->dev2[c] + t->sum[c] * t->sum[c] / t->n) / 3.0;
-            sq[e] += q, lit[e] += t->nonzero, sq[RD_SEL_MAX] += q, lit[RD_SEL_MAX] += t->nonzero;
-        }
-    for (int e = 0; e <= RD_SEL_MAX; e++) M[e] = lit[e] > 0.0 ? sq[e] / lit[e] : 0.0;
-    double top = 0.0; /* the largest sqrt(V / C) of the estimators the tiles use */
-    for (int k = 0; k < n; k++)
-        for (int i = 0; i < 2; i++) {
-            size_t j = (size_t)m * k + (i && sel->trial[k] ? sel->trial[k] - 1 : sel->choice[k]);
-            if (cost[j] > 0.0 && var[j] > 0.0) top = fmax(top, sqrt(var[j] / cost[j]));
-        }
-    for (int k = 0; k < n; k++) {
-        int tx = k % nx, ty = k / nx;
-        double around = 0.0, N[RD_SEL_MAX] = {0}; /* the 3x3 tiles' lit samples, and e's samples */
-        for (int y = ty - 1; y <= ty + 1; y++)
-            for (int x = tx - 1; x <= tx + 1; x++)
-                for (int e = 0; x >= 0 && y >= 0 && x < nx && y < ny && e < m; e++)
-                    around += st[m * (y * nx + x) + e].nonzero, N[e] += st[m * (y * nx + x) + e].n;
-        for (int e = 0; e < m; e++) {
-            size_t j = (size_t)m * k + e;
-            double v = var[j], s = 1.0;
-            if (!(v > 0.0) && !(around > 0.0)) /* a dark tile: the rule of succession */
-                v = tile_pixels(sel, tx, ty) * (M[e] > 0.0 ? M[e] : M[RD_SEL_MAX]) / (N[e] + 2.0);
-            if (cost[j] > 0.0 && st[j].n > 0.0 && v > 0.0 && top > 0.0)
-                s = fmin(1.0, fmax(SEL_SHARE_MIN, sqrt(v / cost[j]) / top));
-            sel->share[j] = (float)s;
-        }
-    }
-}
-
 /* The squared standard error of channel c of the mean of statistics st (0 without a deviation). */
 static double mean_se2(const rd_select_stats *st, int c)
 {
@@ -657,7 +578,7 @@ static void lag_floor(const rd_select *sel, const rd_select_stats *st, int centr
     int nx = sel->tiles_x, ny = sel->tiles_y, m = sel->n;
     for (int k = 0; k < nx * ny; k++) {
         int tx = k % nx, ty = k / nx;
-        const double pixels = tile_pixels(sel, tx, ty);
+        const double pixels = rd_select_tile_pixels(sel, tx, ty);
         for (int e = 0; e < m; e++) {
             if (e == centre) continue;
             double samples = 0.0, tiles = 0.0, me[3] = {0}, mc[3] = {0}, se2[3] = {0};
@@ -697,7 +618,7 @@ static int past_of(const rd_select *sel, const rd_select_stats *all, const doubl
     int nx = sel->tiles_x, n = nx * sel->tiles_y, m = sel->n;
     double P = 0.0, held = 0.0, T0 = 0.0;
     for (int k = 0; k < n; k++) {
-        const double pixels = tile_pixels(sel, k % nx, k / nx);
+        const double pixels = rd_select_tile_pixels(sel, k % nx, k / nx);
         for (int j = 0; j < m; j++) {
             const rd_select_stats *s = &all[m * k + j];
             P += s->image_n * var[m * k + j] / pixels, held += s->image_n, T0 += s->image_cost;
@@ -725,7 +646,7 @@ static void figures(const rd_select *sel, const rd_select_stats *st, const doubl
     int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
     for (int k = 0; k < n; k++) {
         int tx = k % nx, ty = k / nx;
-        const double pixels = tile_pixels(sel, tx, ty);
+        const double pixels = rd_select_tile_pixels(sel, tx, ty);
         /* The hits the tile's estimators saw, and those the image's fractions expect of them */
         double z = 0.0, x = 0.0;
         for (int e = 0; e < m; e++) z += st[m * k + e].nonzero, x += st[m * k + e].n * pbar[e];
@@ -992,9 +913,9 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
                                                  the pixels try w for an epoch */
         }
     }
-    if (sel->share) { /* the shares of the samples from all the tile's samples (the head, "Samples where they pay") */
+    if (sel->share) { /* the shares of the samples and their weights, from all the tile's samples (select_share.c) */
         figures(sel, all, pbar, NULL, var, cost, tmp);
-        set_shares(sel, all, var, cost);
+        rd_select_set_shares(sel, all, var, cost);
     }
     free(all), free(buf), free(want);
 }

@@ -9,7 +9,10 @@
  *
  * The film keeps, per pixel and channel, the sum and the sum of squares of the samples and, per
  * pixel, their count: the image is the mean, and the render reports each pixel's standard error
- * (docs/cli.md). A time limit or Ctrl-C is checked before every pixel, so a render stops within
+ * (docs/cli.md). Where the method weighs its samples (rd_method.sample_share's weight w; with
+ * settings.adaptive, integrators/select_share.c "Weights"), the sums are of w L and w^2 L^2, with
+ * per pixel the sums of w and w^2 and per channel of w^2 L: the image is the weighted mean
+ * mu = sum w L / sum w, its standard error the sandwich estimate (film_resolve). A time limit or Ctrl-C is checked before every pixel, so a render stops within
  * one pixel's work of the budget; pixels then differ in count by at most one pass, which the
  * per-pixel count accounts for.
  *
@@ -74,8 +77,10 @@ static double now_seconds(const rclock *c)
 /* ---- Film ---------------------------------------------------------------------------------- */
 typedef struct {
     int w, h;
-    double *sum, *sum2; /* 3 per pixel */
+    double *sum, *sum2; /* 3 per pixel: of w L and w^2 L^2 (w = 1 without weights) */
     uint32_t *n;        /* samples per pixel */
+    double *wl;         /* with weights, 3 per pixel: sum w^2 L; else NULL */
+    double *wsum, *wsum2; /* with weights, per pixel: sum w, sum w^2; else NULL */
 } film;
 
 /* Frees the arrays and leaves the film empty, so a second call (film_alloc failed and freed,
@@ -85,11 +90,13 @@ static void film_free(film *f)
     free(f->sum);
     free(f->sum2);
     free(f->n);
-    f->sum = f->sum2 = NULL;
+    free(f->wl), free(f->wsum), free(f->wsum2);
+    f->sum = f->sum2 = f->wl = f->wsum = f->wsum2 = NULL;
     f->n = NULL;
 }
 
-static int film_alloc(film *f, int w, int h)
+/* A w x h film of zeros, with the weights' sums where `weighted`; 0 (and none) out of memory. */
+static int film_alloc(film *f, int w, int h, int weighted)
 {
     size_t np = (size_t)w * h;
     f->w = w;
@@ -97,7 +104,12 @@ static int film_alloc(film *f, int w, int h)
     f->sum = rd_alloc_lines(np * 3 * sizeof *f->sum);
     f->sum2 = rd_alloc_lines(np * 3 * sizeof *f->sum2);
     f->n = rd_alloc_lines(np * sizeof *f->n);
-    if (f->sum && f->sum2 && f->n) return 1;
+    if (weighted) {
+        f->wl = rd_alloc_lines(np * 3 * sizeof *f->wl);
+        f->wsum = rd_alloc_lines(np * sizeof *f->wsum);
+        f->wsum2 = rd_alloc_lines(np * sizeof *f->wsum2);
+    }
+    if (f->sum && f->sum2 && f->n && (!weighted || (f->wl && f->wsum && f->wsum2))) return 1;
     film_free(f);
     return 0;
 }
@@ -114,7 +126,7 @@ static void film_sq_err(const film *f, const rd_image *ref, double acc[3])
         total += f->n[p];
         if (!f->n[p]) continue;
         for (int c = 0; c < 3; c++) {
-            double e = f->sum[3 * p + c] / f->n[p] - ref->rgb[3 * p + c];
+            double e = f->sum[3 * p + c] / (f->wsum ? f->wsum[p] : f->n[p]) - ref->rgb[3 * p + c];
             se += e * e;
         }
         m += 3;
@@ -124,7 +136,10 @@ static void film_sq_err(const film *f, const rd_image *ref, double acc[3])
     acc[2] += (double)total;
 }
 
-/* The mean and its standard error: se = sqrt(s^2 / n), s^2 = (sum2 - sum^2 / n) / (n - 1). */
+/* The mean and its standard error: se = sqrt(s^2 / n), s^2 = (sum2 - sum^2 / n) / (n - 1).
+ * With weights, mu = sum w L / W and the sandwich estimate (the weights taken as given)
+ * se^2 = n / (n - 1) sum w^2 (L - mu)^2 / W^2 = n / (n - 1) (sum w^2 L^2 - 2 mu sum w^2 L +
+ * mu^2 sum w^2) / W^2, W = sum w: the formula above where every w is 1. */
 static void film_resolve(const film *f, float *mean, float *stderr_rgb)
 {
     size_t np = (size_t)f->w * f->h;
@@ -132,10 +147,17 @@ static void film_resolve(const film *f, float *mean, float *stderr_rgb)
         double n = f->n[p];
         for (int c = 0; c < 3; c++) {
             size_t i = 3 * p + c;
-            double mu = n > 0 ? f->sum[i] / n : 0.0;
-            double var = n > 1 ? fmax(0.0, (f->sum2[i] - f->sum[i] * mu) / (n - 1.0)) : 0.0;
+            double mu, var;
+            if (f->wsum) {
+                double W = f->wsum[p];
+                mu = n > 0 ? f->sum[i] / W : 0.0;
+                var = n > 1 ? fmax(0.0, f->sum2[i] - 2.0 * mu * f->wl[i] + mu * mu * f->wsum2[p]) / (W * W) * n / (n - 1.0) : 0.0;
+            } else {
+                mu = n > 0 ? f->sum[i] / n : 0.0;
+                var = n > 1 ? fmax(0.0, (f->sum2[i] - f->sum[i] * mu) / (n - 1.0)) / n : 0.0;
+            }
             mean[i] = (float)mu;
-            stderr_rgb[i] = (float)(n > 1 ? sqrt(var / n) : 0.0);
+            stderr_rgb[i] = (float)sqrt(var);
         }
     }
 }
@@ -178,8 +200,11 @@ static int render_pass(const rd_render_ctx *ctx, rd_thread *th, film *f, int s0,
                 uint32_t count = f->n[pix];
                 /* The pixel's share of the samples past the first few (rd_method.sample_share):
                  * sample i is drawn where (i + 1 - F) share reaches a whole number, so any run
-                 * of k indices draws k share of them, give or take one. */
-                const double share = m->sample_share ? m->sample_share(ctx, x, y) : 1.0;
+                 * of k indices draws k share of them, give or take one; and their weight. */
+                double w = 1.0;
+                const double share = m->sample_share ? m->sample_share(ctx, x, y, &w) : 1.0;
+                const double w2 = w * w;
+                double wl[3] = {0.0, 0.0, 0.0}, W = 0.0, W2 = 0.0; /* (with weights: added after) */
                 int drew = 0;
                 for (int i = s0; i < s1; i++) {
                     if (share < 1.0 && i >= RD_SHARE_FIRST &&
@@ -194,14 +219,19 @@ static int render_pass(const rd_render_ctx *ctx, rd_thread *th, film *f, int s0,
                     vec3 L = m->radiance(ctx, t, r, &smp);
                     /* A non-finite sample would poison the pixel: drop and count it. */
                     if (!v3_finite(L)) { bad++; continue; }
-                    acc[0] += L.x; acc[1] += L.y; acc[2] += L.z;
-                    acc2[0] += L.x * L.x; acc2[1] += L.y * L.y; acc2[2] += L.z * L.z;
+                    acc[0] += w * L.x; acc[1] += w * L.y; acc[2] += w * L.z; /* (w = 1: the sums exactly) */
+                    acc2[0] += w2 * L.x * L.x; acc2[1] += w2 * L.y * L.y; acc2[2] += w2 * L.z * L.z;
+                    wl[0] += w2 * L.x, wl[1] += w2 * L.y, wl[2] += w2 * L.z, W += w, W2 += w2;
                     count++;
                 }
                 if (m->pixel_done && drew) m->pixel_done(ctx, t); /* (none drawn: nothing to write) */
                 memcpy(&f->sum[3 * pix], acc, sizeof acc);
                 memcpy(&f->sum2[3 * pix], acc2, sizeof acc2);
                 f->n[pix] = count;
+                if (f->wsum) {
+                    for (int c = 0; c < 3; c++) f->wl[3 * pix + c] += wl[c];
+                    f->wsum[pix] += W, f->wsum2[pix] += W2;
+                }
             }
     }
     *invalid += bad;
@@ -384,7 +414,8 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
     /* Per-thread contexts with the method's scratch, and the film. */
     rd_thread *th = rd_threads_new(&ctx, ctx.threads);
     film f = {0};
-    int ok = th && film_alloc(&f, w, h);
+    /* (the weights' sums where the method may weigh its samples: rd_method.sample_share) */
+    int ok = th && film_alloc(&f, w, h, m->sample_share && ctx.scene->settings.adaptive);
     size_t npix = (size_t)w * h;
     if (ok) {
         res->image.rgb = malloc(npix * 3 * sizeof(float));
@@ -502,6 +533,11 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         comm->reduce(comm->user, f.sum, 3 * npix, RD_COMM_DOUBLE, RD_COMM_SUM, 0);
         comm->reduce(comm->user, f.sum2, 3 * npix, RD_COMM_DOUBLE, RD_COMM_SUM, 0);
         comm->reduce(comm->user, f.n, npix, RD_COMM_UINT32, RD_COMM_SUM, 0);
+        if (f.wsum) {
+            comm->reduce(comm->user, f.wl, 3 * npix, RD_COMM_DOUBLE, RD_COMM_SUM, 0);
+            comm->reduce(comm->user, f.wsum, npix, RD_COMM_DOUBLE, RD_COMM_SUM, 0);
+            comm->reduce(comm->user, f.wsum2, npix, RD_COMM_DOUBLE, RD_COMM_SUM, 0);
+        }
     }
     film_resolve(&f, res->image.rgb, res->stderr_img.rgb);
     res->image.w = res->stderr_img.w = w;
