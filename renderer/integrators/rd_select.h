@@ -84,9 +84,9 @@ typedef vec3 (*rd_select_delta_fn)(const rd_render_ctx *ctx, rd_thread *th, ray3
                                    int equiangular);
 
 typedef struct {
-    float *share, *weight;   /* settings.adaptive: [n k + e], tile k's share of the samples with e and
-                                their weight (0: none yet; select_share.c); NULL: every pixel draws
-                                every sample, each of weight 1 */
+    float *share;            /* settings.adaptive: [n k + e], tile k's share of the samples with e */
+    double *weight;          /* and their weight (0: none yet; select_share.c); both NULL: every
+                                pixel draws every sample, each of weight 1 */
     uint8_t *choice;         /* per tile, the estimator that renders it (0 .. n-1, of kind kind[e]);
                                 NULL: the method everywhere (selection off, or not run) */
     uint8_t *trial;          /* per tile, 0, or 1 + the estimator on trial against the choice:

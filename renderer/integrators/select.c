@@ -651,7 +651,7 @@ double rd_select_share(const rd_select *sel, int x, int y, double *weight)
     _Static_assert(RD_SHARE_FIRST == SEL_EPOCH_FIRST, "the shares begin at the first epoch");
     int k = (y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE;
     const size_t j = (size_t)sel->n * k + (sel->choice ? rd_select_uses(sel, x, y) : 0);
-    if (weight) *weight = sel->weight && sel->choices > 0 && sel->weight[j] > 0.0f ? sel->weight[j] : 1.0;
+    if (weight) *weight = sel->weight && sel->choices > 0 && sel->weight[j] > 0.0 ? sel->weight[j] : 1.0;
     return sel->share && sel->choices >= 2 ? sel->share[j] : 1.0;
 }
 

@@ -67,14 +67,15 @@ double rd_select_tile_pixels(const rd_select *sel, int tx, int ty)
 static void set_weights(rd_select *sel, int k, const rd_select_stats *st, const double *v)
 {
     const int m = sel->n;
-    float *w = &sel->weight[(size_t)m * k];
+    double *w = &sel->weight[(size_t)m * k];
     const int use[2] = {sel->choice[k], sel->trial[k] ? sel->trial[k] - 1 : sel->choice[k]};
     for (int i = 0; i < 2; i++) {
         int e = use[i], o = -1;
-        if (w[e] > 0.0f) continue;
+        if (w[e] > 0.0) continue;
         for (int j = 0; j < m; j++)
-            if (w[j] > 0.0f && (o < 0 || st[(size_t)m * k + j].image_n > st[(size_t)m * k + o].image_n)) o = j;
-        w[e] = o < 0 ? 1.0f : v[o] > 0.0 && v[e] > 0.0 ? (float)(w[o] * (v[o] / v[e])) : w[o];
+            if (w[j] > 0.0 && (o < 0 || st[(size_t)m * k + j].image_n > st[(size_t)m * k + o].image_n)) o = j;
+        const double r = o >= 0 && v[o] > 0.0 && v[e] > 0.0 ? w[o] * (v[o] / v[e]) : 0.0;
+        w[e] = o < 0 ? 1.0 : r > 0.0 && isfinite(r) ? r : w[o]; /* (a ratio out of range: w_o) */
     }
 }
 

@@ -1,5 +1,5 @@
-/* render.c: the film, and progressive rendering of any method in the table over tiles with
- * OpenMP (camera rays from scene/camera.c).
+/* render.c: progressive rendering of any method in the table over tiles with OpenMP (camera
+ * rays from scene/camera.c), into the film (film.c).
  *
  * Determinism (DESIGN.md convention 6): the random numbers of sample i of pixel p are keyed by
  * (p, i, dimension, seed) (rd_sampler); the first two dimensions place the sample in the pixel,
@@ -7,14 +7,12 @@
  * image rendered to a sample count is the same bit for bit whatever the thread count or the
  * pass sizes, and two methods see the same camera rays.
  *
- * The film keeps, per pixel and channel, the sum and the sum of squares of the samples and, per
- * pixel, their count: the image is the mean, and the render reports each pixel's standard error
- * (docs/cli.md). Where the method weighs its samples (rd_method.sample_share's weight w; with
- * settings.adaptive, integrators/select_share.c "Weights"), the sums are of w L and w^2 L^2, with
- * per pixel the sums of w and w^2 and per channel of w^2 L: the image is the weighted mean
- * mu = sum w L / sum w, its standard error the sandwich estimate (film_resolve). A time limit or Ctrl-C is checked before every pixel, so a render stops within
- * one pixel's work of the budget; pixels then differ in count by at most one pass, which the
- * per-pixel count accounts for.
+ * The film keeps, per pixel, the sums of its samples: the image is their mean, and the render
+ * reports each pixel's standard error (docs/cli.md). Where the method weighs its samples
+ * (rd_method.sample_share's weight; with settings.adaptive, integrators/select_share.c
+ * "Weights"), the mean is weighted (rd_film.h, film.c). A time limit or Ctrl-C is checked before
+ * every pixel, so a render stops within one pixel's work of the budget; pixels then differ in
+ * count by at most one pass, which the per-pixel count accounts for.
  *
  * Several ranks (rd_render_opts.comm, docs/cluster.md): each renders the tiles it owns (tile
  * index modulo the rank count), the ranks agree before and after every pass (one small
@@ -25,6 +23,7 @@
 #include "bake/rd_photons.h"
 #include "core/rd_core.h"
 #include "integrators/rd_method.h"
+#include "render/rd_film.h"
 
 #include <limits.h>
 #include <math.h>
@@ -74,94 +73,6 @@ static double now_seconds(const rclock *c)
     return c->fn(c->user);
 }
 
-/* ---- Film ---------------------------------------------------------------------------------- */
-typedef struct {
-    int w, h;
-    double *sum, *sum2; /* 3 per pixel: of w L and w^2 L^2 (w = 1 without weights) */
-    uint32_t *n;        /* samples per pixel */
-    double *wl;         /* with weights, 3 per pixel: sum w^2 L; else NULL */
-    double *wsum, *wsum2; /* with weights, per pixel: sum w, sum w^2; else NULL */
-} film;
-
-/* Frees the arrays and leaves the film empty, so a second call (film_alloc failed and freed,
- * then rd_render's clean-up) is harmless. */
-static void film_free(film *f)
-{
-    free(f->sum);
-    free(f->sum2);
-    free(f->n);
-    free(f->wl), free(f->wsum), free(f->wsum2);
-    f->sum = f->sum2 = f->wl = f->wsum = f->wsum2 = NULL;
-    f->n = NULL;
-}
-
-/* A w x h film of zeros, with the weights' sums where `weighted`; 0 (and none) out of memory. */
-static int film_alloc(film *f, int w, int h, int weighted)
-{
-    size_t np = (size_t)w * h;
-    f->w = w;
-    f->h = h;
-    f->sum = rd_alloc_lines(np * 3 * sizeof *f->sum);
-    f->sum2 = rd_alloc_lines(np * 3 * sizeof *f->sum2);
-    f->n = rd_alloc_lines(np * sizeof *f->n);
-    if (weighted) {
-        f->wl = rd_alloc_lines(np * 3 * sizeof *f->wl);
-        f->wsum = rd_alloc_lines(np * sizeof *f->wsum);
-        f->wsum2 = rd_alloc_lines(np * sizeof *f->wsum2);
-    }
-    if (f->sum && f->sum2 && f->n && (!weighted || (f->wl && f->wsum && f->wsum2))) return 1;
-    film_free(f);
-    return 0;
-}
-
-/* The running mean's squared error against the reference over the pixels sampled so far:
- * acc[0] += the sum of squared errors, acc[1] += the channels counted (the RMSE is
- * sqrt(acc[0] / acc[1])); acc[2] += the samples in the film. */
-static void film_sq_err(const film *f, const rd_image *ref, double acc[3])
-{
-    size_t np = (size_t)f->w * f->h, m = 0;
-    double se = 0.0;
-    uint64_t total = 0;
-    for (size_t p = 0; p < np; p++) {
-        total += f->n[p];
-        if (!f->n[p]) continue;
-        for (int c = 0; c < 3; c++) {
-            double e = f->sum[3 * p + c] / (f->wsum ? f->wsum[p] : f->n[p]) - ref->rgb[3 * p + c];
-            se += e * e;
-        }
-        m += 3;
-    }
-    acc[0] += se;
-    acc[1] += (double)m;
-    acc[2] += (double)total;
-}
-
-/* The mean and its standard error: se = sqrt(s^2 / n), s^2 = (sum2 - sum^2 / n) / (n - 1).
- * With weights, mu = sum w L / W and the sandwich estimate (the weights taken as given)
- * se^2 = n / (n - 1) sum w^2 (L - mu)^2 / W^2 = n / (n - 1) (sum w^2 L^2 - 2 mu sum w^2 L +
- * mu^2 sum w^2) / W^2, W = sum w: the formula above where every w is 1. */
-static void film_resolve(const film *f, float *mean, float *stderr_rgb)
-{
-    size_t np = (size_t)f->w * f->h;
-    for (size_t p = 0; p < np; p++) {
-        double n = f->n[p];
-        for (int c = 0; c < 3; c++) {
-            size_t i = 3 * p + c;
-            double mu, var;
-            if (f->wsum) {
-                double W = f->wsum[p];
-                mu = n > 0 ? f->sum[i] / W : 0.0;
-                var = n > 1 ? fmax(0.0, f->sum2[i] - 2.0 * mu * f->wl[i] + mu * mu * f->wsum2[p]) / (W * W) * n / (n - 1.0) : 0.0;
-            } else {
-                mu = n > 0 ? f->sum[i] / n : 0.0;
-                var = n > 1 ? fmax(0.0, (f->sum2[i] - f->sum[i] * mu) / (n - 1.0)) / n : 0.0;
-            }
-            mean[i] = (float)mu;
-            stderr_rgb[i] = (float)sqrt(var);
-        }
-    }
-}
-
 /* ---- Passes -------------------------------------------------------------------------------- */
 
 static int should_stop(double deadline, const volatile int *cancel, const rclock *clk)
@@ -176,7 +87,7 @@ static int comm_rank(const rd_comm *c) { return comm_size(c) > 1 ? c->rank : 0; 
 /* Render samples [s0, s1) of every pixel of this rank's tiles into the film; returns 1 when the
  * deadline or the cancel flag cut the pass short. Each thread reads the clock before each of its
  * pixels and stops at the first reading at or past the deadline. */
-static int render_pass(const rd_render_ctx *ctx, rd_thread *th, film *f, int s0, int s1,
+static int render_pass(const rd_render_ctx *ctx, rd_thread *th, rd_film *f, int s0, int s1,
                        double deadline, const volatile int *cancel, const rclock *clk, uint64_t *invalid)
 {
     const int ranks = comm_size(ctx->comm), rank = comm_rank(ctx->comm);
@@ -195,16 +106,13 @@ static int render_pass(const rd_render_ctx *ctx, rd_thread *th, film *f, int s0,
                 if (stopped || should_stop(deadline, cancel, clk)) { stopped = 1; continue; }
                 uint64_t pix = (uint64_t)y * cam->width + x;
                 /* The pixel's sums in registers for its samples, stored once after them. */
-                double acc[3] = {f->sum[3 * pix], f->sum[3 * pix + 1], f->sum[3 * pix + 2]};
-                double acc2[3] = {f->sum2[3 * pix], f->sum2[3 * pix + 1], f->sum2[3 * pix + 2]};
-                uint32_t count = f->n[pix];
+                rd_film_pixel acc;
+                rd_film_load(f, pix, &acc);
                 /* The pixel's share of the samples past the first few (rd_method.sample_share):
                  * sample i is drawn where (i + 1 - F) share reaches a whole number, so any run
                  * of k indices draws k share of them, give or take one; and their weight. */
                 double w = 1.0;
                 const double share = m->sample_share ? m->sample_share(ctx, x, y, &w) : 1.0;
-                const double w2 = w * w;
-                double wl[3] = {0.0, 0.0, 0.0}, W = 0.0, W2 = 0.0; /* (with weights: added after) */
                 int drew = 0;
                 for (int i = s0; i < s1; i++) {
                     if (share < 1.0 && i >= RD_SHARE_FIRST &&
@@ -219,19 +127,10 @@ static int render_pass(const rd_render_ctx *ctx, rd_thread *th, film *f, int s0,
                     vec3 L = m->radiance(ctx, t, r, &smp);
                     /* A non-finite sample would poison the pixel: drop and count it. */
                     if (!v3_finite(L)) { bad++; continue; }
-                    acc[0] += w * L.x; acc[1] += w * L.y; acc[2] += w * L.z; /* (w = 1: the sums exactly) */
-                    acc2[0] += w2 * L.x * L.x; acc2[1] += w2 * L.y * L.y; acc2[2] += w2 * L.z * L.z;
-                    wl[0] += w2 * L.x, wl[1] += w2 * L.y, wl[2] += w2 * L.z, W += w, W2 += w2;
-                    count++;
+                    rd_film_add(&acc, L, w);
                 }
                 if (m->pixel_done && drew) m->pixel_done(ctx, t); /* (none drawn: nothing to write) */
-                memcpy(&f->sum[3 * pix], acc, sizeof acc);
-                memcpy(&f->sum2[3 * pix], acc2, sizeof acc2);
-                f->n[pix] = count;
-                if (f->wsum) {
-                    for (int c = 0; c < 3; c++) f->wl[3 * pix + c] += wl[c];
-                    f->wsum[pix] += W, f->wsum2[pix] += W2;
-                }
+                rd_film_store(f, pix, &acc);
             }
     }
     *invalid += bad;
@@ -413,9 +312,9 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
 
     /* Per-thread contexts with the method's scratch, and the film. */
     rd_thread *th = rd_threads_new(&ctx, ctx.threads);
-    film f = {0};
+    rd_film f = {0};
     /* (the weights' sums where the method may weigh its samples: rd_method.sample_share) */
-    int ok = th && film_alloc(&f, w, h, m->sample_share && ctx.scene->settings.adaptive);
+    int ok = th && rd_film_alloc(&f, w, h, m->sample_share && ctx.scene->settings.adaptive);
     size_t npix = (size_t)w * h;
     if (ok) {
         res->image.rgb = malloc(npix * 3 * sizeof(float));
@@ -505,7 +404,7 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         if (o->progress) o->progress(o->progress_user, done, o->spp, elapsed);
         if (o->reference) {
             double acc[3] = {0.0, 0.0, 0.0};
-            film_sq_err(&f, o->reference, acc);
+            rd_film_sq_err(&f, o->reference, acc);
             if (comm) comm->reduce(comm->user, acc, 3, RD_COMM_DOUBLE, RD_COMM_SUM, -1);
             /* (One process: after the loop, a failed push stops the render; several ranks go
              * on without the curve point, so that all keep calling the same collectives.) */
@@ -539,7 +438,7 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
             comm->reduce(comm->user, f.wsum2, npix, RD_COMM_DOUBLE, RD_COMM_SUM, 0);
         }
     }
-    film_resolve(&f, res->image.rgb, res->stderr_img.rgb);
+    rd_film_resolve(&f, res->image.rgb, res->stderr_img.rgb);
     res->image.w = res->stderr_img.w = w;
     res->image.h = res->stderr_img.h = h;
     uint64_t total = 0;
@@ -603,7 +502,7 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
     snprintf(res->select_trace_err, sizeof res->select_trace_err, "%s", select_report.err);
 done:
     if (st != RD_OK) rd_render_result_free(res);
-    film_free(&f);
+    rd_film_free(&f);
     rd_threads_free(th, ctx.threads);
     if (m->release) m->release(&ctx);
     if (pass_bake != first_bake) rd_baked_free(pass_bake);

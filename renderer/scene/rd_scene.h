@@ -56,8 +56,9 @@ typedef struct {
     int adaptive;        /* the methods with a tile selection (select with epochs, or delta's
                           * equiangular "tiles"): 1 gives each tile's pixels a share of the
                           * samples, sqrt(V / C) of their estimator's figures over the largest
-                          * tile's (integrators/select_rule.c, "Samples where they pay"); 0
-                          * (default): every pixel draws every sample */
+                          * tile's, each weighing in its pixel's mean by its estimator's inverse
+                          * variance (integrators/select_share.c); 0 (default): every pixel draws
+                          * every sample, each of weight 1 */
 } rd_settings;
 enum { RD_SELECT_OFF, RD_SELECT_TILES, RD_SELECT_PILOT, RD_SELECT_AUTO };
 enum { RD_BC_OFF, RD_BC_ON, RD_BC_AUTO }; /* settings.beam_connect */
