@@ -163,9 +163,12 @@ static const char *ranks_scene(void)
                                  "\"photons\":{\"count\":40000},\"march\":{\"equiangular\":false}");
 }
 
-Test(ranks, three_ranks_give_rank_0_one_process_s_image_bit_for_bit, .timeout = 600)
+/* guided on scene s (JSON) to 20 samples (past the selection's epochs at 4 and 16), on one
+ * process and on three ranks: rank 0's image, standard error and counters are one process's, and
+ * the selection mixed estimators. */
+static void three_ranks_match_one_process(const char *json)
 {
-    rd_scene *s = rt_scene("ranks.json", ranks_scene());
+    rd_scene *s = rt_scene("ranks.json", json);
     rd_bake_opts bo = {.seed = -1, .threads = 1};
     rd_bake_opts_for(&bo, rd_method_needs_for("guided", s));
     rd_baked *b = NULL;
@@ -200,6 +203,20 @@ Test(ranks, three_ranks_give_rank_0_one_process_s_image_bit_for_bit, .timeout = 
     rd_render_result_free(&one);
     rd_baked_free(b);
     rd_scene_free(s);
+}
+
+Test(ranks, three_ranks_give_rank_0_one_process_s_image_bit_for_bit, .timeout = 600)
+{
+    three_ranks_match_one_process(ranks_scene());
+}
+
+/* settings.adaptive: the shares and the weights (integrators/select_share.c) are read from
+ * statistics every rank folds alike, and the film's weighted sums are summed onto rank 0 with
+ * the rest (render.c): one process's image and standard error, bit for bit. */
+Test(ranks, shares_and_weights_on_three_ranks_give_rank_0_one_process_s_image_bit_for_bit, .timeout = 600)
+{
+    three_ranks_match_one_process(rt_spot_fog_json_with(48, 24, "{\"select\":\"tiles\",\"adaptive\":true}",
+                                                        "\"photons\":{\"count\":40000},\"march\":{\"equiangular\":false}"));
 }
 
 /* "auto" probes (settings.probes for delta, march.probes for guided, guide.probes for

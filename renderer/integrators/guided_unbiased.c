@@ -876,6 +876,7 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
             gu_release(ctx);
             return rs;
         }
+        ctx->weighted = st->sel.weight != NULL;
     }
     return RD_OK;
 }

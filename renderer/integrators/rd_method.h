@@ -97,6 +97,10 @@ typedef struct rd_render_ctx {
      * largest), or at its sample count, epoch_left the samples a pixel has left; the other 0.
      * Both 0: no end known, or nothing left. */
     double epoch_ahead, epoch_left;
+    /* Set by prepare where the method weighs its samples (rd_method.sample_share's weight: a tile
+     * selection with settings.adaptive's shares, integrators/select_share.c): the film keeps the
+     * weighted sums (render/film.c). */
+    int weighted;
 } rd_render_ctx;
 
 /* What a tile selection reports to the render (rd_render_stats.select_choices, select_traced,
@@ -168,7 +172,7 @@ typedef struct rd_method {
      * a whole number), and in *weight the weight in the pixel's mean of every sample it draws in
      * the pass (left as it is: 1); NULL: every sample, each weighing 1 (settings.adaptive:
      * select_share.c, "Samples where they pay" and "Weights"; the film keeps the weighted sums
-     * only with settings.adaptive). Read once a pixel a pass. */
+     * where prepare set rd_render_ctx.weighted). Read once a pixel a pass. */
     double (*sample_share)(const rd_render_ctx *ctx, int x, int y, double *weight);
 } rd_method;
 

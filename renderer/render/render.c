@@ -313,8 +313,8 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
     /* Per-thread contexts with the method's scratch, and the film. */
     rd_thread *th = rd_threads_new(&ctx, ctx.threads);
     rd_film f = {0};
-    /* (the weights' sums where the method may weigh its samples: rd_method.sample_share) */
-    int ok = th && rd_film_alloc(&f, w, h, m->sample_share && ctx.scene->settings.adaptive);
+    /* (the weights' sums where the method weighs its samples: rd_render_ctx.weighted) */
+    int ok = th && rd_film_alloc(&f, w, h, ctx.weighted);
     size_t npix = (size_t)w * h;
     if (ok) {
         res->image.rgb = malloc(npix * 3 * sizeof(float));
