@@ -1342,21 +1342,28 @@ Test(select, tiles_of_both_kinds_give_delta_s_image, .timeout = 300)
 }
 
 /* settings.adaptive: the tiles' pixels draw shares of the samples (select_share.c, "Samples where
- * they pay") and weigh them ("Weights"), and the image is still delta's (rt_expect_same's z bounds: 5 for the image, 4.5
- * for each 8x8 region; the beams off: the unbiased estimators only). The fog spans the whole
+ * they pay") and weigh them ("Weights"), and the image is still delta's (rt_expect_same's z
+ * bounds: 5 for the image, 4.5 for each 8x8 region; the beams off: the unbiased estimators only). The fog spans the whole
  * image (rt_spot_fog_json_with's cut at x = 0 moved past the frame), so that every tile reads
  * light and none draws the dark tiles' least share: a mean below 0.9 x 256 samples a pixel
  * means lit tiles were thinned. */
-Test(select, shares_of_the_samples_keep_delta_s_image, .timeout = 300)
+/* The spot in fog (rt_spot_fog_json_with) at 32x24 with shares (settings.adaptive), the beams
+ * and the marcher's equiangular sample off, `photons` photons, the fog over the whole frame. */
+static rd_scene *shares_fog_scene(const char *name, int photons)
 {
-    char json[2048];
-    snprintf(json, sizeof json, "%s",
-             rt_spot_fog_json_with(32, 24, "{\"select\":\"tiles\",\"adaptive\":true}",
-                                   "\"photons\":{\"count\":40000},\"march\":{\"equiangular\":false,\"beams\":false}"));
+    char json[2048], members[160];
+    snprintf(members, sizeof members, "\"photons\":{\"count\":%d},\"march\":{\"equiangular\":false,\"beams\":false}",
+             photons);
+    snprintf(json, sizeof json, "%s", rt_spot_fog_json_with(32, 24, "{\"select\":\"tiles\",\"adaptive\":true}", members));
     char *cut = strstr(json, "\"max\":[0.0,");
     cr_assert(cut != NULL, "the fog's cut at x = 0 is not in the scene");
     memcpy(cut + 7, "2.2", 3); /* [0.0, ...] -> [2.2, ...]: the fog to the frame's right edge */
-    rd_scene *s = rt_scene("selad.json", json);
+    return rt_scene(name, json);
+}
+
+Test(select, shares_of_the_samples_keep_delta_s_image, .timeout = 300)
+{
+    rd_scene *s = shares_fog_scene("selad.json", 40000);
     rd_render_result d = rt_render(s, "delta", 512, 31, NULL);
     rd_render_result g = rt_render(s, "guided", 256, 33, NULL);
     const double spp = g.stats.spp_mean;
@@ -1387,14 +1394,7 @@ static int traced_use(const cJSON *tile, int x, int y)
  * chi-square's sqrt(2 / pixels) is several times too small); at least 200 such pixels. */
 Test(select, weighted_samples_report_an_honest_standard_error, .timeout = 300)
 {
-    char json[2048];
-    snprintf(json, sizeof json, "%s",
-             rt_spot_fog_json_with(32, 24, "{\"select\":\"tiles\",\"adaptive\":true}",
-                                   "\"photons\":{\"count\":20000},\"march\":{\"equiangular\":false,\"beams\":false}"));
-    char *cut = strstr(json, "\"max\":[0.0,");
-    cr_assert(cut != NULL, "the fog's cut at x = 0 is not in the scene");
-    memcpy(cut + 7, "2.2", 3); /* (the fog over the whole frame, as above) */
-    rd_scene *s = rt_scene("selw.json", json);
+    rd_scene *s = shares_fog_scene("selw.json", 20000);
     enum { K = 24, W = 32, H = 24 };
     rd_render_result ref = rt_render(s, "delta", 8192, 699, NULL);
     const char *path = rt_tmp_path("selw.jsonl");
