@@ -496,3 +496,46 @@ Test(render, worker_threads_and_their_scratch_start_cache_lines)
     }
     rd_threads_free(th, N);
 }
+
+/* rd_share_next (render.c's loop over a pixel's samples with shares) finds, at once, the very
+ * indices that testing rd_share_draws index by index finds: for shares that are whole
+ * fractions (where rounding decides ties), tiny, near 1, 0 and 1, and ranges that start and
+ * end anywhere. A jump one index early or late changes which samples a pixel draws, and so its
+ * image; this compares every index, not a count. */
+Test(render, a_pixel_s_next_sample_under_a_share_is_the_one_the_index_by_index_test_finds)
+{
+    const double shares[] = {0.0, 1e-9, 1e-4, 0.01, 0.1, 1.0 / 3.0, 2.0 / 3.0, 0.3, 0.7, 1.0 / 7.0, 0.5,
+                             0.999999, 1.0 - 1e-15, 1.0, 1.5,
+                             /* where ceil(j / share) overshoots: (v - 1) share rounds up to j */
+                             0.020612602205656732, 0.022909507445589918, 0.0211537176513264, 0.03820186598812553};
+    pcg32 rng = pcg32_seed(1234, 7, 1);
+    int checked = 0, drawn = 0;
+    for (size_t k = 0; k < sizeof shares / sizeof *shares + 200; k++) {
+        /* the listed shares over 110000 samples (the overshoots lie up to 104758 in), then
+         * 200 drawn at random in (0, 1) over up to 3000 */
+        const int listed = k < sizeof shares / sizeof *shares;
+        double share = listed ? shares[k] : pcg32_uniform(&rng);
+        for (int s0 = 0; s0 < 40; s0 += 3) {
+            int s1 = s0 + 1 + (listed ? 110000 : (int)(pcg32_next(&rng) % 3000));
+            int want = s0;
+            for (int i = rd_share_next(s0, s1, share); i < s1; i = rd_share_next(i + 1, s1, share)) {
+                while (want < s1 && !rd_share_draws(want, share)) want++;
+                cr_assert_eq(i, want, "share %.17g, range [%d, %d): jumped to %d, the test draws %d", share, s0,
+                             s1, i, want);
+                want++, drawn++;
+            }
+            while (want < s1 && !rd_share_draws(want, share)) want++;
+            cr_assert_eq(want, s1, "share %.17g, range [%d, %d): index %d drawn but skipped", share, s0, s1, want);
+            checked++;
+        }
+    }
+    cr_log_info("%d ranges, %d samples drawn", checked, drawn);
+    /* a large index: (i - F) share rounds where the guess's division does not */
+    for (int i = 0; i < 1000; i++) {
+        double share = pcg32_uniform(&rng);
+        int s0 = (1 << 30) + (int)(pcg32_next(&rng) % 100000), s1 = s0 + 5000;
+        int want = s0;
+        while (want < s1 && !rd_share_draws(want, share)) want++;
+        cr_assert_eq(rd_share_next(s0, s1, share), want, "share %.17g from %d", share, s0);
+    }
+}

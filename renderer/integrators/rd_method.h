@@ -179,6 +179,33 @@ typedef struct rd_method {
 /* The samples every pixel draws whatever its share (rd_method.sample_share): the first epoch's. */
 #define RD_SHARE_FIRST 4
 
+/* Does a pixel of share `share` draw sample i? Every sample below RD_SHARE_FIRST, and sample i
+ * past them where (i + 1 - RD_SHARE_FIRST) share reaches a whole number (rd_method.sample_share). */
+static inline int rd_share_draws(int i, double share)
+{
+    return share >= 1.0 || i < RD_SHARE_FIRST ||
+           floor((i + 1 - RD_SHARE_FIRST) * share) != floor((i - RD_SHARE_FIRST) * share);
+}
+
+/* The first sample in [i, end) that a pixel of share `share` draws (rd_share_draws), else end:
+ * found at once, not index by index (a share of 0.01 would test a hundred indices a sample).
+ * With u = i - RD_SHARE_FIRST and g(v) = floor(v share), nondecreasing in v (a product by a
+ * positive double is monotone), the next drawn index is the smallest v - 1 + RD_SHARE_FIRST
+ * with g(v) >= g(u) + 1; ceil((g(u) + 1) / share) guesses v, and the steps after it make the
+ * answer the predicate's own, rounding and all. */
+static inline int rd_share_next(int i, int end, double share)
+{
+    if (i >= end || rd_share_draws(i, share)) return i;
+    if (!(share > 0.0)) return end; /* (past the first samples a share of 0 draws none) */
+    const double u = (double)(i - RD_SHARE_FIRST), j = floor(u * share) + 1.0;
+    const double guess = ceil(j / share), last = (double)(end - RD_SHARE_FIRST); /* v of end - 1: last */
+    if (!(guess <= last + 1.0)) return end;
+    double v = guess > u + 1.0 ? guess : u + 1.0;
+    while (v - 1.0 > u && floor((v - 1.0) * share) >= j) v -= 1.0;
+    while (v <= last && floor(v * share) < j) v += 1.0;
+    return v <= last ? (int)v - 1 + RD_SHARE_FIRST : end;
+}
+
 /* The table (methods.c). NULL for an unknown name. */
 const rd_method *rd_method_find(const char *name);
 

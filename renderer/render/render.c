@@ -114,10 +114,7 @@ static int render_pass(const rd_render_ctx *ctx, rd_thread *th, rd_film *f, int 
                 double w = 1.0;
                 const double share = m->sample_share ? m->sample_share(ctx, x, y, &w) : 1.0;
                 int drew = 0;
-                for (int i = s0; i < s1; i++) {
-                    if (share < 1.0 && i >= RD_SHARE_FIRST &&
-                        floor((i + 1 - RD_SHARE_FIRST) * share) == floor((i - RD_SHARE_FIRST) * share))
-                        continue;
+                for (int i = rd_share_next(s0, s1, share); i < s1; i = rd_share_next(i + 1, s1, share)) {
                     drew = 1;
                     rd_sampler smp = rd_sampler_start(pix, (uint64_t)i, ctx->seed);
                     double jx = rd_sampler_1d(&smp), jy = rd_sampler_1d(&smp); /* RD_DIM_FILM */
