@@ -287,6 +287,9 @@ typedef struct {
      * the render had no selection) and, with rd_render_opts.select_trace, how many of them the
      * trace holds (on rank 0; the others write none). */
     int select_choices, select_traced;
+    /* 1 where the selection gave its tiles shares of the samples, each sample weighing in its
+     * pixel's mean (settings.adaptive: true, or "auto" for `guided`); spp_mean then < spp. */
+    int shares;
 } rd_render_stats;
 
 /* One point of the convergence curve: RMSE of the image so far against the reference. */

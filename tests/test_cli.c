@@ -86,6 +86,8 @@ static const bad_case catalogue[] = {
     {"tracker_b_negative.json", "settings.b: must be in (0, 100], found -1"},
     {"transmittance_unknown.json", "settings.transmittance: unknown value \"guess\""},
     {"equiangular_unknown.json", "settings.equiangular: expected true, false, \"camera\", \"auto\" or \"tiles\", found \"always\""},
+    {"adaptive_number.json", "settings.adaptive: expected true, false or \"auto\", found a number"},
+    {"adaptive_word.json", "settings.adaptive: expected true, false or \"auto\", found \"sometimes\""},
     {"guide_equiangular_tiles.json", "guide.equiangular: expected true, false, \"camera\" or \"auto\", found \"tiles\""},
     {"thin_bias_above_one.json", "settings.thin_bias: expected false or a number in (0, 1), found 1.5"},
     {"thin_bias_weighted.json", "settings.thin_bias: only with \"tracker\": \"auto\", \"supervoxel\" or \"woodcock\""},
@@ -188,6 +190,8 @@ Test(cli, render_writes_exr_png_and_report, .timeout = 120)
     rd_image_free_pixels(&img);
     cJSON *rep = read_report(js);
     cr_expect(report_num(rep, "spp") == 3, "report: spp %g", report_num(rep, "spp"));
+    /* (the default method, delta, with no selection: no shares of the samples) */
+    cr_expect(cJSON_IsFalse(cJSON_GetObjectItemCaseSensitive(rep, "shares")), "report: \"shares\" not false");
     /* The per-pixel standard error beside the image: same size, finite, non-negative, and
      * non-zero somewhere (3 samples of a lit medium are not all equal). */
     char se[300];

@@ -1375,6 +1375,35 @@ Test(select, shares_of_the_samples_keep_delta_s_image, .timeout = 300)
     rd_scene_free(s);
 }
 
+/* settings.adaptive "auto", the default: shares for `guided`'s selection, none for
+ * guided-unbiased's (not calibrated there); true and false force them either way. Read from the
+ * render (rd_render_stats.shares, the JSON's "shares") and from its samples: a render with shares
+ * draws fewer than spp a pixel past the first four, one without draws every one. */
+Test(select, auto_gives_shares_to_guided_alone, .timeout = 300)
+{
+    static const struct {
+        const char *method, *adaptive;
+        int shares;
+    } cases[] = {{"guided", NULL, 1}, {"guided", "false", 0}, {"guided-unbiased", NULL, 0}, {"guided-unbiased", "true", 1}};
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
+        char settings[128], name[64];
+        if (cases[i].adaptive) snprintf(settings, sizeof settings, "{\"select\":\"tiles\",\"adaptive\":%s}", cases[i].adaptive);
+        else snprintf(settings, sizeof settings, "{\"select\":\"tiles\"}");
+        snprintf(name, sizeof name, "selauto%zu.json", i);
+        rd_scene *s = rt_scene(name, rt_spot_fog_json_with(32, 24, settings, "\"photons\":{\"count\":20000}"));
+        cr_assert(cases[i].adaptive || s->settings.adaptive == RD_ADAPTIVE_AUTO);
+        rd_render_result r = rt_render(s, cases[i].method, 32, 41, NULL);
+        cr_log_info("%s, adaptive %s: shares %d, %.1f samples a pixel of 32", cases[i].method,
+                    cases[i].adaptive ? cases[i].adaptive : "(default)", r.stats.shares, r.stats.spp_mean);
+        cr_expect(r.stats.shares == cases[i].shares, "%s, adaptive %s: shares %d", cases[i].method,
+                  cases[i].adaptive ? cases[i].adaptive : "(default)", r.stats.shares);
+        if (cases[i].shares) cr_expect(r.stats.spp_mean < 32.0, "shares, yet every sample drawn");
+        else cr_expect(r.stats.spp_mean == 32.0, "no shares, yet %.2f samples a pixel of 32", r.stats.spp_mean);
+        rd_render_result_free(&r);
+        rd_scene_free(s);
+    }
+}
+
 /* Pixel (x, y)'s estimator under a trace line's tile (rd_select_uses from the trace). */
 static int traced_use(const cJSON *tile, int x, int y)
 {

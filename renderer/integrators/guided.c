@@ -125,8 +125,9 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
          * lost 0-10% against `delta` with probes on the calibration scenes; the marcher wins the
          * light's tiles without that: docs/guided-unbiased.md "Probes") */
         /* (the beams' samples consume the progressive photon passes: RD_SELECT_PASSES; the
-         * beams estimator's where there is one) */
-        int options = (s->march.equiangular != RD_EQ_OFF ? RD_SELECT_THIRD : 0) |
+         * beams estimator's where there is one; settings.adaptive "auto" gives `guided` shares:
+         * docs/guided-marching.md "Samples where they pay") */
+        int options = RD_SELECT_SHARES_AUTO | (s->march.equiangular != RD_EQ_OFF ? RD_SELECT_THIRD : 0) |
                       ((s->march.ls == RD_LS_NEE_BEAMS || beams) && ctx->pass_emitted > 0.0 ? RD_SELECT_PASSES : 0) |
                       (pass_maps_guided(s) & RD_PASS_NO_INDEX ? RD_SELECT_PASSES_ORDERED : 0);
         const rd_select_more more = {.path = mst->gpaths ? paths_guided : NULL, .path_cell_cost = RD_GU_CELL_COST,

@@ -5,7 +5,6 @@
  * with it (settings.equiangular "tiles"; delta.c). Internal to integrators/ (and tests, bench). */
 #ifndef RD_SELECT_H
 #define RD_SELECT_H
-
 #include "core/rd_core.h"
 #include "integrators/rd_method.h"
 
@@ -176,18 +175,17 @@ double rd_select_work_cost(const rd_select_work *c0, const rd_thread *th, double
  * image (no tile's statistics yet, every tile to delta). */
 rd_status rd_select_init(rd_select *sel, int width, int height, double cell_cost, int estimators,
                          char *err, size_t errlen);
-/* Run the pilot and make the first choice: on random numbers of its own, the variance and cost
- * per sample of `method` and of delta's path in every tile (and of delta's path with the
- * equiangular strategy on every flight, where the method asks for it, options with
- * RD_SELECT_THIRD (`guided`: where its marcher samples with the strategy, march.equiangular not
- * off; `guided-unbiased`: always since session 39; `delta`'s "tiles": never),
- * settings.equiangular is not RD_EQ_ALL, and the scene has a point or spot light, or a
- * directional beam that delta's path does not connect to, to sample); keeps the choices that
- * give the image the least error at equal time. The cost is counted work (select.c):
- * `cell_cost` is what one of the method's PDF segments (rd_thread.cells) costs, in density
- * lookups, fitted on the calibration scenes. delta's path is `delta` where the method gives
- * one (its probes), else rd_delta_radiance_eq. Call at the end of the method's prepare
- * (ctx->state set: the pilot renders with the method's scratch, ctx->method->scratch_bytes). */
+/* Run the pilot and make the first choice: on random numbers of its own, the variance and cost per
+ * sample of `method` and of delta's path in every tile (and of delta's path with the equiangular
+ * strategy on every flight, where the method asks for it, options with RD_SELECT_THIRD (`guided`:
+ * where its marcher samples with the strategy, march.equiangular not off; `guided-unbiased`:
+ * always since session 39; `delta`'s "tiles": never), settings.equiangular is not RD_EQ_ALL, and
+ * the scene has a point or spot light, or a directional beam that delta's path does not connect
+ * to, to sample); keeps the choices that give the image the least error at equal time. The cost
+ * is counted work (select.c): `cell_cost` is what one of the method's PDF segments
+ * (rd_thread.cells) costs, in density lookups, fitted on the calibration scenes. delta's path is
+ * `delta` where the method gives one (its probes), else rd_delta_radiance_eq. Call at the end of
+ * the method's prepare (ctx->state set: the pilot renders with the method's scratch). */
 rd_status rd_select_prepare(const rd_render_ctx *ctx, rd_select_fn method, rd_select_delta_fn delta,
                             double cell_cost, int options, rd_select *sel, char *err, size_t errlen);
 /* rd_select_prepare with one more estimator, the last: `path`, with `path_cell_cost` a PDF
@@ -208,18 +206,20 @@ typedef struct {
 rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, rd_select_delta_fn delta,
                                  double cell_cost, int options, const rd_select_more *more, rd_select *sel,
                                  char *err, size_t errlen);
-/* rd_select_prepare's options (bits): the third estimator wanted (above); the method is delta's
- * own path with the strategy on every flight (`delta`'s "tiles": one of delta's paths,
- * rd_select.paths); the samples of rd_select.pass_kind (the beams estimator where there is
- * one, else the method) consume the progressive photon passes (a pass serves photons.pass_spp x
- * the image's pixels of them): each adds its share of pass 1's work to its cost
- * (rd_select.method_pass_cost: ctx's pass_emitted, pass_collisions and pass_indexed, at the
- * weights below; select.c, "The photon passes"); with RD_SELECT_PASSES_ORDERED too, the
- * passes after the first put their photons in spatial order without a kd-tree (RD_PASS_NO_INDEX:
- * nee+beams), and a photon counts RD_SELECT_COST_ORDERED instead of RD_SELECT_COST_INDEXED
- * (pass_indexed at most pass_emitted where those passes are thinned: render.c, RD_PASS_THIN).
- * Every selection with epochs takes settings.adaptive's shares (rd_select.share). */
-enum { RD_SELECT_THIRD = 1, RD_SELECT_METHOD_IS_PATH = 2, RD_SELECT_PASSES = 4, RD_SELECT_PASSES_ORDERED = 8 };
+/* rd_select_prepare's options (bits): the third estimator wanted (above); the method is delta's own
+ * path with the strategy on every flight (`delta`'s "tiles": one of delta's paths,
+ * rd_select.paths); the samples of rd_select.pass_kind (the beams estimator where there is one,
+ * else the method) consume the progressive photon passes (a pass serves photons.pass_spp x the
+ * image's pixels of them): each adds its share of pass 1's work to its cost
+ * (rd_select.method_pass_cost: ctx's pass_emitted, pass_collisions and pass_indexed, at the weights
+ * below; select.c, "The photon passes"); with RD_SELECT_PASSES_ORDERED too, the passes after the
+ * first put their photons in spatial order without a kd-tree (RD_PASS_NO_INDEX: nee+beams), and a
+ * photon counts RD_SELECT_COST_ORDERED instead of RD_SELECT_COST_INDEXED (pass_indexed at most
+ * pass_emitted where those passes are thinned: render.c, RD_PASS_THIN). A selection with epochs
+ * takes shares (rd_select.share) where settings.adaptive is true, or "auto" and the method asks
+ * with RD_SELECT_SHARES_AUTO (`guided`). */
+enum { RD_SELECT_THIRD = 1, RD_SELECT_METHOD_IS_PATH = 2, RD_SELECT_PASSES = 4, RD_SELECT_PASSES_ORDERED = 8,
+       RD_SELECT_SHARES_AUTO = 16 };
 /* A progressive pass's work, in density lookups: a photon emitted, a tentative collision, a
  * photon indexed (stored and built into a kd-tree), a photon stored and put in order alone (the
  * indexed photon's weight less what the kd-tree cost on the calibration scenes: 0.152 us of

@@ -579,9 +579,11 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
         return RD_ERR_NOMEM;
     }
     if (!third) sel->paths = 1u << RD_SEL_DELTA;
-    /* settings.adaptive, where the epochs choose again: every share 1 until they set them, no
-     * weight until the choices set them (select_share.c) */
-    if (s->settings.adaptive && s->settings.select != RD_SELECT_PILOT) {
+    /* settings.adaptive (true, or "auto" where the method asks), where the epochs choose again:
+     * every share 1 until they set them, no weight until the choices set them (select_share.c) */
+    const int shares = s->settings.adaptive == RD_ADAPTIVE_AUTO ? (options & RD_SELECT_SHARES_AUTO) != 0
+                                                                 : s->settings.adaptive;
+    if (shares && s->settings.select != RD_SELECT_PILOT) {
         size_t ns = (size_t)sel->n * sel->tiles_x * sel->tiles_y;
         if (!(sel->share = malloc(ns * sizeof *sel->share)) || !(sel->weight = calloc(ns, sizeof *sel->weight))) {
             rd_select_free(sel);

@@ -34,6 +34,20 @@ static rd_status parse_equiangular(ld_ctx *c, const cJSON *j, const char *path, 
     return RD_OK;
 }
 
+/* settings.adaptive: true, false or "auto" (RD_ADAPTIVE_AUTO); absent: *out unchanged. */
+static rd_status parse_adaptive(ld_ctx *c, const cJSON *j, const char *path, int *out)
+{
+    const cJSON *e = cJSON_GetObjectItemCaseSensitive(j, "adaptive");
+    if (!e) return RD_OK;
+    char field[64];
+    snprintf(field, sizeof field, "%s.adaptive", path);
+    if (cJSON_IsBool(e)) *out = cJSON_IsTrue(e);
+    else if (cJSON_IsString(e) && strcmp(e->valuestring, "auto") == 0) *out = RD_ADAPTIVE_AUTO;
+    else if (cJSON_IsString(e)) return ld_fail(c, field, "expected true, false or \"auto\", found \"%.40s\"", e->valuestring);
+    else return ld_fail(c, field, "expected true, false or \"auto\", found %s", ld_type_name(e));
+    return RD_OK;
+}
+
 /* settings.probes and march.probes (integrators/probes.c): "auto" (0) or a whole number of
  * camera chains per sample, 1 to 256; absent: *out unchanged. */
 static rd_status parse_probes(ld_ctx *c, const cJSON *j, const char *path, int *out)
@@ -104,7 +118,7 @@ rd_status ld_parse_settings(ld_ctx *c, const cJSON *j, rd_settings *s)
     s->beam_connect = RD_BC_AUTO;
     s->select = RD_SELECT_AUTO; /* integrators/select.c */
     s->probes = 1; /* measured in docs/guided-marching.md "Probes" */
-    s->adaptive = 0; /* docs/guided-marching.md "Samples where they pay" */
+    s->adaptive = RD_ADAPTIVE_AUTO; /* docs/guided-marching.md "Samples where they pay" */
     if (!j) return RD_OK;
     const char *path = "settings";
     LD_TRY(ld_need_object(c, j, path));
@@ -151,7 +165,7 @@ rd_status ld_parse_settings(ld_ctx *c, const cJSON *j, rd_settings *s)
     static const char *const select[] = {"off", "tiles", "pilot", "auto", NULL}; /* RD_SELECT_* order */
     LD_TRY(ld_get_enum(c, j, path, "select", 0, select, RD_SELECT_AUTO, &s->select));
     LD_TRY(parse_probes(c, j, path, &s->probes));
-    LD_TRY(ld_get_bool(c, j, path, "adaptive", 0, &s->adaptive));
+    LD_TRY(parse_adaptive(c, j, path, &s->adaptive));
     /* The probes' transmittance estimate and the path's own pass or stop must be unbiased alike
      * (integrators/probes.c): not with a ray-marched one. */
     if (s->probes != 1 && (s->tracker == RD_FP_RAYMARCH || s->transmittance == RD_TR_RAYMARCH))

@@ -33,6 +33,7 @@ static char *report_json(const rd_scene *s, const rd_render_opts *o, const rd_re
     cJSON_AddNumberToObject(j, "height", res->image.h);
     cJSON_AddNumberToObject(j, "spp", st->spp);
     cJSON_AddNumberToObject(j, "spp_mean", st->spp_mean);
+    cJSON_AddBoolToObject(j, "shares", st->shares);
     cJSON_AddNumberToObject(j, "seed", (double)o->seed);
     cJSON_AddNumberToObject(j, "threads", st->threads); /* used, not asked (0 = all) */
     cJSON_AddNumberToObject(j, "seconds", st->seconds);

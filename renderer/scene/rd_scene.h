@@ -57,10 +57,13 @@ typedef struct {
                           * equiangular "tiles"): 1 gives each tile's pixels a share of the
                           * samples, sqrt(V / C) of their estimator's figures over the largest
                           * tile's, each weighing in its pixel's mean by its estimator's inverse
-                          * variance (integrators/select_share.c); 0 (default): every pixel draws
-                          * every sample, each of weight 1 */
+                          * variance (integrators/select_share.c); 0: every pixel draws every
+                          * sample, each of weight 1; RD_ADAPTIVE_AUTO (default): 1 for `guided`,
+                          * 0 for the others */
 } rd_settings;
 enum { RD_SELECT_OFF, RD_SELECT_TILES, RD_SELECT_PILOT, RD_SELECT_AUTO };
+/* settings.adaptive "auto" (the default): shares for `guided` only (rd_settings.adaptive). */
+enum { RD_ADAPTIVE_AUTO = 2 };
 enum { RD_BC_OFF, RD_BC_ON, RD_BC_AUTO }; /* settings.beam_connect */
 /* settings.equiangular: off, every flight, the camera's flight only, or every flight for the
  * lights whose lit span delta tracking reaches but mostly crosses without colliding

@@ -374,12 +374,24 @@ typedef struct {
     int regions;
 } rt_cmp;
 
-/* z-scores between two renders of the same scene (luminance of 8x8 regions and the image). */
-static inline rt_cmp rt_compare_images(const rd_render_result *a, const rd_render_result *b)
+/* The luminance of b's image (the sum over its pixels). */
+static inline double rt_image_light(const rd_render_result *b)
+{
+    double sum = 0.0;
+    for (size_t i = 0; i < (size_t)b->image.w * b->image.h; i++)
+        sum += v3_lum(v3(b->image.rgb[3 * i], b->image.rgb[3 * i + 1], b->image.rgb[3 * i + 2]));
+    return sum;
+}
+
+/* z-scores between two renders of the same scene (luminance of 8x8 regions and the image), the
+ * regions' only over those whose light in b is at least `lit` times an even share of b's light
+ * (0: every region). */
+static inline rt_cmp rt_compare_lit(const rd_render_result *a, const rd_render_result *b, double lit)
 {
     rt_cmp c = {0, 0, 0};
     int w = a->image.w, h = a->image.h;
     double img[2] = {0, 0}, img_v[2] = {0, 0};
+    const double even = rt_image_light(b) / (double)(((w + 7) / 8) * ((h + 7) / 8));
     for (int ry = 0; ry < h; ry += 8)
         for (int rx = 0; rx < w; rx += 8) {
             double m[2] = {0, 0}, v[2] = {0, 0};
@@ -398,13 +410,18 @@ static inline rt_cmp rt_compare_images(const rd_render_result *a, const rd_rende
                 img[k] += m[k];
                 img_v[k] += v[k];
             }
-            if (v[0] + v[1] <= 0.0) continue;
+            if (v[0] + v[1] <= 0.0 || m[1] < lit * even) continue;
             double z = (m[0] - m[1]) / sqrt(v[0] + v[1]);
             if (fabs(z) > fabs(c.z_max)) c.z_max = z;
             c.regions++;
         }
     c.z_image = (img[0] - img[1]) / sqrt(img_v[0] + img_v[1]);
     return c;
+}
+
+static inline rt_cmp rt_compare_images(const rd_render_result *a, const rd_render_result *b)
+{
+    return rt_compare_lit(a, b, 0.0);
 }
 
 /* Mean over the pixels of the luminance's squared standard error: the image's variance. */
