@@ -1376,7 +1376,8 @@ Test(select, shares_of_the_samples_keep_delta_s_image, .timeout = 300)
 }
 
 /* settings.adaptive "auto", the default: shares for `guided`'s selection, none for
- * guided-unbiased's (not calibrated there); true and false force them either way. Read from the
+ * guided-unbiased's (which keeps its name's promise: docs/guided-unbiased.md "Shares of the
+ * samples") or `delta`'s "tiles"; true and false force them either way. Read from the
  * render (rd_render_stats.shares, the JSON's "shares") and from its samples: a render with shares
  * draws fewer than spp a pixel past the first four, one without draws every one. */
 Test(select, auto_gives_shares_to_guided_alone, .timeout = 300)
@@ -1384,19 +1385,24 @@ Test(select, auto_gives_shares_to_guided_alone, .timeout = 300)
     static const struct {
         const char *method, *adaptive;
         int shares;
-    } cases[] = {{"guided", NULL, 1}, {"guided", "false", 0}, {"guided-unbiased", NULL, 0}, {"guided-unbiased", "true", 1}};
+    } cases[] = {{"guided", NULL, 1},         {"guided", "false", 0}, {"guided-unbiased", NULL, 0},
+                 {"guided-unbiased", "true", 1}, {"delta", NULL, 0},     {"delta", "true", 1}};
     for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
-        char settings[128], name[64];
-        if (cases[i].adaptive) snprintf(settings, sizeof settings, "{\"select\":\"tiles\",\"adaptive\":%s}", cases[i].adaptive);
-        else snprintf(settings, sizeof settings, "{\"select\":\"tiles\"}");
+        char settings[160], name[64];
+        /* (delta's selection: its equiangular "tiles", the spot's) */
+        const char *eq = strcmp(cases[i].method, "delta") == 0 ? ",\"equiangular\":\"tiles\"" : "";
+        if (cases[i].adaptive)
+            snprintf(settings, sizeof settings, "{\"select\":\"tiles\"%s,\"adaptive\":%s}", eq, cases[i].adaptive);
+        else snprintf(settings, sizeof settings, "{\"select\":\"tiles\"%s}", eq);
         snprintf(name, sizeof name, "selauto%zu.json", i);
         rd_scene *s = rt_scene(name, rt_spot_fog_json_with(32, 24, settings, "\"photons\":{\"count\":20000}"));
         cr_assert(cases[i].adaptive || s->settings.adaptive == RD_ADAPTIVE_AUTO);
         rd_render_result r = rt_render(s, cases[i].method, 32, 41, NULL);
-        cr_log_info("%s, adaptive %s: shares %d, %.1f samples a pixel of 32", cases[i].method,
-                    cases[i].adaptive ? cases[i].adaptive : "(default)", r.stats.shares, r.stats.spp_mean);
-        cr_expect(r.stats.shares == cases[i].shares, "%s, adaptive %s: shares %d", cases[i].method,
-                  cases[i].adaptive ? cases[i].adaptive : "(default)", r.stats.shares);
+        const char *named = cases[i].adaptive ? cases[i].adaptive : "(default)";
+        cr_log_info("%s, adaptive %s: shares %d, %.1f samples a pixel of 32", cases[i].method, named, r.stats.shares,
+                    r.stats.spp_mean);
+        cr_expect(r.stats.shares == cases[i].shares, "%s, adaptive %s: shares %d", cases[i].method, named,
+                  r.stats.shares);
         if (cases[i].shares) cr_expect(r.stats.spp_mean < 32.0, "shares, yet every sample drawn");
         else cr_expect(r.stats.spp_mean == 32.0, "no shares, yet %.2f samples a pixel of 32", r.stats.spp_mean);
         rd_render_result_free(&r);
