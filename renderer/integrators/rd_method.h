@@ -179,8 +179,9 @@ typedef struct rd_method {
 /* The samples every pixel draws whatever its share (rd_method.sample_share): the first epoch's. */
 #define RD_SHARE_FIRST 4
 
-/* Does a pixel of share `share` draw sample i? Every sample below RD_SHARE_FIRST, and sample i
- * past them where (i + 1 - RD_SHARE_FIRST) share reaches a whole number (rd_method.sample_share). */
+/* Does a pixel of share `share` (in [0, 1]; rd_method.sample_share) draw sample i? Every sample
+ * below RD_SHARE_FIRST, and sample i past them where (i + 1 - RD_SHARE_FIRST) share reaches a
+ * whole number. */
 static inline int rd_share_draws(int i, double share)
 {
     return share >= 1.0 || i < RD_SHARE_FIRST ||
@@ -196,7 +197,7 @@ static inline int rd_share_draws(int i, double share)
 static inline int rd_share_next(int i, int end, double share)
 {
     if (i >= end || rd_share_draws(i, share)) return i;
-    if (!(share > 0.0)) return end; /* (past the first samples a share of 0 draws none) */
+    if (!(share > 0.0)) return end; /* (past the first samples a share of 0 draws none; below 0: as 0) */
     const double u = (double)(i - RD_SHARE_FIRST), j = floor(u * share) + 1.0;
     const double guess = ceil(j / share), last = (double)(end - RD_SHARE_FIRST); /* v of end - 1: last */
     if (!(guess <= last + 1.0)) return end;

@@ -419,6 +419,7 @@ static inline rt_cmp rt_compare_lit(const rd_render_result *a, const rd_render_r
     return c;
 }
 
+/* rt_compare_lit over every region. */
 static inline rt_cmp rt_compare_images(const rd_render_result *a, const rd_render_result *b)
 {
     return rt_compare_lit(a, b, 0.0);
