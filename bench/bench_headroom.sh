@@ -29,7 +29,10 @@ run delta_equiangular --method delta --set settings.equiangular=true --set setti
 run guided_path --method guided-unbiased --set 'settings.select="off"' --set guide.equiangular=false --time "$sec" --seed 74
 run beams --method guided --set march.ls=nee+beams --set photons.progressive=true --set 'settings.select="off"' \
     --time "$sec" --seed 75
-run g --method guided --spp 64 --seed 76 --select-trace "$out/$name-tr-g.jsonl"
+# (the traces without shares: headroom.py reads every index from a line's from_sample to the
+# next's as drawn by every pixel, which settings.adaptive's shares, `guided`'s default since
+# session 70, do not)
+run g --method guided --set settings.adaptive=false --spp 64 --seed 76 --select-trace "$out/$name-tr-g.jsonl"
 run b --method guided --set march.ls=nee+beams --set photons.progressive=true --set 'settings.select="tiles"' \
-    --spp 64 --seed 77 --select-trace "$out/$name-tr-b.jsonl"
+    --set settings.adaptive=false --spp 64 --seed 77 --select-trace "$out/$name-tr-b.jsonl"
 "${PYTHON:-/usr/bin/python3}" "$here/bench/headroom.py" "$out/$name" "$ref"

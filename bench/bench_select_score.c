@@ -4,7 +4,9 @@
  *   bench_select_score --spp N --table NAME=V.exr [--table NAME=V.exr]... TRACE.jsonl...
  *
  * Each TRACE is the choices of one render, `render SCENE --spp N --select-trace TRACE.jsonl`
- * (docs/cli.md, "The selection's trace"). Each table is a long render of one of the selection's
+ * (docs/cli.md, "The selection's trace"), without shares (`--set settings.adaptive=false` for
+ * `guided`, whose default takes them since session 70): the score reads every sample index of
+ * every pixel as drawn. Each table is a long render of one of the selection's
  * estimators alone, NAME as the trace names it, rendered as the selection renders it, at the
  * traces' resolution. For `guided-unbiased`: `delta` is `render --method delta --set
  * settings.probes="auto"` (its delta tiles take guide.probes "auto"), `method` is `--method

@@ -10,10 +10,11 @@ start=$(date +%s)
 "$BIN" render "$SCENE" -o out/default.exr -q
 "$BIN" bake "$SCENE" -o out/default -q
 # The comparison ranks the methods only against a reference whose variance is at most a tenth of
-# the best method's MSE (docs/compare.md): guided's MSE here is about half delta's (session 61,
-# with march.beams on by default), so that reference takes about 20x one run's budget of delta.
-# At 128x96 pixels and 8 s per run (guided's 1-2 s bake charged to each of its runs) the four runs
-# and the reference take about 4 min on 2 cores; the reference is cached in
+# the best method's MSE (docs/compare.md): guided's MSE here is about a third of delta's (session
+# 70, with march.beams and the shares of settings.adaptive on by default), so that reference takes
+# about 38x one run's budget of delta (305 s). At 128x96 pixels and 8 s per run (guided's 1-2 s
+# bake charged to each of its runs) the four runs and the reference take about 6 min on 2 cores;
+# the reference is cached in
 # out/.photonmarch-cache/, so a second demo reuses it.
 echo "photonmarch demo: comparing guided and delta at equal time (128x96, 2 runs of 8 s each, against" >&2
 echo "  a delta reference rendered until it can rank them (its equiangular sample chosen per tile:" >&2
