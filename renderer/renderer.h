@@ -288,7 +288,7 @@ typedef struct {
      * trace holds (on rank 0; the others write none). */
     int select_choices, select_traced;
     /* 1 where the selection gave its tiles shares of the samples, each sample weighing in its
-     * pixel's mean (settings.adaptive: true, or "auto" for `guided`); spp_mean then at most spp,
+     * pixel's mean (settings.adaptive true or "pilot", or "auto" for the guided methods); spp_mean then at most spp,
      * fewer where a tile's share fell below 1. */
     int shares;
 } rd_render_stats;

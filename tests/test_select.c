@@ -1375,18 +1375,18 @@ Test(select, shares_of_the_samples_keep_delta_s_image, .timeout = 300)
     rd_scene_free(s);
 }
 
-/* settings.adaptive "auto", the default: shares for `guided`'s selection, none for
- * guided-unbiased's (which keeps its name's promise: docs/guided-unbiased.md "Shares of the
- * samples") or `delta`'s "tiles"; true and false force them either way. Read from the
+/* settings.adaptive "auto", the default: shares for `guided`'s selection, the pilot's for
+ * guided-unbiased's (which keep it unbiased: docs/guided-unbiased.md "Shares of the samples"),
+ * none for `delta`'s "tiles"; true and false force them either way. Read from the
  * render (rd_render_stats.shares, the JSON's "shares") and from its samples: a render with shares
  * draws fewer than spp a pixel past the first four, one without draws every one. */
-Test(select, auto_gives_shares_to_guided_alone, .timeout = 300)
+Test(select, auto_gives_shares_to_the_guided_methods, .timeout = 300)
 {
     static const struct {
         const char *method, *adaptive;
         int shares;
-    } cases[] = {{"guided", NULL, 1},         {"guided", "false", 0}, {"guided-unbiased", NULL, 0},
-                 {"guided-unbiased", "true", 1}, {"delta", NULL, 0},     {"delta", "true", 1}};
+    } cases[] = {{"guided", NULL, 1},          {"guided", "false", 0}, {"guided-unbiased", NULL, 1},
+                 {"guided-unbiased", "false", 0}, {"delta", NULL, 0},     {"delta", "true", 1}};
     for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
         char settings[160], name[64];
         /* (delta's selection: its equiangular "tiles", the spot's) */
@@ -1408,6 +1408,30 @@ Test(select, auto_gives_shares_to_guided_alone, .timeout = 300)
         rd_render_result_free(&r);
         rd_scene_free(s);
     }
+}
+
+/* guided-unbiased's default shares, the pilot's (settings.adaptive "auto"; select_share.c "Pilot
+ * shares"), keep `delta`'s image: the spot in fog over the whole frame as above, the selection
+ * named (rt_scene turns it off), rt_expect_same's bounds (5 for the image, 4.5 for each 8x8
+ * region; `delta` at 2048 samples a pixel, so that its own noise adds little). A mean below
+ * 0.9 x 256 samples a pixel means the shares thinned lit tiles. */
+Test(select, the_pilot_s_shares_keep_delta_s_image_with_guided_unbiased, .timeout = 300)
+{
+    char json[2048];
+    snprintf(json, sizeof json, "%s", rt_spot_fog_json_with(32, 24, "{\"select\":\"tiles\"}", "\"photons\":{\"count\":40000}"));
+    char *cut = strstr(json, "\"max\":[0.0,");
+    cr_assert(cut != NULL, "the fog's cut at x = 0 is not in the scene");
+    memcpy(cut + 7, "2.2", 3); /* the fog to the frame's right edge */
+    rd_scene *s = rt_scene("selpilot.json", json);
+    rd_render_result d = rt_render(s, "delta", 2048, 31, NULL);
+    rd_render_result g = rt_render(s, "guided-unbiased", 256, 35, NULL);
+    cr_log_info("guided-unbiased with the pilot's shares: %.1f samples a pixel of 256", g.stats.spp_mean);
+    cr_assert(g.stats.shares && g.stats.spp_mean < 0.9 * 256.0, "shares %d, %.1f samples a pixel of 256",
+              g.stats.shares, g.stats.spp_mean);
+    rt_expect_same(&d, &g, "guided-unbiased with the pilot's shares");
+    rd_render_result_free(&g);
+    rd_render_result_free(&d);
+    rd_scene_free(s);
 }
 
 /* Pixel (x, y)'s estimator under a trace line's tile (rd_select_uses from the trace). */
@@ -1827,11 +1851,13 @@ Test(select, the_trace_says_which_estimator_drew_every_sample, .timeout = 300)
      * given to delta's paths, and of those to delta's path with the strategy, must be the
      * render's own counts, to the sample; and writing the trace must not change the image.
      * hard-dense-block at 32x24, seed 1: its tiles go on trial at the pilot and move at both
-     * epochs (checked below), so a trace written before the choice, or of the wrong one, fails. */
-    const rd_override res[] = {{"camera.resolution", "[32,24]"}};
+     * epochs (checked below), so a trace written before the choice, or of the wrong one, fails.
+     * Without shares (settings.adaptive false; "auto" gives this method the pilot's): with them a
+     * pixel draws only its share of the indices a line governs, which the trace does not hold. */
+    const rd_override res[] = {{"camera.resolution", "[32,24]"}, {"settings.adaptive", "false"}};
     rd_scene *s = NULL;
     char err[RD_ERRLEN];
-    cr_assert(rd_scene_load(&s, "scenes/hard-dense-block.json", res, 1, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert(rd_scene_load(&s, "scenes/hard-dense-block.json", res, 2, err, sizeof err) == RD_OK, "%s", err);
     const char *path = rt_tmp_path("trace.jsonl");
     rd_render_result r[2];
     for (int i = 0; i < 2; i++) {
@@ -2257,6 +2283,7 @@ Test(select, a_tile_s_share_of_the_samples_is_the_root_of_its_variance_over_its_
     cr_assert(rd_select_share(&sel, 3, 3, NULL) == 1.0, "without shares a pixel draws every sample");
     cr_assert((sel.share = malloc(2 * T * sizeof *sel.share)) != NULL);
     for (int i = 0; i < 2 * T; i++) sel.share[i] = 1.0f;
+    cr_assert((sel.weight = calloc(2 * T, sizeof *sel.weight)) != NULL); /* (settings.adaptive true) */
     for (int k = 0; k < T; k++) {
         const double v = k % NX < 3 ? 0.04 : 0.01;
         fake_pilot(&sel, 2 * k, 0.5, v, 1.0, 1.0);       /* delta */
@@ -2273,6 +2300,45 @@ Test(select, a_tile_s_share_of_the_samples_is_the_root_of_its_variance_over_its_
         cr_assert(fabs(right - 0.5) < 1e-6, "row %d: the quieter side's share %g, not 1/2", ty, right);
     }
     rd_select_free(&sel);
+}
+
+/* settings.adaptive "pilot" (select_share.c, "Pilot shares"): with no weights the shares are set
+ * at the pilot's choice alone and kept, one a tile whatever estimator it uses, so that no pixel's
+ * count of samples depends on its image samples. 6x5 tiles as above; at the pilot the left three
+ * columns are the noisier (shares 1 and 1/2), at the two epochs after it the right three. Without
+ * weights the shares stay the pilot's; with weights (settings.adaptive true) the same figures
+ * move them (1/2 and 1), which is what the check would see if "pilot" followed the epochs. */
+Test(select, pilot_shares_are_set_once_and_kept_whatever_the_epochs_read)
+{
+    enum { NX = 6, NY = 5, T = NX * NY };
+    for (int weighted = 0; weighted < 2; weighted++) {
+        rd_select sel;
+        char err[RD_ERRLEN];
+        cr_assert(rd_select_init(&sel, 8 * NX, 8 * NY, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
+        cr_assert((sel.share = malloc(2 * T * sizeof *sel.share)) != NULL);
+        for (int i = 0; i < 2 * T; i++) sel.share[i] = 1.0f;
+        if (weighted) cr_assert((sel.weight = calloc(2 * T, sizeof *sel.weight)) != NULL);
+        for (int round = 0; round < 3; round++) { /* the pilot's choice, then two epochs' */
+            for (int k = 0; k < T; k++) {
+                const double v = (round == 0) == (k % NX < 3) ? 0.04 : 0.01;
+                fake_pilot(&sel, 2 * k, 0.5, v, 1.0, 1.0);       /* delta, the choice */
+                fake_pilot(&sel, 2 * k + 1, 0.5, 9.0, 1.0, 2.0); /* the method: more variance and cost */
+            }
+            rd_select_epoch(&sel, NULL, NULL);
+        }
+        const double want_left = weighted ? 0.5 : 1.0, want_right = weighted ? 1.0 : 0.5;
+        for (int ty = 0; ty < NY; ty++) {
+            const double left = rd_select_share(&sel, 1, 8 * ty + 2, NULL), right = rd_select_share(&sel, 8 * 5 + 6, 8 * ty + 5, NULL);
+            cr_assert(fabs(left - want_left) < 1e-6 && fabs(right - want_right) < 1e-6,
+                      "%s, row %d: shares %g and %g, not %g and %g", weighted ? "weights" : "pilot", ty, left, right,
+                      want_left, want_right);
+        }
+        if (!weighted)
+            for (int k = 0; k < T; k++)
+                cr_assert(sel.share[2 * k] == sel.share[2 * k + 1], "tile %d: shares %g and %g by estimator", k,
+                          sel.share[2 * k], sel.share[2 * k + 1]);
+        rd_select_free(&sel);
+    }
 }
 
 /* The share of a dark tile (no sample of any estimator lit it or its 8 neighbours: its pooled
@@ -2295,6 +2361,8 @@ Test(select, a_dark_tile_s_share_follows_the_rule_of_succession_and_one_with_no_
     cr_assert(rd_select_init(&sel, 8 * NX, 8 * NY, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
     cr_assert((sel.share = malloc(2 * T * sizeof *sel.share)) != NULL);
     for (int i = 0; i < 2 * T; i++) sel.share[i] = 1.0f;
+    /* (settings.adaptive true: with weights; without, the pilot's shares are kept) */
+    cr_assert((sel.weight = calloc(2 * T, sizeof *sel.weight)) != NULL);
     const double v = 0.04, mu = 0.5;
     for (int k = 0; k < T - 1; k++) {
         const int lit = k % NX < 3;

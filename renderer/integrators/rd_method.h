@@ -101,6 +101,7 @@ typedef struct rd_render_ctx {
      * selection with settings.adaptive's shares, integrators/select_share.c): the film keeps the
      * weighted sums (render/film.c). */
     int weighted;
+    int shares; /* set by prepare where its selection gives the tiles shares of the samples (the report) */
 } rd_render_ctx;
 
 /* What a tile selection reports to the render (rd_render_stats.select_choices, select_traced,

@@ -84,8 +84,9 @@ typedef vec3 (*rd_select_delta_fn)(const rd_render_ctx *ctx, rd_thread *th, ray3
 
 typedef struct {
     float *share;            /* settings.adaptive: [n k + e], tile k's share of the samples with e */
-    double *weight;          /* and their weight (0: none yet; select_share.c); both NULL: every
-                                pixel draws every sample, each of weight 1 */
+    double *weight;          /* and their weight (0: none yet; select_share.c); NULL with shares:
+                                settings.adaptive "pilot"'s, a tile's fixed at the pilot's choice;
+                                both NULL: every pixel draws every sample, each of weight 1 */
     uint8_t *choice;         /* per tile, the estimator that renders it (0 .. n-1, of kind kind[e]);
                                 NULL: the method everywhere (selection off, or not run) */
     uint8_t *trial;          /* per tile, 0, or 1 + the estimator on trial against the choice:
@@ -122,12 +123,11 @@ typedef struct {
                                 epochs' records'), as rd_select_pixel.gap and .gap_n: 8 doubles,
                                 the sums by pass mod 4, then the counts (select_rule.c, "The beams'
                                 bias"); NULL without the beams or the epochs (rd_select_prepare_more) */
-    double bias_ratio, bias_se; /* the last choice's image-wide ratio of the beams' squared bias to
+    double bias_ratio, bias_se, bias_r2; /* the last choice's image-wide ratio of the beams' squared bias to
                                    their variance a sample, at the radius then, before the margin,
                                    and its standard error (select_rule.c bias_ratio; 0 without the
                                    beams' products), and the radius's square then over pass 1's,
                                    bias_r2 (1 without passes): traced */
-    double bias_r2;
     struct rd_select_run *runs; /* per worker thread (rd_thread.index), the samples of the pixel
                                    it renders now, written to `pixels` at rd_select_pixel_done
                                    (select.c); NULL before rd_select_prepare */
@@ -216,10 +216,10 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
  * first put their photons in spatial order without a kd-tree (RD_PASS_NO_INDEX: nee+beams), and a
  * photon counts RD_SELECT_COST_ORDERED instead of RD_SELECT_COST_INDEXED (pass_indexed at most
  * pass_emitted where those passes are thinned: render.c, RD_PASS_THIN). A selection with epochs
- * takes shares (rd_select.share) where settings.adaptive is true, or "auto" and the method asks
- * with RD_SELECT_SHARES_AUTO (`guided`). */
+ * takes shares (rd_select.share) where settings.adaptive is true or "pilot", or "auto" and the
+ * method asks: RD_SELECT_SHARES_AUTO (`guided`), RD_SELECT_PILOT_SHARES_AUTO "pilot"'s (GU). */
 enum { RD_SELECT_THIRD = 1, RD_SELECT_METHOD_IS_PATH = 2, RD_SELECT_PASSES = 4, RD_SELECT_PASSES_ORDERED = 8,
-       RD_SELECT_SHARES_AUTO = 16 };
+       RD_SELECT_SHARES_AUTO = 16, RD_SELECT_PILOT_SHARES_AUTO = 32 };
 /* A progressive pass's work, in density lookups: a photon emitted, a tentative collision, a
  * photon indexed (stored and built into a kd-tree), a photon stored and put in order alone (the
  * indexed photon's weight less what the kd-tree cost on the calibration scenes: 0.152 us of

@@ -581,11 +581,14 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
     if (!third) sel->paths = 1u << RD_SEL_DELTA;
     /* settings.adaptive (true, or "auto" where the method asks), where the epochs choose again:
      * every share 1 until they set them, no weight until the choices set them (select_share.c) */
-    const int shares = s->settings.adaptive == RD_ADAPTIVE_AUTO ? (options & RD_SELECT_SHARES_AUTO) != 0
-                                                                 : s->settings.adaptive;
+    int a = s->settings.adaptive;
+    if (a == RD_ADAPTIVE_AUTO) /* the method's: `guided` shares, `guided-unbiased` the pilot's */
+        a = options & RD_SELECT_SHARES_AUTO ? 1 : options & RD_SELECT_PILOT_SHARES_AUTO ? RD_ADAPTIVE_PILOT : 0;
+    const int shares = a != 0, weights = a != RD_ADAPTIVE_PILOT; /* ("pilot": fixed shares, no weights) */
     if (shares && s->settings.select != RD_SELECT_PILOT) {
         size_t ns = (size_t)sel->n * sel->tiles_x * sel->tiles_y;
-        if (!(sel->share = malloc(ns * sizeof *sel->share)) || !(sel->weight = calloc(ns, sizeof *sel->weight))) {
+        if (!(sel->share = malloc(ns * sizeof *sel->share)) ||
+            (weights && !(sel->weight = calloc(ns, sizeof *sel->weight)))) {
             rd_select_free(sel);
             snprintf(err, errlen, "out of memory for the tile selection's shares (%dx%d pixels)", cam->width, cam->height);
             return RD_ERR_NOMEM;

@@ -46,7 +46,16 @@
  * changes is the ratio between estimators, read once, at the move. The image is consistent, not
  * unbiased (as the shares already make it): a weight is fixed before the samples it weighs are
  * drawn, from figures a pixel's samples enter among thousands, and every estimator is
- * consistent for the pixel's value. */
+ * consistent for the pixel's value.
+ *
+ * Pilot shares (session 70; settings.adaptive "pilot"). Shares that follow the epochs let a
+ * pixel's count of samples depend on its own image samples (high early samples raise the
+ * variance read and draw more samples to dilute them: a bias of order 1/n). Here the shares are
+ * set once, at the pilot's choice (whose samples are on random numbers of their own and not in
+ * the image), a tile's from the estimator the pilot gives it, and kept whatever estimator the
+ * epochs give it later; there are no weights. Every pixel's count is then fixed before its image
+ * samples are drawn, each of them is unbiased given the past (select.c's head), and so is their
+ * plain mean. */
 #include "integrators/rd_select.h"
 
 #include <math.h>
@@ -81,7 +90,7 @@ static void set_weights(rd_select *sel, int k, const rd_select_stats *st, const 
 
 void rd_select_set_shares(rd_select *sel, const rd_select_stats *st, const double *var, const double *cost)
 {
-    if (!sel->share) return;
+    if (!sel->share || (!sel->weight && sel->choices > 0)) return; /* ("pilot": set once, below) */
     const int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
     /* M per estimator (all of them in slot RD_SEL_MAX): the samples' squares (dev2 and the tile
      * mean's n mu^2, a lower bound of the pixels' means'), over the lit samples */
@@ -120,5 +129,7 @@ void rd_select_set_shares(rd_select *sel, const rd_select_stats *st, const doubl
             sel->share[j] = (float)s;
         }
         if (sel->weight) set_weights(sel, k, st, vw);
+        else /* "pilot": the tile's share whatever estimator the epochs give it (the head) */
+            for (int e = 0; e < m; e++) sel->share[(size_t)m * k + e] = sel->share[(size_t)m * k + sel->choice[k]];
     }
 }

@@ -496,7 +496,7 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
     }
     rs->seconds = now_seconds(clk) - t_start;
     rs->select_choices = select_report.choices, rs->select_traced = select_report.traced;
-    rs->shares = ctx.weighted;
+    rs->shares = ctx.shares;
     snprintf(res->select_trace_err, sizeof res->select_trace_err, "%s", select_report.err);
 done:
     if (st != RD_OK) rd_render_result_free(res);

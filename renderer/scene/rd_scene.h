@@ -58,12 +58,15 @@ typedef struct {
                           * samples, sqrt(V / C) of their estimator's figures over the largest
                           * tile's, each weighing in its pixel's mean by its estimator's inverse
                           * variance (integrators/select_share.c); 0: every pixel draws every
-                          * sample, each of weight 1; RD_ADAPTIVE_AUTO (default): 1 for `guided`,
-                          * 0 for the others */
+                          * sample, each of weight 1; RD_ADAPTIVE_PILOT: shares set at the pilot's
+                          * choice alone and kept, no weights (unbiased: select_share.c "Pilot
+                          * shares"); RD_ADAPTIVE_AUTO (default): 1 for `guided`,
+                          * RD_ADAPTIVE_PILOT for `guided-unbiased`, 0 for `delta` */
 } rd_settings;
 enum { RD_SELECT_OFF, RD_SELECT_TILES, RD_SELECT_PILOT, RD_SELECT_AUTO };
-/* settings.adaptive "auto" (the default): shares for `guided` only (rd_settings.adaptive). */
-enum { RD_ADAPTIVE_AUTO = 2 };
+/* settings.adaptive "auto" (the default): shares for `guided`, the pilot's for `guided-unbiased`;
+ * "pilot": shares fixed from the pilot's figures, no weights (rd_settings.adaptive). */
+enum { RD_ADAPTIVE_AUTO = 2, RD_ADAPTIVE_PILOT = 3 };
 enum { RD_BC_OFF, RD_BC_ON, RD_BC_AUTO }; /* settings.beam_connect */
 /* settings.equiangular: off, every flight, the camera's flight only, or every flight for the
  * lights whose lit span delta tracking reaches but mostly crosses without colliding
