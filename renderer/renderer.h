@@ -287,9 +287,9 @@ typedef struct {
      * the render had no selection) and, with rd_render_opts.select_trace, how many of them the
      * trace holds (on rank 0; the others write none). */
     int select_choices, select_traced;
-    /* 1 where the selection gave its tiles shares of the samples, each sample weighing in its
-     * pixel's mean (settings.adaptive true or "pilot", or "auto" for the guided methods); spp_mean then at most spp,
-     * fewer where a tile's share fell below 1. */
+    /* 1 where the selection gave its tiles shares of the samples (settings.adaptive true, each
+     * sample weighing in its pixel's mean, or "pilot", unweighted; or "auto" for the guided
+     * methods); spp_mean then at most spp, fewer where a tile's share fell below 1. */
     int shares;
 } rd_render_stats;
 

@@ -1408,6 +1408,24 @@ Test(select, auto_gives_shares_to_the_guided_methods, .timeout = 300)
         rd_render_result_free(&r);
         rd_scene_free(s);
     }
+    /* and guided-unbiased's "auto" is "pilot" (loaded from the scene), not true: the same image to
+     * the bit as "pilot", another than true's */
+    rd_render_result g[3];
+    const char *modes[3] = {NULL, "\"pilot\"", "true"};
+    for (int i = 0; i < 3; i++) {
+        char settings[160], name[64];
+        if (modes[i]) snprintf(settings, sizeof settings, "{\"select\":\"tiles\",\"adaptive\":%s}", modes[i]);
+        else snprintf(settings, sizeof settings, "{\"select\":\"tiles\"}");
+        snprintf(name, sizeof name, "selautogu%d.json", i);
+        rd_scene *s = rt_scene(name, rt_spot_fog_json_with(32, 24, settings, "\"photons\":{\"count\":20000}"));
+        cr_assert(i != 1 || s->settings.adaptive == RD_ADAPTIVE_PILOT, "\"pilot\" not loaded");
+        g[i] = rt_render(s, "guided-unbiased", 32, 41, NULL);
+        rd_scene_free(s);
+    }
+    const size_t bytes = (size_t)g[0].image.w * g[0].image.h * 3 * sizeof(float);
+    cr_expect(memcmp(g[0].image.rgb, g[1].image.rgb, bytes) == 0, "guided-unbiased's \"auto\" is not \"pilot\"");
+    cr_expect(memcmp(g[0].image.rgb, g[2].image.rgb, bytes) != 0, "guided-unbiased's \"auto\" renders as true");
+    for (int i = 0; i < 3; i++) rd_render_result_free(&g[i]);
 }
 
 /* guided-unbiased's default shares, the pilot's (settings.adaptive "auto"; select_share.c "Pilot

@@ -286,8 +286,8 @@ void rd_select_choose(const double *var, const double *cost, const double *bias,
  * C))^2 / R + sum B; the arguments as rd_select_choose's (not its P, n0, T0, left or w). */
 void rd_select_choose_adaptive(const double *var, const double *cost, const double *bias, int n, int m,
                                const rd_select_past *past, uint8_t *choice);
-/* After a choice, the shares and weights (select_share.c) from statistics st (all the tiles'
- * samples) and the rule's pooled figures; nothing without shares. A tile's pixels: at most 64. */
+/* After a choice (without weights, "pilot", the pilot's alone), the shares and weights from st
+ * (all the tiles' samples) and the rule's pooled figures; nothing without shares. Tile: <= 64 px. */
 void rd_select_set_shares(rd_select *sel, const rd_select_stats *st, const double *var, const double *cost);
 double rd_select_tile_pixels(const rd_select *sel, int tx, int ty);
 

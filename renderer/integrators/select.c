@@ -460,7 +460,7 @@ static void beams_pilot_fold(rd_select *sel, int b, int clear)
  * the statistics so far gives them the tile or puts them on trial there, or in one of its 3x3
  * neighbours (the figures' pooling); contend[k] 1 for those. The selection's choices, trials,
  * statistics, unlit estimator and bias figures are as before the call, and no weight set (its
- * shares are the dry run's, read from the first epoch's choice on, which sets them anew). Out of memory (here or in the rule,
+ * shares are the dry run's, which the pilot's own choice sets anew). Out of memory (here or in the rule,
  * which then leaves unlit unset): every tile contends. */
 static void beams_contend(rd_select *sel, int b, uint8_t *contend)
 {
@@ -579,8 +579,9 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
         return RD_ERR_NOMEM;
     }
     if (!third) sel->paths = 1u << RD_SEL_DELTA;
-    /* settings.adaptive (true, or "auto" where the method asks), where the epochs choose again:
-     * every share 1 until they set them, no weight until the choices set them (select_share.c) */
+    /* settings.adaptive (true or "pilot", or "auto" where the method asks), where the epochs choose
+     * again: every share 1 until the choices set them (read from the first epoch on; "pilot": the
+     * pilot's choice alone, and no weights), no weight until they set them (select_share.c) */
     int a = s->settings.adaptive;
     if (a == RD_ADAPTIVE_AUTO) /* the method's: `guided` shares, `guided-unbiased` the pilot's */
         a = options & RD_SELECT_SHARES_AUTO ? 1 : options & RD_SELECT_PILOT_SHARES_AUTO ? RD_ADAPTIVE_PILOT : 0;

@@ -13,7 +13,8 @@
  * pooled figures of all the tile's samples). The beams' squared bias does not fall with a
  * pixel's samples: at a deadline the rule weighs (sum sqrt(V C))^2 / R + sum B, each tile the
  * least of (2 S / R) sqrt(V C) + B at the fixed point of S = sum sqrt(V C), then single moves.
- * Every pixel draws its first RD_SHARE_FIRST samples (the pilot's choice sets no share), a tile
+ * Every pixel draws its first RD_SHARE_FIRST samples (the pilot's choice sets shares, read from
+ * the first epoch on: below, "Pilot shares", where they are the only ones), a tile
  * whose estimator has no samples yet every sample, every other at least SEL_SHARE_MIN. render.c
  * draws sample i of a pixel of share s where (i + 1 - RD_SHARE_FIRST) s reaches a whole number,
  * keyed by the index, so the image does not depend on the threads; the photon passes are paced
@@ -26,7 +27,8 @@
  * (hard-dense-block's black background), and at the floor a rarely lit tile (select_rule.c,
  * "Tiles no sample has lit") would keep a few samples for good. Their V is Laplace's rule of
  * succession's, M / (N + 2) after N samples over the 3x3 tiles, all 0, M the image's mean square
- * of a lit sample: the share falls as 1 / sqrt(N) and never stops.
+ * of a lit sample: the share falls as 1 / sqrt(N) and never stops (with "pilot"'s shares it keeps
+ * the pilot's).
  *
  * Weights (session 69). A pixel's plain mean weighs its samples alike, and with shares a tile
  * that moves to a quieter, costlier estimator draws few samples of it: those it drew before stay
