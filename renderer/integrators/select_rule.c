@@ -913,7 +913,9 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
                                                  the pixels try w for an epoch */
         }
     }
-    if (sel->share) { /* the shares of the samples and their weights, from all the tile's samples (select_share.c) */
+    /* the shares of the samples and their weights, from all the tile's samples (select_share.c;
+     * "pilot"'s, without weights, at the pilot's choice alone: no figures for the epochs') */
+    if (sel->share && (sel->weight || sel->choices == 0)) {
         figures(sel, all, pbar, NULL, var, cost, tmp);
         rd_select_set_shares(sel, all, var, cost);
     }
