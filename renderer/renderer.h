@@ -288,8 +288,9 @@ typedef struct {
      * trace holds (on rank 0; the others write none). */
     int select_choices, select_traced;
     /* 1 where the selection gave its tiles shares of the samples (settings.adaptive true, each
-     * sample weighing in its pixel's mean, or "pilot", unweighted; or "auto" for the guided
-     * methods); spp_mean then at most spp, fewer where a tile's share fell below 1. */
+     * sample weighing in its pixel's mean, "pilot", unweighted, or "epochs", each sample weighing
+     * the indices it stands for; or "auto" for the guided methods); spp_mean then at most spp,
+     * fewer where a tile's share fell below 1 (under "epochs" still one sample an epoch). */
     int shares;
 } rd_render_stats;
 

@@ -497,6 +497,39 @@ Test(render, worker_threads_and_their_scratch_start_cache_lines)
     rd_threads_free(th, N);
 }
 
+/* rd_block_next (settings.adaptive "epochs": render.c's loop with blocks) against its definition,
+ * index by index: in an epoch [a, b) a pixel of share s draws a, then each v where
+ * floor((v - a) s) passes a whole number; the epoch is cut in two passes at a random index, as the
+ * render cuts it, and each drawn index's weight (the indices to the next drawn one, or to b)
+ * must sum to b - a, so that a pixel's weights sum to its samples whatever its shares. Shares 0,
+ * 1, the floor 1/4096, 1/2, 1.5 and 400 drawn at random; epochs anywhere past RD_SHARE_FIRST. */
+Test(render, a_pixel_s_blocks_under_epoch_shares_are_the_ones_the_index_by_index_test_finds)
+{
+    const double listed[] = {0.0, 1.0, 1.0 / 4096.0, 0.5, 1.5};
+    const int nl = sizeof listed / sizeof *listed;
+    pcg32 rng = pcg32_seed(1234, 71, 1);
+    for (int k = 0; k < nl + 400; k++) {
+        const double share = k < nl ? listed[k] : pcg32_uniform(&rng);
+        const int a = RD_SHARE_FIRST + (int)(pcg32_next(&rng) % 5000), b = a + 1 + (int)(pcg32_next(&rng) % 9000);
+        const int cut = a + (int)(pcg32_next(&rng) % (uint32_t)(b - a));
+        double wsum = 0.0;
+        int want = a;
+        for (int part = 0; part < 2; part++) {
+            const int s0 = part ? cut : a, s1 = part ? b : cut;
+            for (int i = rd_block_next(s0, a, s1, share); i < s1; i = rd_block_next(i + 1, a, s1, share)) {
+                while (want < s1 && want != a && floor((want - a) * share) == floor((want - a - 1) * share)) want++;
+                cr_assert_eq(i, want, "share %.17g, epoch [%d, %d), pass from %d: drew %d, the test draws %d", share, a, b,
+                             s0, i, want);
+                wsum += rd_block_next(i + 1, a, b, share) - i;
+                want++;
+            }
+            while (want < s1 && want != a && floor((want - a) * share) == floor((want - a - 1) * share)) want++;
+            cr_assert(want >= s1, "share %.17g, epoch [%d, %d): index %d drawn but skipped", share, a, b, want);
+        }
+        cr_assert(wsum == b - a, "share %.17g, epoch [%d, %d): weights sum to %g", share, a, b, wsum);
+    }
+}
+
 /* rd_share_next (render.c's loop over a pixel's samples with shares) finds, at once, the very
  * indices that testing rd_share_draws index by index finds: for shares that are whole
  * fractions (where rounding decides ties), tiny, near 1, 0 and 1, and ranges that start and

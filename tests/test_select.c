@@ -1375,7 +1375,7 @@ Test(select, shares_of_the_samples_keep_delta_s_image, .timeout = 300)
     rd_scene_free(s);
 }
 
-/* settings.adaptive "auto", the default: shares for `guided`'s selection, the pilot's for
+/* settings.adaptive "auto", the default: shares for `guided`'s selection, the epochs' for
  * guided-unbiased's (which keep it unbiased: docs/guided-unbiased.md "Shares of the samples"),
  * none for `delta`'s "tiles"; true and false force them either way. Read from the
  * render (rd_render_stats.shares, the JSON's "shares") and from its samples: a render with shares
@@ -1408,48 +1408,56 @@ Test(select, auto_gives_shares_to_the_guided_methods, .timeout = 300)
         rd_render_result_free(&r);
         rd_scene_free(s);
     }
-    /* and guided-unbiased's "auto" is "pilot" (loaded from the scene), not true: the same image to
-     * the bit as "pilot", another than true's */
-    rd_render_result g[3];
-    const char *modes[3] = {NULL, "\"pilot\"", "true"};
-    for (int i = 0; i < 3; i++) {
+    /* and guided-unbiased's "auto" is "epochs" (loaded from the scene), neither "pilot" nor true:
+     * the same image to the bit as "epochs", another than theirs */
+    rd_render_result g[4];
+    const char *modes[4] = {NULL, "\"epochs\"", "\"pilot\"", "true"};
+    for (int i = 0; i < 4; i++) {
         char settings[160], name[64];
         if (modes[i]) snprintf(settings, sizeof settings, "{\"select\":\"tiles\",\"adaptive\":%s}", modes[i]);
         else snprintf(settings, sizeof settings, "{\"select\":\"tiles\"}");
         snprintf(name, sizeof name, "selautogu%d.json", i);
         rd_scene *s = rt_scene(name, rt_spot_fog_json_with(32, 24, settings, "\"photons\":{\"count\":20000}"));
-        cr_assert(i != 1 || s->settings.adaptive == RD_ADAPTIVE_PILOT, "\"pilot\" not loaded");
+        cr_assert(i != 1 || s->settings.adaptive == RD_ADAPTIVE_EPOCHS, "\"epochs\" not loaded");
         g[i] = rt_render(s, "guided-unbiased", 32, 41, NULL);
         rd_scene_free(s);
     }
     const size_t bytes = (size_t)g[0].image.w * g[0].image.h * 3 * sizeof(float);
-    cr_expect(memcmp(g[0].image.rgb, g[1].image.rgb, bytes) == 0, "guided-unbiased's \"auto\" is not \"pilot\"");
-    cr_expect(memcmp(g[0].image.rgb, g[2].image.rgb, bytes) != 0, "guided-unbiased's \"auto\" renders as true");
-    for (int i = 0; i < 3; i++) rd_render_result_free(&g[i]);
+    cr_expect(memcmp(g[0].image.rgb, g[1].image.rgb, bytes) == 0, "guided-unbiased's \"auto\" is not \"epochs\"");
+    cr_expect(memcmp(g[0].image.rgb, g[2].image.rgb, bytes) != 0, "guided-unbiased's \"auto\" renders as \"pilot\"");
+    cr_expect(memcmp(g[0].image.rgb, g[3].image.rgb, bytes) != 0, "guided-unbiased's \"auto\" renders as true");
+    for (int i = 0; i < 4; i++) rd_render_result_free(&g[i]);
 }
 
-/* guided-unbiased's default shares, the pilot's (settings.adaptive "auto"; select_share.c "Pilot
- * shares"), keep `delta`'s image: the spot in fog over the whole frame as above, the selection
- * named (rt_scene turns it off), rt_expect_same's bounds (5 for the image, 4.5 for each 8x8
- * region; `delta` at 2048 samples a pixel, so that its own noise adds little). A mean below
- * 0.9 x 256 samples a pixel means the shares thinned lit tiles. */
-Test(select, the_pilot_s_shares_keep_delta_s_image_with_guided_unbiased, .timeout = 300)
+/* guided-unbiased's unbiased shares, the pilot's and the epochs' (settings.adaptive "pilot" and
+ * "epochs"; select_share.c "Pilot shares", "Epoch shares"), keep `delta`'s image: the spot in fog
+ * over the whole frame as above, the selection named (rt_scene turns it off), rt_expect_same's
+ * bounds (5 for the image, 4.5 for each 8x8 region; `delta` at 2048 samples a pixel, so that its
+ * own noise adds little). A mean below 0.9 x 256 samples a pixel means the shares thinned lit
+ * tiles. A guard against a wrong count or weight, not a proof: a bias of order 1/n lies far
+ * below what it resolves (the test above is the proof of the epochs' weights). */
+Test(select, the_unbiased_shares_keep_delta_s_image_with_guided_unbiased, .timeout = 300)
 {
-    char json[2048];
-    snprintf(json, sizeof json, "%s", rt_spot_fog_json_with(32, 24, "{\"select\":\"tiles\"}", "\"photons\":{\"count\":40000}"));
-    char *cut = strstr(json, "\"max\":[0.0,");
-    cr_assert(cut != NULL, "the fog's cut at x = 0 is not in the scene");
-    memcpy(cut + 7, "2.2", 3); /* the fog to the frame's right edge */
-    rd_scene *s = rt_scene("selpilot.json", json);
-    rd_render_result d = rt_render(s, "delta", 2048, 31, NULL);
-    rd_render_result g = rt_render(s, "guided-unbiased", 256, 35, NULL);
-    cr_log_info("guided-unbiased with the pilot's shares: %.1f samples a pixel of 256", g.stats.spp_mean);
-    cr_assert(g.stats.shares && g.stats.spp_mean < 0.9 * 256.0, "shares %d, %.1f samples a pixel of 256",
-              g.stats.shares, g.stats.spp_mean);
-    rt_expect_same(&d, &g, "guided-unbiased with the pilot's shares");
-    rd_render_result_free(&g);
+    rd_render_result d;
+    for (int epochs = 0; epochs < 2; epochs++) {
+        char json[2048];
+        const char *set = epochs ? "{\"select\":\"tiles\",\"adaptive\":\"epochs\"}" : "{\"select\":\"tiles\",\"adaptive\":\"pilot\"}";
+        snprintf(json, sizeof json, "%s", rt_spot_fog_json_with(32, 24, set, "\"photons\":{\"count\":40000}"));
+        char *cut = strstr(json, "\"max\":[0.0,");
+        cr_assert(cut != NULL, "the fog's cut at x = 0 is not in the scene");
+        memcpy(cut + 7, "2.2", 3); /* the fog to the frame's right edge */
+        rd_scene *s = rt_scene("selpilot.json", json);
+        if (!epochs) d = rt_render(s, "delta", 2048, 31, NULL); /* (delta: no selection, the same image) */
+        rd_render_result g = rt_render(s, "guided-unbiased", 256, 35, NULL);
+        const char *what = epochs ? "guided-unbiased with the epochs' shares" : "guided-unbiased with the pilot's shares";
+        cr_log_info("%s: %.1f samples a pixel of 256", what, g.stats.spp_mean);
+        cr_assert(g.stats.shares && g.stats.spp_mean < 0.9 * 256.0, "%s: shares %d, %.1f samples a pixel of 256", what,
+                  g.stats.shares, g.stats.spp_mean);
+        rt_expect_same(&d, &g, what);
+        rd_render_result_free(&g);
+        rd_scene_free(s);
+    }
     rd_render_result_free(&d);
-    rd_scene_free(s);
 }
 
 /* Pixel (x, y)'s estimator under a trace line's tile (rd_select_uses from the trace). */
@@ -1870,7 +1878,7 @@ Test(select, the_trace_says_which_estimator_drew_every_sample, .timeout = 300)
      * render's own counts, to the sample; and writing the trace must not change the image.
      * hard-dense-block at 32x24, seed 1: its tiles go on trial at the pilot and move at both
      * epochs (checked below), so a trace written before the choice, or of the wrong one, fails.
-     * Without shares (settings.adaptive false; "auto" gives this method the pilot's): with them a
+     * Without shares (settings.adaptive false; "auto" gives this method the epochs'): with them a
      * pixel draws only its share of the indices a line governs, which the trace does not hold. */
     const rd_override res[] = {{"camera.resolution", "[32,24]"}, {"settings.adaptive", "false"}};
     rd_scene *s = NULL;
@@ -2325,17 +2333,21 @@ Test(select, a_tile_s_share_of_the_samples_is_the_root_of_its_variance_over_its_
  * count of samples depends on its image samples. 6x5 tiles as above; at the pilot the left three
  * columns are the noisier (shares 1 and 1/2), at the two epochs after it the right three. Without
  * weights the shares stay the pilot's; with weights (settings.adaptive true) the same figures
- * move them (1/2 and 1), which is what the check would see if "pilot" followed the epochs. */
+ * move them (1/2 and 1), which is what the check would see if "pilot" followed the epochs; and so
+ * do "epochs"' (blocks, no weights: select_share.c "Epoch shares"), whose shares must follow. */
 Test(select, pilot_shares_are_set_once_and_kept_whatever_the_epochs_read)
 {
     enum { NX = 6, NY = 5, T = NX * NY };
-    for (int weighted = 0; weighted < 2; weighted++) {
+    for (int mode = 0; mode < 3; mode++) { /* "pilot", true (weights), "epochs" (blocks) */
+        const int follow = mode > 0;
+        const char *name = mode == 0 ? "pilot" : mode == 1 ? "weights" : "blocks";
         rd_select sel;
         char err[RD_ERRLEN];
         cr_assert(rd_select_init(&sel, 8 * NX, 8 * NY, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
         cr_assert((sel.share = malloc(2 * T * sizeof *sel.share)) != NULL);
         for (int i = 0; i < 2 * T; i++) sel.share[i] = 1.0f;
-        if (weighted) cr_assert((sel.weight = calloc(2 * T, sizeof *sel.weight)) != NULL);
+        if (mode == 1) cr_assert((sel.weight = calloc(2 * T, sizeof *sel.weight)) != NULL);
+        sel.blocks = mode == 2;
         for (int round = 0; round < 3; round++) { /* the pilot's choice, then two epochs' */
             for (int k = 0; k < T; k++) {
                 const double v = (round == 0) == (k % NX < 3) ? 0.04 : 0.01;
@@ -2344,19 +2356,103 @@ Test(select, pilot_shares_are_set_once_and_kept_whatever_the_epochs_read)
             }
             rd_select_epoch(&sel, NULL, NULL);
         }
-        const double want_left = weighted ? 0.5 : 1.0, want_right = weighted ? 1.0 : 0.5;
+        const double want_left = follow ? 0.5 : 1.0, want_right = follow ? 1.0 : 0.5;
         for (int ty = 0; ty < NY; ty++) {
             const double left = rd_select_share(&sel, 1, 8 * ty + 2, NULL), right = rd_select_share(&sel, 8 * 5 + 6, 8 * ty + 5, NULL);
             cr_assert(fabs(left - want_left) < 1e-6 && fabs(right - want_right) < 1e-6,
-                      "%s, row %d: shares %g and %g, not %g and %g", weighted ? "weights" : "pilot", ty, left, right,
-                      want_left, want_right);
+                      "%s, row %d: shares %g and %g, not %g and %g", name, ty, left, right, want_left, want_right);
         }
-        if (!weighted)
+        if (!follow)
             for (int k = 0; k < T; k++)
                 cr_assert(sel.share[2 * k] == sel.share[2 * k + 1], "tile %d: shares %g and %g by estimator", k,
                           sel.share[2 * k], sel.share[2 * k + 1]);
         rd_select_free(&sel);
     }
+}
+
+/* Past the pilot, "pilot"'s shares stay fixed, so the rule weighs each tile's figures in sample
+ * indices, V / s and C s, and minimises their product over the image (select_rule.c's head,
+ * "Fixed shares"); the adaptive rule's own sqrt(V C) a tile assumes the share follows the choice.
+ * 6x5 tiles, two estimators (delta, cost 1; the method, cost 20 and 1/16 of delta's variance
+ * on the right). The pilot reads delta's variance 1 on the left (share 1) and 1/256 on the
+ * right (share sqrt(1/256) = 1/16); the epoch reads 1 everywhere. On the right the method's
+ * sqrt(V C) is 1.12x delta's, so the shares that follow the choice keep delta there; at share
+ * 1/16 all right tiles on delta make (15 + 15 x 16)(15 + 15 / 16) = 4064 against the method's
+ * (15 + 15)(15 + 15 x 20 / 16) = 1013, so the fixed shares move them. Columns 4-5 (pooled over
+ * right tiles only) are read; with shares that follow (true's, "epochs"') the adaptive rule keeps
+ * delta. Fails with the adaptive rule under "pilot", or with V s and C / s. */
+Test(select, fixed_shares_weigh_a_tile_s_figures_by_its_share)
+{
+    enum { NX = 6, NY = 5, T = NX * NY };
+    for (int mode = 0; mode < 3; mode++) { /* "pilot", then shares that follow: true's, "epochs"' */
+        const int weighted = mode > 0;
+        rd_select sel;
+        char err[RD_ERRLEN];
+        cr_assert(rd_select_init(&sel, 8 * NX, 8 * NY, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
+        cr_assert((sel.share = malloc(2 * T * sizeof *sel.share)) != NULL);
+        for (int i = 0; i < 2 * T; i++) sel.share[i] = 1.0f;
+        if (mode == 1) cr_assert((sel.weight = calloc(2 * T, sizeof *sel.weight)) != NULL);
+        sel.blocks = mode == 2;
+        for (int round = 0; round < 2; round++) { /* the pilot's choice, then an epoch's */
+            for (int k = 0; k < T; k++) {
+                const int right = k % NX >= 3;
+                fake_pilot(&sel, 2 * k, 0.5, round == 0 && right ? 1.0 / 256.0 : 1.0, 1.0, 1.0);
+                fake_pilot(&sel, 2 * k + 1, 0.5, right ? (round == 0 ? 1.0 : 1.0 / 16.0) : 100.0, 1.0, 20.0);
+            }
+            rd_select_epoch(&sel, NULL, NULL);
+            if (round == 0 && !weighted)
+                for (int k = 0; k < T; k++) /* (columns 2 and 3 pool each other's) */
+                    cr_assert(k % NX == 2 || k % NX == 3 || fabs(sel.share[2 * k] - (k % NX > 3 ? 1.0 / 16.0 : 1.0)) < 1e-6,
+                              "pilot: tile %d share %g", k, sel.share[2 * k]);
+        }
+        for (int ty = 0; ty < NY; ty++)
+            for (int tx = 0; tx < NX; tx++) {
+                const int k = ty * NX + tx, want = tx >= 4 && !weighted ? 1 : 0;
+                if (tx == 3) continue; /* (pooled with the left's column 2) */
+                cr_assert(sel.choice[k] == want && sel.trial[k] == 0, "%s, tile (%d, %d): estimator %d (trial %d), not %d",
+                          mode == 0 ? "pilot" : mode == 1 ? "weights" : "blocks", tx, ty, sel.choice[k], sel.trial[k], want);
+            }
+        rd_select_free(&sel);
+    }
+}
+
+/* settings.adaptive "epochs" (select_share.c, "Epoch shares"): with each drawn sample weighing the
+ * indices it stands for (rd_block_next, as render.c draws them), a pixel's mean stays unbiased
+ * whatever its shares follow, its own past samples included; its plain mean does not. One pixel
+ * of 256 samples X (1 with probability q = 1/4, else 0), epochs at 4, 16, 64 (x4, select.c's),
+ * each epoch's share set by an adversary from the pixel's own mean so far: 1 where it is above q
+ * (more samples to dilute a high start), 1/16 at or below (a low start kept). Over 2^18 pixels
+ * (fixed seed) the weighted mean must lie within 5 standard errors of q and every pixel's
+ * weights sum to 256; the plain mean of the same samples must lie beyond 5 (the test sees a
+ * bias). Fails with every weight 1 (the plain mean), and by the weights' sum where blocks do not
+ * begin at the epoch's first index or run past its end. */
+Test(select, block_weights_keep_a_pixel_s_mean_unbiased_whatever_its_shares_follow)
+{
+    enum { N = 256, PIXELS = 1 << 18 };
+    const double q = 0.25;
+    pcg32 rng = pcg32_seed(2026, 12, 71);
+    double s[2] = {0.0, 0.0}, s2[2] = {0.0, 0.0}; /* the weighted means', then the plain means' */
+    for (int p = 0; p < PIXELS; p++) {
+        double wx = 0.0, w = 0.0, x = 0.0, n = 0.0;
+        for (int a = 0, b = RD_SHARE_FIRST; a < N; a = b, b = 4 * b < N ? 4 * b : N) {
+            const double share = a < RD_SHARE_FIRST || x / n > q ? 1.0 : 1.0 / 16.0;
+            for (int i = rd_block_next(a, a, b, share); i < b; i = rd_block_next(i + 1, a, b, share)) {
+                const double X = pcg32_uniform(&rng) < q ? 1.0 : 0.0, wi = rd_block_next(i + 1, a, b, share) - i;
+                wx += wi * X, w += wi, x += X, n += 1.0;
+            }
+        }
+        if (w != N) cr_assert_fail("pixel %d: weights sum to %g, not %d", p, w, N);
+        const double e[2] = {wx / w, x / n};
+        for (int k = 0; k < 2; k++) s[k] += e[k], s2[k] += e[k] * e[k];
+    }
+    double z[2];
+    for (int k = 0; k < 2; k++) {
+        const double mean = s[k] / PIXELS, var = (s2[k] / PIXELS - mean * mean) * PIXELS / (PIXELS - 1.0);
+        z[k] = (mean - q) / sqrt(var / PIXELS);
+    }
+    cr_log_info("epoch shares: z of the weighted mean %.2f, of the plain mean %.2f", z[0], z[1]);
+    cr_assert(fabs(z[0]) < 5.0, "the weighted mean is %.2f standard errors off q", z[0]);
+    cr_assert(fabs(z[1]) > 5.0, "the plain mean is only %.2f standard errors off q: the adversary shows no bias", z[1]);
 }
 
 /* The share of a dark tile (no sample of any estimator lit it or its 8 neighbours: its pooled

@@ -92,7 +92,8 @@ static rd_status delta_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
         } else {
             /* two estimators: its "method" is the path with the strategy already, no third */
             st = rd_select_prepare(ctx, delta_every_flight, NULL, 0.0, RD_SELECT_METHOD_IS_PATH, ds->sel, err, errlen);
-            ctx->weighted = st == RD_OK && ds->sel->weight;
+            ctx->weighted = st == RD_OK && (ds->sel->weight || ds->sel->blocks);
+            ctx->blocks = st == RD_OK && ds->sel->blocks;
             ctx->shares = st == RD_OK && ds->sel->share;
         }
     }

@@ -134,7 +134,10 @@ static rd_status prepare_guided(rd_render_ctx *ctx, char *err, size_t errlen)
                                      .beams = beams ? march_beams : NULL};
         st = rd_select_prepare_more(ctx, march_guided, NULL, RD_MARCH_CELL_COST, options, &more, &mst->sel, err, errlen);
         if (st != RD_OK) rd_march_release(ctx);
-        else ctx->weighted = mst->sel.weight != NULL, ctx->shares = mst->sel.share != NULL;
+        else {
+            ctx->weighted = mst->sel.weight || mst->sel.blocks, ctx->shares = mst->sel.share != NULL;
+            ctx->blocks = mst->sel.blocks;
+        }
     }
     return st;
 }

@@ -871,15 +871,16 @@ static rd_status gu_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
          * delta's path itself, the same sample without the two calls between (a `delta` tile's
          * sample on hard-narrow-spot costs about 0.3 us, each call a few ns). */
         rd_select_delta_fn dfn = rd_probes_on(&st->probes) ? gu_delta : NULL;
-        /* (settings.adaptive "auto": the pilot's shares, which keep the image unbiased:
-         * docs/guided-unbiased.md "Shares of the samples") */
-        const int options = RD_SELECT_THIRD | RD_SELECT_PILOT_SHARES_AUTO;
+        /* (settings.adaptive "auto": the epochs' shares, which keep the image unbiased:
+         * docs/guided-unbiased.md "Shares that follow the epochs, unbiased") */
+        const int options = RD_SELECT_THIRD | RD_SELECT_UNBIASED_SHARES_AUTO;
         rd_status rs = rd_select_prepare(ctx, gu_path, dfn, GU_CELL_COST, options, &st->sel, err, errlen);
         if (rs != RD_OK) {
             gu_release(ctx);
             return rs;
         }
-        ctx->weighted = st->sel.weight != NULL, ctx->shares = st->sel.share != NULL;
+        ctx->weighted = st->sel.weight || st->sel.blocks, ctx->shares = st->sel.share != NULL;
+        ctx->blocks = st->sel.blocks;
     }
     return RD_OK;
 }

@@ -98,10 +98,11 @@ typedef struct rd_render_ctx {
      * Both 0: no end known, or nothing left. */
     double epoch_ahead, epoch_left;
     /* Set by prepare where the method weighs its samples (rd_method.sample_share's weight: a tile
-     * selection with settings.adaptive's shares, integrators/select_share.c): the film keeps the
-     * weighted sums (render/film.c). */
+     * selection with settings.adaptive's shares, integrators/select_share.c; or blocks, below):
+     * the film keeps the weighted sums (render/film.c). */
     int weighted;
     int shares; /* set by prepare where its selection gives the tiles shares of the samples (the report) */
+    int blocks; /* and where each sample weighs the indices it stands for (rd_block_next; "epochs") */
 } rd_render_ctx;
 
 /* What a tile selection reports to the render (rd_render_stats.select_choices, select_traced,
@@ -170,7 +171,7 @@ typedef struct rd_method {
     void (*pixel_done)(const rd_render_ctx *ctx, rd_thread *th);
     /* Optional: the share in [0, 1] of the samples past the first RD_SHARE_FIRST that pixel
      * (x, y) draws (render.c draws sample i where floor((i + 1 - RD_SHARE_FIRST) share) passes
-     * a whole number), and in *weight the weight in the pixel's mean of every sample it draws in
+     * a whole number; with rd_render_ctx.blocks as rd_block_next says), and in *weight the weight in the pixel's mean of every sample it draws in
      * the pass (left as it is: 1); NULL: every sample, each weighing 1 (settings.adaptive:
      * select_share.c, "Samples where they pay" and "Weights"; the film keeps the weighted sums
      * where prepare set rd_render_ctx.weighted). Read once a pixel a pass. */
@@ -206,6 +207,17 @@ static inline int rd_share_next(int i, int end, double share)
     while (v - 1.0 > u && floor((v - 1.0) * share) >= j) v -= 1.0;
     while (v <= last && floor(v * share) < j) v += 1.0;
     return v <= last ? (int)v - 1 + RD_SHARE_FIRST : end;
+}
+
+/* settings.adaptive "epochs" (select_share.c, "Epoch shares"): in an epoch that begins at index a
+ * a pixel of share `share` draws a, then where (v - a) share reaches a whole number (rd_share_next's
+ * pattern begun at a); the first such index in [i, end), else end. A drawn index v stands for
+ * itself and the indices up to the next drawn one or the epoch's end, its weight in the mean.
+ * For a >= RD_SHARE_FIRST (render.c's; an index below a counts as drawn). */
+static inline int rd_block_next(int i, int a, int end, double share)
+{
+    const int off = a + 1 - RD_SHARE_FIRST; /* v is index v - off of rd_share_next's pattern */
+    return rd_share_next(i - off, end - off, share) + off;
 }
 
 /* The table (methods.c). NULL for an unknown name. */

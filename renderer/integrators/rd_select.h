@@ -84,9 +84,10 @@ typedef vec3 (*rd_select_delta_fn)(const rd_render_ctx *ctx, rd_thread *th, ray3
 
 typedef struct {
     float *share;            /* settings.adaptive: [n k + e], tile k's share of the samples with e */
-    double *weight;          /* and their weight (0: none yet; select_share.c); NULL with shares:
-                                settings.adaptive "pilot"'s, a tile's fixed at the pilot's choice;
+    double *weight;          /* and their weight (0: none yet; select_share.c); NULL with "pilot"'s
+                                shares (fixed at the pilot) or "epochs"' (blocks, set at every choice);
                                 both NULL: every pixel draws every sample, each of weight 1 */
+    int blocks;              /* "epochs": each sample weighs the indices it stands for (render.c) */
     uint8_t *choice;         /* per tile, the estimator that renders it (0 .. n-1, of kind kind[e]);
                                 NULL: the method everywhere (selection off, or not run) */
     uint8_t *trial;          /* per tile, 0, or 1 + the estimator on trial against the choice:
@@ -140,8 +141,7 @@ typedef struct {
     rd_text trace;            /* the trace's lines so far */
 } rd_select;
 
-/* The estimator (0 .. n-1) the selection gives pixel (x, y): its tile's choice, or on a tile on
- * trial, the pixel's square of the checkerboard. */
+/* The estimator (0 .. n-1) of pixel (x, y): its tile's choice, or its square of a trial's checkerboard. */
 int rd_select_uses(const rd_select *sel, int x, int y);
 /* Pixel (x, y)'s share of the samples past the first RD_SHARE_FIRST (rd_method.sample_share), its
  * tile's for the estimator it uses (1 before the first epoch), and in *weight (unless NULL) theirs. */
@@ -216,10 +216,10 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
  * first put their photons in spatial order without a kd-tree (RD_PASS_NO_INDEX: nee+beams), and a
  * photon counts RD_SELECT_COST_ORDERED instead of RD_SELECT_COST_INDEXED (pass_indexed at most
  * pass_emitted where those passes are thinned: render.c, RD_PASS_THIN). A selection with epochs
- * takes shares (rd_select.share) where settings.adaptive is true or "pilot", or "auto" and the
- * method asks: RD_SELECT_SHARES_AUTO (`guided`), RD_SELECT_PILOT_SHARES_AUTO "pilot"'s (GU). */
+ * takes shares (rd_select.share) where settings.adaptive is true, "pilot" or "epochs", or "auto"
+ * and the method asks: RD_SELECT_SHARES_AUTO (`guided`: true), RD_SELECT_UNBIASED_SHARES_AUTO ("epochs"). */
 enum { RD_SELECT_THIRD = 1, RD_SELECT_METHOD_IS_PATH = 2, RD_SELECT_PASSES = 4, RD_SELECT_PASSES_ORDERED = 8,
-       RD_SELECT_SHARES_AUTO = 16, RD_SELECT_PILOT_SHARES_AUTO = 32 };
+       RD_SELECT_SHARES_AUTO = 16, RD_SELECT_UNBIASED_SHARES_AUTO = 32 };
 /* A progressive pass's work, in density lookups: a photon emitted, a tentative collision, a
  * photon indexed (stored and built into a kd-tree), a photon stored and put in order alone (the
  * indexed photon's weight less what the kd-tree cost on the calibration scenes: 0.152 us of
@@ -286,8 +286,8 @@ void rd_select_choose(const double *var, const double *cost, const double *bias,
  * C))^2 / R + sum B; the arguments as rd_select_choose's (not its P, n0, T0, left or w). */
 void rd_select_choose_adaptive(const double *var, const double *cost, const double *bias, int n, int m,
                                const rd_select_past *past, uint8_t *choice);
-/* After a choice (without weights, "pilot", the pilot's alone), the shares and weights from st
- * (all the tiles' samples) and the rule's pooled figures; nothing without shares. Tile: <= 64 px. */
+/* After a choice (neither weights nor blocks, "pilot": the pilot's alone), the shares and weights
+ * from st (all tiles' samples) and the rule's pooled figures; none without shares. Tile: <= 64 px. */
 void rd_select_set_shares(rd_select *sel, const rd_select_stats *st, const double *var, const double *cost);
 double rd_select_tile_pixels(const rd_select *sel, int tx, int ty);
 

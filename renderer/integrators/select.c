@@ -579,13 +579,16 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
         return RD_ERR_NOMEM;
     }
     if (!third) sel->paths = 1u << RD_SEL_DELTA;
-    /* settings.adaptive (true or "pilot", or "auto" where the method asks), where the epochs choose
-     * again: every share 1 until the choices set them (read from the first epoch on; "pilot": the
-     * pilot's choice alone, and no weights), no weight until they set them (select_share.c) */
+    /* settings.adaptive (true, "pilot" or "epochs", or "auto" where the method asks), where the
+     * epochs choose again: every share 1 until the choices set them (read from the first epoch on;
+     * "pilot": the pilot's choice alone, and no weights), no weight until they set them
+     * (select_share.c) */
     int a = s->settings.adaptive;
-    if (a == RD_ADAPTIVE_AUTO) /* the method's: `guided` shares, `guided-unbiased` the pilot's */
-        a = options & RD_SELECT_SHARES_AUTO ? 1 : options & RD_SELECT_PILOT_SHARES_AUTO ? RD_ADAPTIVE_PILOT : 0;
-    const int shares = a != 0, weights = a != RD_ADAPTIVE_PILOT; /* ("pilot": fixed shares, no weights) */
+    if (a == RD_ADAPTIVE_AUTO) /* the method's: `guided` shares, `guided-unbiased` the epochs' */
+        a = options & RD_SELECT_SHARES_AUTO ? 1 : options & RD_SELECT_UNBIASED_SHARES_AUTO ? RD_ADAPTIVE_EPOCHS : 0;
+    /* ("pilot": fixed shares, no weights; "epochs": blocks, no weights) */
+    const int shares = a != 0, weights = a == 1;
+    sel->blocks = shares && a == RD_ADAPTIVE_EPOCHS && s->settings.select != RD_SELECT_PILOT;
     if (shares && s->settings.select != RD_SELECT_PILOT) {
         size_t ns = (size_t)sel->n * sel->tiles_x * sel->tiles_y;
         if (!(sel->share = malloc(ns * sizeof *sel->share)) ||

@@ -324,7 +324,17 @@
  * made until none does (rd_select_choose). With the image's samples (above) the same holds for
  * (P + a V) / (n0 + a)^2, whose lambda is (2 P + (a - n0) V) / (C (n0 + a)) (slope).
  *
- * The shares of the samples and their weights (settings.adaptive): select_share.c. */
+ * The shares of the samples and their weights (settings.adaptive): select_share.c.
+ *
+ * Fixed shares (session 71). With "pilot"'s shares each tile k draws a share s_k of the sample
+ * indices, set at the pilot's choice and kept whatever estimator it takes later (select_share.c,
+ * "Pilot shares"). Past the pilot a tile's choice no longer sets its share, so the adaptive
+ * rule's sum of sqrt(V C) (which assumes it does) is not the error at equal time: a sample index
+ * costs the image sum C_k s_k and its error is sum V_k / s_k, and the rule is the product's
+ * (above) on those figures (choose). Where the pilot gave a tile a small share, the estimator's
+ * variance there weighs 1 / s_k and its cost s_k: a costlier, quieter estimator pays there where
+ * its own sqrt(V C) would lose. With the image's samples, P, n0 and T0 count in sample indices
+ * too (past_of). The choices still read only samples past, so the image stays unbiased. */
 #include "integrators/rd_select.h"
 
 #include <math.h>
@@ -602,6 +612,31 @@ static void lag_floor(const rd_select *sel, const rd_select_stats *st, int centr
     }
 }
 
+/* "pilot"'s shares past the pilot (shares without weights, set at the pilot's choice), [m k + e]
+ * the same for every e of tile k; NULL where the shares follow the choice or there are none. */
+static const float *fixed_shares(const rd_select *sel)
+{
+    return sel->share && !sel->weight && !sel->blocks && sel->choices > 0 ? sel->share : NULL;
+}
+
+/* The rule for the tiles' figures var and cost (as rd_select_choose's) into choice: the adaptive
+ * rule where the shares follow the choice; where they are fixed (fixed_shares), the product's
+ * rule on each tile's error and time a sample index, V / s and C s (the head, "Fixed shares"),
+ * var and cost scaled in place; without shares the product's rule on the figures as they are. */
+static void choose(const rd_select *sel, double *var, double *cost, const double *bias, const rd_select_past *p,
+                   uint8_t *choice)
+{
+    const int n = sel->tiles_x * sel->tiles_y, m = sel->n;
+    const float *fix = fixed_shares(sel);
+    if (sel->share && !fix) {
+        rd_select_choose_adaptive(var, cost, bias, n, m, p, choice);
+        return;
+    }
+    for (int k = 0; fix && k < n; k++)
+        for (int e = 0; e < m; e++) var[m * k + e] /= fix[m * k], cost[m * k + e] *= fix[m * k];
+    rd_select_choose(var, cost, bias, n, m, p, choice);
+}
+
 /* The image's samples so far (see the head, "The samples the image holds"), for the rule on
  * figures var (one set of m per tile, as figures() gives them) from the statistics all (a tile's
  * two halves): P, the sum over the tiles of each estimator's image samples there times its
@@ -609,23 +644,30 @@ static void lag_floor(const rd_select *sel, const rd_select_stats *st, int centr
  * as the samples to come are weighed by), n0 the image's samples a pixel, T0 their counted cost,
  * and the end: R = end->ahead T0 (the time left, in the costs' units) or end->left. 0 (no past to
  * weigh: the rule on the samples to come alone) where the image holds no sample (the pilot) or
- * the render has no end known (end NULL or both 0). */
+ * the render has no end known (end NULL or both 0). With fixed shares (fixed_shares) in sample
+ * indices: P as N0 sum V / s and n0 as the held samples over the pixels' shares, which is N0
+ * but for the first RD_SHARE_FIRST samples and the epoch at 4, drawn at share 1 (only `guided`
+ * with "pilot" reaches this: guided-unbiased's and delta's selections know no end). */
 static int past_of(const rd_select *sel, const rd_select_stats *all, const double *var, const rd_select_end *end,
                    rd_select_past *past)
 {
     const int by_time = end && end->ahead > 0.0 && isfinite(end->ahead), by_samples = end && end->left > 0.0;
     if (!by_time && !by_samples) return 0;
     int nx = sel->tiles_x, n = nx * sel->tiles_y, m = sel->n;
-    double P = 0.0, held = 0.0, T0 = 0.0;
+    const float *fix = fixed_shares(sel);
+    double P = 0.0, held = 0.0, T0 = 0.0, drawn = 0.0; /* drawn: the pixels times their shares */
     for (int k = 0; k < n; k++) {
-        const double pixels = rd_select_tile_pixels(sel, k % nx, k / nx);
+        const double pixels = rd_select_tile_pixels(sel, k % nx, k / nx), sh = fix ? fix[m * k] : 1.0;
+        drawn += pixels * sh;
         for (int j = 0; j < m; j++) {
             const rd_select_stats *s = &all[m * k + j];
-            P += s->image_n * var[m * k + j] / pixels, held += s->image_n, T0 += s->image_cost;
+            /* fixed shares: in sample indices, N0 V / s for a tile's s N0 samples a pixel (above) */
+            P += fix ? s->image_n * var[m * k + j] / (pixels * sh * sh) : s->image_n * var[m * k + j] / pixels;
+            held += s->image_n, T0 += s->image_cost;
         }
     }
-    if (!(held > 0.0 && T0 > 0.0)) return 0;
-    past->P = P, past->n0 = held / ((double)sel->width * sel->height), past->T0 = T0;
+    if (!(held > 0.0 && T0 > 0.0 && drawn > 0.0)) return 0;
+    past->P = P, past->n0 = held / (fix ? drawn : (double)sel->width * sel->height), past->T0 = T0;
     past->R = by_time ? end->ahead * T0 : 0.0, past->left = by_time ? 0.0 : end->left;
     /* at the pace so far the image draws ahead n0 samples a pixel more: a share ahead / (1 + ahead) */
     past->w = by_time ? (end->ahead / (1.0 + end->ahead)) * (end->ahead / (1.0 + end->ahead)) : 0.0;
@@ -861,7 +903,7 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
         figures(sel, half[h], pbar, NULL, var, cost, tmp);
         const rd_select_past *p = past_of(sel, all, var, end, &past) ? &past : NULL;
         bias_figures(sel, all, var, p, ratio, bias); /* (the image's ratio, on each half's variance) */
-        (sel->share ? rd_select_choose_adaptive : rd_select_choose)(var, cost, bias, n, m, p, want + (size_t)h * n);
+        choose(sel, var, cost, bias, p, want + (size_t)h * n);
     }
     figures(sel, all, pbar, NULL, NULL, all_cost, tmp);
     /* What the tiles beyond a tile's pooling predict, for the tiles whose halves disagree (see
@@ -873,7 +915,7 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
     figures(sel, all, pbar, r, var, cost, tmp);
     const rd_select_past *p = past_of(sel, all, var, end, &past) ? &past : NULL;
     bias_figures(sel, all, var, p, ratio, bias);
-    (sel->share ? rd_select_choose_adaptive : rd_select_choose)(var, cost, bias, n, m, p, image_want);
+    choose(sel, var, cost, bias, p, image_want);
     for (int k = 0; k < n; k++)
         for (int e = 0; e < m; e++)
             if (!(r[m * k + e] > 0.0)) image_want[k] = RD_SEL_MAX;
@@ -914,8 +956,8 @@ void rd_select_choose_tiles(rd_select *sel, const rd_select_end *end)
         }
     }
     /* the shares of the samples and their weights, from all the tile's samples (select_share.c;
-     * "pilot"'s, without weights, at the pilot's choice alone: no figures for the epochs') */
-    if (sel->share && (sel->weight || sel->choices == 0)) {
+     * "pilot"'s, without weights or blocks, at the pilot's choice alone: no figures for the epochs') */
+    if (sel->share && (sel->weight || sel->blocks || sel->choices == 0)) {
         figures(sel, all, pbar, NULL, var, cost, tmp);
         rd_select_set_shares(sel, all, var, cost);
     }

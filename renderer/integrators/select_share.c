@@ -16,11 +16,13 @@
  * Every pixel draws its first RD_SHARE_FIRST samples (the pilot's choice sets shares, read from
  * the first epoch on: below, "Pilot shares", where they are the only ones), a tile
  * whose estimator has no samples yet every sample, every other at least SEL_SHARE_MIN. render.c
- * draws sample i of a pixel of share s where (i + 1 - RD_SHARE_FIRST) s reaches a whole number,
- * keyed by the index, so the image does not depend on the threads; the photon passes are paced
- * by the shares' sum over the beams' pixels (rd_select_pass_pixels). Not read with shares: the
- * samples the image holds (P, n0), a sample count's end, and the bias's growth with a tile's own
- * samples to come (bias_figures and past_of take the image's pace).
+ * draws sample i of a pixel of share s where (i + 1 - RD_SHARE_FIRST) s reaches a whole number
+ * ("epochs": below), keyed by the index, so the image does not depend on the threads; the photon
+ * passes are paced by the shares' sum over the beams' pixels (rd_select_pass_pixels; under
+ * "epochs" a pixel's first sample of each epoch comes on top, which the pacing does not count).
+ * Not read with shares that follow the choice: the samples the image holds (P, n0), a sample
+ * count's end, and the bias's growth with a tile's own samples to come (bias_figures and past_of
+ * take the image's pace); with "pilot"'s, fixed, they are (select_rule.c, "Fixed shares").
  *
  * Dark tiles (session 68). Where no sample of any estimator lit a tile or its 8 neighbours, V is
  * 0; at share 1 their cheap pixels set the pace of the sample index and took most of the time
@@ -57,7 +59,25 @@
  * the image), a tile's from the estimator the pilot gives it, and kept whatever estimator the
  * epochs give it later; there are no weights. Every pixel's count is then fixed before its image
  * samples are drawn, each of them is unbiased given the past (select.c's head), and so is their
- * plain mean. */
+ * plain mean. Past the pilot the rule weighs each tile's figures by its fixed share
+ * (select_rule.c, "Fixed shares").
+ *
+ * Epoch shares (session 71; settings.adaptive "epochs"). The shares follow every choice, as with
+ * true, and the image stays unbiased by what each sample weighs: in an epoch [a, b) a pixel of
+ * share s draws index a and then every index where (v - a) s reaches a whole number
+ * (rd_block_next), and a drawn index stands for itself and the indices up to the next drawn one
+ * or b, its weight in the pixel's weighted mean (render.c). The blocks tile the epoch, so the
+ * weights of a render of N samples a pixel sum to N whatever the shares were: the weighted mean
+ * is sum_i w_i X_i / N with each w_i fixed (by the share, read at the epoch's start from samples
+ * past) before X_i is drawn, and E[X_i | past] the pixel's value, so it is unbiased however the
+ * shares follow the pixel's own samples (tests/test_select.c
+ * block_weights_keep_a_pixel_s_mean_unbiased_whatever_its_shares_follow, where the plain mean
+ * under the same shares is 183 standard errors off). As an estimate of the indices' mean it has
+ * the error the adaptive rule weighs (V / s an index, C s its time): the first epochs' noisy
+ * samples weigh their few indices, not their share of the samples drawn (the plain mean's fault,
+ * "Weights" above). Under a time limit the last block may run past the index where the clock
+ * stops the render (up to 1/s indices): the image is unbiased at a sample count, and under a
+ * deadline but for that block's reach, which its share sets. */
 #include "integrators/rd_select.h"
 
 #include <math.h>
@@ -92,7 +112,7 @@ static void set_weights(rd_select *sel, int k, const rd_select_stats *st, const 
 
 void rd_select_set_shares(rd_select *sel, const rd_select_stats *st, const double *var, const double *cost)
 {
-    if (!sel->share || (!sel->weight && sel->choices > 0)) return; /* ("pilot": set once, below) */
+    if (!sel->share || (!sel->weight && !sel->blocks && sel->choices > 0)) return; /* ("pilot": once, below) */
     const int nx = sel->tiles_x, ny = sel->tiles_y, n = nx * ny, m = sel->n;
     /* M per estimator (all of them in slot RD_SEL_MAX): the samples' squares (dev2 and the tile
      * mean's n mu^2, a lower bound of the pixels' means'), over the lit samples */
@@ -131,7 +151,7 @@ void rd_select_set_shares(rd_select *sel, const rd_select_stats *st, const doubl
             sel->share[j] = (float)s;
         }
         if (sel->weight) set_weights(sel, k, st, vw);
-        else /* "pilot": the tile's share whatever estimator the epochs give it (the head) */
+        else if (!sel->blocks) /* "pilot": the tile's share whatever estimator the epochs give it (the head) */
             for (int e = 0; e < m; e++) sel->share[(size_t)m * k + e] = sel->share[(size_t)m * k + sel->choice[k]];
     }
 }

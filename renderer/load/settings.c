@@ -34,8 +34,8 @@ static rd_status parse_equiangular(ld_ctx *c, const cJSON *j, const char *path, 
     return RD_OK;
 }
 
-/* settings.adaptive: true, false, "auto" (RD_ADAPTIVE_AUTO) or "pilot" (RD_ADAPTIVE_PILOT);
- * absent: *out unchanged. */
+/* settings.adaptive: true, false, "auto" (RD_ADAPTIVE_AUTO), "pilot" (RD_ADAPTIVE_PILOT) or
+ * "epochs" (RD_ADAPTIVE_EPOCHS); absent: *out unchanged. */
 static rd_status parse_adaptive(ld_ctx *c, const cJSON *j, const char *path, int *out)
 {
     const cJSON *e = cJSON_GetObjectItemCaseSensitive(j, "adaptive");
@@ -45,9 +45,10 @@ static rd_status parse_adaptive(ld_ctx *c, const cJSON *j, const char *path, int
     if (cJSON_IsBool(e)) *out = cJSON_IsTrue(e);
     else if (cJSON_IsString(e) && strcmp(e->valuestring, "auto") == 0) *out = RD_ADAPTIVE_AUTO;
     else if (cJSON_IsString(e) && strcmp(e->valuestring, "pilot") == 0) *out = RD_ADAPTIVE_PILOT;
+    else if (cJSON_IsString(e) && strcmp(e->valuestring, "epochs") == 0) *out = RD_ADAPTIVE_EPOCHS;
     else if (cJSON_IsString(e))
-        return ld_fail(c, field, "expected true, false, \"auto\" or \"pilot\", found \"%.40s\"", e->valuestring);
-    else return ld_fail(c, field, "expected true, false, \"auto\" or \"pilot\", found %s", ld_type_name(e));
+        return ld_fail(c, field, "expected true, false, \"auto\", \"pilot\" or \"epochs\", found \"%.40s\"", e->valuestring);
+    else return ld_fail(c, field, "expected true, false, \"auto\", \"pilot\" or \"epochs\", found %s", ld_type_name(e));
     return RD_OK;
 }
 

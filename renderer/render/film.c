@@ -9,7 +9,9 @@
  *     se^2 = (sum w^2 L^2 - 2 mu sum w^2 L + mu^2 sum w^2) / W^2 x n_e / (n_e - 1),
  * n_e = W^2 / sum w^2 the effective count: E[(L_i - mu)^2] = V_i - 2 w_i V_i / W + Var mu, and
  * with w_i proportional to 1 / V_i (what the weights are) the sum's expectation is Var mu
- * (1 - 1 / n_e), exactly; with every weight 1, n_e = n and the form is the one above. */
+ * (1 - 1 / n_e), exactly; with every weight 1, n_e = n and the form is the one above. With
+ * "epochs"' weights (the indices a sample stands for, not 1 / V_i) it is an approximation, and
+ * reads low where one sample's weight dominates the pixel's (a share near the floor). */
 #include "render/rd_film.h"
 #include "integrators/rd_method.h"
 

@@ -10,7 +10,8 @@
  * The film keeps, per pixel, the sums of its samples: the image is their mean, and the render
  * reports each pixel's standard error (docs/cli.md). Where the method weighs its samples
  * (rd_method.sample_share's weight; with settings.adaptive, integrators/select_share.c
- * "Weights"), the mean is weighted (rd_film.h, film.c). A time limit or Ctrl-C is checked before
+ * "Weights"; or each sample by the indices it stands for, "Epoch shares": rd_block_next), the
+ * mean is weighted (rd_film.h, film.c). A time limit or Ctrl-C is checked before
  * every pixel, so a render stops within one pixel's work of the budget; pixels then differ in
  * count by at most one pass, which the per-pixel count accounts for.
  *
@@ -86,8 +87,10 @@ static int comm_rank(const rd_comm *c) { return comm_size(c) > 1 ? c->rank : 0; 
 
 /* Render samples [s0, s1) of every pixel of this rank's tiles into the film; returns 1 when the
  * deadline or the cancel flag cut the pass short. Each thread reads the clock before each of its
- * pixels and stops at the first reading at or past the deadline. */
-static int render_pass(const rd_render_ctx *ctx, rd_thread *th, rd_film *f, int s0, int s1,
+ * pixels and stops at the first reading at or past the deadline. With ctx->blocks, [s0, s1) lies
+ * in the epoch that begins at index a, and a drawn sample's block ends at lim at the latest (the
+ * epoch's end or the render's last sample's, whichever comes first: rd_block_next). */
+static int render_pass(const rd_render_ctx *ctx, rd_thread *th, rd_film *f, int s0, int s1, int a, int lim,
                        double deadline, const volatile int *cancel, const rclock *clk, uint64_t *invalid)
 {
     const int ranks = comm_size(ctx->comm), rank = comm_rank(ctx->comm);
@@ -114,8 +117,15 @@ static int render_pass(const rd_render_ctx *ctx, rd_thread *th, rd_film *f, int 
                 double w = 1.0;
                 const double share = m->sample_share ? m->sample_share(ctx, x, y, &w) : 1.0;
                 int drew = 0;
-                for (int i = rd_share_next(s0, s1, share); i < s1; i = rd_share_next(i + 1, s1, share)) {
+                /* With blocks ("epochs"), the epoch's first index is drawn and each drawn sample
+                 * weighs the indices it stands for: a sum over the epoch's indices fixed before
+                 * its samples are drawn (select_share.c, "Epoch shares") */
+                const int blocks = ctx->blocks;
+                for (int i = blocks ? rd_block_next(s0, a, s1, share) : rd_share_next(s0, s1, share), next; i < s1;
+                     i = blocks ? (next < s1 ? next : s1) : rd_share_next(i + 1, s1, share)) {
                     drew = 1;
+                    next = blocks ? rd_block_next(i + 1, a, lim, share) : 0; /* (lim >= s1) */
+                    const double wi = blocks ? w * (double)(next - i) : w;
                     rd_sampler smp = rd_sampler_start(pix, (uint64_t)i, ctx->seed);
                     double jx = rd_sampler_1d(&smp), jy = rd_sampler_1d(&smp); /* RD_DIM_FILM */
                     if (!cam->jitter) jx = jy = 0.5; /* pixel centres (camera.jitter false) */
@@ -124,7 +134,7 @@ static int render_pass(const rd_render_ctx *ctx, rd_thread *th, rd_film *f, int 
                     vec3 L = m->radiance(ctx, t, r, &smp);
                     /* A non-finite sample would poison the pixel: drop and count it. */
                     if (!v3_finite(L)) { bad++; continue; }
-                    rd_film_add(&acc, L, w);
+                    rd_film_add(&acc, L, wi);
                 }
                 if (m->pixel_done && drew) m->pixel_done(ctx, t); /* (none drawn: nothing to write) */
                 rd_film_store(f, pix, &acc);
@@ -377,8 +387,12 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
         /* Samples [done, done + n) stay within one of the method's epochs. */
         int epoch_end = m->epoch_next ? m->epoch_next(&ctx, s0 + done) : INT_MAX;
         if (n > epoch_end - (s0 + done)) n = epoch_end - (s0 + done);
+        /* the blocks' epoch, [a, epoch_end), and their last index (render_pass) */
+        int a = RD_SHARE_FIRST;
+        for (int b; m->epoch_next && (b = m->epoch_next(&ctx, a)) <= s0 + done;) a = b;
+        const int lim = epoch_end - s0 < o->spp ? epoch_end : s0 + o->spp;
         double t0 = now_seconds(clk);
-        int cut = render_pass(&ctx, th, &f, s0 + done, s0 + done + n, deadline, o->cancel, clk, &invalid);
+        int cut = render_pass(&ctx, th, &f, s0 + done, s0 + done + n, a, lim, deadline, o->cancel, clk, &invalid);
         int any_cancel = o->cancel && *o->cancel;
         if (comm) { /* a pass cut short on any rank is cut short on all */
             int v[2] = {cut, any_cancel};

@@ -60,13 +60,16 @@ typedef struct {
                           * variance (integrators/select_share.c); 0: every pixel draws every
                           * sample, each of weight 1; RD_ADAPTIVE_PILOT: shares set at the pilot's
                           * choice alone and kept, no weights (unbiased: select_share.c "Pilot
-                          * shares"); RD_ADAPTIVE_AUTO (default): 1 for `guided`,
-                          * RD_ADAPTIVE_PILOT for `guided-unbiased`, 0 for `delta` */
+                          * shares"); RD_ADAPTIVE_EPOCHS: shares set at every choice, each sample
+                          * weighing the indices it stands for (unbiased: "Epoch shares");
+                          * RD_ADAPTIVE_AUTO (default): 1 for `guided`, RD_ADAPTIVE_EPOCHS for
+                          * `guided-unbiased`, 0 for `delta` */
 } rd_settings;
 enum { RD_SELECT_OFF, RD_SELECT_TILES, RD_SELECT_PILOT, RD_SELECT_AUTO };
-/* settings.adaptive "auto" (the default): shares for `guided`, the pilot's for `guided-unbiased`;
- * "pilot": shares fixed from the pilot's figures, no weights (rd_settings.adaptive). */
-enum { RD_ADAPTIVE_AUTO = 2, RD_ADAPTIVE_PILOT = 3 };
+/* settings.adaptive "auto" (the default): shares for `guided`, the epochs' for `guided-unbiased`;
+ * "pilot": shares fixed from the pilot's figures, no weights; "epochs": shares set at every
+ * choice, unbiased by the indices each sample stands for (rd_settings.adaptive). */
+enum { RD_ADAPTIVE_AUTO = 2, RD_ADAPTIVE_PILOT = 3, RD_ADAPTIVE_EPOCHS = 4 };
 enum { RD_BC_OFF, RD_BC_ON, RD_BC_AUTO }; /* settings.beam_connect */
 /* settings.equiangular: off, every flight, the camera's flight only, or every flight for the
  * lights whose lit span delta tracking reaches but mostly crosses without colliding
