@@ -2328,6 +2328,19 @@ Test(select, a_tile_s_share_of_the_samples_is_the_root_of_its_variance_over_its_
     rd_select_free(&sel);
 }
 
+/* A selection of nx x ny tiles and two estimators with shares (every share 1) in mode 0
+ * ("pilot": no weights), 1 (true: weights) or 2 ("epochs": blocks). */
+static void shares_select(rd_select *sel, int nx, int ny, int mode)
+{
+    char err[RD_ERRLEN];
+    const int t = nx * ny;
+    cr_assert(rd_select_init(sel, 8 * nx, 8 * ny, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
+    cr_assert((sel->share = malloc(2 * (size_t)t * sizeof *sel->share)) != NULL);
+    for (int i = 0; i < 2 * t; i++) sel->share[i] = 1.0f;
+    if (mode == 1) cr_assert((sel->weight = calloc(2 * (size_t)t, sizeof *sel->weight)) != NULL);
+    sel->blocks = mode == 2;
+}
+
 /* settings.adaptive "pilot" (select_share.c, "Pilot shares"): with no weights the shares are set
  * at the pilot's choice alone and kept, one a tile whatever estimator it uses, so that no pixel's
  * count of samples depends on its image samples. 6x5 tiles as above; at the pilot the left three
@@ -2342,12 +2355,7 @@ Test(select, pilot_shares_are_set_once_and_kept_whatever_the_epochs_read)
         const int follow = mode > 0;
         const char *name = mode == 0 ? "pilot" : mode == 1 ? "weights" : "blocks";
         rd_select sel;
-        char err[RD_ERRLEN];
-        cr_assert(rd_select_init(&sel, 8 * NX, 8 * NY, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
-        cr_assert((sel.share = malloc(2 * T * sizeof *sel.share)) != NULL);
-        for (int i = 0; i < 2 * T; i++) sel.share[i] = 1.0f;
-        if (mode == 1) cr_assert((sel.weight = calloc(2 * T, sizeof *sel.weight)) != NULL);
-        sel.blocks = mode == 2;
+        shares_select(&sel, NX, NY, mode);
         for (int round = 0; round < 3; round++) { /* the pilot's choice, then two epochs' */
             for (int k = 0; k < T; k++) {
                 const double v = (round == 0) == (k % NX < 3) ? 0.04 : 0.01;
@@ -2387,12 +2395,7 @@ Test(select, fixed_shares_weigh_a_tile_s_figures_by_its_share)
     for (int mode = 0; mode < 3; mode++) { /* "pilot", then shares that follow: true's, "epochs"' */
         const int weighted = mode > 0;
         rd_select sel;
-        char err[RD_ERRLEN];
-        cr_assert(rd_select_init(&sel, 8 * NX, 8 * NY, 1.0, 2, err, sizeof err) == RD_OK, "%s", err);
-        cr_assert((sel.share = malloc(2 * T * sizeof *sel.share)) != NULL);
-        for (int i = 0; i < 2 * T; i++) sel.share[i] = 1.0f;
-        if (mode == 1) cr_assert((sel.weight = calloc(2 * T, sizeof *sel.weight)) != NULL);
-        sel.blocks = mode == 2;
+        shares_select(&sel, NX, NY, mode);
         for (int round = 0; round < 2; round++) { /* the pilot's choice, then an epoch's */
             for (int k = 0; k < T; k++) {
                 const int right = k % NX >= 3;
