@@ -72,7 +72,9 @@
  * past) before X_i is drawn, and E[X_i | past] the pixel's value, so it is unbiased however the
  * shares follow the pixel's own samples (tests/test_select.c
  * block_weights_keep_a_pixel_s_mean_unbiased_whatever_its_shares_follow, where the plain mean
- * under the same shares is 183 standard errors off). As an estimate of the indices' mean it has
+ * under the same shares is 183 standard errors off; and render.c checks the weights' sum after
+ * every render that ran to its sample count, so any test that renders so fails on a wrong
+ * epoch start: RD_ERR_INTERNAL). As an estimate of the indices' mean it has
  * the error the adaptive rule weighs (V / s an index, C s its time): the first epochs' noisy
  * samples weigh their few indices, not their share of the samples drawn (the plain mean's fault,
  * "Weights" above). Under a time limit the last block may run past the index where the clock

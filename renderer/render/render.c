@@ -449,6 +449,18 @@ rd_status rd_render(const rd_scene *s, const rd_render_opts *o, rd_render_result
             comm->reduce(comm->user, f.wsum2, npix, RD_COMM_DOUBLE, RD_COMM_SUM, 0);
         }
     }
+    /* "epochs" (ctx.blocks): a pixel's weights sum to the indices it rendered, whatever its
+     * shares, which is what keeps its mean unbiased (integrators/select_share.c "Epoch shares");
+     * checked where every pixel ran every pass and no sample was dropped (one process: another
+     * rank's dropped samples are not counted here) */
+    if (ctx.blocks && f.wsum && !comm && !res->stats.cancelled && !res->stats.timed_out && invalid == 0)
+        for (size_t p = 0; p < npix; p++)
+            if (f.wsum[p] != (double)done) {
+                snprintf(err, errlen, "internal: pixel %zu's sample weights sum to %.17g, not its %d samples", p,
+                         f.wsum[p], done);
+                st = RD_ERR_INTERNAL;
+                goto done;
+            }
     rd_film_resolve(&f, res->image.rgb, res->stderr_img.rgb);
     res->image.w = res->stderr_img.w = w;
     res->image.h = res->stderr_img.h = h;
