@@ -171,8 +171,8 @@ typedef struct rd_method {
     void (*pixel_done)(const rd_render_ctx *ctx, rd_thread *th);
     /* Optional: the share in [0, 1] of the samples past the first RD_SHARE_FIRST that pixel
      * (x, y) draws (render.c draws sample i where floor((i + 1 - RD_SHARE_FIRST) share) passes
-     * a whole number; with rd_render_ctx.blocks as rd_block_next says), and in *weight the weight in the pixel's mean of every sample it draws in
-     * the pass (left as it is: 1); NULL: every sample, each weighing 1 (settings.adaptive:
+     * a whole number; with rd_render_ctx.blocks as rd_block_next says), and in *weight the
+     * weight in the pixel's mean of every sample it draws in the pass (left as it is: 1); NULL: every sample, each weighing 1 (settings.adaptive:
      * select_share.c, "Samples where they pay" and "Weights"; the film keeps the weighted sums
      * where prepare set rd_render_ctx.weighted). Read once a pixel a pass. */
     double (*sample_share)(const rd_render_ctx *ctx, int x, int y, double *weight);
