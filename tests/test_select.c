@@ -1723,9 +1723,10 @@ Test(select, a_directional_beam_is_sampled_by_the_tiles_that_take_the_strategy, 
      * rounding gave 44% of the samples the strategy, the sanitizer build's 0%), so the check
      * takes test_march.c's thinner fog and narrower beam, where the strategy pays on nearly
      * every tile (its mix of modes is delta_s_own_tiles_mix_its_two_modes_and_give_delta_s_image's,
-     * on a point light): the tiles must take it there, draw beam samples, and give `true`'s image */
+     * on a point light): the tiles must take it there, draw beam samples, and give `true`'s image.
+     * The beam connections off: beside them the tiles sample no beam (the next test) */
     rd_scene *tref = rt_scene("selBtr.json", beam_fog_scene(0.3, 0.08, "\"equiangular\":true"));
-    rd_scene *st = rt_scene("selBt.json", beam_fog_scene(0.3, 0.08, "\"equiangular\":\"tiles\""));
+    rd_scene *st = rt_scene("selBt.json", beam_fog_scene(0.3, 0.08, "\"equiangular\":\"tiles\",\"beam_connect\":false"));
     rd_render_result dt = rt_render(tref, "delta", 4096, 44, NULL);
     rd_render_result t = rt_render(st, "delta", 1024, 43, NULL);
     double with = 1.0 - (double)t.stats.delta_samples / (double)t.stats.paths;
@@ -1750,7 +1751,11 @@ Test(select, a_beam_that_delta_s_path_connects_to_makes_no_third_estimator, .tim
      * "Beams that delta's path connects to"). With the connections off the same scene has one,
      * and its tiles take it (the strategy pays on nearly every tile here: the test above). Both
      * methods, 16 samples a pixel. Planted: the rule dropped (any beam makes a third) puts every
-     * sample of both methods (12288 of 12288) on the third with the connections on. */
+     * sample of both methods (12288 of 12288) on the third with the connections on.
+     * `delta` with "tiles" (since session 72 it leaves the connections on): with them, no choice,
+     * so plain `delta`'s image bit for bit, shares and all; without them, its tiles take the
+     * strategy. Planted: delta.c's test for a light the tiles sample back at any beam
+     * (rd_eq_has_lights(s, 1)) fails the first. */
     rd_scene *on = rt_scene("selBc1.json", beam_fog_scene(0.3, 0.08, "\"select\":\"tiles\""));
     rd_scene *off = rt_scene("selBc0.json", beam_fog_scene(0.3, 0.08, "\"select\":\"tiles\",\"beam_connect\":false"));
     cr_assert(on->beam_connect.light >= 0 && off->beam_connect.light < 0, "beam_connect: on %d, off %d",
@@ -1770,6 +1775,26 @@ Test(select, a_beam_that_delta_s_path_connects_to_makes_no_third_estimator, .tim
         rd_render_result_free(&a);
         rd_render_result_free(&b);
     }
+    rd_scene *ton = rt_scene("selBc1t.json", beam_fog_scene(0.3, 0.08, "\"equiangular\":\"tiles\",\"adaptive\":\"epochs\""));
+    rd_scene *toff = rt_scene("selBc0t.json", beam_fog_scene(0.3, 0.08, "\"equiangular\":\"tiles\",\"beam_connect\":false"));
+    rd_scene *plain = rt_scene("selBc1p.json", beam_fog_scene(0.3, 0.08, "\"equiangular\":false"));
+    cr_assert(ton->beam_connect.light >= 0 && toff->beam_connect.light < 0 && plain->beam_connect.light >= 0,
+              "\"tiles\" turned the connections off");
+    rd_render_result t1 = rt_render(ton, "delta", 16, 51, NULL);
+    rd_render_result t0 = rt_render(toff, "delta", 16, 51, NULL);
+    rd_render_result p = rt_render(plain, "delta", 16, 51, NULL);
+    cr_expect(t1.stats.eq_samples == 0 && t1.stats.delta_samples == 0, "delta's tiles beside the connections: %llu "
+              "equiangular samples, %llu counted by a selection", (unsigned long long)t1.stats.eq_samples,
+              (unsigned long long)t1.stats.delta_samples);
+    cr_expect(memcmp(t1.image.rgb, p.image.rgb, sizeof(float) * 3 * p.image.w * p.image.h) == 0,
+              "delta's tiles beside the connections are not plain delta's image");
+    cr_expect(t0.stats.eq_samples > 0, "delta's tiles without the connections drew no equiangular sample");
+    rd_render_result_free(&t1);
+    rd_render_result_free(&t0);
+    rd_render_result_free(&p);
+    rd_scene_free(ton);
+    rd_scene_free(toff);
+    rd_scene_free(plain);
     rd_scene_free(on);
     rd_scene_free(off);
 }

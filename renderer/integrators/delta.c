@@ -15,7 +15,11 @@
  * this mix as two of its three estimators (session 25: on homogeneous it beat either mode
  * alone); here `delta` has it without a bake. Without a light the strategy samples (a point or
  * spot light, or a directional beam since session 30) there is nothing to choose: the path
- * without the strategy, as "false".
+ * without the strategy, as "false". A beam that the path connects to (settings.beam_connect,
+ * which "tiles" leaves on since session 72) counts as none: the strategy's chord sample is the
+ * same light found the weaker way (select.c, "Beams that delta's path connects to"), and
+ * beside the connections it made `delta` with "tiles" 0.13-0.82x plain `delta` on beam.json
+ * (docs/free-path.md "Per tile: tiles").
  *
  * settings.probes: more camera chains for the light a sample's camera chain sees at its end
  * (integrators/probes.c), on `delta`'s own path (not on the tiles of "tiles", whose two
@@ -73,7 +77,7 @@ static void delta_release(rd_render_ctx *ctx)
 static rd_status delta_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
 {
     const rd_scene *s = ctx->scene;
-    int tiles = s->settings.equiangular == RD_EQ_TILES && rd_eq_has_lights(s, 1);
+    int tiles = s->settings.equiangular == RD_EQ_TILES && rd_eq_tiles_have_lights(s);
     ctx->state = NULL;
     if (!tiles && s->settings.probes == 1) return RD_OK; /* plain delta: no state */
     delta_state *ds = calloc(1, sizeof *ds);

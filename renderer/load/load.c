@@ -136,8 +136,10 @@ static char *read_file(const char *path, char *err, size_t errlen, rd_status *st
 
 /* settings.beam_connect (transport/beam_connect.c): what it needs of the scene, then its
  * tables. It connects to one beam (the first directional light with a radius whose axis
- * crosses a medium), and not with an equiangular mode that samples the beam's chord on the same
- * flights (`true`, "tiles"): the two would be the same strategy counted twice. `true` where it
+ * crosses a medium), and not with settings.equiangular `true`, which samples the beam's chord
+ * on every flight: the two would be the same strategy counted twice. With "tiles" it stays on
+ * (since session 72): the tiles then sample a connected beam by its connections alone, and
+ * take the strategy only toward the other lights (rd_eq_tiles_have_lights). `true` where it
  * cannot run is an error; "auto", the default, is then off, and off too for a broad beam
  * (above). */
 static rd_status beam_connect_setup(ld_ctx *c, rd_scene *s)
@@ -150,8 +152,8 @@ static rd_status beam_connect_setup(ld_ctx *c, rd_scene *s)
         return RD_OK;
     }
     const char *why = NULL; /* a literal: `photonmarch info` prints it too */
-    if (s->settings.equiangular == RD_EQ_ALL || s->settings.equiangular == RD_EQ_TILES)
-        why = "not with settings.equiangular true or \"tiles\", which sample the beam from the same flights";
+    if (s->settings.equiangular == RD_EQ_ALL)
+        why = "not with settings.equiangular true, which samples the beam from the same flights";
     else if (!rd_beam_connect_setup(s)) why = "no directional light with a radius whose axis crosses a medium";
     if (!why && mode == RD_BC_AUTO && !(bc->breadth < RD_BC_AUTO_BREADTH)) {
         bc->light = -1;

@@ -78,10 +78,11 @@ static char *report_json(const rd_scene *s, const rd_render_opts *o, const rd_re
     if (m && strcmp(m->name, "delta") == 0) {
         /* settings.equiangular "tiles": the share the tiles gave to the path with the strategy
          * on every flight (the selection's "method", integrators/delta.c; none without a point
-         * or spot light or a directional beam, where there is no choice) */
+         * or spot light or a directional beam that the path does not connect to, where there
+         * is no choice) */
         if (s->settings.equiangular == RD_EQ_TILES)
             cJSON_AddNumberToObject(j, "equiangular_share",
-                                    st->paths && rd_eq_has_lights(s, 1) ? 1.0 - (double)st->delta_samples / (double)st->paths
+                                    st->paths && rd_eq_tiles_have_lights(s) ? 1.0 - (double)st->delta_samples / (double)st->paths
                                                                      : 0.0);
     } else if (st->rays_marched || st->delta_samples || st->path_samples) {
         cJSON_AddNumberToObject(j, "delta_share", st->paths ? (double)st->delta_samples / (double)st->paths : 0.0);

@@ -173,14 +173,15 @@ int rd_eq_mode_beams(int mode);
  * ef->iv[0..ef->n) filled by the caller from rd_media_intervals(s, region, r, 0, t_light)
  * (n = 0 allowed): the rest of the set-up, with the same result as rd_eq_flight_init.
  * rd_eq_has_lights with beams = 0: a point or spot light (what "auto" looks for); with
- * beams = 1, a directional beam also counts (`delta`'s "tiles"). */
+ * beams = 1, a directional beam also counts (the modes that sample beams; `delta`'s "tiles"
+ * asks rd_eq_tiles_have_lights). */
 int rd_eq_has_lights(const rd_scene *s, int beams);
 /* Is there a light for tiles with the strategy on every flight beside delta's own path (the
- * guided methods' third estimator, compare's rendered reference): a point or spot light, or a
- * directional beam that delta's path does not connect to (settings.beam_connect: a flight with
- * the strategy on every flight drops the connections and samples the beam's chord instead, the
- * same light found the weaker way; integrators/select.c, "Beams that delta's path connects
- * to")? */
+ * guided methods' third estimator, `delta`'s "tiles", compare's rendered reference): a point
+ * or spot light, or a directional beam that delta's path does not connect to
+ * (settings.beam_connect: a flight with the strategy on every flight drops the connections and
+ * samples the beam's chord instead, the same light found the weaker way;
+ * integrators/select.c, "Beams that delta's path connects to")? */
 int rd_eq_tiles_have_lights(const rd_scene *s);
 int rd_eq_flight_choose(const rd_scene *s, ray3 r, int region, double q, int mode, rd_eq_flight *ef);
 /* Does the strategy sample light i on this flight (in its set and not left to delta tracking)? */
