@@ -201,11 +201,12 @@ Test(beam_connect, a_second_light_gives_delta_s_image, .timeout = 120)
 }
 
 /* With max_depth 1 a connection's vertex would be a second scattering event: none is made, no
- * random number drawn, so the image is `delta`'s without the connections bit for bit. */
+ * random number drawn, so the image is `delta`'s without the connections bit for bit (plain
+ * `delta`: without the connections its "tiles", the default, would sample the beam). */
 Test(beam_connect, max_depth_1_makes_no_connection)
 {
-    rd_scene *a = rt_scene("bc_d1_off.json", beam_fog_json(homogeneous, ",\"beam_connect\":false"));
-    rd_scene *b = rt_scene("bc_d1_on.json", beam_fog_json(homogeneous, ",\"beam_connect\":true"));
+    rd_scene *a = rt_scene("bc_d1_off.json", beam_fog_json(homogeneous, ",\"beam_connect\":false,\"equiangular\":false"));
+    rd_scene *b = rt_scene("bc_d1_on.json", beam_fog_json(homogeneous, ",\"beam_connect\":true,\"equiangular\":false"));
     a->settings.max_depth = b->settings.max_depth = 1;
     rd_render_result ra = rt_render(a, "delta", 16, 41, NULL), rb = rt_render(b, "delta", 16, 41, NULL);
     size_t n = (size_t)ra.image.w * ra.image.h * 3;

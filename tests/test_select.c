@@ -1376,8 +1376,8 @@ Test(select, shares_of_the_samples_keep_delta_s_image, .timeout = 300)
 }
 
 /* settings.adaptive "auto", the default: shares for `guided`'s selection, the epochs' for
- * guided-unbiased's (which keep it unbiased: docs/guided-unbiased.md "Shares of the samples"),
- * none for `delta`'s "tiles"; true and false force them either way. Read from the
+ * guided-unbiased's (which keep it unbiased: docs/guided-unbiased.md "Shares of the samples")
+ * and, since session 72, for `delta`'s "tiles" (its default); true and false force them either way. Read from the
  * render (rd_render_stats.shares, the JSON's "shares") and from its samples: a render with shares
  * draws fewer than spp a pixel past the first four, one without draws every one. */
 Test(select, auto_gives_shares_to_the_guided_methods, .timeout = 300)
@@ -1386,14 +1386,13 @@ Test(select, auto_gives_shares_to_the_guided_methods, .timeout = 300)
         const char *method, *adaptive;
         int shares;
     } cases[] = {{"guided", NULL, 1},          {"guided", "false", 0}, {"guided-unbiased", NULL, 1},
-                 {"guided-unbiased", "false", 0}, {"delta", NULL, 0},     {"delta", "true", 1}};
+                 {"guided-unbiased", "false", 0}, {"delta", NULL, 1},     {"delta", "false", 0}};
     for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
         char settings[160], name[64];
-        /* (delta's selection: its equiangular "tiles", the spot's) */
-        const char *eq = strcmp(cases[i].method, "delta") == 0 ? ",\"equiangular\":\"tiles\"" : "";
+        /* (delta's selection: its equiangular "tiles", the default, the spot's) */
         if (cases[i].adaptive)
-            snprintf(settings, sizeof settings, "{\"select\":\"tiles\"%s,\"adaptive\":%s}", eq, cases[i].adaptive);
-        else snprintf(settings, sizeof settings, "{\"select\":\"tiles\"%s}", eq);
+            snprintf(settings, sizeof settings, "{\"select\":\"tiles\",\"adaptive\":%s}", cases[i].adaptive);
+        else snprintf(settings, sizeof settings, "{\"select\":\"tiles\"}");
         snprintf(name, sizeof name, "selauto%zu.json", i);
         rd_scene *s = rt_scene(name, rt_spot_fog_json_with(32, 24, settings, "\"photons\":{\"count\":20000}"));
         cr_assert(cases[i].adaptive || s->settings.adaptive == RD_ADAPTIVE_AUTO);
@@ -1409,24 +1408,54 @@ Test(select, auto_gives_shares_to_the_guided_methods, .timeout = 300)
         rd_scene_free(s);
     }
     /* and guided-unbiased's "auto" is "epochs" (loaded from the scene), neither "pilot" nor true:
-     * the same image to the bit as "epochs", another than theirs */
-    rd_render_result g[4];
-    const char *modes[4] = {NULL, "\"epochs\"", "\"pilot\"", "true"};
-    for (int i = 0; i < 4; i++) {
-        char settings[160], name[64];
-        if (modes[i]) snprintf(settings, sizeof settings, "{\"select\":\"tiles\",\"adaptive\":%s}", modes[i]);
-        else snprintf(settings, sizeof settings, "{\"select\":\"tiles\"}");
-        snprintf(name, sizeof name, "selautogu%d.json", i);
-        rd_scene *s = rt_scene(name, rt_spot_fog_json_with(32, 24, settings, "\"photons\":{\"count\":20000}"));
-        cr_assert(i != 1 || s->settings.adaptive == RD_ADAPTIVE_EPOCHS, "\"epochs\" not loaded");
-        g[i] = rt_render(s, "guided-unbiased", 32, 41, NULL);
+     * the same image to the bit as "epochs", another than theirs; `delta`'s too (with its
+     * default "tiles", which the scene does not name) */
+    static const char *const methods[2] = {"guided-unbiased", "delta"};
+    for (int k = 0; k < 2; k++) {
+        rd_render_result g[4];
+        const char *modes[4] = {NULL, "\"epochs\"", "\"pilot\"", "true"};
+        for (int i = 0; i < 4; i++) {
+            char settings[160], name[64];
+            if (modes[i]) snprintf(settings, sizeof settings, "{\"select\":\"tiles\",\"adaptive\":%s}", modes[i]);
+            else snprintf(settings, sizeof settings, "{\"select\":\"tiles\"}");
+            snprintf(name, sizeof name, "selautogu%d%d.json", k, i);
+            rd_scene *s = rt_scene(name, rt_spot_fog_json_with(32, 24, settings, "\"photons\":{\"count\":20000}"));
+            cr_assert(i != 1 || s->settings.adaptive == RD_ADAPTIVE_EPOCHS, "\"epochs\" not loaded");
+            cr_assert(s->settings.equiangular == RD_EQ_TILES, "the default equiangular is not \"tiles\"");
+            g[i] = rt_render(s, methods[k], 32, 41, NULL);
+            rd_scene_free(s);
+        }
+        const size_t bytes = (size_t)g[0].image.w * g[0].image.h * 3 * sizeof(float);
+        cr_expect(memcmp(g[0].image.rgb, g[1].image.rgb, bytes) == 0, "%s's \"auto\" is not \"epochs\"", methods[k]);
+        cr_expect(memcmp(g[0].image.rgb, g[2].image.rgb, bytes) != 0, "%s's \"auto\" renders as \"pilot\"", methods[k]);
+        cr_expect(memcmp(g[0].image.rgb, g[3].image.rgb, bytes) != 0, "%s's \"auto\" renders as true", methods[k]);
+        for (int i = 0; i < 4; i++) rd_render_result_free(&g[i]);
+    }
+}
+
+/* settings.equiangular's default (since session 72, docs/free-path.md "The default"): "tiles",
+ * but `false` where settings.probes is not 1, since the tiles' estimators take no probes and
+ * would drop them unsaid; a value named in the scene stands whatever the probes. Planted: the
+ * default "tiles" whatever the probes fails the second and third cases. */
+Test(select, delta_s_default_is_the_tiles_but_beside_probes)
+{
+    static const struct {
+        const char *settings;
+        int want;
+    } cases[] = {{"{}", RD_EQ_TILES},
+                 {"{\"probes\":4}", RD_EQ_OFF},
+                 {"{\"probes\":\"auto\"}", RD_EQ_OFF},
+                 {"{\"equiangular\":false}", RD_EQ_OFF},
+                 {"{\"equiangular\":\"tiles\",\"probes\":4}", RD_EQ_TILES},
+                 {"{\"equiangular\":true,\"probes\":4}", RD_EQ_ALL}};
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
+        char name[64];
+        snprintf(name, sizeof name, "seldefault%zu.json", i);
+        rd_scene *s = rt_scene(name, rt_spot_fog_json_with(16, 12, cases[i].settings, "\"photons\":{\"count\":2000}"));
+        cr_expect(s->settings.equiangular == cases[i].want, "settings %s: equiangular %d, not %d", cases[i].settings,
+                  s->settings.equiangular, cases[i].want);
         rd_scene_free(s);
     }
-    const size_t bytes = (size_t)g[0].image.w * g[0].image.h * 3 * sizeof(float);
-    cr_expect(memcmp(g[0].image.rgb, g[1].image.rgb, bytes) == 0, "guided-unbiased's \"auto\" is not \"epochs\"");
-    cr_expect(memcmp(g[0].image.rgb, g[2].image.rgb, bytes) != 0, "guided-unbiased's \"auto\" renders as \"pilot\"");
-    cr_expect(memcmp(g[0].image.rgb, g[3].image.rgb, bytes) != 0, "guided-unbiased's \"auto\" renders as true");
-    for (int i = 0; i < 4; i++) rd_render_result_free(&g[i]);
 }
 
 /* guided-unbiased's unbiased shares, the pilot's and the epochs' (settings.adaptive "pilot" and
@@ -1978,7 +2007,8 @@ Test(select, the_trace_says_which_estimator_drew_every_sample, .timeout = 300)
               (unsigned long long)delta_samples, (unsigned long long)eq_samples, (unsigned long long)r[1].stats.delta_samples,
               (unsigned long long)r[1].stats.delta_eq_samples);
     for (int i = 0; i < 2; i++) rd_render_result_free(&r[i]);
-    /* A render without a selection writes no trace. */
+    /* A render without a selection writes no trace (plain `delta`: its default "tiles" has one). */
+    s->settings.equiangular = RD_EQ_OFF;
     const char *none = rt_tmp_path("no-trace.jsonl");
     rd_render_opts o = {.method = "delta", .spp = 2, .seed = 5, .threads = 1, .select_trace = none};
     cr_assert(rd_render(s, &o, &r[0], err, sizeof err) == RD_OK, "%s", err);

@@ -94,8 +94,10 @@ static rd_status delta_prepare(rd_render_ctx *ctx, char *err, size_t errlen)
             snprintf(err, errlen, "out of memory for the tile selection");
             st = RD_ERR_NOMEM;
         } else {
-            /* two estimators: its "method" is the path with the strategy already, no third */
-            st = rd_select_prepare(ctx, delta_every_flight, NULL, 0.0, RD_SELECT_METHOD_IS_PATH, ds->sel, err, errlen);
+            /* two estimators: its "method" is the path with the strategy already, no third;
+             * settings.adaptive "auto" is "epochs" (unbiased shares; docs/free-path.md "The default") */
+            st = rd_select_prepare(ctx, delta_every_flight, NULL, 0.0, RD_SELECT_METHOD_IS_PATH | RD_SELECT_UNBIASED_SHARES_AUTO,
+                                   ds->sel, err, errlen);
             ctx->weighted = st == RD_OK && (ds->sel->weight || ds->sel->blocks);
             ctx->blocks = st == RD_OK && ds->sel->blocks;
             ctx->shares = st == RD_OK && ds->sel->share;

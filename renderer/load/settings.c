@@ -117,7 +117,7 @@ rd_status ld_parse_settings(ld_ctx *c, const cJSON *j, rd_settings *s)
     s->track_b = 1.0;
     s->track_m = 1.0;
     s->track_step = 0.0;
-    s->equiangular = RD_EQ_OFF;
+    s->equiangular = RD_EQ_TILES; /* with probes 1 (below); docs/free-path.md "The default" */
     s->thin_bias = 0.0;
     s->beam_connect = RD_BC_AUTO;
     s->select = RD_SELECT_AUTO; /* integrators/select.c */
@@ -170,6 +170,11 @@ rd_status ld_parse_settings(ld_ctx *c, const cJSON *j, rd_settings *s)
     LD_TRY(ld_get_enum(c, j, path, "select", 0, select, RD_SELECT_AUTO, &s->select));
     LD_TRY(parse_probes(c, j, path, &s->probes));
     LD_TRY(parse_adaptive(c, j, path, &s->adaptive));
+    /* settings.equiangular's default: "tiles" (with "auto"'s adaptive, the epochs' shares:
+     * integrators/delta.c), since session 72 the strongest `delta` on both suites and the
+     * calibration scenes; "false" where settings.probes asks for probes, which "tiles"' two
+     * estimators do not take (docs/free-path.md "The default") */
+    if (!s->equiangular_given) s->equiangular = s->probes == 1 ? RD_EQ_TILES : RD_EQ_OFF;
     /* The probes' transmittance estimate and the path's own pass or stop must be unbiased alike
      * (integrators/probes.c): not with a ray-marched one. */
     if (s->probes != 1 && (s->tracker == RD_FP_RAYMARCH || s->transmittance == RD_TR_RAYMARCH))

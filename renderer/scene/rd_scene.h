@@ -63,10 +63,11 @@ typedef struct {
                           * shares"); RD_ADAPTIVE_EPOCHS: shares set at every choice, each sample
                           * weighing the indices it stands for (unbiased: "Epoch shares");
                           * RD_ADAPTIVE_AUTO (default): 1 for `guided`, RD_ADAPTIVE_EPOCHS for
-                          * `guided-unbiased`, 0 for `delta` */
+                          * `guided-unbiased` and (since session 72) `delta`'s "tiles" */
 } rd_settings;
 enum { RD_SELECT_OFF, RD_SELECT_TILES, RD_SELECT_PILOT, RD_SELECT_AUTO };
-/* settings.adaptive "auto" (the default): shares for `guided`, the epochs' for `guided-unbiased`;
+/* settings.adaptive "auto" (the default): shares for `guided`, the epochs' for `guided-unbiased`
+ * and `delta`'s "tiles";
  * "pilot": shares fixed from the pilot's figures, no weights; "epochs": shares set at every
  * choice, unbiased by the indices each sample stands for (rd_settings.adaptive). */
 enum { RD_ADAPTIVE_AUTO = 2, RD_ADAPTIVE_PILOT = 3, RD_ADAPTIVE_EPOCHS = 4 };
