@@ -10,10 +10,10 @@ start=$(date +%s)
 "$BIN" render "$SCENE" -o out/default.exr -q
 "$BIN" bake "$SCENE" -o out/default -q
 # The comparison ranks the methods only against a reference whose variance is at most a tenth of
-# the best method's MSE (docs/compare.md): guided's MSE here is about a third of delta's (session
-# 70, with march.beams and the shares of settings.adaptive on by default), so that reference takes
-# about 38x one run's budget of delta (305 s). At 128x96 pixels and 8 s per run (guided's 1-2 s
-# bake charged to each of its runs) the four runs and the reference take about 6 min on 2 cores;
+# the best method's MSE (docs/compare.md): guided's MSE here is about 0.45x delta's (session
+# 72, with march.beams and the shares of settings.adaptive on by default, against delta's default
+# "tiles" with the epochs' shares), so that reference takes about 31x one run's budget (251 s). At 128x96 pixels and 8 s per run (guided's 1-2 s
+# bake charged to each of its runs) the four runs and the reference take about 5 min on 2 cores;
 # the reference is cached in
 # out/.photonmarch-cache/, so a second demo reuses it.
 echo "photonmarch demo: comparing guided and delta at equal time (128x96, 2 runs of 8 s each, against" >&2
