@@ -149,7 +149,8 @@ Test(integrator, same_image_on_one_and_two_threads, .timeout = 120)
                            "\"media\":[{\"bounds\":{\"min\":[-1,-1,-1],\"max\":[1,1,1]},"
                            "\"density\":{\"type\":\"noise\",\"octaves\":3,\"seed\":2},\"sigma_t\":2,\"albedo\":0.9,\"g\":0.5}],"
                            "\"lights\":[{\"type\":\"spot\",\"position\":[2,2,2],\"look_at\":[0,0,0],\"angle\":40,\"intensity\":10},"
-                           "{\"type\":\"environment\",\"radiance\":0.2}]}");
+                           "{\"type\":\"environment\",\"radiance\":0.2}],"
+                           "\"settings\":{\"equiangular\":false}}"); /* the path alone (the tiles': test_select.c) */
     rd_render_result res[3];
     char err[RD_ERRLEN];
     const int threads[3] = {1, 2, 2};

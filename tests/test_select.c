@@ -1348,13 +1348,17 @@ Test(select, tiles_of_both_kinds_give_delta_s_image, .timeout = 300)
  * light and none draws the dark tiles' least share: a mean below 0.9 x 256 samples a pixel
  * means lit tiles were thinned. */
 /* The spot in fog (rt_spot_fog_json_with) at 32x24 with shares (settings.adaptive), the beams
- * and the marcher's equiangular sample off, `photons` photons, the fog over the whole frame. */
+ * and the marcher's equiangular sample off, `photons` photons, the fog over the whole frame;
+ * settings.equiangular false, so that `delta`, the reference, is its plain path (its default
+ * "tiles" would take these shares too, consistent, not unbiased; the guided methods read
+ * "tiles" as false). */
 static rd_scene *shares_fog_scene(const char *name, int photons)
 {
     char json[2048], members[160];
     snprintf(members, sizeof members, "\"photons\":{\"count\":%d},\"march\":{\"equiangular\":false,\"beams\":false}",
              photons);
-    snprintf(json, sizeof json, "%s", rt_spot_fog_json_with(32, 24, "{\"select\":\"tiles\",\"adaptive\":true}", members));
+    snprintf(json, sizeof json, "%s",
+             rt_spot_fog_json_with(32, 24, "{\"select\":\"tiles\",\"adaptive\":true,\"equiangular\":false}", members));
     char *cut = strstr(json, "\"max\":[0.0,");
     cr_assert(cut != NULL, "the fog's cut at x = 0 is not in the scene");
     memcpy(cut + 7, "2.2", 3); /* [0.0, ...] -> [2.2, ...]: the fog to the frame's right edge */
@@ -1470,7 +1474,10 @@ Test(select, the_unbiased_shares_keep_delta_s_image_with_guided_unbiased, .timeo
     rd_render_result d;
     for (int epochs = 0; epochs < 2; epochs++) {
         char json[2048];
-        const char *set = epochs ? "{\"select\":\"tiles\",\"adaptive\":\"epochs\"}" : "{\"select\":\"tiles\",\"adaptive\":\"pilot\"}";
+        /* (settings.equiangular false: `delta` is its plain path, not its default "tiles" with
+         * these shares; the guided methods read "tiles" as false) */
+        const char *set = epochs ? "{\"select\":\"tiles\",\"adaptive\":\"epochs\",\"equiangular\":false}"
+                                 : "{\"select\":\"tiles\",\"adaptive\":\"pilot\",\"equiangular\":false}";
         snprintf(json, sizeof json, "%s", rt_spot_fog_json_with(32, 24, set, "\"photons\":{\"count\":40000}"));
         char *cut = strstr(json, "\"max\":[0.0,");
         cr_assert(cut != NULL, "the fog's cut at x = 0 is not in the scene");
@@ -2787,6 +2794,34 @@ Test(select, the_beams_estimator_takes_tiles_and_paces_its_own_passes, .timeout 
     render_on_1_and_2_threads(s, "guided", 20, 5, r);
     expect_passes_paced_by(&r[0], 32.0 * 24, 32.0 * 24, "the selection scene");
     expect_one_and_two_threads_alike(r);
+    rd_scene_free(s);
+}
+
+/* render.c renders a pixel's samples in passes that end at the method's epochs and, where
+ * photon passes run, at a photon pass's end; under settings.adaptive "epochs" a drawn index's
+ * block runs to the next drawn index, or to its epoch's end or the render's last sample (lim,
+ * rd_block_next), across render passes, so that the blocks tile every epoch. The index-by-index
+ * test of rd_block_next (test_render.c) covers the rule; here the render: on the dense box the
+ * beams' photon passes (4 spp a pass, paced by the beams' samples, which the shares thin) end
+ * inside the epochs, and `guided` with "epochs" at 100 spp must pass render.c's check that every
+ * pixel's weights sum to its samples (else RD_ERR_INTERNAL). Planted: a block cut at the render
+ * pass's end (lim = s0 + done + n in render.c) fails it; in the other tests the render passes
+ * end at the epochs' ends, where that mutation passes. */
+Test(select, epoch_blocks_cut_by_photon_passes_still_tile_every_epoch, .timeout = 300)
+{
+    rd_scene *s = rt_scene("selbeep.json", dense_beams_scene());
+    s->settings.adaptive = RD_ADAPTIVE_EPOCHS;
+    rd_render_opts o = {.method = "guided", .spp = 100, .seed = 5, .threads = 2};
+    rd_render_result r;
+    char err[RD_ERRLEN];
+    cr_assert(rd_render(s, &o, &r, err, sizeof err) == RD_OK, "%s", err);
+    cr_log_info("guided with the epochs' shares and the beams: %d photon passes, %.1f samples a pixel of 100",
+                r.stats.photon_passes, r.stats.spp_mean);
+    cr_expect(r.stats.shares && r.stats.spp_mean < 100.0, "no shares (%.1f samples a pixel)", r.stats.spp_mean);
+    cr_expect(r.stats.photon_passes > 3 && r.stats.beams_samples > 0, "%d photon passes, %llu beams samples: none to cut the epochs",
+              r.stats.photon_passes, (unsigned long long)r.stats.beams_samples);
+    for (size_t i = 0; i < (size_t)r.image.w * r.image.h * 3; i++) cr_assert(isfinite(r.image.rgb[i]));
+    rd_render_result_free(&r);
     rd_scene_free(s);
 }
 
