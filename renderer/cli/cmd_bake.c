@@ -51,7 +51,14 @@ static const char *const usage_bake =
     "  --toward X,Y,Z         direction the slice radiance leaves in (default: toward the camera)\n"
     "  --stats                print counts, memory, tracing rate, index and bake times\n"
     "  --set KEY=VALUE        override a scene field (repeatable)\n"
-    "  -q, --quiet            print only errors\n";
+    "  -q, --quiet            print only errors\n"
+    "\n"
+    "bake writes the full bake, the one guided, uniform and transmittance use. A method that\n"
+    "bakes something else for itself renders from its own cached bake unless given files:\n"
+    "guided-unbiased traces guide.photon_share of the photons and leaves out the light a point,\n"
+    "spot or directional light sends through glass (docs/guided-unbiased.md, \"The guide holds\n"
+    "only light the paths can reach\"). Given bake's files with render --photons/--guide it uses\n"
+    "them as they are: its guide only steers, so the image stays the same in expectation.\n";
 
 static void print_bake_stats(const rd_bake_stats *b)
 {

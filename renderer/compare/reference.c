@@ -94,11 +94,13 @@ static uint64_t hash_v(uint64_t h, vec3 v) { return hash_d(hash_d(hash_d(h, v.x)
  * under the same key: the same key always names a prefix of the same stream. (Not with
  * settings.equiangular "tiles": each part of the reference runs delta's own pilot and epochs
  * on its own samples, so an extended reference is a mean of parts whose tiles may differ;
- * unbiased all the same.) */
+ * unbiased all the same.) "v3" since session 72, when "tiles" began to keep the beam
+ * connections (load/load.c): a reference cached before under the same settings is another
+ * image's noise on beam scenes, and is not served. */
 static uint64_t reference_key(const rd_scene *s, int auto_ref, int photons, int spp, double time_cap, uint64_t seed)
 {
-    uint64_t h = auto_ref ? fnv1a(0xcbf29ce484222325ULL, "photonmarch reference v2 stream", 31)
-                          : fnv1a(0xcbf29ce484222325ULL, "photonmarch reference v2 fixed", 30);
+    uint64_t h = auto_ref ? fnv1a(0xcbf29ce484222325ULL, "photonmarch reference v3 stream", 31)
+                          : fnv1a(0xcbf29ce484222325ULL, "photonmarch reference v3 fixed", 30);
     if (photons) { /* the photon reference: its method's settings too (reference_scene) */
         const rd_march_settings *m = &s->march;
         const rd_photon_settings *p = &s->photons;

@@ -1,7 +1,8 @@
 /* delta.c: the method `delta`, the unbiased reference: volumetric path tracing with delta
  * tracking's free flights (transport/path.c: next-event estimation with ratio tracking, phase
  * sampling, Russian roulette, MIS for the lights a path can hit). Every other method is checked
- * against it.
+ * against it. (With its default "tiles" and the epochs' shares, unbiased at a sample count;
+ * under a time limit but for the last sample's reach: select_share.c "Epoch shares".)
  *
  * settings.equiangular "tiles": `delta` chooses per 8x8-pixel tile between its path without the
  * equiangular strategy and with it on every flight (`true`), by the guided methods' tile

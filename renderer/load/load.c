@@ -138,8 +138,10 @@ static char *read_file(const char *path, char *err, size_t errlen, rd_status *st
  * tables. It connects to one beam (the first directional light with a radius whose axis
  * crosses a medium), and not with settings.equiangular `true`, which samples the beam's chord
  * on every flight: the two would be the same strategy counted twice. With "tiles" it stays on
- * (since session 72): the tiles then sample a connected beam by its connections alone, and
- * take the strategy only toward the other lights (rd_eq_tiles_have_lights). `true` where it
+ * (since session 72): a connected beam is then no light for the tiles (rd_eq_tiles_have_lights),
+ * so that beside it alone they are plain `delta`; where a point or spot light gives the tiles a
+ * choice, the flights that take the strategy sample the beam's chord and drop the connections
+ * (transport/path.c), the others connect. `true` where it
  * cannot run is an error; "auto", the default, is then off, and off too for a broad beam
  * (above). */
 static rd_status beam_connect_setup(ld_ctx *c, rd_scene *s)
