@@ -8,7 +8,10 @@
 # Environment: RUN_SECONDS (10), RUNS (4), REF_SECONDS (240), THREADS (2).
 # References are rendered once into OUTDIR by `delta` (the thin-spot one with equiangular
 # sampling: same expectation, far less noise there), 24x a run's time, and reused when present;
-# bench_strongdelta subtracts their own variance (their -stderr.exr) from every MSE.
+# bench_strongdelta subtracts their own variance (their -stderr.exr) from every MSE. The first
+# variant is plain `delta` (settings.equiangular false); `default` is `delta`'s default since
+# session 72, "tiles" with the epochs' shares (docs/free-path.md "The default"). The references
+# draw every sample (settings.adaptive false), so that they hold no block cut by the clock.
 set -euo pipefail
 . "$(dirname "$0")/machine.sh"
 bench_machine_note
@@ -31,13 +34,14 @@ for c in "${cases[@]}"; do
   if [ ! -f "$ref" ]; then
     extra=()
     [ -n "$refset" ] && extra=(--set "$refset")
-    build/photonmarch render "$scene" --set "camera.resolution=$res" "${extra[@]}" --time "$REF_SECONDS" \
+    build/photonmarch render "$scene" --set "camera.resolution=$res" --set settings.adaptive=false "${extra[@]}" --time "$REF_SECONDS" \
       --seed 99 --threads "$THREADS" -q -o "$ref"
   fi
   echo "load average before $name: $(cut -d' ' -f1-3 /proc/loadavg)"
   build/bench/bench_strongdelta "$scene" --reference "$ref" --set "camera.resolution=$res" \
     --seconds "$RUN_SECONDS" --runs "$RUNS" --threads "$THREADS" \
-    --variant delta \
+    --variant delta --set settings.equiangular=false \
+    --variant default \
     --variant equiangular --set settings.equiangular=true \
     --variant equiangular-camera --set settings.equiangular=camera \
     --variant equiangular-auto --set settings.equiangular=auto \
