@@ -59,7 +59,11 @@ static inline const char *rt_tmp_path(const char *name)
 /* Write `json` to <tmp>/<name> and load it; the test fails with the loader's message if the
  * scene does not load. The guided methods' tile selection (settings.select, on by default) is
  * turned off unless the scene names it: a test of a method's estimator must render the method
- * at every pixel, not hand some tiles to delta's path (tests/test_select.c tests the mix). */
+ * at every pixel, not hand some tiles to delta's path (tests/test_select.c tests the mix). So is
+ * `delta`'s own (settings.equiangular, "tiles" by default since session 72) unless the scene
+ * names the key: a test that takes `delta` as its reference renders its plain path, the
+ * independent estimator, at a sanitizer build's cost as before (tests/test_select.c tests the
+ * tiles and the default, which the CLI's tests render). */
 static inline rd_scene *rt_scene(const char *name, const char *json)
 {
     char path[256], err[RD_ERRLEN];
@@ -69,6 +73,7 @@ static inline rd_scene *rt_scene(const char *name, const char *json)
     rd_status st = rd_scene_load(&s, path, NULL, 0, err, sizeof err);
     cr_assert(st == RD_OK, "scene %s did not load: %s", name, err);
     if (!strstr(json, "\"select\"")) s->settings.select = RD_SELECT_OFF;
+    if (!s->settings.equiangular_given) s->settings.equiangular = RD_EQ_OFF;
     return s;
 }
 
