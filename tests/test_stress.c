@@ -311,8 +311,8 @@ static void write_scene(const char *path, const char *json)
 /* 4096 x 4096 pixels at 1 sample each: finite, and within the film's memory bound. Run for
  * plain `delta` (settings.equiangular false): the film's memory, the same for every method. A
  * tile selection (`delta`'s default "tiles" on this point light, the guided methods') adds its
- * pixel records, 136 bytes a pixel (rd_select_pixel), and the weighted film's 40: `delta` with
- * "tiles" peaked at 4.2 GiB here (session 72), outside this bound. */
+ * pixel records, 72 bytes a pixel (rd_select_pixel), and the weighted film's 40: `delta` with
+ * "tiles" peaked at 3.2 GiB here (session 72), outside this bound. */
 Test(stress_big, image_4096_squared_at_1_spp, .timeout = 600)
 {
     skip_under_asan();

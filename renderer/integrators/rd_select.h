@@ -64,13 +64,14 @@ typedef struct {
  * samples, cost that of all drawn (the dropped too) in whole 1/RD_SELECT_COST_UNIT lookups. */
 #define RD_SELECT_COST_UNIT 65536.0
 typedef struct {
-    double n, nonzero;
-    double sum[3], sum2[3];
-    double cost;
-    double gap[4], gap_n[4]; /* the beams': the sums of their gaps (mean over RGB) and their
-                                counts, on the photon passes of each class mod 4 */
+    double n, nonzero, sum[3], sum2[3], cost;
 } rd_select_pixel;
-#define RD_SELECT_PIXEL_DOUBLES 17
+#define RD_SELECT_PIXEL_DOUBLES 9
+/* The beams' (apart: 72 bytes a pixel without them): their samples' gaps since the last epoch,
+ * the sums (mean over RGB) and the counts on the photon passes of each class mod 4. */
+typedef struct {
+    double gap[4], gap_n[4];
+} rd_select_gaps;
 
 /* A method's own estimate of the radiance along camera ray r (what its radiance() does
  * where the selection gives it the pixel). */
@@ -120,10 +121,9 @@ typedef struct {
                                 and estimator e, [n (tiles h + k) + e], tiles = tiles_x
                                 tiles_y: a tile's samples are the sum of its two halves' */
     rd_select_pixel *pixels; /* per pixel, the current epoch's samples */
-    double *gaps;            /* per pixel, the beams' gaps of all its image samples so far (the
-                                epochs' records'), as rd_select_pixel.gap and .gap_n: 8 doubles,
-                                the sums by pass mod 4, then the counts (select_rule.c, "The beams'
-                                bias"); NULL without the beams or the epochs (rd_select_prepare_more) */
+    rd_select_gaps *pixel_gaps; /* per pixel, the current epoch's beams' gaps; NULL without the beams */
+    double *gaps; /* per pixel, the beams' gaps of all its image samples so far, as rd_select_gaps
+                     (select_rule.c, "The beams' bias"); NULL without the beams or the epochs */
     double bias_ratio, bias_se, bias_r2; /* the last choice's image-wide ratio of the beams' squared bias to
                                    their variance a sample, at the radius then, before the margin,
                                    and its standard error (select_rule.c bias_ratio; 0 without the

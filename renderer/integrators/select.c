@@ -220,22 +220,23 @@ static uint64_t sample_fixed_units(const rd_select *sel, int e)
 }
 
 /* Add one finite sample L to a pixel's record (its cost is added apart: the work of the
- * samples the film drops counts too); a beams sample's gap on photon pass `pass` with it
- * (pass < 0: none, the other estimators). */
-static void pixel_add(rd_select_pixel *px, vec3 L, vec3 gap, int pass)
+ * samples the film drops counts too); a beams sample's gap on photon pass `pass` to its gaps g
+ * (pass < 0: none, the other estimators; g is NULL only where no estimator has a pass). */
+static void pixel_add(rd_select_pixel *px, rd_select_gaps *g, vec3 L, vec3 gap, int pass)
 {
     const double v[3] = {L.x, L.y, L.z};
     for (int c = 0; c < 3; c++) { /* float sums, as they always were: the same choices */
         px->sum[c] = (float)px->sum[c] + (float)v[c];
         px->sum2[c] = (float)px->sum2[c] + (float)(v[c] * v[c]);
     }
-    if (pass >= 0) px->gap[pass & 3] += (gap.x + gap.y + gap.z) / 3.0, px->gap_n[pass & 3]++;
+    if (pass >= 0 && g) g->gap[pass & 3] += (gap.x + gap.y + gap.z) / 3.0, g->gap_n[pass & 3]++;
     px->nonzero += L.x != 0.0 || L.y != 0.0 || L.z != 0.0;
     px->n++;
 }
 
-/* Add one pixel's samples (all of one estimator) to that estimator's statistics in its tile. */
-static void pixel_fold(rd_select_stats *st, const rd_select_pixel *px)
+/* Add one pixel's samples (all of one estimator) to that estimator's statistics in its tile,
+ * with their gaps g (NULL: none). */
+static void pixel_fold(rd_select_stats *st, const rd_select_pixel *px, const rd_select_gaps *g)
 {
     st->cost += px->cost / RD_SELECT_COST_UNIT; /* (exact: a power of two; the dropped samples' too) */
     if (px->n == 0) return;
@@ -245,7 +246,7 @@ static void pixel_fold(rd_select_stats *st, const rd_select_pixel *px)
         st->sum[c] += s;
         st->dev2[c] += fmax(0.0, (double)px->sum2[c] - s * s / n);
     }
-    st->gap += px->gap[0] + px->gap[1] + px->gap[2] + px->gap[3];
+    if (g) st->gap += g->gap[0] + g->gap[1] + g->gap[2] + g->gap[3];
     st->n += n;
     st->dof += n - 1.0;
     st->nonzero += px->nonzero;
@@ -278,7 +279,8 @@ static void run_open(rd_select *sel, rd_select_run *u, const rd_thread *th)
 {
     const rd_select_pixel *px = &sel->pixels[th->pixel];
     for (int c = 0; c < 3; c++) u->sum[c] = (float)px->sum[c], u->sum2[c] = (float)px->sum2[c]; /* exact */
-    for (int i = 0; i < 4; i++) u->gap[i] = px->gap[i], u->gap_n[i] = px->gap_n[i];
+    const rd_select_gaps *g = sel->pixel_gaps ? &sel->pixel_gaps[th->pixel] : NULL;
+    for (int i = 0; i < 4; i++) u->gap[i] = g ? g->gap[i] : 0.0, u->gap_n[i] = g ? g->gap_n[i] : 0.0;
     u->n = px->n, u->nonzero = px->nonzero, u->drawn = 0;
     u->c = rd_select_work_now(th);
     u->th = th, u->pixel = th->pixel;
@@ -292,7 +294,8 @@ static void run_close(rd_select *sel, rd_select_run *u)
     if (!u->th) return;
     rd_select_pixel *px = &sel->pixels[u->pixel];
     for (int c = 0; c < 3; c++) px->sum[c] = u->sum[c], px->sum2[c] = u->sum2[c];
-    for (int i = 0; i < 4; i++) px->gap[i] = u->gap[i], px->gap_n[i] = u->gap_n[i];
+    if (sel->pixel_gaps)
+        for (int i = 0; i < 4; i++) sel->pixel_gaps[u->pixel].gap[i] = u->gap[i], sel->pixel_gaps[u->pixel].gap_n[i] = u->gap_n[i];
     px->n = u->n, px->nonzero = u->nonzero;
     rd_select_work c1 = rd_select_work_now(u->th);
     px->cost += (double)(work_units(sel, u->use, &u->c, &c1) + u->drawn * sample_fixed_units(sel, u->use)); /* exact */
@@ -377,9 +380,9 @@ static vec3 estimate(const rd_render_ctx *ctx, const rd_select *sel, rd_thread *
     return rd_delta_radiance_eq(ctx->scene, r, mode, &rng, &th->counters);
 }
 
-/* Pilot samples [i0, i1) of pixel (x, y) with estimator e, added to the record px. */
+/* Pilot samples [i0, i1) of pixel (x, y) with estimator e, added to the record px and gaps g. */
 static void pilot_samples(const rd_render_ctx *ctx, rd_thread *th, const rd_select *sel, int x, int y,
-                          int e, rd_select_fn method, int i0, int i1, rd_select_pixel *px)
+                          int e, rd_select_fn method, int i0, int i1, rd_select_pixel *px, rd_select_gaps *g)
 {
     const rd_scene *s = ctx->scene;
     const rd_camera *cam = &s->camera;
@@ -397,7 +400,7 @@ static void pilot_samples(const rd_render_ctx *ctx, rd_thread *th, const rd_sele
         vec3 L = estimate(ctx, sel, th, e, method, r, &smp, &gap, &pass);
         th->pilot = 0;
         px->cost += (double)sample_units(sel, e, th, c0); /* (a dropped sample's work counts too) */
-        if (v3_finite(L)) pixel_add(px, L, gap, pass);
+        if (v3_finite(L)) pixel_add(px, g, L, gap, pass);
     }
 }
 
@@ -406,15 +409,20 @@ static void pilot_pixel(const rd_render_ctx *ctx, rd_thread *th, const rd_select
                         int e, rd_select_fn method, rd_select_stats *st)
 {
     rd_select_pixel px = {0};
-    pilot_samples(ctx, th, sel, x, y, e, method, 0, SEL_SPP, &px);
-    pixel_fold(st, &px);
+    rd_select_gaps g = {0};
+    pilot_samples(ctx, th, sel, x, y, e, method, 0, SEL_SPP, &px, &g);
+    pixel_fold(st, &px, &g);
 }
 
-/* The record in sel->pixels of pilot pixel (x, y), which holds the beams' pilot samples until
- * beams_pilot_fold. */
+/* The record in sel->pixels of pilot pixel (x, y), and its gaps (sel->pixel_gaps), which hold
+ * the beams' pilot samples until beams_pilot_fold. */
 static rd_select_pixel *pilot_record(rd_select *sel, int x, int y)
 {
     return &sel->pixels[(size_t)y * sel->width + x];
+}
+static rd_select_gaps *pilot_gaps(rd_select *sel, int x, int y)
+{
+    return &sel->pixel_gaps[(size_t)y * sel->width + x]; /* (the beams': allocated with them) */
 }
 
 /* Tile k's pilot: every other pixel each way, SEL_SPP samples of each estimator into its
@@ -426,7 +434,9 @@ static void pilot_tile(const rd_render_ctx *ctx, rd_thread *th, rd_select *sel, 
     for (int y = y0; y < y0 + RD_SELECT_TILE && y < sel->height; y += 2)
         for (int x = x0; x < x0 + RD_SELECT_TILE && x < sel->width; x += 2)
             for (int e = 0; e < sel->n; e++) { /* (of kind sel->kind[e]) */
-                if (e == b) pilot_samples(ctx, th, sel, x, y, e, method, 0, SEL_SPP_BEAMS_FIRST, pilot_record(sel, x, y));
+                if (e == b)
+                    pilot_samples(ctx, th, sel, x, y, e, method, 0, SEL_SPP_BEAMS_FIRST, pilot_record(sel, x, y),
+                                  pilot_gaps(sel, x, y));
                 else pilot_pixel(ctx, th, sel, x, y, e, method, &half_stats(sel, x, y)[sel->n * k + e]);
             }
 }
@@ -437,7 +447,8 @@ static void pilot_tile_beams_rest(const rd_render_ctx *ctx, rd_thread *th, rd_se
     int x0 = (k % sel->tiles_x) * RD_SELECT_TILE, y0 = (k / sel->tiles_x) * RD_SELECT_TILE;
     for (int y = y0; y < y0 + RD_SELECT_TILE && y < sel->height; y += 2)
         for (int x = x0; x < x0 + RD_SELECT_TILE && x < sel->width; x += 2)
-            pilot_samples(ctx, th, sel, x, y, b, method, SEL_SPP_BEAMS_FIRST, SEL_SPP, pilot_record(sel, x, y));
+            pilot_samples(ctx, th, sel, x, y, b, method, SEL_SPP_BEAMS_FIRST, SEL_SPP, pilot_record(sel, x, y),
+                          pilot_gaps(sel, x, y));
 }
 
 /* The beams' pilot records (estimator b) folded into their tiles' statistics, in pilot_tile's
@@ -450,8 +461,9 @@ static void beams_pilot_fold(rd_select *sel, int b, int clear)
         for (int y = y0; y < y0 + RD_SELECT_TILE && y < sel->height; y += 2)
             for (int x = x0; x < x0 + RD_SELECT_TILE && x < sel->width; x += 2) {
                 rd_select_pixel *px = pilot_record(sel, x, y);
-                pixel_fold(&half_stats(sel, x, y)[sel->n * k + b], px);
-                if (clear) memset(px, 0, sizeof *px);
+                rd_select_gaps *g = pilot_gaps(sel, x, y);
+                pixel_fold(&half_stats(sel, x, y)[sel->n * k + b], px, g);
+                if (clear) memset(px, 0, sizeof *px), memset(g, 0, sizeof *g);
             }
     }
 }
@@ -572,8 +584,9 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
     if (third) sel->kind[next++] = RD_SEL_DELTA_EQ;
     if (path) sel->kind[next++] = RD_SEL_PATH, sel->path = path, sel->path_cell_cost = more->path_cell_cost;
     if (beams) sel->kind[next++] = RD_SEL_BEAMS, sel->beams = beams, sel->pass_kind = RD_SEL_BEAMS;
-    if (beams && s->settings.select != RD_SELECT_PILOT && /* (only the epochs read the beams' gaps) */
-        !(sel->gaps = calloc(8 * (size_t)cam->width * cam->height, sizeof *sel->gaps))) {
+    if ((beams && !(sel->pixel_gaps = rd_alloc_lines((size_t)cam->width * cam->height * sizeof *sel->pixel_gaps))) ||
+        (beams && s->settings.select != RD_SELECT_PILOT && /* (only the epochs read the beams' gaps) */
+         !(sel->gaps = calloc(8 * (size_t)cam->width * cam->height, sizeof *sel->gaps)))) {
         rd_select_free(sel);
         snprintf(err, errlen, "out of memory for the tile selection's beams gaps (%dx%d pixels)", cam->width, cam->height);
         return RD_ERR_NOMEM;
@@ -647,7 +660,7 @@ void rd_select_free(rd_select *sel)
     free(sel->share), free(sel->weight);
     free(sel->trial);
     free(sel->stats);
-    free(sel->pixels);
+    free(sel->pixels), free(sel->pixel_gaps);
     free(sel->gaps);
     free(sel->runs);
     free(sel->trace.s);
@@ -686,7 +699,7 @@ uint64_t rd_select_pass_pixels(const rd_select *sel, uint64_t all)
 
 void rd_select_observe(rd_select *sel, uint64_t pixel, vec3 L, double cost)
 {
-    pixel_add(&sel->pixels[pixel], L, v3(0, 0, 0), -1);
+    pixel_add(&sel->pixels[pixel], NULL, L, v3(0, 0, 0), -1);
     sel->pixels[pixel].cost += (double)cost_units(cost); /* (whole units, as every record's) */
 }
 
@@ -744,24 +757,30 @@ void rd_select_epoch(rd_select *sel, const rd_comm *comm, const rd_select_end *e
     if (!sel->choice) return;
     _Static_assert(sizeof(rd_select_pixel) == RD_SELECT_PIXEL_DOUBLES * sizeof(double),
                    "rd_select_pixel is an array of doubles");
+    _Static_assert(sizeof(rd_select_gaps) == 8 * sizeof(double), "rd_select_gaps is an array of doubles");
     for (int i = 0; i < sel->n_runs; i++) run_close(sel, &sel->runs[i]); /* (no pass runs) */
     /* Several ranks: each holds the samples of the pixels it rendered and zeros elsewhere, so
      * the sum over the ranks is every pixel's samples, exactly (x + 0 = x). */
-    if (comm && comm->size > 1)
+    if (comm && comm->size > 1) {
         comm->reduce(comm->user, sel->pixels, (size_t)sel->width * sel->height * RD_SELECT_PIXEL_DOUBLES,
                      RD_COMM_DOUBLE, RD_COMM_SUM, -1);
+        if (sel->pixel_gaps)
+            comm->reduce(comm->user, sel->pixel_gaps, (size_t)sel->width * sel->height * 8, RD_COMM_DOUBLE, RD_COMM_SUM, -1);
+    }
     for (int y = 0; y < sel->height; y++)
         for (int x = 0; x < sel->width; x++) {
             int k = (y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE;
             rd_select_pixel *px = &sel->pixels[(size_t)y * sel->width + x];
+            rd_select_gaps *pg = sel->pixel_gaps ? &sel->pixel_gaps[(size_t)y * sel->width + x] : NULL;
             rd_select_stats *st = &half_stats(sel, x, y)[sel->n * k + rd_select_uses(sel, x, y)];
-            pixel_fold(st, px);
+            pixel_fold(st, px, pg);
             st->image_n += px->n, st->image_cost += px->cost / RD_SELECT_COST_UNIT; /* (the image's) */
-            if (sel->gaps) {
+            if (sel->gaps && pg) {
                 double *g = &sel->gaps[8 * ((size_t)y * sel->width + x)];
-                for (int i = 0; i < 4; i++) g[i] += px->gap[i], g[4 + i] += px->gap_n[i];
+                for (int i = 0; i < 4; i++) g[i] += pg->gap[i], g[4 + i] += pg->gap_n[i];
             }
             memset(px, 0, sizeof *px);
+            if (pg) memset(pg, 0, sizeof *pg);
         }
     bias_fold(sel);
     rd_select_choose_tiles(sel, end);
@@ -783,7 +802,8 @@ vec3 rd_select_radiance(const rd_render_ctx *ctx, rd_select *sel, rd_select_fn m
         int pass;
         vec3 L = estimate(ctx, sel, th, use, method, r, smp, &gap, &pass);
         sel->pixels[th->pixel].cost += (double)sample_units(sel, use, th, c0); /* (a dropped sample's too) */
-        if (v3_finite(L)) pixel_add(&sel->pixels[th->pixel], L, gap, pass);
+        if (v3_finite(L))
+            pixel_add(&sel->pixels[th->pixel], sel->pixel_gaps ? &sel->pixel_gaps[th->pixel] : NULL, L, gap, pass);
         return L;
     }
     rd_select_run *u = &sel->runs[th->index];
