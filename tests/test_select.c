@@ -2237,8 +2237,8 @@ static void beams_gaps(rd_select *sel, double g, double D, int flip, double *S, 
             double d = D * col[x / 8], e = flip && (x / 8 + y / 8) & 1 ? -d : d, sg = (x + y) & 1 ? -g : g;
             const double c[4] = {x & 1 ? 1.0 : 2.0, x & 1 ? 1.0 : 3.0, 1.0, x & 1 ? 1.0 : 2.0};
             const double mean[4] = {sg * (1.0 + d), sg * (1.0 + e), sg * (1.0 - d), sg * (1.0 - e)};
-            double *gp = &sel->gaps[8 * (y * 48 + x)];
-            for (int j = 0; j < 4; j++) gp[j] = c[j] * mean[j], gp[4 + j] = c[j];
+            rd_select_gaps *gp = &sel->gaps[y * 48 + x];
+            for (int j = 0; j < 4; j++) gp->gap[j] = c[j] * mean[j], gp->gap_n[j] = c[j];
             const double ne = c[0] + c[2], no = c[1] + c[3], w = ne * no / (ne + no);
             if (!S) continue;
             S[k] += w * (mean[0] + mean[2]) * (mean[1] + mean[3]) / 4.0;
@@ -2280,7 +2280,7 @@ Test(select, the_beams_bias_is_read_from_every_pixel_s_gaps_with_its_noise_from_
         char err[RD_ERRLEN];
         cr_assert(rd_select_init(&sel, W, H, 1.0, 3, err, sizeof err) == RD_OK, "%s", err);
         sel.kind[2] = RD_SEL_BEAMS, sel.paths &= ~(1u << 2);
-        cr_assert((sel.gaps = calloc(8 * W * H, sizeof *sel.gaps)) != NULL); /* (as rd_select_prepare_more with the beams) */
+        cr_assert((sel.gaps = calloc(W * H, sizeof *sel.gaps)) != NULL); /* (as rd_select_prepare_more with the beams) */
         for (int k = 0; k < T; k++) {
             fake_pilot(&sel, 3 * k, 0.5, 0.05, 1.0, 1.0);
             fake_pilot(&sel, 3 * k + 1, 0.5, 0.05, 1.0, 1.0);
@@ -2336,7 +2336,7 @@ Test(select, a_tile_leaves_the_beams_at_once_where_the_image_reads_their_bias)
         char err[RD_ERRLEN];
         cr_assert(rd_select_init(&sel, 48, 40, 1.0, 3, err, sizeof err) == RD_OK, "%s", err);
         sel.kind[2] = RD_SEL_BEAMS, sel.paths &= ~(1u << 2);
-        cr_assert((sel.gaps = calloc(8 * 48 * 40, sizeof *sel.gaps)) != NULL);
+        cr_assert((sel.gaps = calloc(48 * 40, sizeof *sel.gaps)) != NULL);
         const int held = c == 2 ? RD_SEL_METHOD : 2;
         const double vb = c == 0 ? 0.5 : 0.001, vm = c == 2 ? 0.5 : 0.05;
         for (int k = 0; k < T; k++) {

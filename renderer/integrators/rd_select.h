@@ -122,8 +122,8 @@ typedef struct {
                                 tiles_y: a tile's samples are the sum of its two halves' */
     rd_select_pixel *pixels; /* per pixel, the current epoch's samples */
     rd_select_gaps *pixel_gaps; /* per pixel, the current epoch's beams' gaps; NULL without the beams */
-    double *gaps; /* per pixel, the beams' gaps of all its image samples so far, as rd_select_gaps
-                     (select_rule.c, "The beams' bias"); NULL without the beams or the epochs */
+    rd_select_gaps *gaps; /* per pixel, the beams' gaps of all its image samples so far
+                             (select_rule.c, "The beams' bias"); NULL without the beams or the epochs */
     double bias_ratio, bias_se, bias_r2; /* the last choice's image-wide ratio of the beams' squared bias to
                                    their variance a sample, at the radius then, before the margin,
                                    and its standard error (select_rule.c bias_ratio; 0 without the

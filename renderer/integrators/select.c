@@ -584,9 +584,10 @@ rd_status rd_select_prepare_more(const rd_render_ctx *ctx, rd_select_fn method, 
     if (third) sel->kind[next++] = RD_SEL_DELTA_EQ;
     if (path) sel->kind[next++] = RD_SEL_PATH, sel->path = path, sel->path_cell_cost = more->path_cell_cost;
     if (beams) sel->kind[next++] = RD_SEL_BEAMS, sel->beams = beams, sel->pass_kind = RD_SEL_BEAMS;
-    if ((beams && !(sel->pixel_gaps = rd_alloc_lines((size_t)cam->width * cam->height * sizeof *sel->pixel_gaps))) ||
-        (beams && s->settings.select != RD_SELECT_PILOT && /* (only the epochs read the beams' gaps) */
-         !(sel->gaps = calloc(8 * (size_t)cam->width * cam->height, sizeof *sel->gaps)))) {
+    const size_t np = (size_t)cam->width * cam->height;
+    if (beams && (!(sel->pixel_gaps = rd_alloc_lines(np * sizeof *sel->pixel_gaps)) ||
+                  (s->settings.select != RD_SELECT_PILOT && /* (only the epochs read the beams' gaps) */
+                   !(sel->gaps = calloc(np, sizeof *sel->gaps))))) {
         rd_select_free(sel);
         snprintf(err, errlen, "out of memory for the tile selection's beams gaps (%dx%d pixels)", cam->width, cam->height);
         return RD_ERR_NOMEM;
@@ -741,7 +742,7 @@ static void bias_fold(rd_select *sel)
         }
     for (int y = 0; y < sel->height; y++)
         for (int x = 0; x < sel->width; x++) {
-            const double *s = &sel->gaps[8 * ((size_t)y * sel->width + x)], *c = s + 4;
+            const double *s = sel->gaps[(size_t)y * sel->width + x].gap, *c = sel->gaps[(size_t)y * sel->width + x].gap_n;
             if (!(c[0] > 0.0 && c[1] > 0.0 && c[2] > 0.0 && c[3] > 0.0)) continue;
             int k = (y / RD_SELECT_TILE) * sel->tiles_x + x / RD_SELECT_TILE;
             rd_select_stats *st = &half_stats(sel, x, y)[sel->n * k + b];
@@ -776,8 +777,8 @@ void rd_select_epoch(rd_select *sel, const rd_comm *comm, const rd_select_end *e
             pixel_fold(st, px, pg);
             st->image_n += px->n, st->image_cost += px->cost / RD_SELECT_COST_UNIT; /* (the image's) */
             if (sel->gaps && pg) {
-                double *g = &sel->gaps[8 * ((size_t)y * sel->width + x)];
-                for (int i = 0; i < 4; i++) g[i] += pg->gap[i], g[4 + i] += pg->gap_n[i];
+                rd_select_gaps *g = &sel->gaps[(size_t)y * sel->width + x];
+                for (int i = 0; i < 4; i++) g->gap[i] += pg->gap[i], g->gap_n[i] += pg->gap_n[i];
             }
             memset(px, 0, sizeof *px);
             if (pg) memset(pg, 0, sizeof *pg);
